@@ -1,0 +1,21 @@
+"""sonar_embree: a physically based side-scan sonar simulator.
+
+Any mesh scene and vehicle path in; calibrated port/starboard time series and
+waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echoes.
+
+>>> import sonar_embree as se
+>>> scene = se.Scene().add(se.seafloor.flat(size_m=(400, 200)), label="seafloor")
+>>> rec = se.simulate(scene, se.Trajectory.line((0, 0, 10), (20, 0, 10), 5), se.Sonar(), se.Pulse.cw())
+"""
+__version__ = "0.1.0"
+
+from . import seafloor
+from .config import FanSettings, Material, Pulse, Sonar
+from .errors import ConfigError, SceneError, SonarEmbreeError
+from .record import Record
+from .scene import Scene
+from .simulate import simulate
+from .trajectory import Trajectory
+
+__all__ = ["ConfigError", "FanSettings", "Material", "Pulse", "Record", "Scene", "SceneError",
+           "Sonar", "SonarEmbreeError", "Trajectory", "seafloor", "simulate", "__version__"]

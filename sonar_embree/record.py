@@ -1,0 +1,117 @@
+"""Simulation results: :class:`Record`, its file format (npz) and its waterfall PNG."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .config import Pulse, Sonar
+from .errors import ConfigError
+from .trajectory import Trajectory
+
+FORMAT_VERSION = 1
+
+
+def atomic_write(path, write_fn, suffix=""):
+    """Call ``write_fn(tmp_path)`` then rename onto ``path``: no half-written file is ever left."""
+    path = os.fspath(path)
+    d = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix or os.path.splitext(path)[1])
+    os.close(fd)
+    try:
+        write_fn(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """Port and starboard time series of every ping, with their axes and poses.
+
+    Attributes
+    ----------
+    port, starboard : (n_pings, n_samples) float64
+        Linear intensity (unit source: on-axis intensity 1 at 1 m).
+    time_s : (n_samples,) float64
+        Time from the start of transmission, s.
+    trajectory : Trajectory
+        The pose of every ping.
+    sonar : Sonar
+    pulse : Pulse
+    altitude_m : (n_pings,) float64
+        Distance to the first surface straight below the sonar (NaN if none in range).
+    attrs : dict
+        Mode, seed and other settings.
+    """
+
+    port: np.ndarray
+    starboard: np.ndarray
+    time_s: np.ndarray
+    trajectory: Trajectory
+    sonar: Sonar
+    pulse: Pulse
+    altitude_m: np.ndarray
+    attrs: dict = field(default_factory=dict)
+
+    @property
+    def slant_range_m(self) -> np.ndarray:
+        """Slant range of each sample, R = c·t/2 (m), shape (n_samples,)."""
+        return 0.5 * self.sonar.sound_speed_m_s * self.time_s
+
+    @property
+    def n_pings(self) -> int:
+        return self.port.shape[0]
+
+    # ------------------------------------------------------------------ files
+    def save(self, path) -> None:
+        """Write the record to ``path`` (.npz); written atomically."""
+        from . import __version__
+
+        meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
+                "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),
+                "attrs": self.attrs}
+        t = self.trajectory
+
+        def write(tmp):
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, port=self.port, starboard=self.starboard, time_s=self.time_s,
+                                    altitude_m=self.altitude_m, positions_m=t.positions_m,
+                                    heading_deg=t.heading_deg, pitch_deg=t.pitch_deg, roll_deg=t.roll_deg,
+                                    times_s=t.times_s, meta=np.array(json.dumps(meta)))
+
+        atomic_write(path, write, suffix=".npz")
+
+    @classmethod
+    def load(cls, path) -> "Record":
+        """Read a record written by :meth:`save`."""
+        path = os.fspath(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                meta = json.loads(str(z["meta"]))
+                arrays = {k: z[k] for k in z.files if k != "meta"}
+        except (OSError, ValueError, KeyError) as exc:
+            raise ConfigError(f"{path}: not a sonar_embree record ({exc})") from None
+        traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
+                          arrays["roll_deg"], arrays["times_s"])
+        return cls(arrays["port"], arrays["starboard"], arrays["time_s"], traj, Sonar(**meta["sonar"]),
+                   Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}))
+
+    def waterfall(self, **kwargs) -> np.ndarray:
+        """The waterfall as an 8-bit image; keywords as :func:`sonar_embree.waterfall.waterfall_image`."""
+        from .waterfall import waterfall_image
+
+        return waterfall_image(self, **kwargs)
+
+    def save_png(self, path, **kwargs) -> None:
+        """Write the waterfall PNG (port mirrored on the left, starboard on the right); atomic."""
+        import imageio.v3 as iio
+
+        img = self.waterfall(**kwargs)
+        atomic_write(path, lambda tmp: iio.imwrite(tmp, img, extension=".png"), suffix=".png")

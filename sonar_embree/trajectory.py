@@ -1,0 +1,242 @@
+"""Vehicle trajectories: time-stamped poses (PHYSICS.md §1).
+
+World axes: x east, y north, z up (m). Heading in degrees clockwise from north
+(+y), pitch positive nose up, roll positive starboard down; attitude composes as
+heading, then pitch, then roll (intrinsic z-y-x). Body axes: forward, starboard, down.
+"""
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError
+
+# World (east, north, up) from aerospace NED (north, east, down).
+_ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+
+CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_deg")
+
+
+def body_to_world(heading_deg, pitch_deg, roll_deg):
+    """Rotation matrices taking body (forward, starboard, down) vectors to world (x, y, z).
+
+    Parameters
+    ----------
+    heading_deg, pitch_deg, roll_deg : (n,) float
+        Attitude angles in degrees.
+
+    Returns
+    -------
+    (n, 3, 3) float
+        ``R[i] @ v_body`` is ``v`` in world axes; columns are the body axes.
+    """
+    h, p, r = (np.radians(np.asarray(a, dtype=np.float64)) for a in (heading_deg, pitch_deg, roll_deg))
+    ch, sh, cp, sp, cr, sr = np.cos(h), np.sin(h), np.cos(p), np.sin(p), np.cos(r), np.sin(r)
+    n = h.shape[0]
+    m = np.empty((n, 3, 3))
+    # Standard aerospace R_nb = Rz(h) Ry(p) Rx(r) in NED.
+    m[:, 0, 0] = ch * cp
+    m[:, 0, 1] = ch * sp * sr - sh * cr
+    m[:, 0, 2] = ch * sp * cr + sh * sr
+    m[:, 1, 0] = sh * cp
+    m[:, 1, 1] = sh * sp * sr + ch * cr
+    m[:, 1, 2] = sh * sp * cr - ch * sr
+    m[:, 2, 0] = -sp
+    m[:, 2, 1] = cp * sr
+    m[:, 2, 2] = cp * cr
+    return np.einsum("ij,njk->nik", _ENU_FROM_NED, m)
+
+
+def _as_float_array(name, value, n=None):
+    try:
+        a = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ConfigError(f"Trajectory.{name} must be numeric, got {value!r}") from None
+    if n is not None:
+        if a.ndim == 0:
+            a = np.full(n, float(a))
+        if a.shape != (n,):
+            raise ConfigError(f"Trajectory.{name} must have shape ({n},), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ConfigError(f"Trajectory.{name} contains NaN or inf")
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """Poses of the sonar at each ping.
+
+    Parameters
+    ----------
+    positions_m : (n, 3) float
+        Transducer positions in world metres (x east, y north, z up).
+    heading_deg : (n,) float or float
+        Heading, degrees clockwise from north.
+    pitch_deg, roll_deg : (n,) float or float
+        Pitch (nose up +) and roll (starboard down +) in degrees.
+    times_s : (n,) float or None
+        Ping times in s, strictly increasing; ``None`` means one ping per second.
+    """
+
+    positions_m: np.ndarray
+    heading_deg: np.ndarray = 0.0
+    pitch_deg: np.ndarray = 0.0
+    roll_deg: np.ndarray = 0.0
+    times_s: np.ndarray | None = None
+
+    def __post_init__(self):
+        pos = _as_float_array("positions_m", self.positions_m)
+        if pos.ndim != 2 or pos.shape[1] != 3:
+            raise ConfigError(f"Trajectory.positions_m must have shape (n, 3), got {pos.shape}")
+        n = pos.shape[0]
+        if n < 1:
+            raise ConfigError("Trajectory needs at least one pose, got 0")
+        object.__setattr__(self, "positions_m", pos)
+        for name in ("heading_deg", "pitch_deg", "roll_deg"):
+            object.__setattr__(self, name, _as_float_array(name, getattr(self, name), n))
+        for name in ("pitch_deg", "roll_deg"):
+            if np.any(np.abs(getattr(self, name)) >= 90.0):
+                raise ConfigError(f"Trajectory.{name} must lie in (-90, 90) degrees")
+        t = np.arange(n, dtype=np.float64) if self.times_s is None else self.times_s
+        t = _as_float_array("times_s", t, n)
+        if n > 1 and np.any(np.diff(t) <= 0):
+            raise ConfigError("Trajectory.times_s must be strictly increasing")
+        object.__setattr__(self, "times_s", t)
+
+    def __len__(self) -> int:
+        return self.positions_m.shape[0]
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, Trajectory):
+            return NotImplemented
+        return all(np.array_equal(getattr(self, k), getattr(other, k))
+                   for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s"))
+
+    @property
+    def n_pings(self) -> int:
+        return len(self)
+
+    def rotations(self) -> np.ndarray:
+        """Body-to-world rotation per ping, (n, 3, 3)."""
+        return body_to_world(self.heading_deg, self.pitch_deg, self.roll_deg)
+
+    # ------------------------------------------------------------------ constructors
+    @classmethod
+    def line(cls, start, end, n_pings: int, *, speed_m_s: float = 2.0, pitch_deg=0.0,
+             roll_deg=0.0, heading_deg=None) -> "Trajectory":
+        """Evenly spaced pings on the straight line from ``start`` to ``end`` (m).
+
+        The heading follows the line (90° for a line along +x) unless given;
+        ping times follow from ``speed_m_s``.
+        """
+        if isinstance(n_pings, bool) or not isinstance(n_pings, (int, np.integer)) or n_pings < 1:
+            raise ConfigError(f"Trajectory.line n_pings must be an integer >= 1, got {n_pings!r}")
+        if not (isinstance(speed_m_s, (int, float)) and math.isfinite(speed_m_s) and speed_m_s > 0):
+            raise ConfigError(f"Trajectory.line speed_m_s must be > 0, got {speed_m_s!r}")
+        a = _as_float_array("line start", start)
+        b = _as_float_array("line end", end)
+        if a.shape != (3,) or b.shape != (3,):
+            raise ConfigError("Trajectory.line start and end must be (x, y, z) triples")
+        d = b - a
+        if heading_deg is None:
+            if math.hypot(d[0], d[1]) == 0.0:
+                if n_pings > 1:
+                    raise ConfigError("Trajectory.line: start and end have the same x, y; give heading_deg")
+                heading_deg = 0.0
+            else:
+                heading_deg = math.degrees(math.atan2(d[0], d[1])) % 360.0
+        u = np.linspace(0.0, 1.0, n_pings)
+        pos = a[None, :] + u[:, None] * d[None, :]
+        times = u * np.linalg.norm(d) / speed_m_s
+        if n_pings > 1 and times[-1] == 0.0:
+            times = np.arange(n_pings, dtype=np.float64)
+        return cls(pos, heading_deg, pitch_deg, roll_deg, times)
+
+    @classmethod
+    def through_waypoints(cls, waypoints_m, n_pings: int, *, speed_m_s: float = 2.0,
+                          pitch_deg=0.0, roll_deg=0.0) -> "Trajectory":
+        """A smooth path through ``waypoints_m`` ((m, 3), m ≥ 2) sampled evenly in arc length.
+
+        A cubic spline in chord-length parameter (straight for two waypoints); the
+        heading follows the horizontal tangent.
+        """
+        from scipy.interpolate import CubicSpline
+
+        w = _as_float_array("waypoints_m", waypoints_m)
+        if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2:
+            raise ConfigError(f"Trajectory.through_waypoints needs (m>=2, 3) waypoints, got {w.shape}")
+        if isinstance(n_pings, bool) or not isinstance(n_pings, (int, np.integer)) or n_pings < 1:
+            raise ConfigError(f"Trajectory.through_waypoints n_pings must be an integer >= 1, got {n_pings!r}")
+        chord = np.linalg.norm(np.diff(w, axis=0), axis=1)
+        if np.any(chord == 0.0):
+            raise ConfigError("Trajectory.through_waypoints: two consecutive waypoints coincide")
+        u = np.concatenate(([0.0], np.cumsum(chord)))
+        spline = CubicSpline(u, w, bc_type="natural") if w.shape[0] > 2 else None
+        dense_u = np.linspace(0.0, u[-1], max(2000, 20 * n_pings))
+        if spline is None:
+            dense = w[0] + (dense_u / u[-1])[:, None] * (w[1] - w[0])
+        else:
+            dense = spline(dense_u)
+        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))))
+        s = np.linspace(0.0, arc[-1], n_pings)
+        pu = np.interp(s, arc, dense_u)
+        if spline is None:
+            pos = w[0] + (pu / u[-1])[:, None] * (w[1] - w[0])
+            tan = np.broadcast_to(w[1] - w[0], pos.shape)
+        else:
+            pos, tan = spline(pu), spline(pu, 1)
+        heading = np.degrees(np.arctan2(tan[:, 0], tan[:, 1])) % 360.0
+        return cls(pos, heading, pitch_deg, roll_deg, s / speed_m_s if n_pings > 1 else None)
+
+    @classmethod
+    def from_csv(cls, path) -> "Trajectory":
+        """Read a trajectory from CSV with a header row.
+
+        Columns (any order): ``x_m, y_m, z_m`` required; ``heading_deg``,
+        ``pitch_deg``, ``roll_deg`` (default 0) and ``time_s`` optional.
+        """
+        path = os.fspath(path)
+        try:
+            with open(path, newline="") as fh:
+                rows = list(csv.reader(fh))
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read trajectory CSV ({exc.strerror or exc})") from None
+        rows = [r for r in rows if r and any(c.strip() for c in r)]
+        if not rows:
+            raise ConfigError(f"{path}: empty trajectory CSV")
+        header = [c.strip() for c in rows[0]]
+        unknown = [c for c in header if c not in CSV_COLUMNS]
+        if unknown:
+            raise ConfigError(f"{path}: unknown trajectory column {unknown[0]!r} (allowed: {', '.join(CSV_COLUMNS)})")
+        for req in ("x_m", "y_m", "z_m"):
+            if req not in header:
+                raise ConfigError(f"{path}: trajectory CSV lacks column {req!r}")
+        if len(rows) < 2:
+            raise ConfigError(f"{path}: trajectory needs at least one pose, got 0")
+        try:
+            data = np.array([[float(c) for c in r] for r in rows[1:]], dtype=np.float64)
+        except ValueError as exc:
+            raise ConfigError(f"{path}: non-numeric trajectory value ({exc})") from None
+        if data.ndim != 2 or data.shape[1] != len(header):
+            raise ConfigError(f"{path}: every trajectory row needs {len(header)} values")
+        col = {name: data[:, i] for i, name in enumerate(header)}
+        try:
+            return cls(np.stack([col["x_m"], col["y_m"], col["z_m"]], axis=1),
+                       col.get("heading_deg", 0.0), col.get("pitch_deg", 0.0),
+                       col.get("roll_deg", 0.0), col.get("time_s"))
+        except ConfigError as exc:
+            raise ConfigError(f"{path}: {exc}") from None
+
+    def to_csv(self, path) -> None:
+        """Write the trajectory as CSV with the columns of :meth:`from_csv`."""
+        data = np.column_stack([self.times_s, self.positions_m, self.heading_deg, self.pitch_deg, self.roll_deg])
+        tmp = os.fspath(path) + ".tmp"
+        with open(tmp, "w", newline="") as fh:
+            fh.write(",".join(CSV_COLUMNS) + "\n")
+            np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+        os.replace(tmp, path)

@@ -1,0 +1,87 @@
+"""Waterfall images of a :class:`~sonar_embree.record.Record` (the one display module).
+
+Rows are pings (first ping at the top); the port channel is mirrored on the left so
+that range grows outwards from the centre line, starboard is on the right.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import ConfigError
+
+
+def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None):
+    """Resample (n_pings, n_samples) slant-range data onto a common ground-range grid.
+
+    Ground range x = √(R² − h²) with the per-ping altitude h. Samples nearer than the
+    altitude, pings without altitude (NaN) and grid points beyond the record are 0.
+
+    Returns
+    -------
+    ground_m : (n_columns,) float
+        Ground range of each column, m.
+    image : (n_pings, n_columns) float
+    """
+    r = np.asarray(slant_range_m)
+    n_cols = n_columns or r.shape[0]
+    h = np.asarray(altitude_m, dtype=np.float64)
+    hmin = np.nanmin(h) if np.any(np.isfinite(h)) else 0.0
+    xmax = np.sqrt(max(r[-1] ** 2 - hmin ** 2, 0.0))
+    ground = np.linspace(0.0, xmax, n_cols)
+    out = np.zeros((intensity.shape[0], n_cols))
+    for i in range(intensity.shape[0]):
+        if not np.isfinite(h[i]):
+            continue
+        rr = np.sqrt(ground ** 2 + h[i] ** 2)
+        out[i] = np.interp(rr, r, intensity[i], left=0.0, right=0.0)
+    return ground, out
+
+
+def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
+                    ground_range: bool = False, tvg: bool = False, reference_percentile: float = 99.5):
+    """An 8-bit grey waterfall of both channels.
+
+    Parameters
+    ----------
+    record : Record
+    scale : {"db", "gamma"}
+        "db": 10·log10 intensity over ``dynamic_range_db`` below the reference
+        level; "gamma": (I / reference)^gamma.
+    dynamic_range_db : float
+        Displayed range for ``scale="db"``, dB.
+    gamma : float
+        Exponent for ``scale="gamma"``.
+    ground_range : bool
+        Resample to ground range using the per-ping altitude.
+    tvg : bool
+        Display-only range compensation by R⁴·10^(2αR/10), for viewing far range.
+    reference_percentile : float
+        Percentile of the positive intensities that maps to white.
+
+    Returns
+    -------
+    (n_pings, 2·n_columns) uint8
+    """
+    if scale not in ("db", "gamma"):
+        raise ConfigError(f"waterfall scale must be 'db' or 'gamma', got {scale!r}")
+    if not dynamic_range_db > 0 or not gamma > 0:
+        raise ConfigError("waterfall dynamic_range_db and gamma must be > 0")
+    r = record.slant_range_m
+    sides = [np.asarray(record.port, dtype=np.float64), np.asarray(record.starboard, dtype=np.float64)]
+    if tvg:
+        gain = r ** 4 * 10.0 ** (2.0 * record.sonar.absorption_db_per_m * r / 10.0)
+        sides = [s * gain for s in sides]
+    if ground_range:
+        sides = [to_ground_range(s, r, record.altitude_m)[1] for s in sides]
+    both = np.concatenate(sides, axis=1)
+    pos = both[both > 0]
+    ref = np.percentile(pos, reference_percentile) if pos.size else 1.0
+    if scale == "db":
+        with np.errstate(divide="ignore"):
+            db = 10.0 * np.log10(np.maximum(both, 0.0) / ref)
+        v = np.clip(1.0 + db / dynamic_range_db, 0.0, 1.0)
+    else:
+        v = np.clip(np.maximum(both, 0.0) / ref, 0.0, 1.0) ** gamma
+    img = np.round(255.0 * v).astype(np.uint8)
+    n = sides[0].shape[1]
+    return np.concatenate([img[:, :n][:, ::-1], img[:, n:]], axis=1)
