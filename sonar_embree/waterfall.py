@@ -37,8 +37,21 @@ def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None):
     return ground, out
 
 
+def block_mean(x, block: int):
+    """Mean over consecutive blocks of ``block`` columns (the last block may be shorter)."""
+    if block <= 1:
+        return x
+    n = x.shape[1]
+    pad = (-n) % block
+    xp = np.pad(x, ((0, 0), (0, pad)))
+    counts = np.full(xp.shape[1] // block, float(block))
+    counts[-1] = block - pad
+    return xp.reshape(x.shape[0], -1, block).sum(axis=2) / counts
+
+
 def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
-                    ground_range: bool = False, tvg: bool = False, reference_percentile: float = 99.5):
+                    ground_range: bool = False, tvg: bool = False, reference_percentile: float = 99.5,
+                    max_columns: int | None = 1024):
     """An 8-bit grey waterfall of both channels.
 
     Parameters
@@ -57,6 +70,9 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
         Display-only range compensation by R⁴·10^(2αR/10), for viewing far range.
     reference_percentile : float
         Percentile of the positive intensities that maps to white.
+    max_columns : int or None
+        Most columns per side; longer records are averaged (in intensity) over
+        blocks of whole samples. None keeps one column per sample.
 
     Returns
     -------
@@ -73,6 +89,10 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
         sides = [s * gain for s in sides]
     if ground_range:
         sides = [to_ground_range(s, r, record.altitude_m)[1] for s in sides]
+    if max_columns is not None:
+        if max_columns < 1:
+            raise ConfigError(f"waterfall max_columns must be >= 1, got {max_columns!r}")
+        sides = [block_mean(s, int(np.ceil(s.shape[1] / max_columns))) for s in sides]
     both = np.concatenate(sides, axis=1)
     pos = both[both > 0]
     ref = np.percentile(pos, reference_percentile) if pos.size else 1.0

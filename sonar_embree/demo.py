@@ -1,0 +1,67 @@
+"""The embedded default scene: the paper's anchor mine (Woock & Beyerer §4.1).
+
+A simplistic moored mine: a cube sinker on the seafloor and three spheres above
+it (two small mooring floats and the mine body), passed by a sonar whose main lobe
+points roughly at the mooring.
+"""
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+
+from . import seafloor
+from .config import Material, Pulse, Sonar
+from .scene import Scene
+from .trajectory import Trajectory
+
+#: Object positions (m): sinker cube edge 1 m; spheres (centre, radius).
+MINE_GROUND_RANGE_M = 24.0
+SINKER = {"center": (0.0, -MINE_GROUND_RANGE_M, 0.5), "edge": 1.0}
+SPHERES = (("float_low", (0.0, -MINE_GROUND_RANGE_M, 2.0), 0.25),
+           ("float_high", (0.0, -MINE_GROUND_RANGE_M, 3.2), 0.25),
+           ("mine", (0.0, -MINE_GROUND_RANGE_M, 4.8), 0.6))
+
+
+def anchor_mine_objects():
+    """(label, trimesh.Trimesh, Material) of the mine's parts, world metres."""
+    cube = trimesh.creation.box(extents=(SINKER["edge"],) * 3)
+    cube.apply_translation(SINKER["center"])
+    out = [("sinker", cube, Material(backscatter_db=-15.0))]
+    for label, centre, radius in SPHERES:
+        s = trimesh.creation.icosphere(subdivisions=4, radius=radius)
+        s.apply_translation(centre)
+        out.append((label, s, Material(backscatter_db=-15.0)))
+    return out
+
+
+def anchor_mine_scene(seed: int = 0) -> Scene:
+    """The anchor-mine scene on a gently undulating (Perlin, 0.3 m) sandy floor."""
+    scene = Scene()
+    scene.add(seafloor.perlin(size_m=(120.0, 120.0), resolution_m=0.5, relief_m=0.3, feature_m=30.0,
+                              seed=seed), material=Material(backscatter_db=-27.0), label="seafloor")
+    for label, mesh, mat in anchor_mine_objects():
+        scene.add(mesh, material=mat, label=label)
+    return scene
+
+
+def anchor_mine_setup(n_pings: int = 240):
+    """Scene, straight trajectory at 10 m altitude, default sonar and 100 µs CW pulse."""
+    traj = Trajectory.line(start=(-12.0, 0.0, 10.0), end=(12.0, 0.0, 10.0), n_pings=n_pings)
+    return anchor_mine_scene(), traj, Sonar(max_range_m=40.0), Pulse.cw(duration_s=100e-6, taper=0.1)
+
+
+def write_anchor_mine_obj(path) -> None:
+    """Write the mine (without seafloor) as a multi-object OBJ, one named object per part."""
+    from .record import atomic_write
+
+    def write(tmp):
+        lines, base = ["# sonar_embree anchor-mine test scene (Woock & Beyerer 4.1), metres, z up"], 1
+        for label, mesh, _ in anchor_mine_objects():
+            lines.append(f"o {label}")
+            lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in np.asarray(mesh.vertices)]
+            lines += [f"f {a + base} {b + base} {c + base}" for a, b, c in np.asarray(mesh.faces)]
+            base += len(mesh.vertices)
+        with open(tmp, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+
+    atomic_write(path, write, suffix=".obj")

@@ -1,0 +1,173 @@
+"""TOML run descriptions mapped 1:1 onto the dataclasses.
+
+Tables: ``[sonar]`` (fields of :class:`Sonar`), ``[pulse]`` (:class:`Pulse`),
+``[fan]`` (:class:`FanSettings`), ``[simulation]`` (``speckle``, ``seed``),
+``[trajectory]`` (``kind`` = "line" | "waypoints" | "csv" and that constructor's
+arguments), ``[[objects]]`` (``path`` to a mesh file *or* ``seafloor`` =
+"flat" | "perlin" | "ripples" with that function's arguments; optional ``label``
+and ``material = {backscatter_db = …}``) and ``[output]``. Relative paths are taken
+from the config file's folder. Any unknown key is an error naming it.
+"""
+from __future__ import annotations
+
+import difflib
+import inspect
+import os
+from dataclasses import dataclass
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python < 3.11
+    import tomli as tomllib
+
+from . import seafloor
+from .config import FanSettings, Material, Pulse, Sonar, field_names
+from .errors import ConfigError, SonarEmbreeError
+from .scene import Scene
+from .trajectory import Trajectory
+
+SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
+TRAJECTORY_KINDS = {
+    "line": ("start", "end", "n_pings", "speed_m_s", "pitch_deg", "roll_deg", "heading_deg"),
+    "waypoints": ("waypoints", "n_pings", "speed_m_s", "pitch_deg", "roll_deg"),
+    "csv": ("path",),
+}
+TOP_KEYS = ("sonar", "pulse", "fan", "simulation", "trajectory", "objects", "output")
+SIMULATION_KEYS = ("speckle", "seed")
+OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg")
+
+
+@dataclass(frozen=True)
+class OutputOptions:
+    """What ``render`` writes: waterfall PNG and/or the record (.npz), and how the PNG looks."""
+
+    png: bool = True
+    npz: bool = True
+    scale: str = "db"
+    dynamic_range_db: float = 50.0
+    gamma: float = 0.5
+    ground_range: bool = False
+    tvg: bool = False
+
+    def png_kwargs(self) -> dict:
+        return {"scale": self.scale, "dynamic_range_db": self.dynamic_range_db, "gamma": self.gamma,
+                "ground_range": self.ground_range, "tvg": self.tvg}
+
+
+@dataclass(frozen=True, eq=False)
+class RunConfig:
+    """A complete render job read from TOML."""
+
+    scene: Scene
+    trajectory: Trajectory
+    sonar: Sonar
+    pulse: Pulse
+    fan: FanSettings
+    speckle: bool
+    seed: int
+    output: OutputOptions
+
+
+def _check_keys(where: str, table, allowed, source: str):
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: {where} must be a table, got {type(table).__name__}")
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, allowed, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else f" (allowed: {', '.join(allowed)})"
+            raise ConfigError(f"{source}: unknown key {key!r} in {where}{hint}")
+
+
+def _build(source: str, where: str, fn, kwargs):
+    try:
+        return fn(**kwargs)
+    except SonarEmbreeError as exc:
+        raise type(exc)(f"{source}: {where}: {exc}") from None
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"{source}: {where}: {exc}") from None
+
+
+def _dataclass_table(data, name, cls, source):
+    table = data.get(name, {})
+    _check_keys(f"[{name}]", table, field_names(cls), source)
+    return _build(source, f"[{name}]", cls, table)
+
+
+def _resolve(base: str, path) -> str:
+    if not isinstance(path, str):
+        raise ConfigError(f"path must be a string, got {path!r}")
+    return path if os.path.isabs(path) else os.path.join(base, path)
+
+
+def load_run_config(path) -> RunConfig:
+    """Read and validate a TOML run description; raises a one-line ``ConfigError``/``SceneError``."""
+    source = os.fspath(path)
+    try:
+        with open(source, "rb") as fh:
+            data = tomllib.load(fh)
+    except OSError as exc:
+        raise ConfigError(f"{source}: cannot read config ({exc.strerror or exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: invalid TOML ({exc})") from None
+    base = os.path.dirname(os.path.abspath(source))
+    _check_keys("the top level", data, TOP_KEYS, source)
+
+    sonar = _dataclass_table(data, "sonar", Sonar, source)
+    pulse = _dataclass_table(data, "pulse", Pulse, source)
+    fan = _dataclass_table(data, "fan", FanSettings, source)
+
+    sim = data.get("simulation", {})
+    _check_keys("[simulation]", sim, SIMULATION_KEYS, source)
+    out = data.get("output", {})
+    _check_keys("[output]", out, OUTPUT_KEYS, source)
+    output = _build(source, "[output]", OutputOptions, out)
+
+    traj_t = dict(data.get("trajectory", {}))
+    if not traj_t:
+        raise ConfigError(f"{source}: missing [trajectory] table")
+    kind = traj_t.pop("kind", "line")
+    if kind not in TRAJECTORY_KINDS:
+        raise ConfigError(f"{source}: [trajectory] kind must be one of {list(TRAJECTORY_KINDS)}, got {kind!r}")
+    _check_keys(f"[trajectory] (kind {kind!r})", traj_t, TRAJECTORY_KINDS[kind], source)
+    if kind == "line":
+        traj = _build(source, "[trajectory]", Trajectory.line, traj_t)
+    elif kind == "waypoints":
+        traj = _build(source, "[trajectory]", Trajectory.through_waypoints,
+                      {"waypoints_m": traj_t.pop("waypoints", None), **traj_t})
+    else:
+        traj = Trajectory.from_csv(_resolve(base, traj_t.get("path")))
+
+    objects = data.get("objects", [])
+    if not isinstance(objects, list) or not objects:
+        raise ConfigError(f"{source}: needs at least one [[objects]] entry (a mesh path or a seafloor)")
+    scene = Scene()
+    for i, obj in enumerate(objects):
+        where = f"[[objects]] #{i + 1}"
+        if not isinstance(obj, dict):
+            raise ConfigError(f"{source}: {where} must be a table")
+        obj = dict(obj)
+        label = obj.pop("label", None)
+        mat_t = obj.pop("material", {})
+        _check_keys(f"{where} material", mat_t, field_names(Material), source)
+        material = _build(source, f"{where} material", Material, mat_t)
+        if ("path" in obj) == ("seafloor" in obj):
+            raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
+        if "path" in obj:
+            _check_keys(where, obj, ("path",), source)
+            scene.add(_resolve(base, obj["path"]), material=material, label=label)
+        else:
+            kind = obj.pop("seafloor")
+            if kind not in SEAFLOORS:
+                raise ConfigError(f"{source}: {where} seafloor must be one of {list(SEAFLOORS)}, got {kind!r}")
+            fn = SEAFLOORS[kind]
+            _check_keys(f"{where} (seafloor {kind!r})", obj, tuple(inspect.signature(fn).parameters), source)
+            mesh = _build(source, where, fn, obj)
+            scene.add(mesh, material=material, label=label or "seafloor")
+
+    speckle = sim.get("speckle", False)
+    seed = sim.get("seed", 0)
+    if not isinstance(speckle, bool):
+        raise ConfigError(f"{source}: [simulation] speckle must be true or false, got {speckle!r}")
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        raise ConfigError(f"{source}: [simulation] seed must be a non-negative integer, got {seed!r}")
+    return RunConfig(scene, traj, sonar, pulse, fan, speckle, seed, output)
