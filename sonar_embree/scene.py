@@ -101,7 +101,8 @@ def _meshes_from_file(path: str):
     if os.path.isdir(path):
         raise SceneError(f"{path}: is a directory, not a mesh file")
     try:
-        loaded = trimesh.load(path, process=False, force=None)
+        extra = {"split_objects": True, "group_material": False} if path.lower().endswith(".obj") else {}
+        loaded = trimesh.load(path, process=False, **extra)
     except Exception as exc:  # trimesh raises many types for unreadable files
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise SceneError(f"{path}: cannot read mesh ({msg})") from None
@@ -119,7 +120,7 @@ def _meshes_from_file(path: str):
             out.append((str(node), mesh))
         if not out:
             raise SceneError(f"{path}: mesh has no faces")
-        return out
+        return sorted(out, key=lambda item: item[0])  # loaders differ in order; sort for determinism
     raise SceneError(f"{path}: mesh has no faces (got {type(loaded).__name__})")
 
 
@@ -135,7 +136,8 @@ class Scene:
 
     @classmethod
     def load(cls, path, material: Material | None = None, materials: dict | None = None) -> "Scene":
-        """A scene from one mesh file; each object of a multi-object file keeps its name as label.
+        """A scene from one mesh file; each object of a multi-object file keeps its name as label
+        (objects are added in sorted label order).
 
         Parameters
         ----------

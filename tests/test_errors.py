@@ -1,0 +1,140 @@
+"""Bad input: a one-line error naming the file, key or value; no traceback from the CLI."""
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+import sonar_embree as se
+from sonar_embree.cli import main
+
+GOOD_TOML = """
+[sonar]
+max_range_m = 30.0
+[trajectory]
+kind = "line"
+start = [0, 0, 10]
+end = [2, 0, 10]
+n_pings = 2
+[[objects]]
+seafloor = "flat"
+size_m = [100, 100]
+"""
+
+
+def _cli_error(capsys, argv):
+    code = main(argv)
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("sonar-embree: error: ") and "Traceback" not in err
+    return err
+
+
+def _write(path, text, mode="w"):
+    with open(path, mode) as fh:
+        fh.write(text)
+    return str(path)
+
+
+@pytest.fixture
+def bad_meshes(tmp_path):
+    return {
+        "missing": str(tmp_path / "nope.obj"),
+        "unreadable": _write(tmp_path / "garbage.ply", b"ply\nformat binary_little_endian 1.0\n\xff\xfe junk", "wb"),
+        "no_faces": _write(tmp_path / "points.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n"),
+        "nan": _write(tmp_path / "nan.obj", "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n"),
+        "degenerate": _write(tmp_path / "flat.obj", "v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\nf 1 1 2\n"),
+    }
+
+
+@pytest.mark.parametrize("case, needle", [("missing", "not found"), ("unreadable", "cannot read"),
+                                          ("no_faces", "no faces"), ("nan", "NaN"),
+                                          ("degenerate", "degenerate")])
+def test_bad_mesh_files(bad_meshes, case, needle, tmp_path, capsys):
+    path = bad_meshes[case]
+    with pytest.raises(se.SceneError) as exc:
+        se.Scene.load(path)
+    msg = str(exc.value)
+    assert path in msg and needle in msg and "\n" not in msg
+    cfg = _write(tmp_path / "run.toml", GOOD_TOML + f'[[objects]]\npath = "{path}"\n')
+    err = _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
+    assert path in err and needle in err
+    assert not os.path.exists(tmp_path / "out")  # nothing half-written
+
+
+def test_bad_trimesh_objects():
+    with pytest.raises(se.SceneError, match="no faces"):
+        se.Scene().add(trimesh.Trimesh(np.zeros((3, 3)), np.zeros((0, 3), int)), label="empty")
+    with pytest.raises(se.SceneError, match="NaN"):
+        se.Scene().add(trimesh.Trimesh([[0, 0, 0], [np.inf, 0, 0], [0, 1, 0]], [[0, 1, 2]], process=False),
+                       label="inf")
+
+
+@pytest.mark.parametrize("snippet, needle", [
+    ("[sonar]\nfrequncy_hz = 1.0\n", "'frequncy_hz'"),
+    ("[bogus]\nx = 1\n", "'bogus'"),
+    ("[pulse]\nlength = 1.0\n", "'length'"),
+])
+def test_unknown_config_keys(tmp_path, capsys, snippet, needle):
+    text = GOOD_TOML.replace("[sonar]\nmax_range_m = 30.0\n", snippet if snippet.startswith("[sonar]") else "")
+    if not snippet.startswith("[sonar]"):
+        text = snippet + text
+    cfg = _write(tmp_path / "run.toml", text)
+    err = _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
+    assert needle in err and "run.toml" in err
+    assert not os.path.exists(tmp_path / "out")
+
+
+def test_misspelled_key_gets_a_suggestion(tmp_path, capsys):
+    cfg = _write(tmp_path / "run.toml", GOOD_TOML.replace("max_range_m", "max_rnage_m"))
+    err = _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
+    assert "did you mean 'max_range_m'" in err
+
+
+@pytest.mark.parametrize("field", ["max_range_m", "frequency_hz", "sample_rate_hz", "sound_speed_m_s",
+                                   "length_m", "height_m"])
+@pytest.mark.parametrize("value", [0.0, -1.0, float("nan"), float("inf")])
+def test_impossible_sonar_values(field, value, tmp_path, capsys):
+    with pytest.raises(se.ConfigError) as exc:
+        se.Sonar(**{field: value})
+    assert field in str(exc.value) and str(value) in str(exc.value)
+    if np.isfinite(value):  # TOML: write it into a config too
+        cfg = _write(tmp_path / "run.toml", GOOD_TOML.replace("max_range_m = 30.0", f"{field} = {value}"))
+        assert field in _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
+
+
+@pytest.mark.parametrize("kwargs", [{"duration_s": 0.0}, {"duration_s": -1e-4}, {"taper": 1.5}, {"taper": -0.1}])
+def test_impossible_pulse_values(kwargs):
+    with pytest.raises(se.ConfigError, match=next(iter(kwargs))):
+        se.Pulse.cw(**kwargs)
+
+
+def test_trajectory_with_no_pose(tmp_path, capsys):
+    with pytest.raises(se.ConfigError, match="at least one pose"):
+        se.Trajectory(np.zeros((0, 3)))
+    with pytest.raises(se.ConfigError, match="n_pings"):
+        se.Trajectory.line((0, 0, 0), (1, 0, 0), 0)
+    csv = _write(tmp_path / "nav.csv", "x_m,y_m,z_m\n")
+    with pytest.raises(se.ConfigError, match="at least one pose") as exc:
+        se.Trajectory.from_csv(csv)
+    assert csv in str(exc.value)
+    cfg = _write(tmp_path / "run.toml", GOOD_TOML.replace("n_pings = 2", "n_pings = 0"))
+    assert "n_pings" in _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
+
+
+def test_missing_config_and_bad_toml(tmp_path, capsys):
+    assert "nope.toml" in _cli_error(capsys, ["render", str(tmp_path / "nope.toml"), "-o", str(tmp_path)])
+    cfg = _write(tmp_path / "broken.toml", "[sonar\n")
+    assert "invalid TOML" in _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "o")])
+
+
+def test_console_script_prints_one_line_without_traceback(tmp_path):
+    cfg = _write(tmp_path / "run.toml", GOOD_TOML.replace("max_range_m = 30.0", "max_range_m = -5"))
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "render", cfg, "-o", str(tmp_path / "o")],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "Traceback" not in proc.stderr
+    assert "max_range_m" in proc.stderr and "-5" in proc.stderr
