@@ -34,12 +34,18 @@ class Hits:
         cos θi = −d·n̂ (positive for a front-facing hit), 0 for a miss.
     echo : (n,) bool
         True where the hit can return an echo (front-facing, not grazing).
+    normal : (n, 3) float64
+        Unit geometric normal of the triangle hit (0 for a miss).
+    object_id : (n,) int32
+        Index of the scene object hit (into ``CompiledScene.labels``), −1 for a miss.
     """
 
     tri: np.ndarray
     range_m: np.ndarray
     cos_inc: np.ndarray
     echo: np.ndarray
+    normal: np.ndarray
+    object_id: np.ndarray
 
 
 class RayCaster:
@@ -77,6 +83,8 @@ class RayCaster:
         range_m = np.full(n, np.inf)
         cos_inc = np.zeros(n)
         echo = np.zeros(n, dtype=bool)
+        normal = np.zeros((n, 3))
+        object_id = np.full(n, -1, dtype=np.int32)
         if np.any(hit):
             idx = np.nonzero(hit)[0]
             t = tri[idx]
@@ -93,4 +101,6 @@ class RayCaster:
             range_m[idx] = np.where(good, t64, t_emb)
             cos_inc[idx] = -dn
             echo[idx] = (-dn > GRAZING_COS) & (range_m[idx] <= max_range_m)
-        return Hits(tri, range_m, cos_inc, echo)
+            normal[idx] = nrm
+            object_id[idx] = self.compiled.face_object[t]
+        return Hits(tri, range_m, cos_inc, echo, normal, object_id)

@@ -89,7 +89,7 @@ def _ping(caster: RayCaster, plan: FanPlan, sonar: Sonar, rot: np.ndarray, pos_l
     sel = np.nonzero(hits.echo & (gam != 0.0))[0]
     if sel.size:
         r = hits.range_m[sel]
-        mu = caster.compiled.mu[caster.compiled.face_object[hits.tri[sel]]]
+        mu = caster.compiled.mu[hits.object_id[sel]]
         w = np.empty(sel.size)
         kernels.lambert_intensity(r, hits.cos_inc[sel], gam[sel], dom[sel], mu, two_way_np,
                                   sonar.wavelength_m, w)
