@@ -35,7 +35,7 @@ class FanPlan:
     s: np.ndarray            # (n_az,) along-track direction cosines
     ds: float                # their spacing
     probe_beta: np.ndarray   # (m,) probe depressions (uniform), also the cell edges
-    probe_body: np.ndarray   # (2m + 1, 3) probe directions, port, starboard, then nadir (world −z later)
+    probe_body: np.ndarray   # (2m, 3) body-frame probe directions, port then starboard (_ping adds nadir)
     dr_target_m: float
     max_step_rad: float
     slope_cap_m_rad: float
