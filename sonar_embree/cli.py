@@ -83,13 +83,13 @@ def _run(args) -> list:
     from .simulate import simulate
 
     if args.command == "demo":
-        from .demo import anchor_mine_setup
+        from .demo import DEMO_PNG, anchor_mine_setup
 
         if args.pings < 1:
             raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
         rec = simulate(scene, traj, sonar, pulse, speckle=False, progress=not args.no_progress)
-        return _write_outputs(rec, args.output, png_kwargs={"dynamic_range_db": 30.0, "tvg": True, "reference_percentile": 99.9, "max_columns": 540})
+        return _write_outputs(rec, args.output, png_kwargs=DEMO_PNG)
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)

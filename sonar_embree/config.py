@@ -109,11 +109,6 @@ class Sonar:
         """Slant-range spacing of the samples, c / (2 fs), in m."""
         return self.sound_speed_m_s / (2.0 * self.sample_rate_hz)
 
-    @property
-    def far_field_m(self) -> float:
-        """Far-field distance lx²/λ in m; the beam pattern holds beyond it."""
-        return self.length_m ** 2 / self.wavelength_m
-
     @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,
                         rule: str = "exact", **kwargs) -> "Sonar":

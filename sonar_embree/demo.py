@@ -14,6 +14,9 @@ from .config import Material, Pulse, Sonar
 from .scene import Scene
 from .trajectory import Trajectory
 
+#: Waterfall display of the demo: display-only TVG, 30 dB, so both swaths and the shadows show.
+DEMO_PNG = {"dynamic_range_db": 30.0, "tvg": True, "reference_percentile": 99.9, "max_columns": 540}
+
 #: Object positions (m): sinker cube edge 1 m; spheres (centre, radius).
 MINE_GROUND_RANGE_M = 24.0
 SINKER = {"center": (0.0, -MINE_GROUND_RANGE_M, 0.5), "edge": 1.0}

@@ -62,11 +62,6 @@ class CompiledScene:
     labels: tuple
     mu: np.ndarray
 
-    @property
-    def bounds_local(self) -> np.ndarray:
-        """(2, 3) min and max corner in the local frame (m)."""
-        return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
-
 
 def _validate(vertices, faces, source: str):
     """Check and clean one mesh; return float64 vertices and int faces without degenerate triangles."""
@@ -250,8 +245,3 @@ class Scene:
             self._compiled = CompiledScene(origin, v, f, n, np.concatenate(obj), self.labels,
                                            np.array([o.material.mu for o in self._objects]))
         return self._compiled
-
-    def to_trimesh(self) -> trimesh.Trimesh:
-        """All objects concatenated into one mesh (world coordinates), e.g. for export."""
-        return trimesh.util.concatenate([trimesh.Trimesh(o.vertices, o.faces, process=False)
-                                         for o in self._objects])

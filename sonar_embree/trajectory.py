@@ -51,6 +51,11 @@ def body_to_world(heading_deg, pitch_deg, roll_deg):
     return np.einsum("ij,njk->nik", _ENU_FROM_NED, m)
 
 
+def _check_n_pings(where: str, n_pings) -> None:
+    if isinstance(n_pings, bool) or not isinstance(n_pings, (int, np.integer)) or n_pings < 1:
+        raise ConfigError(f"Trajectory.{where} n_pings must be an integer >= 1, got {n_pings!r}")
+
+
 def _as_float_array(name, value, n=None):
     try:
         a = np.array(value, dtype=np.float64)
@@ -134,8 +139,7 @@ class Trajectory:
         The heading follows the line (90° for a line along +x) unless given;
         ping times follow from ``speed_m_s``.
         """
-        if isinstance(n_pings, bool) or not isinstance(n_pings, (int, np.integer)) or n_pings < 1:
-            raise ConfigError(f"Trajectory.line n_pings must be an integer >= 1, got {n_pings!r}")
+        _check_n_pings("line", n_pings)
         if not (isinstance(speed_m_s, (int, float)) and math.isfinite(speed_m_s) and speed_m_s > 0):
             raise ConfigError(f"Trajectory.line speed_m_s must be > 0, got {speed_m_s!r}")
         a = _as_float_array("line start", start)
@@ -170,8 +174,7 @@ class Trajectory:
         w = _as_float_array("waypoints_m", waypoints_m)
         if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2:
             raise ConfigError(f"Trajectory.through_waypoints needs (m>=2, 3) waypoints, got {w.shape}")
-        if isinstance(n_pings, bool) or not isinstance(n_pings, (int, np.integer)) or n_pings < 1:
-            raise ConfigError(f"Trajectory.through_waypoints n_pings must be an integer >= 1, got {n_pings!r}")
+        _check_n_pings("through_waypoints", n_pings)
         chord = np.linalg.norm(np.diff(w, axis=0), axis=1)
         if np.any(chord == 0.0):
             raise ConfigError("Trajectory.through_waypoints: two consecutive waypoints coincide")
