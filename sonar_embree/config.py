@@ -8,6 +8,7 @@ SI units inside; degrees and dB only in field names that say so (``tilt_deg``,
 from __future__ import annotations
 
 import math
+import dataclasses
 from dataclasses import dataclass, fields
 
 from .errors import ConfigError
@@ -58,9 +59,19 @@ class Sonar:
         Sample rate of the recorded (detected) time series, in Hz.
     sound_speed_m_s : float
         Speed of sound c in m/s, constant over the water column.
-    absorption_db_per_m : float
-        One-way absorption α in dB/m; the two-way loss is 2αR dB. The default
-        0.096 dB/m is Francois–Garrison at 400 kHz, 10 °C, 35 ppt (PHYSICS.md §3).
+    absorption_db_per_m : float or None
+        One-way absorption α in dB/m (the two-way loss is 2αR dB), an explicit
+        override. ``None`` (default) computes it with Francois–Garrison from
+        ``frequency_hz`` and the water below: 0.0961 dB/m at 400 kHz, 10 °C,
+        35 ppt, pH 8 (PHYSICS.md §3). Read the value in use from :attr:`alpha_db_per_m`.
+    temperature_c : float
+        Water temperature in °C, for Francois–Garrison.
+    salinity_ppt : float
+        Salinity in ppt (PSU), for Francois–Garrison.
+    depth_m : float
+        Water depth in m for the pressure terms of Francois–Garrison.
+    ph : float
+        Acidity, for the boric-acid term of Francois–Garrison.
     """
 
     frequency_hz: float = 400e3
@@ -70,14 +81,23 @@ class Sonar:
     max_range_m: float = 50.0
     sample_rate_hz: float = 40e3
     sound_speed_m_s: float = 1500.0
-    absorption_db_per_m: float = 0.096
+    absorption_db_per_m: float | None = None
+    temperature_c: float = 10.0
+    salinity_ppt: float = 35.0
+    depth_m: float = 0.0
+    ph: float = 8.0
 
     def __post_init__(self):
         for name in ("frequency_hz", "length_m", "height_m", "max_range_m",
                      "sample_rate_hz", "sound_speed_m_s"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)
-        _check_number("Sonar", "absorption_db_per_m", self.absorption_db_per_m, nonneg=True)
+        if self.absorption_db_per_m is not None:
+            _check_number("Sonar", "absorption_db_per_m", self.absorption_db_per_m, nonneg=True, hi=100.0)
+        _check_number("Sonar", "temperature_c", self.temperature_c, lo=-2.0, hi=40.0)
+        _check_number("Sonar", "salinity_ppt", self.salinity_ppt, lo=0.0, hi=45.0)
+        _check_number("Sonar", "depth_m", self.depth_m, lo=0.0, hi=12000.0)
+        _check_number("Sonar", "ph", self.ph, lo=6.0, hi=9.5)
         if self.n_samples > 50_000_000:
             raise ConfigError(
                 f"Sonar.max_range_m={self.max_range_m} with sample_rate_hz={self.sample_rate_hz} "
@@ -88,6 +108,16 @@ class Sonar:
     def wavelength_m(self) -> float:
         """Acoustic wavelength λ = c / f0 in m."""
         return self.sound_speed_m_s / self.frequency_hz
+
+    @property
+    def alpha_db_per_m(self) -> float:
+        """One-way absorption in use, dB/m: the explicit override or Francois–Garrison."""
+        if self.absorption_db_per_m is not None:
+            return float(self.absorption_db_per_m)
+        from .absorption import francois_garrison_db_per_m
+
+        return francois_garrison_db_per_m(self.frequency_hz, self.temperature_c, self.salinity_ppt,
+                                          self.depth_m, self.ph)
 
     @property
     def wavenumber_rad_m(self) -> float:
@@ -144,27 +174,46 @@ class Sonar:
 
 @dataclass(frozen=True)
 class Pulse:
-    """A transmitted pulse: its kind, length and envelope taper (PHYSICS.md §5).
+    """A transmitted pulse: its kind, length, envelope taper and sweep (PHYSICS.md §5).
 
-    Use the constructors: ``Pulse.cw(duration_s=100e-6, taper=0.0)``.
+    Use the constructors: ``Pulse.cw(duration_s, taper)``,
+    ``Pulse.lfm(bandwidth_hz, duration_s, taper, center_hz=None)`` and
+    ``Pulse.exp_chirp(f_start_hz, f_stop_hz, duration_s, taper)``.
 
     Parameters
     ----------
-    kind : {"cw"}
-        Waveform kind. Frequency-modulated pulses arrive with the signal chain.
+    kind : {"cw", "lfm", "exp_chirp"}
+        Continuous wave at the sonar's ``frequency_hz``; linear FM, instantaneous
+        frequency f_s + κt with κ = B/τ; exponential chirp, instantaneous frequency
+        f_s·κ^t with ln κ = ln(f_stop/f_start)/τ.
     duration_s : float
         Pulse length τ in s.
     taper : float
         Fraction of the pulse covered by the two flanks of the flat-top
         Blackman–Harris envelope, in [0, 1]: 0 is a rectangle, 1 a full
-        4-term Blackman–Harris window.
+        4-term Blackman–Harris window. The default 0.1 follows the paper (every
+        pulse windowed); a rectangle's discontinuous edges are only resolved by
+        the sample rate they are synthesised at.
+    bandwidth_hz : float or None
+        Swept bandwidth B of a linear FM pulse, Hz (``lfm`` only).
+    center_hz : float or None
+        Centre frequency of a linear FM pulse, Hz; ``None`` is the sonar's
+        ``frequency_hz`` (``lfm`` only).
+    f_start_hz, f_stop_hz : float or None
+        Start and stop frequencies of an exponential chirp, Hz (``exp_chirp`` only);
+        equal values give a CW pulse at that frequency.
     """
 
     kind: str = "cw"
     duration_s: float = 100e-6
-    taper: float = 0.0
+    taper: float = 0.1
+    bandwidth_hz: float | None = None
+    center_hz: float | None = None
+    f_start_hz: float | None = None
+    f_stop_hz: float | None = None
 
-    KINDS = ("cw",)
+    KINDS = ("cw", "lfm", "exp_chirp")
+    _KIND_FIELDS = {"cw": (), "lfm": ("bandwidth_hz", "center_hz"), "exp_chirp": ("f_start_hz", "f_stop_hz")}
 
     def __post_init__(self):
         if self.kind not in self.KINDS:
@@ -173,11 +222,66 @@ class Pulse:
         if self.duration_s > 1.0:
             raise ConfigError(f"Pulse.duration_s must be <= 1 s, got {self.duration_s!r}")
         _check_number("Pulse", "taper", self.taper, lo=0.0, hi=1.0)
+        for name in ("bandwidth_hz", "center_hz", "f_start_hz", "f_stop_hz"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            if name not in self._KIND_FIELDS[self.kind]:
+                raise ConfigError(f"Pulse.{name} does not apply to kind={self.kind!r} "
+                                  f"(it takes: {', '.join(self._KIND_FIELDS[self.kind]) or 'no sweep fields'})")
+            _check_number("Pulse", name, value, positive=True, hi=100e6)
+        if self.kind == "lfm":
+            if self.bandwidth_hz is None:
+                raise ConfigError("Pulse.bandwidth_hz is required for kind='lfm'")
+            if self.center_hz is not None and self.bandwidth_hz >= 2.0 * self.center_hz:
+                raise ConfigError(f"Pulse.bandwidth_hz={self.bandwidth_hz} sweeps below 0 Hz around "
+                                  f"center_hz={self.center_hz}")
+        if self.kind == "exp_chirp" and (self.f_start_hz is None or self.f_stop_hz is None):
+            raise ConfigError("Pulse.f_start_hz and Pulse.f_stop_hz are required for kind='exp_chirp'")
 
     @classmethod
-    def cw(cls, duration_s: float = 100e-6, taper: float = 0.0) -> "Pulse":
-        """A continuous-wave (single-frequency) pulse of length ``duration_s`` (s)."""
+    def cw(cls, duration_s: float = 100e-6, taper: float = 0.1) -> "Pulse":
+        """A continuous-wave pulse at the sonar's frequency, ``duration_s`` long (s)."""
         return cls(kind="cw", duration_s=duration_s, taper=taper)
+
+    @classmethod
+    def lfm(cls, bandwidth_hz: float, duration_s: float = 1e-3, taper: float = 0.1,
+            center_hz: float | None = None) -> "Pulse":
+        """A linear FM pulse sweeping ``bandwidth_hz`` (Hz) up through ``center_hz`` (default: the sonar's f0)."""
+        return cls(kind="lfm", duration_s=duration_s, taper=taper, bandwidth_hz=bandwidth_hz, center_hz=center_hz)
+
+    @classmethod
+    def exp_chirp(cls, f_start_hz: float, f_stop_hz: float, duration_s: float = 1e-3,
+                  taper: float = 0.1) -> "Pulse":
+        """An exponential chirp from ``f_start_hz`` to ``f_stop_hz`` (Hz) over ``duration_s`` (s)."""
+        return cls(kind="exp_chirp", duration_s=duration_s, taper=taper, f_start_hz=f_start_hz,
+                   f_stop_hz=f_stop_hz)
+
+    @property
+    def is_fm(self) -> bool:
+        """True for a pulse whose frequency changes (``lfm``, or ``exp_chirp`` with f_start ≠ f_stop)."""
+        return self.kind == "lfm" or (self.kind == "exp_chirp" and self.f_start_hz != self.f_stop_hz)
+
+    def sweep_hz(self) -> float:
+        """Swept bandwidth |f_stop − f_start| in Hz (0 for CW)."""
+        if self.kind == "lfm":
+            return float(self.bandwidth_hz)
+        if self.kind == "exp_chirp":
+            return abs(float(self.f_stop_hz) - float(self.f_start_hz))
+        return 0.0
+
+    def signal_bandwidth_hz(self) -> float:
+        """Signal bandwidth in Hz: the sweep, or 1/τ for an unswept pulse (whichever is larger)."""
+        return max(self.sweep_hz(), 1.0 / self.duration_s)
+
+    def frequency_span_hz(self, carrier_hz: float) -> tuple[float, float]:
+        """Lowest and highest instantaneous frequency (Hz) for a sonar of frequency ``carrier_hz``."""
+        if self.kind == "lfm":
+            fc = carrier_hz if self.center_hz is None else self.center_hz
+            return fc - 0.5 * self.bandwidth_hz, fc + 0.5 * self.bandwidth_hz
+        if self.kind == "exp_chirp":
+            return min(self.f_start_hz, self.f_stop_hz), max(self.f_start_hz, self.f_stop_hz)
+        return carrier_hz, carrier_hz
 
     def range_extent_m(self, sound_speed_m_s: float) -> float:
         """Slant-range extent cτ/2 of the uncompressed pulse, in m."""
@@ -248,3 +352,113 @@ class FanSettings:
         _check_number("FanSettings", "probe_step_deg", self.probe_step_deg, positive=True, hi=5)
         _check_number("FanSettings", "max_rays_per_side", self.max_rays_per_side, integer=True,
                       lo=16, hi=10_000_000)
+
+
+@dataclass(frozen=True)
+class SignalChain:
+    """How echoes become the record: speckle, band, detection and processing (PHYSICS.md §4–5).
+
+    The keyword arguments of :func:`sonar_embree.simulate` and the ``[simulation]``
+    table of a run config map 1:1 onto these fields.
+
+    Parameters
+    ----------
+    speckle : bool
+        False: the expected intensity (the paper's speckle-free "perfect sonar
+        image"; no complex arithmetic). True: scatterers with complex Gaussian
+        reflectivity frozen to the surface, synthesised as signals.
+    band : {"baseband", "carrier"}
+        Synthesis of the speckle signal: complex baseband at the record rate, or the
+        real carrier signal at a rate of ≥ 4× the highest pulse frequency.
+    detection : {"coherent", "incoherent"}
+        |analytic signal|², or square-law rectification and low-pass of the carrier
+        signal (``band="carrier"`` only), scaled to the same level.
+    matched_filter : bool or None
+        Pulse compression by correlation with the transmitted pulse; ``None``: on for
+        FM pulses, off for CW. Needs coherent detection.
+    tvg : bool
+        Multiply the intensity by R⁴·10^(2αR/10), R = c·t/2 (perfect TVG).
+    noise_db_per_hz : float or None
+        Receiver noise spectral density N0 in dB re (record intensity unit)/Hz:
+        white complex Gaussian noise of intensity N0·fs per sample at the record rate
+        fs, added before matched filtering. ``None``: no noise. In speckle-free mode
+        its mean intensity is added.
+    lowpass_hz : float or None
+        Cut-off of a linear-phase low-pass FIR applied to the detected intensity at
+        the record rate (below fs/2); ``None``: none.
+    speckle_cell_m : float or None
+        Spacing of the world-fixed lattice of scatterers, m; ``None``: half the
+        membrane length, lx/2, the distance over which a real aperture's speckle
+        decorrelates as it moves along track. Each ray's echo is shared trilinearly
+        among its 8 surrounding nodes, so speckle stays correlated for moves much
+        smaller than a cell and is independent beyond it; the node's scatterers keep
+        the mean and spread in range of the rays they stand for.
+    seed : int
+        Seed of the scatterers' reflectivity and of the noise.
+    """
+
+    speckle: bool = False
+    band: str = "baseband"
+    detection: str = "coherent"
+    matched_filter: bool | None = None
+    tvg: bool = False
+    noise_db_per_hz: float | None = None
+    lowpass_hz: float | None = None
+    speckle_cell_m: float | None = None
+    seed: int = 0
+
+    BANDS = ("baseband", "carrier")
+    DETECTIONS = ("coherent", "incoherent")
+
+    def __post_init__(self):
+        for name in ("speckle", "tvg"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"SignalChain.{name} must be True or False, got {getattr(self, name)!r}")
+        if self.matched_filter is not None and not isinstance(self.matched_filter, bool):
+            raise ConfigError(f"SignalChain.matched_filter must be True, False or None, got {self.matched_filter!r}")
+        if self.band not in self.BANDS:
+            raise ConfigError(f"SignalChain.band must be one of {self.BANDS}, got {self.band!r}")
+        if self.detection not in self.DETECTIONS:
+            raise ConfigError(f"SignalChain.detection must be one of {self.DETECTIONS}, got {self.detection!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or not 0 <= self.seed < 2 ** 63:
+            raise ConfigError(f"SignalChain.seed must be a non-negative integer, got {self.seed!r}")
+        if self.noise_db_per_hz is not None:
+            _check_number("SignalChain", "noise_db_per_hz", self.noise_db_per_hz, lo=-400.0, hi=200.0)
+        if self.lowpass_hz is not None:
+            _check_number("SignalChain", "lowpass_hz", self.lowpass_hz, positive=True)
+        if self.speckle_cell_m is not None:
+            _check_number("SignalChain", "speckle_cell_m", self.speckle_cell_m, positive=True, hi=10.0)
+        if not self.speckle and (self.band != "baseband" or self.detection != "coherent"):
+            raise ConfigError("SignalChain: speckle=False computes the expected intensity, which has no band or "
+                              f"detection (got band={self.band!r}, detection={self.detection!r}); "
+                              "set speckle=True to simulate signals")
+        if self.detection == "incoherent" and self.band != "carrier":
+            raise ConfigError("SignalChain: detection='incoherent' rectifies the real carrier signal; "
+                              "use band='carrier' (or detection='coherent')")
+        if self.detection == "incoherent" and self.matched_filter:
+            raise ConfigError("SignalChain: matched_filter=True needs the phase, which incoherent detection "
+                              "discards; use detection='coherent'")
+
+    def resolved(self, sonar: Sonar, pulse: Pulse) -> "SignalChain":
+        """This chain with ``matched_filter`` decided for ``pulse``, checked against ``sonar``."""
+        mf = self.matched_filter
+        if mf is None:
+            mf = pulse.is_fm and self.detection == "coherent"
+            if pulse.is_fm and self.detection == "incoherent":
+                raise ConfigError("SignalChain: an FM pulse needs pulse compression, which incoherent detection "
+                                  "cannot do; use detection='coherent' or set matched_filter=False")
+        fs = sonar.sample_rate_hz
+        if mf:
+            f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
+            off = max(abs(f_lo - sonar.frequency_hz), abs(f_hi - sonar.frequency_hz))
+            if off >= 0.5 * fs:
+                raise ConfigError(f"Sonar.sample_rate_hz={fs:g} is too low to matched-filter a pulse reaching "
+                                  f"{off:g} Hz from the carrier; it needs > {2 * off:g} Hz")
+        if self.lowpass_hz is not None and self.lowpass_hz >= 0.5 * fs:
+            raise ConfigError(f"SignalChain.lowpass_hz={self.lowpass_hz:g} must be below half the sample rate "
+                              f"({0.5 * fs:g} Hz)")
+        f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
+        if self.band == "carrier" and f_lo <= 0:
+            raise ConfigError(f"Pulse sweeps down to {f_lo:g} Hz; a carrier signal needs positive frequencies")
+        cell = 0.5 * sonar.length_m if self.speckle_cell_m is None else self.speckle_cell_m
+        return dataclasses.replace(self, matched_filter=bool(mf), speckle_cell_m=float(cell))

@@ -1,20 +1,31 @@
 """Orchestration: the only module that knows the order of the stages.
 
 Per ping: pose → probe cast (where does range change fast?) → ray fan placed for the
-range resolution → one Embree call for both sides → echo intensity per ray (Numba)
-→ linear fractional-delay splatting (Numba). After all pings: one FFT convolution
-with the pulse intensity. The result equals PHYSICS.md eq. (1) sampled at t_n.
+range resolution → one Embree call for both sides → expected echo intensity per ray
+(Numba). Then, by mode:
+
+- speckle-free (``speckle=False``): linear fractional-delay splatting of the
+  intensities, one convolution with the pulse intensity (or, with matched
+  filtering, the compressed pulse's |q|²): PHYSICS.md eq. (1) sampled at t_n;
+- speckle: the rays' intensities are gathered onto scatterers frozen to the
+  surface (a world-fixed lattice, each node a complex Gaussian reflectivity), whose
+  echoes are synthesised in complex baseband (exact delayed envelope and carrier
+  phase) or as the real carrier signal (band-limited fractional delays), then
+  detected coherently or incoherently.
+
+Common tail: receiver noise, matched filter, detection, low-pass FIR, perfect TVG.
 """
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import beam, kernels, pulses
-from .config import FanSettings, Pulse, Sonar
+from . import beam, kernels, processing, pulses
+from .config import FanSettings, Pulse, SignalChain, Sonar
 from .errors import ConfigError
 from .processing import absorption_np_per_m, convolve_time
 from .raycast import RayCaster
@@ -62,15 +73,25 @@ def _check_inputs(scene, trajectory, sonar, pulse, fan):
         raise ConfigError("simulate: the scene is empty; add a mesh or a seafloor")
 
 
-def _ping(caster: RayCaster, plan: FanPlan, sonar: Sonar, rot: np.ndarray, pos_local: np.ndarray,
-          two_way_np: float, out: np.ndarray) -> float:
-    """Render one ping's two impulse trains into ``out`` (2, n_samples); return the altitude (m, NaN if none)."""
+@dataclass(frozen=True, eq=False)
+class PingEchoes:
+    """Expected echo intensity of every ray of one ping that returns an echo (flat arrays)."""
+
+    channel: np.ndarray   # (n,) int64, PORT or STARBOARD
+    range_m: np.ndarray   # (n,) float64 slant range
+    weight: np.ndarray    # (n,) float64 expected intensity (PHYSICS.md §3)
+    point_m: np.ndarray   # (n, 3) float64 hit point, scene-local frame
+    altitude_m: float     # nadir range, NaN if none
+
+
+def _cast_ping(caster: RayCaster, plan: FanPlan, sonar: Sonar, rot: np.ndarray, pos_local: np.ndarray,
+               two_way_np: float) -> PingEchoes:
+    """Probe, place the fan for the range resolution, cast both sides at once, weight every echo."""
     max_r = sonar.max_range_m
     m = plan.probe_beta.shape[0]
     probe_dirs = np.concatenate([plan.probe_body @ rot.T, [[0.0, 0.0, -1.0]]])
     ph = caster.cast(pos_local, probe_dirs, max_r)
     probe_r = np.where(ph.tri >= 0, ph.range_m, np.nan)
-    altitude = probe_r[-1]
 
     dirs, gam, dom, chan = [], [], [], []
     for side in (PORT, STARBOARD):
@@ -87,19 +108,130 @@ def _ping(caster: RayCaster, plan: FanPlan, sonar: Sonar, rot: np.ndarray, pos_l
 
     hits = caster.cast(pos_local, dirs, max_r)
     sel = np.nonzero(hits.echo & (gam != 0.0))[0]
+    r = hits.range_m[sel]
+    w = np.empty(sel.size)
     if sel.size:
-        r = hits.range_m[sel]
         mu = caster.compiled.mu[hits.object_id[sel]]
-        w = np.empty(sel.size)
         kernels.lambert_intensity(r, hits.cos_inc[sel], gam[sel], dom[sel], mu, two_way_np,
                                   sonar.wavelength_m, w)
-        delay = r * (2.0 * sonar.sample_rate_hz / sonar.sound_speed_m_s)
-        kernels.splat_linear(chan[sel], delay, w, out)
-    return float(altitude)
+    keep = w > 0.0
+    sel, r, w = sel[keep], r[keep], w[keep]
+    point = pos_local + dirs[sel] * r[:, None]
+    return PingEchoes(chan[sel], r, w, point, float(probe_r[-1]))
+
+
+class _ScattererLattice:
+    """Scatterers frozen to the surface: a world-fixed cubic lattice with a hash table reused across pings.
+
+    Every node holds :data:`SUB_SCATTERERS` point scatterers with independent frozen
+    complex Gaussian reflectivities, sharing the node's echo W equally and placed in
+    range at R̄ + σ·z_s, where R̄ and σ² are the W-weighted mean and variance of the
+    ranges of the rays the node collected and z_s = (−3, −1, 1, 3)/√5 (mean 0,
+    variance 1), clipped to the node's least and greatest ray range (nothing arrives
+    before the first surface). The echo energy keeps its place and spread in range,
+    so the expected intensity has no comb at the lattice spacing.
+    """
+
+    SUB_SCATTERERS = 4
+    _Z = np.array([-3.0, -1.0, 1.0, 3.0]) / math.sqrt(5.0)
+
+    def __init__(self, cell_m: float, seed: int):
+        self.cell_m = float(cell_m)
+        self.seed = int(seed)
+        self.epoch = 0
+        self._alloc(1 << 16)
+
+    def _alloc(self, cap):
+        self.key = np.zeros((cap, 4), dtype=np.int64)
+        self.stamp = np.full(cap, -1, dtype=np.int64)
+        self.w = np.zeros(cap)
+        self.wr = np.zeros(cap)
+        self.wr2 = np.zeros(cap)
+        self.rmin = np.zeros(cap)
+        self.rmax = np.zeros(cap)
+        self.order = np.zeros(cap, dtype=np.int64)
+
+    def scatterers(self, echoes: PingEchoes, origin_m: np.ndarray, pos_world: np.ndarray, wavelength_m: float):
+        """One ping's scatterers: channel (k,), envelope range R (k,) in m, complex amplitude (k,).
+
+        Amplitude √(W/S)·g·e^(−j2k·R_node), R_node the range of the node itself, so the
+        carrier phase follows the sonar's motion relative to a fixed point.
+        """
+        need = 16 * max(echoes.weight.shape[0], 1)
+        if self.stamp.shape[0] < need:
+            self._alloc(1 << int(math.ceil(math.log2(need))))
+        self.epoch += 1
+        points = echoes.point_m + origin_m  # world, float64
+        k = kernels.gather_nodes(echoes.channel, points, echoes.weight, echoes.range_m, self.cell_m,
+                                 self.key, self.stamp, self.epoch, self.w, self.wr, self.wr2, self.rmin,
+                                 self.rmax, self.order)
+        slots = self.order[:k]
+        ch, ijk, w = self.key[slots, 0], self.key[slots, 1:], self.w[slots]
+        r_mean = self.wr[slots] / w
+        sigma = np.sqrt(np.maximum(self.wr2[slots] / w - r_mean ** 2, 0.0))
+        g = np.empty((k, self.SUB_SCATTERERS), dtype=np.complex128)
+        kernels.frozen_gaussian(self.seed, ijk, g)
+        r_node = np.sqrt(np.sum((ijk * self.cell_m - pos_world) ** 2, axis=1))
+        cycles = (2.0 * r_node / wavelength_m) % 1.0
+        amp = (np.sqrt(w / self.SUB_SCATTERERS) * np.exp(-2j * np.pi * cycles))[:, None] * g
+        r_env = np.clip(r_mean[:, None] + sigma[:, None] * self._Z[None, :], self.rmin[slots, None],
+                        self.rmax[slots, None])
+        return np.repeat(ch, self.SUB_SCATTERERS), r_env.ravel(), amp.ravel()
+
+
+@dataclass(frozen=True, eq=False)
+class _Synth:
+    """Tables for synthesising one ping's signal."""
+
+    table: np.ndarray
+    table_start: float
+    table_rate: float
+    carrier_factor: int = 1               # carrier rate / record rate
+    carrier_pulse: np.ndarray | None = None
+
+    @classmethod
+    def build(cls, sonar: Sonar, pulse: Pulse, chain: SignalChain) -> "_Synth":
+        f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
+        if chain.band == "baseband":
+            table, rate = pulses.envelope_table(pulse, f0, fs)
+            return cls(table, 0.0, float(rate))
+        f_hi = pulse.frequency_span_hz(f0)[1]
+        factor = max(int(math.ceil(4.0 * f_hi / fs)), 2)
+        table, start, rate = processing.sinc_interpolator()
+        return cls(table, start, float(rate), factor, pulses.passband_analytic(pulse, f0, factor * fs))
+
+
+def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, amp, noise_bb):
+    """One ping on the carrier: real passband signal at the carrier rate, detected, at the record rate.
+
+    Returns complex baseband (coherent) or intensity (incoherent), shape (2, n_samples).
+    """
+    f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
+    m = synth.carrier_factor
+    fc = m * fs
+    n_s = sonar.n_samples
+    n_c = (n_s - 1) * m + 1
+    buf = np.zeros((2, n_c), dtype=np.complex128)
+    # Re{C·p̃(t − τ)·e^(j2πf0 t)}: impulse C·e^(j2πf0τ) at τ convolved with p̃(t)·e^(j2πf0 t)
+    amp_c = amp * np.exp(2j * np.pi * ((f0 * delay_s) % 1.0))
+    kernels.splat_table(ch, delay_s * fc, amp_c, synth.table, synth.table_start, synth.table_rate, buf)
+    x = convolve_time(buf, synth.carrier_pulse).real
+    t_c = np.arange(n_c) / fc
+    if noise_bb is not None:  # the receiver band's noise, interpolated to the carrier rate and modulated
+        from scipy.signal import resample_poly
+
+        up = resample_poly(noise_bb, m, 1, axis=-1)[:, :n_c]
+        x += (up * np.exp(2j * np.pi * ((f0 * t_c) % 1.0))).real
+    if chain.detection == "coherent":
+        return processing.analytic_baseband(x, f0, fc)[:, ::m]
+    return processing.square_law(x, f0, fc)[:, ::m]
 
 
 def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, pulse: Pulse | None = None, *,
-             speckle: bool = False, seed: int = 0, fan: FanSettings | None = None,
+             speckle: bool = False, band: str = "baseband", detection: str = "coherent",
+             matched_filter: bool | None = None, tvg: bool = False, noise_db_per_hz: float | None = None,
+             lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
+             fan: FanSettings | None = None, chain: SignalChain | None = None,
              progress: bool = False) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
@@ -113,57 +245,112 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         Transducer, range window and medium; default :class:`Sonar` ().
     pulse : Pulse, optional
         Transmitted pulse; default 100 µs rectangular CW.
-    speckle : bool
-        False: the expected intensity (the paper's speckle-free "perfect sonar
-        image"). True needs the full signal chain, which is not built yet.
-    seed : int
-        Random seed (recorded; used by speckle modes).
+    speckle, band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_m, seed
+        The signal chain; see :class:`SignalChain` (units in the names). Invalid
+        combinations raise :class:`ConfigError`.
     fan : FanSettings, optional
         Ray density; default :class:`FanSettings` ().
+    chain : SignalChain, optional
+        The whole signal chain at once; overrides the keywords above.
     progress : bool
         Show a progress bar over pings (tqdm, on stderr).
 
     Returns
     -------
     Record
-        ``port`` and ``starboard`` (n_pings, n_samples) linear intensity for a unit
-        source (on-axis intensity 1 at 1 m), sampled at ``time_s``.
+        ``port`` and ``starboard`` (n_pings, n_samples) detected intensity for a unit
+        source (on-axis intensity 1 at 1 m), sampled at ``time_s`` = n / fs.
 
     Notes
     -----
-    Implements E[I](t) = ∬ |p(t − 2R/c)|² Γ⁴ σ(θi) 10^(−2αR/10) / R⁴ dA (PHYSICS.md
-    eq. 1) with one ray of solid angle dΩ standing for dA = R² dΩ / cos θi.
+    Each ray of solid angle dΩ hitting at range R stands for dA = R² dΩ / cos θi and
+    carries the expected intensity w = Γ⁴ σ(θi) 10^(−2αR/10) dΩ / (R² cos θi)
+    (PHYSICS.md eq. 1). Speckle-free: Σ w·|p(t − 2R/c)|². Speckle: every node of the
+    lattice of :class:`SignalChain` ``speckle_cell_m`` collects W = Σ w·b (trilinear b)
+    and echoes √W·g·e^(−j2k·R_node)·p̃(t − 2R̄/c), g a complex Gaussian frozen to
+    the node and R̄ the W-weighted range of its rays, so E|Σ|² = Σ w·|p̃|².
     """
     sonar = Sonar() if sonar is None else sonar
     pulse = Pulse.cw() if pulse is None else pulse
     fan = FanSettings() if fan is None else fan
     _check_inputs(scene, trajectory, sonar, pulse, fan)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ConfigError(f"simulate: seed must be a non-negative integer, got {seed!r}")
-    if speckle:
-        raise ConfigError("simulate: speckle=True needs the coherent signal chain, which this version "
-                          "does not have yet; use speckle=False")
+    if chain is None:
+        chain = SignalChain(speckle=speckle, band=band, detection=detection, matched_filter=matched_filter,
+                            tvg=tvg, noise_db_per_hz=noise_db_per_hz, lowpass_hz=lowpass_hz,
+                            speckle_cell_m=speckle_cell_m, seed=seed if not isinstance(seed, np.integer)
+                            else int(seed))
+    elif not isinstance(chain, SignalChain):
+        raise ConfigError(f"simulate: chain must be a sonar_embree.SignalChain, got {type(chain).__name__}")
+    chain = chain.resolved(sonar, pulse)
 
     compiled = scene.compiled()
     caster = RayCaster(compiled)
     plan = FanPlan.build(sonar, fan)
     n_p, n_s = len(trajectory), sonar.n_samples
-    raw = np.zeros((n_p, 2, n_s))
+    f0, fs, c = sonar.frequency_hz, sonar.sample_rate_hz, sonar.sound_speed_m_s
     altitude = np.full(n_p, np.nan)
     rots = trajectory.rotations()
     pos_local = trajectory.positions_m - compiled.origin_m
-    two_way = absorption_np_per_m(sonar.absorption_db_per_m)
+    two_way = absorption_np_per_m(sonar.alpha_db_per_m)
+    n0 = None if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
 
     pings = range(n_p)
     if progress:
         from tqdm.auto import tqdm
         pings = tqdm(pings, desc="pings", unit="ping")
-    for i in pings:
-        altitude[i] = _ping(caster, plan, sonar, rots[i], pos_local[i], two_way, raw[i])
 
-    shaped = convolve_time(raw, pulses.intensity_kernel(pulse, sonar.sample_rate_hz))
-    np.maximum(shaped, 0.0, out=shaped)  # FFT round-off only; intensities are non-negative
-    return Record(port=shaped[:, PORT], starboard=shaped[:, STARBOARD],
-                  time_s=np.arange(n_s) / sonar.sample_rate_hz, trajectory=trajectory,
-                  sonar=sonar, pulse=pulse, altitude_m=altitude,
-                  attrs={"speckle": bool(speckle), "seed": int(seed), "mode": "expected_intensity"})
+    if not chain.speckle:
+        raw = np.zeros((n_p, 2, n_s))
+        for i in pings:
+            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way)
+            altitude[i] = e.altitude_m
+            kernels.splat_linear(e.channel, e.range_m * (2.0 * fs / c), e.weight, raw[i])
+        kernel, lead = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
+        intensity = convolve_time(raw, kernel, lead)
+        if n0 is not None:  # mean intensity of the noise after the matched filter
+            gain = 1.0 / np.sum(np.abs(pulses.replica(pulse, f0, fs)) ** 2) if chain.matched_filter else 1.0
+            intensity += n0 * fs * gain
+        mode = "expected_intensity"
+    else:
+        lattice = _ScattererLattice(chain.speckle_cell_m, chain.seed)
+        synth = _Synth.build(sonar, pulse, chain)
+        coherent = chain.detection == "coherent"
+        sig = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
+        for i in pings:
+            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way)
+            altitude[i] = e.altitude_m
+            ch, r_env, amp = lattice.scatterers(e, compiled.origin_m, trajectory.positions_m[i],
+                                                sonar.wavelength_m)
+            noise = None
+            if n0 is not None:  # per-ping stream: the same bits for any ping order or worker count
+                rng = np.random.default_rng([chain.seed, 0x5EED_0015E, i])
+                noise = processing.complex_noise(rng, (2, n_s), n0 * fs)
+            if chain.band == "baseband":
+                kernels.splat_table(ch, r_env * (2.0 * fs / c), amp, synth.table, synth.table_start,
+                                    synth.table_rate, sig[i])
+                if noise is not None:
+                    sig[i] += noise
+            else:
+                sig[i] = _carrier_ping(synth, sonar, chain, ch, r_env * (2.0 / c), amp, noise)
+        if coherent:
+            if chain.matched_filter:
+                sig = processing.matched_filter(sig, pulses.replica(pulse, f0, fs))
+            intensity = sig.real ** 2 + sig.imag ** 2
+        else:
+            intensity = sig
+        mode = "speckle"
+
+    time_s = np.arange(n_s) / fs
+    if chain.lowpass_hz is not None:
+        intensity = processing.lowpass(intensity, chain.lowpass_hz, fs)
+    if chain.tvg:
+        intensity = intensity * processing.tvg_gain(time_s, c, sonar.alpha_db_per_m)
+    np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
+    attrs = {"mode": mode, **{k: v for k, v in dataclasses.asdict(chain).items()},
+             "alpha_db_per_m": sonar.alpha_db_per_m}
+    if chain.speckle and chain.band == "carrier":
+        attrs["carrier_rate_hz"] = _Synth.build(sonar, pulse, chain).carrier_factor * fs
+    return Record(port=np.ascontiguousarray(intensity[:, PORT]),
+                  starboard=np.ascontiguousarray(intensity[:, STARBOARD]),
+                  time_s=time_s, trajectory=trajectory, sonar=sonar, pulse=pulse, altitude_m=altitude,
+                  attrs=attrs)

@@ -85,7 +85,7 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
     r = record.slant_range_m
     sides = [np.asarray(record.port, dtype=np.float64), np.asarray(record.starboard, dtype=np.float64)]
     if tvg:
-        gain = r ** 4 * 10.0 ** (2.0 * record.sonar.absorption_db_per_m * r / 10.0)
+        gain = r ** 4 * 10.0 ** (2.0 * record.sonar.alpha_db_per_m * r / 10.0)
         sides = [s * gain for s in sides]
     if ground_range:
         sides = [to_ground_range(s, r, record.altitude_m)[1] for s in sides]

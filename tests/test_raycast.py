@@ -81,8 +81,9 @@ def test_same_inputs_same_bits():
     assert a.starboard.tobytes() == b.starboard.tobytes() and a.port.tobytes() == b.port.tobytes()
 
 
-def test_empty_range_window_gives_zero_record():
-    rec = se.simulate(flat_scene(), line_along_x(n_pings=2, z=80.0), se.Sonar(max_range_m=50))
+@pytest.mark.parametrize("mode", [{}, {"speckle": True}, {"speckle": True, "band": "carrier"},
+                                  {"speckle": True, "band": "carrier", "detection": "incoherent"},
+                                  {"speckle": True, "tvg": True, "lowpass_hz": 5e3}])
+def test_empty_range_window_gives_zero_record(mode):
+    rec = se.simulate(flat_scene(), line_along_x(n_pings=2, z=80.0), se.Sonar(max_range_m=50), **mode)
     assert np.all(rec.port == 0) and np.all(rec.starboard == 0) and np.all(np.isnan(rec.altitude_m))
-    with pytest.raises(se.ConfigError, match="speckle"):
-        se.simulate(flat_scene(), line_along_x(n_pings=1), speckle=True)
