@@ -10,7 +10,7 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 __version__ = "0.1.0"
 
 from . import seafloor
-from .config import FanSettings, Material, Pulse, Sonar
+from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .record import Record
 from .scene import Scene
@@ -18,4 +18,4 @@ from .simulate import simulate
 from .trajectory import Trajectory
 
 __all__ = ["ConfigError", "FanSettings", "Material", "Pulse", "Record", "Scene", "SceneError",
-           "Sonar", "SonarEmbreeError", "Trajectory", "seafloor", "simulate", "__version__"]
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "seafloor", "simulate", "__version__"]

@@ -23,11 +23,16 @@ CONFIG.toml describes the scene, trajectory and sonar; keys map 1:1 onto the Pyt
 dataclasses (units in the key names):
 
   [sonar]       frequency_hz, length_m, height_m, tilt_deg, max_range_m,
-                sample_rate_hz, sound_speed_m_s, absorption_db_per_m
-  [pulse]       kind = "cw", duration_s, taper (0 rectangle ... 1 Blackman-Harris)
+                sample_rate_hz, sound_speed_m_s, absorption_db_per_m (default:
+                Francois-Garrison from temperature_c, salinity_ppt, depth_m, ph)
+  [pulse]       kind = "cw" | "lfm" | "exp_chirp", duration_s, taper (0 rectangle
+                ... 1 Blackman-Harris; default 0.1); lfm: bandwidth_hz, center_hz;
+                exp_chirp: f_start_hz, f_stop_hz
   [fan]         rays_per_bin, azimuth_oversample, azimuth_nulls, max_step_deg,
                 probe_step_deg, max_rays_per_side
-  [simulation]  speckle (false), seed (0)
+  [simulation]  speckle (false), band ("baseband"|"carrier"), detection
+                ("coherent"|"incoherent"), matched_filter (default: on for FM),
+                tvg (false), noise_db_per_hz, lowpass_hz, speckle_cell_m, seed (0)
   [trajectory]  kind = "line": start, end, n_pings, speed_m_s, pitch_deg, roll_deg, heading_deg
                 kind = "waypoints": waypoints, n_pings, speed_m_s, pitch_deg, roll_deg
                 kind = "csv": path (columns time_s,x_m,y_m,z_m,heading_deg,pitch_deg,roll_deg)
@@ -50,11 +55,13 @@ def _parser() -> argparse.ArgumentParser:
 
     d = sub.add_parser("demo", help="render the built-in anchor-mine scene (paper §4.1) in seconds",
                        description="Render the paper's anchor-mine test scene: three spheres and a cube "
-                                   "moored above a seafloor, speckle-free, default 400 kHz sonar.",
+                                   "moored above a seafloor, default 400 kHz sonar; speckle-free unless the "
+                                   "signal-chain options ask for speckle.",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     d.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
     d.add_argument("--pings", type=int, default=240, help="number of pings over the 24 m track (default 240)")
     d.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    _add_chain_options(d)
 
     r = sub.add_parser("render", help="render a scene + trajectory + sonar described in a TOML file",
                        description="Render the run described by CONFIG.toml.", epilog=RENDER_HELP + "\n" + EPILOG,
@@ -62,7 +69,38 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("config", metavar="CONFIG.toml", help="run description (see below)")
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
     r.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    _add_chain_options(r)
     return p
+
+
+def _add_chain_options(p):
+    g = p.add_argument_group("signal chain (override [simulation]; see sonar_embree.SignalChain)")
+    g.add_argument("--speckle", action=argparse.BooleanOptionalAction, default=None,
+                   help="simulate signals with speckle (default: the expected intensity)")
+    g.add_argument("--band", choices=("baseband", "carrier"), help="synthesis band (speckle only)")
+    g.add_argument("--detection", choices=("coherent", "incoherent"), help="detection (incoherent: carrier)")
+    g.add_argument("--matched-filter", action=argparse.BooleanOptionalAction, default=None,
+                   help="pulse compression (default: on for FM pulses)")
+    g.add_argument("--tvg", action=argparse.BooleanOptionalAction, default=None, help="perfect TVG")
+    g.add_argument("--noise-db-per-hz", type=float, metavar="DB", help="receiver noise spectral density")
+    g.add_argument("--lowpass-hz", type=float, metavar="HZ", help="low-pass FIR cut-off after detection")
+    g.add_argument("--seed", type=int, help="seed of the speckle and noise")
+
+
+_CHAIN_FLAGS = ("speckle", "band", "detection", "matched_filter", "tvg", "noise_db_per_hz", "lowpass_hz", "seed")
+
+
+def _chain(args, base=None):
+    """The signal chain of ``base`` (default: SignalChain()) with the command-line overrides."""
+    import dataclasses
+
+    from .config import SignalChain
+
+    base = SignalChain() if base is None else base
+    overrides = {k: getattr(args, k) for k in _CHAIN_FLAGS if getattr(args, k) is not None}
+    if ("band" in overrides and overrides["band"] == "carrier") or "detection" in overrides:
+        overrides.setdefault("speckle", True)
+    return dataclasses.replace(base, **overrides)
 
 
 def _write_outputs(rec, out_dir, png=True, npz=True, png_kwargs=None):
@@ -88,13 +126,13 @@ def _run(args) -> list:
         if args.pings < 1:
             raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
-        rec = simulate(scene, traj, sonar, pulse, speckle=False, progress=not args.no_progress)
+        rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), progress=not args.no_progress)
         return _write_outputs(rec, args.output, png_kwargs=DEMO_PNG)
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
-    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, speckle=cfg.speckle, seed=cfg.seed,
-                   fan=cfg.fan, progress=not args.no_progress)
+    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain), fan=cfg.fan,
+                   progress=not args.no_progress)
     o = cfg.output
     if not (o.png or o.npz):
         raise SonarEmbreeError(f"{args.config}: [output] png and npz are both false; nothing to write")

@@ -160,13 +160,13 @@ def _node_hash(seed, ix, iy, iz):
 
 
 @njit(cache=True, nogil=True)
-def frozen_gaussian(seed, ijk, out):
-    """Complex Gaussian reflectivities of each lattice node, a pure function of (seed, node, index).
+def frozen_scatterers(seed, ijk, gain, position):
+    """Reflectivity and position of each node's scatterers, a pure function of (seed, node, index).
 
-    g = √(−ln u₁) · e^(j2πu₂) with u₁ ∈ (0, 1], u₂ ∈ [0, 1) from a splitmix64 hash of
-    the seed, the integer node coordinates and the column index, so E|g|² = 1, |g|²
-    is exponential and the phase uniform: the same node gets the same values in
-    every ping and run.
+    g = √(−ln u₁) · e^(j2πu₂) and v = (s + u₃)/S with u₁ ∈ (0, 1], u₂, u₃ ∈ [0, 1)
+    from a splitmix64 hash of the seed, the integer node coordinates and the
+    scatterer index s, so E|g|² = 1, |g|² is exponential, the phase uniform and v
+    stratified-uniform on [0, 1): the same node gets the same values in every ping and run.
 
     Parameters
     ----------
@@ -174,18 +174,23 @@ def frozen_gaussian(seed, ijk, out):
         Non-negative seed.
     ijk : (n, 3) int64
         Lattice coordinates of the nodes.
-    out : (n, s) complex128
-        Written with s independent reflectivities per node.
+    gain : (n, S) complex128
+        Written with S independent reflectivities per node.
+    position : (n, S) float64
+        Written with the scatterers' stratified positions v in [0, 1).
     """
     scale = 1.0 / 9007199254740992.0  # 2**-53
+    n_sub = gain.shape[1]
     for i in range(ijk.shape[0]):
         h = _node_hash(seed, ijk[i, 0], ijk[i, 1], ijk[i, 2])
-        for s in range(out.shape[1]):
+        for s in range(n_sub):
             hs = _mix64(h + np.uint64(s) * _GOLDEN)
             u1 = (float(_mix64(hs ^ np.uint64(1)) >> np.uint64(11)) + 1.0) * scale
             u2 = float(_mix64(hs ^ np.uint64(2)) >> np.uint64(11)) * scale
+            u3 = float(_mix64(hs ^ np.uint64(3)) >> np.uint64(11)) * scale
             r = math.sqrt(-math.log(u1))
-            out[i, s] = complex(r * math.cos(2.0 * math.pi * u2), r * math.sin(2.0 * math.pi * u2))
+            gain[i, s] = complex(r * math.cos(2.0 * math.pi * u2), r * math.sin(2.0 * math.pi * u2))
+            position[i, s] = (s + u3) / n_sub
 
 
 @njit(cache=True, nogil=True)

@@ -1,7 +1,8 @@
 """TOML run descriptions mapped 1:1 onto the dataclasses.
 
 Tables: ``[sonar]`` (fields of :class:`Sonar`), ``[pulse]`` (:class:`Pulse`),
-``[fan]`` (:class:`FanSettings`), ``[simulation]`` (``speckle``, ``seed``),
+``[fan]`` (:class:`FanSettings`), ``[simulation]`` (:class:`SignalChain`: speckle,
+band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_m, seed),
 ``[trajectory]`` (``kind`` = "line" | "waypoints" | "csv" and that constructor's
 arguments), ``[[objects]]`` (``path`` to a mesh file *or* ``seafloor`` =
 "flat" | "perlin" | "ripples" with that function's arguments; optional ``label``
@@ -21,7 +22,7 @@ except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
 from . import seafloor
-from .config import FanSettings, Material, Pulse, Sonar, field_names
+from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from .errors import ConfigError, SonarEmbreeError
 from .scene import Scene
 from .trajectory import Trajectory
@@ -33,7 +34,6 @@ TRAJECTORY_KINDS = {
     "csv": ("path",),
 }
 TOP_KEYS = ("sonar", "pulse", "fan", "simulation", "trajectory", "objects", "output")
-SIMULATION_KEYS = ("speckle", "seed")
 OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg")
 
 
@@ -63,8 +63,7 @@ class RunConfig:
     sonar: Sonar
     pulse: Pulse
     fan: FanSettings
-    speckle: bool
-    seed: int
+    chain: SignalChain
     output: OutputOptions
 
 
@@ -116,8 +115,11 @@ def load_run_config(path) -> RunConfig:
     pulse = _dataclass_table(data, "pulse", Pulse, source)
     fan = _dataclass_table(data, "fan", FanSettings, source)
 
-    sim = data.get("simulation", {})
-    _check_keys("[simulation]", sim, SIMULATION_KEYS, source)
+    chain = _dataclass_table(data, "simulation", SignalChain, source)
+    try:
+        chain.resolved(sonar, pulse)  # combinations of sonar, pulse and chain, before any work
+    except SonarEmbreeError as exc:
+        raise ConfigError(f"{source}: [simulation]: {exc}") from None
     out = data.get("output", {})
     _check_keys("[output]", out, OUTPUT_KEYS, source)
     output = _build(source, "[output]", OutputOptions, out)
@@ -164,10 +166,4 @@ def load_run_config(path) -> RunConfig:
             mesh = _build(source, where, fn, obj)
             scene.add(mesh, material=material, label=label or "seafloor")
 
-    speckle = sim.get("speckle", False)
-    seed = sim.get("seed", 0)
-    if not isinstance(speckle, bool):
-        raise ConfigError(f"{source}: [simulation] speckle must be true or false, got {speckle!r}")
-    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"{source}: [simulation] seed must be a non-negative integer, got {seed!r}")
-    return RunConfig(scene, traj, sonar, pulse, fan, speckle, seed, output)
+    return RunConfig(scene, traj, sonar, pulse, fan, chain, output)

@@ -125,15 +125,16 @@ class _ScattererLattice:
 
     Every node holds :data:`SUB_SCATTERERS` point scatterers with independent frozen
     complex Gaussian reflectivities, sharing the node's echo W equally and placed in
-    range at R̄ + σ·z_s, where R̄ and σ² are the W-weighted mean and variance of the
-    ranges of the rays the node collected and z_s = (−3, −1, 1, 3)/√5 (mean 0,
-    variance 1), clipped to the node's least and greatest ray range (nothing arrives
-    before the first surface). The echo energy keeps its place and spread in range,
-    so the expected intensity has no comb at the lattice spacing.
+    range at R̄ + √3·σ·(2v − 1), where R̄ and σ² are the W-weighted mean and variance
+    of the ranges of the rays the node collected and v a frozen stratified-uniform
+    position in [0, 1) (mean 0, variance ≈ σ² over the node's scatterers), clipped to
+    the node's least and greatest ray range (nothing arrives before the first
+    surface). The echo energy keeps its place and spread in range, and neighbouring
+    nodes' scatterers interleave, so the expected intensity has no comb at the
+    lattice spacing.
     """
 
     SUB_SCATTERERS = 4
-    _Z = np.array([-3.0, -1.0, 1.0, 3.0]) / math.sqrt(5.0)
 
     def __init__(self, cell_m: float, seed: int):
         self.cell_m = float(cell_m)
@@ -170,11 +171,12 @@ class _ScattererLattice:
         r_mean = self.wr[slots] / w
         sigma = np.sqrt(np.maximum(self.wr2[slots] / w - r_mean ** 2, 0.0))
         g = np.empty((k, self.SUB_SCATTERERS), dtype=np.complex128)
-        kernels.frozen_gaussian(self.seed, ijk, g)
+        v = np.empty((k, self.SUB_SCATTERERS))
+        kernels.frozen_scatterers(self.seed, ijk, g, v)
         r_node = np.sqrt(np.sum((ijk * self.cell_m - pos_world) ** 2, axis=1))
         cycles = (2.0 * r_node / wavelength_m) % 1.0
         amp = (np.sqrt(w / self.SUB_SCATTERERS) * np.exp(-2j * np.pi * cycles))[:, None] * g
-        r_env = np.clip(r_mean[:, None] + sigma[:, None] * self._Z[None, :], self.rmin[slots, None],
+        r_env = np.clip(r_mean[:, None] + (math.sqrt(3.0) * sigma)[:, None] * (2.0 * v - 1.0), self.rmin[slots, None],
                         self.rmax[slots, None])
         return np.repeat(ch, self.SUB_SCATTERERS), r_env.ravel(), amp.ravel()
 

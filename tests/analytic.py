@@ -69,3 +69,34 @@ def flat_floor_expected_intensity(r_cell_end_m, pulse_extent_m=0.075, h=10.0, dr
         return np.interp(np.clip(x, h, grid[-1]), grid, cum)
 
     return G(r_cell_end_m) - G(r_cell_end_m - pulse_extent_m)
+
+
+def tvg_flat_floor(r_m, h=10.0, mu_db=-27.0, pulse_extent_m=0.075, f0=400e3, c=1500.0, lx=0.19, ly=0.0038,
+                   tilt_deg=20.0):
+    """PHYSICS.md §3: with perfect TVG a Lambertian flat floor follows μ·h²·Φ_eq·(cτ/2)·Γ_el⁴/ρ.
+
+    Φ_eq = 2λ/(3·lx); Γ_el the elevation pattern sinc(k·ly/2·sin(β − δ)) at the depression
+    β = asin(h/R); ρ = √(R² − h²).
+    """
+    r = np.asarray(r_m, dtype=float)
+    lam = c / f0
+    k = 2 * np.pi / lam
+    beta = np.arcsin(h / r)
+    g_el = np.sinc(k * ly / 2 * np.sin(beta - np.radians(tilt_deg)) / np.pi)
+    phi_eq = 2 * lam / (3 * lx)
+    rho = np.sqrt(r ** 2 - h ** 2)
+    return 10 ** (mu_db / 10) * h ** 2 * phi_eq * pulse_extent_m * g_el ** 4 / rho
+
+
+def ainslie_mccolm_db_per_km(f_hz, t_c=10.0, s_ppt=35.0, depth_m=0.0, ph=8.0):
+    """Ainslie & McColm (1998), J. Acoust. Soc. Am. 103(3), 1671: a simplified absorption formula.
+
+    An independent check of Francois–Garrison (PHYSICS.md §3: within 10 % of it).
+    """
+    f = f_hz / 1e3
+    z = depth_m / 1e3
+    f1 = 0.78 * np.sqrt(s_ppt / 35) * np.exp(t_c / 26)
+    f2 = 42 * np.exp(t_c / 17)
+    return (0.106 * f1 * f * f / (f1 * f1 + f * f) * np.exp((ph - 8) / 0.56)
+            + 0.52 * (1 + t_c / 43) * (s_ppt / 35) * f2 * f * f / (f2 * f2 + f * f) * np.exp(-z / 6)
+            + 0.00049 * f * f * np.exp(-(t_c / 27 + z / 17)))

@@ -38,3 +38,18 @@ def flat_record():
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+def facing_plate(slant_range_m=20.0, size_m=0.3, altitude_m=H, tilt_deg=20.0):
+    """A square plate on the starboard boresight of a sonar at (0, 0, altitude) heading +x, facing it."""
+    d = np.radians(tilt_deg)
+    look = np.array([0.0, -np.cos(d), -np.sin(d)])
+    centre = np.array([0.0, 0.0, altitude_m]) + slant_range_m * look
+    a = np.array([1.0, 0.0, 0.0])
+    b = np.cross(look, a)
+    s = size_m / 2
+    v = np.array([centre - a * s - b * s, centre + a * s - b * s, centre + a * s + b * s, centre - a * s + b * s])
+    m = trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+    if np.dot(m.face_normals[0], look) > 0:
+        m.invert()
+    return m

@@ -53,20 +53,23 @@ def _mix64(z):
     return z ^ (z >> np.uint64(31))
 
 
-def frozen_gaussian(seed, ijk, n_sub):
-    """splitmix64 of (seed, i, j, k, s) → two uniforms → Box–Muller, in plain NumPy uint64."""
+def frozen_scatterers(seed, ijk, n_sub):
+    """splitmix64 of (seed, i, j, k, s) → uniforms → Box–Muller and stratified positions, in NumPy uint64."""
     ijk = np.asarray(ijk, dtype=np.int64).astype(np.uint64)
     with np.errstate(over="ignore"):
         h = _mix64(np.uint64(seed) + np.uint64(0x9E3779B97F4A7C15))
         for col in range(3):
             h = _mix64(h ^ ijk[:, col])
-        out = np.empty((ijk.shape[0], n_sub), dtype=complex)
+        gain = np.empty((ijk.shape[0], n_sub), dtype=complex)
+        position = np.empty((ijk.shape[0], n_sub))
         for s in range(n_sub):
             hs = _mix64(h + np.uint64(s) * np.uint64(0x9E3779B97F4A7C15))
             u1 = ((_mix64(hs ^ np.uint64(1)) >> np.uint64(11)).astype(float) + 1.0) * 2.0 ** -53
             u2 = (_mix64(hs ^ np.uint64(2)) >> np.uint64(11)).astype(float) * 2.0 ** -53
-            out[:, s] = np.sqrt(-np.log(u1)) * np.exp(2j * np.pi * u2)
-    return out
+            u3 = (_mix64(hs ^ np.uint64(3)) >> np.uint64(11)).astype(float) * 2.0 ** -53
+            gain[:, s] = np.sqrt(-np.log(u1)) * np.exp(2j * np.pi * u2)
+            position[:, s] = (s + u3) / n_sub
+    return gain, position
 
 
 def gather_nodes(channel, points, weights, ranges, cell_m):

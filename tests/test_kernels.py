@@ -84,17 +84,23 @@ def test_splat_table_is_a_fractional_delay_not_a_rounding():
     assert np.all(out[0, :3] == 0) and np.all(out[0, 7:] == 0)
 
 
-def test_frozen_gaussian_matches_naive_and_is_rayleigh():
+def test_frozen_scatterers_match_naive_and_are_rayleigh():
     ijk = np.stack(np.meshgrid(np.arange(-20, 20), np.arange(-20, 20), np.array([-1, 0, 5_000_000_000]),
                                indexing="ij"), -1).reshape(-1, 3).astype(np.int64)
     out = np.empty((ijk.shape[0], 4), dtype=complex)
-    kernels.frozen_gaussian(3, ijk, out)
-    np.testing.assert_allclose(out, naive.frozen_gaussian(3, ijk, 4), rtol=1e-13, atol=1e-15)
+    pos = np.empty((ijk.shape[0], 4))
+    kernels.frozen_scatterers(3, ijk, out, pos)
+    ref_gain, ref_pos = naive.frozen_scatterers(3, ijk, 4)
+    np.testing.assert_allclose(out, ref_gain, rtol=1e-13, atol=1e-15)
+    np.testing.assert_array_equal(pos, ref_pos)
+    for s in range(4):                                                     # stratified: one per quarter
+        assert np.all((pos[:, s] >= s / 4) & (pos[:, s] < (s + 1) / 4))
+        assert abs(pos[:, s].mean() - (s + 0.5) / 4) < 0.01
     i = np.abs(out.ravel()) ** 2
     assert abs(i.mean() - 1) < 0.05 and abs(i.std() - 1) < 0.07           # exponential intensity
     assert abs(np.mean(out)) < 0.03                                        # uniform phase
     other = np.empty_like(out)
-    kernels.frozen_gaussian(4, ijk, other)
+    kernels.frozen_scatterers(4, ijk, other, pos)
     assert abs(np.corrcoef(np.abs(out.ravel()), np.abs(other.ravel()))[0, 1]) < 0.05
 
 

@@ -1,0 +1,90 @@
+"""Speckle (PHYSICS.md §4): Rayleigh statistics, frozen to the surface, unbiased."""
+import numpy as np
+import pytest
+
+import sonar_embree as se
+from conftest import H, flat_scene
+
+SONAR = se.Sonar(max_range_m=30.0)
+
+
+@pytest.fixture(scope="module")
+def independent_pings():
+    """41 pings 2 m apart over a flat floor (independent speckle), and the expected intensity."""
+    traj = se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), 41)
+    scene = flat_scene()
+    expected = se.simulate(scene, traj, SONAR)
+    speckled = se.simulate(scene, traj, SONAR, speckle=True, seed=11)
+    band = expected.slant_range_m > 12.0
+    ratio = np.concatenate([speckled.port[:, band] / expected.port[:, band],
+                            speckled.starboard[:, band] / expected.starboard[:, band]])
+    return ratio, expected, speckled, band
+
+
+def test_fully_developed_speckle_statistics(independent_pings):
+    ratio = independent_pings[0]
+    assert ratio.size > 40_000
+    assert abs(ratio.mean() - 1) < 0.05
+    assert abs(ratio.std() / ratio.mean() - 1) < 0.1                    # contrast of an exponential
+    assert abs(np.mean(10 * np.log10(ratio)) + 2.51) < 0.3               # mean of 10·log10 I/⟨I⟩
+    assert abs(np.std(10 * np.log10(ratio)) - 5.57) < 0.3
+
+
+def test_mean_of_speckled_pings_converges_to_speckle_free(independent_pings):
+    ratio, expected, speckled, band = independent_pings
+    n_lines, n = ratio.shape
+    blocks = n // 50
+    block_mean = ratio[:, :blocks * 50].reshape(n_lines, blocks, 50).mean(axis=2)  # ~1 m range blocks
+    assert np.all(np.abs(block_mean.mean(axis=0) - 1) < 0.1)
+    err = [np.sqrt(np.mean((ratio[:k].mean(axis=0) - 1) ** 2)) for k in (8, 32, 82)]
+    assert err[0] > err[1] > err[2]                  # falls as 1/√N: err(82)/err(8) ≈ √(8/82) = 0.31
+    assert err[2] < 0.5 * err[0]
+    # nothing arrives before the first bottom return, speckle or not
+    early = speckled.time_s < 2 * H / SONAR.sound_speed_m_s - 1 / SONAR.sample_rate_hz
+    assert np.all(speckled.starboard[:, early] == 0) and np.all(speckled.port[:, early] == 0)
+
+
+def _pair(dx, seed=0, dy=0.0):
+    traj = se.Trajectory(np.array([[0.0, 0.0, H], [dx, dy, H]]), heading_deg=[90.0, 90.0])
+    return se.simulate(flat_scene(), traj, SONAR, speckle=True, seed=seed)
+
+
+def _corr(a, b, expected):
+    band = expected.slant_range_m > 12.0
+    x = np.concatenate([a.port[band] / expected.port[0, band], a.starboard[band] / expected.starboard[0, band]])
+    y = np.concatenate([b.port[band] / expected.port[0, band], b.starboard[band] / expected.starboard[0, band]])
+    return np.corrcoef(x, y)[0, 1]
+
+
+@pytest.fixture(scope="module")
+def expected_line():
+    return se.simulate(flat_scene(), se.Trajectory(np.array([[0.0, 0.0, H]]), heading_deg=[90.0]), SONAR)
+
+
+def test_speckle_is_frozen_to_the_surface(expected_line):
+    same = _pair(0.0)
+    assert np.array_equal(same.starboard[0], same.starboard[1]) and np.array_equal(same.port[0], same.port[1])
+    near = _pair(0.01)
+    assert _corr(_Line(near, 0), _Line(near, 1), expected_line) > 0.8
+    far = _pair(5.0)
+    assert abs(_corr(_Line(far, 0), _Line(far, 1), expected_line)) < 0.2
+    other = _pair(0.0, seed=1)
+    assert abs(_corr(_Line(same, 0), _Line(other, 0), expected_line)) < 0.2
+    # a sonar standing still sees a static image: the same record in a second run
+    again = _pair(0.01)
+    assert np.array_equal(near.starboard, again.starboard)
+
+
+def test_speckle_moves_with_the_floor_not_with_the_sonar(expected_line):
+    # Moving the sonar across track by 1 cm keeps the speckle of the same floor points:
+    # the pattern shifts in range by ~1 cm (half a sample) instead of being redrawn
+    # (a speckle drawn per ray per ping would give ~0 here).
+    across = _pair(0.0, dy=0.01)
+    assert _corr(_Line(across, 0), _Line(across, 1), expected_line) > 0.6
+
+
+class _Line:
+    """One ping of a two-ping record, with .port / .starboard as 1-D lines."""
+
+    def __init__(self, rec, i):
+        self.port, self.starboard = rec.port[i], rec.starboard[i]
