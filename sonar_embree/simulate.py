@@ -85,9 +85,8 @@ class PingEchoes:
 
 
 def _cast_ping(caster: RayCaster, plan: FanPlan, sonar: Sonar, rot: np.ndarray, pos_local: np.ndarray,
-               two_way_np: float) -> PingEchoes:
-    """Probe, place the fan for the range resolution, cast both sides at once, weight every echo."""
-    max_r = sonar.max_range_m
+               two_way_np: float, max_r: float) -> PingEchoes:
+    """Probe, place the fan for the range resolution, cast both sides at once (to ``max_r``), weight every echo."""
     m = plan.probe_beta.shape[0]
     probe_dirs = np.concatenate([plan.probe_body @ rot.T, [[0.0, 0.0, -1.0]]])
     ph = caster.cast(pos_local, probe_dirs, max_r)
@@ -203,15 +202,14 @@ class _Synth:
         return cls(table, start, float(rate), factor, pulses.passband_analytic(pulse, f0, factor * fs))
 
 
-def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, amp, noise_bb):
+def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, amp, noise_bb, n_s):
     """One ping on the carrier: real passband signal at the carrier rate, detected, at the record rate.
 
-    Returns complex baseband (coherent) or intensity (incoherent), shape (2, n_samples).
+    Returns complex baseband (coherent) or intensity (incoherent), shape (2, n_s).
     """
     f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
     m = synth.carrier_factor
     fc = m * fs
-    n_s = sonar.n_samples
     n_c = (n_s - 1) * m + 1
     buf = np.zeros((2, n_c), dtype=np.complex128)
     # Re{C·p̃(t − τ)·e^(j2πf0 t)}: impulse C·e^(j2πf0τ) at τ convolved with p̃(t)·e^(j2πf0 t)
@@ -288,7 +286,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     compiled = scene.compiled()
     caster = RayCaster(compiled)
     plan = FanPlan.build(sonar, fan)
-    n_p, n_s = len(trajectory), sonar.n_samples
+    n_p, n_out = len(trajectory), sonar.n_samples
+    # The compressed sample at t needs echoes up to t + τ: synthesise a pulse length past the window.
+    n_s = n_out + (int(math.ceil(pulse.duration_s * sonar.sample_rate_hz)) if chain.matched_filter else 0)
+    max_r = max(sonar.max_range_m, (n_s - 1) * sonar.sound_speed_m_s / (2.0 * sonar.sample_rate_hz))
     f0, fs, c = sonar.frequency_hz, sonar.sample_rate_hz, sonar.sound_speed_m_s
     altitude = np.full(n_p, np.nan)
     rots = trajectory.rotations()
@@ -304,7 +305,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if not chain.speckle:
         raw = np.zeros((n_p, 2, n_s))
         for i in pings:
-            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way)
+            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way, max_r)
             altitude[i] = e.altitude_m
             kernels.splat_linear(e.channel, e.range_m * (2.0 * fs / c), e.weight, raw[i])
         kernel, lead = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
@@ -319,7 +320,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         coherent = chain.detection == "coherent"
         sig = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
         for i in pings:
-            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way)
+            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way, max_r)
             altitude[i] = e.altitude_m
             ch, r_env, amp = lattice.scatterers(e, compiled.origin_m, trajectory.positions_m[i],
                                                 sonar.wavelength_m)
@@ -333,7 +334,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
                 if noise is not None:
                     sig[i] += noise
             else:
-                sig[i] = _carrier_ping(synth, sonar, chain, ch, r_env * (2.0 / c), amp, noise)
+                sig[i] = _carrier_ping(synth, sonar, chain, ch, r_env * (2.0 / c), amp, noise, n_s)
         if coherent:
             if chain.matched_filter:
                 sig = processing.matched_filter(sig, pulses.replica(pulse, f0, fs))
@@ -342,7 +343,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             intensity = sig
         mode = "speckle"
 
-    time_s = np.arange(n_s) / fs
+    intensity = intensity[..., :n_out]
+    time_s = np.arange(n_out) / fs
     if chain.lowpass_hz is not None:
         intensity = processing.lowpass(intensity, chain.lowpass_hz, fs)
     if chain.tvg:

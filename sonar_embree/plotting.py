@@ -1,0 +1,73 @@
+"""Figures (the only module that imports matplotlib, an optional dependency: ``pip install sonar_embree[plots]``).
+
+Waterfall images themselves need no plotting library (:mod:`sonar_embree.waterfall`);
+this module draws the figures around them: mode comparisons and brightness histograms.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import ConfigError
+from .record import atomic_write
+
+
+def _pyplot():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise ConfigError("figures need matplotlib: pip install 'sonar_embree[plots]'") from None
+    return plt
+
+
+def _save(fig, path):
+    plt = _pyplot()
+    atomic_write(path, lambda tmp: fig.savefig(tmp, dpi=110, format="png"), suffix=".png")
+    plt.close(fig)
+
+
+def brightness_histogram_png(image, path, title="Pixel brightness distribution") -> np.ndarray:
+    """Histogram of the 8-bit pixel values of a waterfall image, written as a PNG.
+
+    Parameters
+    ----------
+    image : (h, w) uint8
+        Waterfall image.
+    path : str
+        Output PNG (written atomically).
+
+    Returns
+    -------
+    (256,) int
+        Counts per brightness value.
+    """
+    plt = _pyplot()
+    counts = np.bincount(np.asarray(image, dtype=np.uint8).ravel(), minlength=256)
+    fig, ax = plt.subplots(figsize=(5.0, 3.2))
+    ax.bar(np.arange(256), counts, width=1.0, color="0.25")
+    ax.set_xlim(0, 255)
+    ax.set_xlabel("pixel brightness (0–255)")
+    ax.set_ylabel("pixels")
+    ax.set_title(title)
+    fig.tight_layout()
+    _save(fig, path)
+    return counts
+
+
+def mosaic_png(images, titles, path, columns=2) -> None:
+    """Several waterfall images side by side with titles, one PNG (atomic)."""
+    plt = _pyplot()
+    n = len(images)
+    rows = int(np.ceil(n / columns))
+    h, w = np.asarray(images[0]).shape[:2]
+    fig, axes = plt.subplots(rows, columns, figsize=(columns * 4.2, rows * 4.2 * h / w + 0.6 * rows),
+                             squeeze=False)
+    for ax in axes.ravel():
+        ax.axis("off")
+    for ax, img, title in zip(axes.ravel(), images, titles):
+        ax.imshow(img, cmap="gray", vmin=0, vmax=255, aspect="auto", interpolation="nearest")
+        ax.set_title(title, fontsize=10)
+    fig.tight_layout()
+    _save(fig, path)
