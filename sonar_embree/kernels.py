@@ -219,7 +219,7 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
     cell_m : float
         Lattice spacing, m.
     slot_key : (cap, 4) int64
-        Hash table keys (ch, i, j, k); cap a power of two ≥ 2·(8·n).
+        Hash table keys (ch, i, j, k); cap a power of two.
     slot_epoch : (cap,) int64
         Epoch stamp of each slot.
     epoch : int
@@ -232,9 +232,12 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
     Returns
     -------
     int
-        Number of nodes; their slots are ``order[:count]``.
+        Number of nodes; their slots are ``order[:count]``. −1 when the nodes would
+        fill more than half the table: the caller grows it and calls again with a
+        new epoch.
     """
     cap = slot_epoch.shape[0]
+    max_count = cap // 2
     mask = np.uint64(cap - 1)
     inv = 1.0 / cell_m
     count = 0
@@ -266,6 +269,8 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
             while True:
                 si = np.int64(s)
                 if slot_epoch[si] != epoch:
+                    if count >= max_count:
+                        return -1
                     slot_epoch[si] = epoch
                     slot_key[si, 0] = ch
                     slot_key[si, 1] = ix

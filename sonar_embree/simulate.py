@@ -139,7 +139,7 @@ class _ScattererLattice:
         self.cell_m = float(cell_m)
         self.seed = int(seed)
         self.epoch = 0
-        self._alloc(1 << 16)
+        self._alloc(1 << 17)
 
     def _alloc(self, cap):
         self.key = np.zeros((cap, 4), dtype=np.int64)
@@ -157,14 +157,15 @@ class _ScattererLattice:
         Amplitude √(W/S)·g·e^(−j2k·R_node), R_node the range of the node itself, so the
         carrier phase follows the sonar's motion relative to a fixed point.
         """
-        need = 16 * max(echoes.weight.shape[0], 1)
-        if self.stamp.shape[0] < need:
-            self._alloc(1 << int(math.ceil(math.log2(need))))
-        self.epoch += 1
         points = echoes.point_m + origin_m  # world, float64
-        k = kernels.gather_nodes(echoes.channel, points, echoes.weight, echoes.range_m, self.cell_m,
-                                 self.key, self.stamp, self.epoch, self.w, self.wr, self.wr2, self.rmin,
-                                 self.rmax, self.order)
+        while True:  # the table grows (and stays grown) until the ping's nodes fill at most half of it
+            self.epoch += 1
+            k = kernels.gather_nodes(echoes.channel, points, echoes.weight, echoes.range_m, self.cell_m,
+                                     self.key, self.stamp, self.epoch, self.w, self.wr, self.wr2, self.rmin,
+                                     self.rmax, self.order)
+            if k >= 0:
+                break
+            self._alloc(2 * self.stamp.shape[0])
         slots = self.order[:k]
         ch, ijk, w = self.key[slots, 0], self.key[slots, 1:], self.w[slots]
         r_mean = self.wr[slots] / w

@@ -127,3 +127,7 @@ def test_gather_nodes_matches_naive(rng):
         for kk, vals in ref.items():
             np.testing.assert_allclose(got[kk], vals, rtol=1e-10)
     np.testing.assert_allclose(bufs[0][order[:k]].sum(), w.sum(), rtol=1e-12)  # ΣW = Σw
+    small = 1 << 10                                    # too small a table: says so instead of overfilling
+    args = [np.zeros((small, 4), dtype=np.int64), np.full(small, -1, dtype=np.int64), 1,
+            *[np.zeros(small) for _ in range(5)], np.zeros(small, dtype=np.int64)]
+    assert kernels.gather_nodes(ch, pts, w, r, 0.25, *args) == -1
