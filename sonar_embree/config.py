@@ -262,18 +262,6 @@ class Pulse:
         """True for a pulse whose frequency changes (``lfm``, or ``exp_chirp`` with f_start ≠ f_stop)."""
         return self.kind == "lfm" or (self.kind == "exp_chirp" and self.f_start_hz != self.f_stop_hz)
 
-    def sweep_hz(self) -> float:
-        """Swept bandwidth |f_stop − f_start| in Hz (0 for CW)."""
-        if self.kind == "lfm":
-            return float(self.bandwidth_hz)
-        if self.kind == "exp_chirp":
-            return abs(float(self.f_stop_hz) - float(self.f_start_hz))
-        return 0.0
-
-    def signal_bandwidth_hz(self) -> float:
-        """Signal bandwidth in Hz: the sweep, or 1/τ for an unswept pulse (whichever is larger)."""
-        return max(self.sweep_hz(), 1.0 / self.duration_s)
-
     def frequency_span_hz(self, carrier_hz: float) -> tuple[float, float]:
         """Lowest and highest instantaneous frequency (Hz) for a sonar of frequency ``carrier_hz``."""
         if self.kind == "lfm":
@@ -448,8 +436,8 @@ class SignalChain:
                 raise ConfigError("SignalChain: an FM pulse needs pulse compression, which incoherent detection "
                                   "cannot do; use detection='coherent' or set matched_filter=False")
         fs = sonar.sample_rate_hz
+        f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
         if mf:
-            f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
             off = max(abs(f_lo - sonar.frequency_hz), abs(f_hi - sonar.frequency_hz))
             if off >= 0.5 * fs:
                 raise ConfigError(f"Sonar.sample_rate_hz={fs:g} is too low to matched-filter a pulse reaching "
@@ -457,7 +445,6 @@ class SignalChain:
         if self.lowpass_hz is not None and self.lowpass_hz >= 0.5 * fs:
             raise ConfigError(f"SignalChain.lowpass_hz={self.lowpass_hz:g} must be below half the sample rate "
                               f"({0.5 * fs:g} Hz)")
-        f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
         if self.band == "carrier" and f_lo <= 0:
             raise ConfigError(f"Pulse sweeps down to {f_lo:g} Hz; a carrier signal needs positive frequencies")
         cell = 0.5 * sonar.length_m if self.speckle_cell_m is None else self.speckle_cell_m

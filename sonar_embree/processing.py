@@ -88,12 +88,12 @@ def lowpass(x, cutoff_hz: float, rate_hz: float, transition_hz: float | None = N
     return convolve_time(x, taps, lead=taps.shape[0] // 2)
 
 
-def analytic_baseband(x, carrier_hz: float, rate_hz: float):
+def analytic_baseband(x, carrier_hz: float, rate_hz: float, step: int = 1):
     """Coherent demodulation: analytic signal of the real carrier signal, mixed down by f0.
 
     x_a = x + j·H{x} (FFT Hilbert transform, zero-padded to twice the length so
     nothing wraps), then x̃(t) = x_a(t)·e^(−j2πf0 t). For x = Re{r̃·e^(j2πf0 t)}
-    this returns r̃ (PHYSICS.md §5).
+    this returns r̃ (PHYSICS.md §5), at every ``step``-th sample (only those are mixed).
     """
     n = x.shape[-1]
     nfft = 1 << int(math.ceil(math.log2(2 * n)))
@@ -102,8 +102,8 @@ def analytic_baseband(x, carrier_hz: float, rate_hz: float):
     h[0] = 1.0
     h[1:nfft // 2] = 2.0
     h[nfft // 2] = 1.0
-    xa = np.fft.ifft(spec * h, axis=-1)[..., :n]
-    t = np.arange(n) / rate_hz
+    xa = np.fft.ifft(spec * h, axis=-1)[..., :n:step]
+    t = np.arange(0, n, step) / rate_hz
     return xa * np.exp(-2j * np.pi * ((carrier_hz * t) % 1.0))
 
 

@@ -224,7 +224,7 @@ def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, 
         up = resample_poly(noise_bb, m, 1, axis=-1)[:, :n_c]
         x += (up * np.exp(2j * np.pi * ((f0 * t_c) % 1.0))).real
     if chain.detection == "coherent":
-        return processing.analytic_baseband(x, f0, fc)[:, ::m]
+        return processing.analytic_baseband(x, f0, fc, step=m)
     return processing.square_law(x, f0, fc)[:, ::m]
 
 
@@ -351,10 +351,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if chain.tvg:
         intensity = intensity * processing.tvg_gain(time_s, c, sonar.alpha_db_per_m)
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
-    attrs = {"mode": mode, **{k: v for k, v in dataclasses.asdict(chain).items()},
-             "alpha_db_per_m": sonar.alpha_db_per_m}
+    attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m}
     if chain.speckle and chain.band == "carrier":
-        attrs["carrier_rate_hz"] = _Synth.build(sonar, pulse, chain).carrier_factor * fs
+        attrs["carrier_rate_hz"] = synth.carrier_factor * fs
     return Record(port=np.ascontiguousarray(intensity[:, PORT]),
                   starboard=np.ascontiguousarray(intensity[:, STARBOARD]),
                   time_s=time_s, trajectory=trajectory, sonar=sonar, pulse=pulse, altitude_m=altitude,
