@@ -120,25 +120,30 @@ def elevation_span_rad(wavelength_m: float, height_m: float, tilt_rad: float):
     return tilt_rad - half, tilt_rad + half
 
 
-def elevation_density(beta_rad, range_m, dr_target_m: float, max_step_rad: float, slope_cap_m_rad: float):
+def elevation_density(beta_rad, range_m, dr_target_m: float, max_step_rad: float, slope_cap_m_rad: float,
+                      empty_step_factor: float = 1.0):
     """Rays per radian wanted in each probe cell, from the probed slant ranges.
 
     Parameters
     ----------
     beta_rad : (m,) float
         Uniformly spaced probe depressions.
-    range_m : (m,) float
-        Probed slant range per depression, NaN where the probe found nothing in range.
+    range_m : (m,) or (rows, m) float
+        Probed slant range per depression (one row per side and ping), NaN where
+        the probe found nothing in range.
     dr_target_m : float
         Wanted slant-range step between neighbouring rays.
     max_step_rad : float
-        Largest allowed step (sets the base density where nothing is in range).
+        Largest allowed step where a surface is in range.
     slope_cap_m_rad : float
         Upper bound on |dR/dβ| (grazing surfaces).
+    empty_step_factor : float
+        A cell with nothing in range at either end, nor in its neighbours, gets a
+        step this many times ``max_step_rad``.
 
     Returns
     -------
-    (m − 1,) float
+    (m − 1,) or (rows, m − 1) float
         Density per cell [β_j, β_j+1] in rays per radian.
 
     Notes
@@ -150,44 +155,24 @@ def elevation_density(beta_rad, range_m, dr_target_m: float, max_step_rad: float
     beta = np.asarray(beta_rad, dtype=np.float64)
     r = np.asarray(range_m, dtype=np.float64)
     dbeta = np.diff(beta)
-    slope = np.abs(np.diff(r)) / dbeta  # NaN where either end missed
-    pad = np.concatenate(([np.nan], slope, [np.nan]))
-    left, right = pad[:-2], pad[2:]
+    slope = np.abs(np.diff(r, axis=-1)) / dbeta  # NaN where either end missed
+    nan_col = np.full(r.shape[:-1] + (1,), np.nan)
+    pad = np.concatenate((nan_col, slope, nan_col), axis=-1)
+    left, right = pad[..., :-2], pad[..., 2:]
     with np.errstate(invalid="ignore"):
         neigh = np.fmax(left, right)  # NaN only if both are NaN
         jump = np.isfinite(slope) & np.isfinite(neigh) & (slope > 4.0 * neigh)
     slope = np.where(jump, neigh, slope)
-    partial = ~np.isfinite(slope) & (np.isfinite(r[:-1]) | np.isfinite(r[1:]))
+    hit = np.isfinite(r)
+    partial = ~np.isfinite(slope) & (hit[..., :-1] | hit[..., 1:])
     slope = np.where(partial, neigh, slope)
+    live = hit[..., :-1] | hit[..., 1:]
+    no = np.zeros(r.shape[:-1] + (1,), dtype=bool)
+    live_pad = np.concatenate((no, live, no), axis=-1)
+    near = live | live_pad[..., :-2] | live_pad[..., 2:]
     slope = np.where(np.isfinite(slope), np.minimum(slope, slope_cap_m_rad), 0.0)
-    return np.maximum(1.0 / max_step_rad, slope / dr_target_m)
-
-
-def place_rays(edges_rad, density, max_rays: int):
-    """Ray depressions with the given density per cell; their cells tile the span exactly.
-
-    Parameters
-    ----------
-    edges_rad : (m,) float
-        Cell edges (increasing).
-    density : (m − 1,) float
-        Rays per radian inside each cell.
-    max_rays : int
-        Cap on the number of rays (density is scaled down uniformly if exceeded).
-
-    Returns
-    -------
-    beta : (n,) float
-        Ray depressions, each at the middle of its cell.
-    dbeta : (n,) float
-        Cell widths; ``dbeta.sum()`` equals the span.
-    """
-    edges = np.asarray(edges_rad, dtype=np.float64)
-    counts = np.concatenate(([0.0], np.cumsum(density * np.diff(edges))))
-    n = int(min(max(math.ceil(counts[-1]), 1), max_rays))
-    bounds = np.interp(np.linspace(0.0, counts[-1], n + 1), counts, edges)
-    bounds[0], bounds[-1] = edges[0], edges[-1]
-    return 0.5 * (bounds[:-1] + bounds[1:]), np.diff(bounds)
+    floor = np.where(near, 1.0 / max_step_rad, 1.0 / (empty_step_factor * max_step_rad))
+    return np.maximum(floor, slope / dr_target_m)
 
 
 def fan_body(s, beta_rad, side: int):

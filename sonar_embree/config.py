@@ -304,42 +304,67 @@ class Material:
 class FanSettings:
     """How densely each ping's fan of rays samples the beam (PHYSICS.md §7).
 
+    One number, ``quality``, trades error for speed; every other field left at
+    ``None`` follows from it (see :meth:`resolved`), and any field given explicitly
+    wins. The default ``quality=1`` keeps a flat floor within 0.2 dB of the analytic
+    return (docs/benchmarks.md); 0.5 is about twice as fast, 2 or 4 is for
+    references.
+
     Parameters
     ----------
-    rays_per_bin : float
+    quality : float
+        Scales every ray density: elevation rays per range bin ≈ quality (on the
+        steepest part of the scene), azimuth oversampling max(1, quality), and
+        the largest elevation step 0.5°/quality.
+    rays_per_bin : float or None
         Elevation rays per range bin (c/2fs) where the scene's slant range changes
-        fastest with depression angle. With linear splatting, 1 gives < 0.5 dB on a
-        flat floor; the default 2 is comfortably below that.
-    azimuth_oversample : float
+        fastest with depression angle. Each ray's echo is spread over the range
+        interval its cell covers on the surface, so fewer than one ray per bin
+        still integrates a smooth surface accurately.
+    azimuth_oversample : float or None
         Azimuth rays per λ/(2·lx) step of the along-track direction cosine. Any
-        value ≥ 1 integrates the sinc⁴ main lobe exactly; 2 keeps small objects
-        from falling between rays.
-    azimuth_nulls : int
-        Azimuth span in units of the first-null direction cosine λ/lx (2 covers the
-        main lobe and the first side lobe on each side).
-    max_step_deg : float
-        Largest elevation step in degrees, wherever the scene is smooth or empty.
-    probe_step_deg : float
-        Elevation step of the coarse probe cast that finds where range changes fast.
+        value ≥ 1 integrates the band-limited sinc⁴ pattern exactly; more keeps
+        small objects from falling between rays.
+    azimuth_nulls : int or None
+        Azimuth span in units of the first-null direction cosine λ/lx (1: the main
+        lobe, 99.6 % of the two-way energy; 2 adds the first side lobes).
+    max_step_deg : float or None
+        Largest elevation step in degrees, wherever the scene is smooth.
+    probe_step_deg : float or None
+        Elevation step of the coarse probe cast (one azimuth line per side) that
+        finds where range changes fast and where nothing is within range.
     max_rays_per_side : int
         Hard cap on elevation rays per azimuth line and side (a guard, not a budget).
     """
 
-    rays_per_bin: float = 2.0
-    azimuth_oversample: float = 2.0
-    azimuth_nulls: int = 2
-    max_step_deg: float = 0.1
-    probe_step_deg: float = 0.05
+    quality: float = 1.0
+    rays_per_bin: float | None = None
+    azimuth_oversample: float | None = None
+    azimuth_nulls: int | None = None
+    max_step_deg: float | None = None
+    probe_step_deg: float | None = None
     max_rays_per_side: int = 200_000
 
     def __post_init__(self):
-        _check_number("FanSettings", "rays_per_bin", self.rays_per_bin, positive=True, hi=1000)
-        _check_number("FanSettings", "azimuth_oversample", self.azimuth_oversample, lo=1.0, hi=64)
-        _check_number("FanSettings", "azimuth_nulls", self.azimuth_nulls, integer=True, lo=1, hi=50)
-        _check_number("FanSettings", "max_step_deg", self.max_step_deg, positive=True, hi=10)
-        _check_number("FanSettings", "probe_step_deg", self.probe_step_deg, positive=True, hi=5)
+        _check_number("FanSettings", "quality", self.quality, positive=True, hi=64)
+        if self.quality < 1.0 / 64:
+            raise ConfigError(f"FanSettings.quality must be >= {1 / 64}, got {self.quality!r}")
+        for name, kw in (("rays_per_bin", dict(positive=True, hi=1000)),
+                         ("azimuth_oversample", dict(lo=1.0, hi=64)),
+                         ("azimuth_nulls", dict(integer=True, lo=1, hi=50)),
+                         ("max_step_deg", dict(positive=True, hi=10)),
+                         ("probe_step_deg", dict(positive=True, hi=5))):
+            if getattr(self, name) is not None:
+                _check_number("FanSettings", name, getattr(self, name), **kw)
         _check_number("FanSettings", "max_rays_per_side", self.max_rays_per_side, integer=True,
                       lo=16, hi=10_000_000)
+
+    def resolved(self) -> "FanSettings":
+        """These settings with every ``None`` filled in from ``quality``."""
+        q = float(self.quality)
+        derived = dict(rays_per_bin=q, azimuth_oversample=max(1.0, q), azimuth_nulls=1 if q <= 1.0 else 2,
+                       max_step_deg=min(0.5 / q, 10.0), probe_step_deg=min(0.1 / max(q, 1.0), 5.0))
+        return dataclasses.replace(self, **{k: v for k, v in derived.items() if getattr(self, k) is None})
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True, nogil=True)
@@ -194,15 +194,15 @@ def frozen_scatterers(seed, ijk, gain, position):
 
 
 @njit(cache=True, nogil=True)
-def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch, epoch, slot_w, slot_wr,
+def gather_nodes(channel, points, weights, ranges, extents, cell_m, slot_key, slot_epoch, epoch, slot_w, slot_wr,
                  slot_wr2, slot_rmin, slot_rmax, order):
     """Share every ray's echo among the 8 surrounding nodes of a cubic lattice (trilinear).
 
     Node (ch, i, j, k) sits at (i, j, k)·cell_m in world metres and collects, for
     channel ch, W = Σ w·b and WR = Σ w·b·R over the rays whose hit point p lies in
     one of its 8 cells, b the trilinear weight of p for that node (Σb = 1 per ray, so
-    ΣW = Σw), WR2 = Σ w·b·R² and the least and greatest R (for the spread of those
-    ranges). Nodes are kept in an open-addressing hash table owned by the caller;
+    ΣW = Σw), WR2 = Σ w·b·(R² + ΔR²/12) and the least and greatest R ∓ ΔR/2 (for the
+    spread in range of the echoes, each ray's spread uniformly over its extent ΔR). Nodes are kept in an open-addressing hash table owned by the caller;
     a slot belongs to this call when ``slot_epoch == epoch``, so tables are reused
     without clearing. Nodes are listed in first-touch order: deterministic.
 
@@ -216,6 +216,8 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
         Expected echo intensity of each ray; rays with w ≤ 0 are skipped.
     ranges : (n,) float64
         Slant range of each ray, m.
+    extents : (n,) float64
+        Slant-range interval ΔR each ray's footprint covers, m.
     cell_m : float
         Lattice spacing, m.
     slot_key : (cap, 4) int64
@@ -255,6 +257,10 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
         ty = fy - y0
         tz = fz - z0
         ch = channel[r]
+        rr = ranges[r]
+        r2 = rr * rr + extents[r] * extents[r] / 12.0
+        r_lo = rr - 0.5 * extents[r]
+        r_hi = rr + 0.5 * extents[r]
         for c in range(8):
             dx = c & 1
             dy = (c >> 1) & 1
@@ -278,10 +284,10 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
                     slot_key[si, 3] = iz
                     wb = w * b
                     slot_w[si] = wb
-                    slot_wr[si] = wb * ranges[r]
-                    slot_wr2[si] = wb * ranges[r] * ranges[r]
-                    slot_rmin[si] = ranges[r]
-                    slot_rmax[si] = ranges[r]
+                    slot_wr[si] = wb * rr
+                    slot_wr2[si] = wb * r2
+                    slot_rmin[si] = r_lo
+                    slot_rmax[si] = r_hi
                     order[count] = si
                     count += 1
                     break
@@ -289,10 +295,274 @@ def gather_nodes(channel, points, weights, ranges, cell_m, slot_key, slot_epoch,
                         and slot_key[si, 3] == iz):
                     wb = w * b
                     slot_w[si] += wb
-                    slot_wr[si] += wb * ranges[r]
-                    slot_wr2[si] += wb * ranges[r] * ranges[r]
-                    slot_rmin[si] = min(slot_rmin[si], ranges[r])
-                    slot_rmax[si] = max(slot_rmax[si], ranges[r])
+                    slot_wr[si] += wb * rr
+                    slot_wr2[si] += wb * r2
+                    slot_rmin[si] = min(slot_rmin[si], r_lo)
+                    slot_rmax[si] = max(slot_rmax[si], r_hi)
                     break
                 s = (s + np.uint64(1)) & mask
     return count
+
+
+# --------------------------------------------------------------------------- ray fan
+#
+# A block of pings has rows r = 2·b + side (b the ping in the block, side 0 port,
+# 1 starboard). Row r has n_el[r] elevation rays per azimuth line; its rays are
+# azimuth-major from ``n_az·el_start[r]``: ray i = n_az·el_start[r] + a·n_el[r] + j.
+
+
+@njit(cache=True, nogil=True)
+def place_rows(edges, density, el_start, beta, dbeta):
+    """Elevation rays of every row with the wanted density per cell; their cells tile the span.
+
+    Parameters
+    ----------
+    edges : (m,) float64
+        Cell edges in rad (increasing), shared by all rows.
+    density : (rows, m − 1) float64
+        Wanted rays per radian in each cell.
+    el_start : (rows + 1,) int64
+        Row r gets n = el_start[r + 1] − el_start[r] ≥ 1 rays (fewer than the density
+        asks for scales it down uniformly).
+    beta, dbeta : (el_start[-1],) float64
+        Written with each ray's depression (the middle of its cell) and cell width, rad.
+    """
+    m = edges.shape[0]
+    cum = np.empty(m)
+    for r in range(density.shape[0]):
+        cum[0] = 0.0
+        for c in range(m - 1):
+            cum[c + 1] = cum[c] + density[r, c] * (edges[c + 1] - edges[c])
+        n = el_start[r + 1] - el_start[r]
+        total = cum[m - 1]
+        c = 0
+        lo = edges[0]
+        for j in range(n):
+            if j == n - 1:
+                hi = edges[m - 1]
+            else:
+                target = total * (j + 1) / n
+                while c < m - 2 and cum[c + 1] < target:
+                    c += 1
+                span = cum[c + 1] - cum[c]
+                f = (target - cum[c]) / span if span > 0.0 else 0.0
+                hi = edges[c] + f * (edges[c + 1] - edges[c])
+            beta[el_start[r] + j] = 0.5 * (lo + hi)
+            dbeta[el_start[r] + j] = hi - lo
+            lo = hi
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def fan_rays(s, beta, el_start, rot, pos, dirs, origins):
+    """Float32 origins and world directions of every ray of a block of pings, for Embree.
+
+    Parameters
+    ----------
+    s : (n_az,) float64
+        Along-track direction cosines.
+    beta : (el_start[-1],) float64
+        Depression of each row's elevation rays, rad.
+    el_start : (rows + 1,) int64
+        Row offsets into ``beta`` (rows = 2 × pings).
+    rot : (pings, 3, 3) float64
+        Body-to-world rotation per ping (columns forward, starboard, down).
+    pos : (pings, 3) float64
+        Sonar position per ping in the scene's local frame, m.
+    dirs, origins : (n_az·el_start[-1], 3) float32
+        Written with unit directions and origins.
+    """
+    n_az = s.shape[0]
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        n_el = el_start[r + 1] - el_start[r]
+        base = n_az * el_start[r]
+        for a in range(n_az):
+            sa = s[a]
+            cpsi = math.sqrt(1.0 - sa * sa)
+            for j in range(n_el):
+                bj = beta[el_start[r] + j]
+                d0 = sa
+                d1 = side * cpsi * math.cos(bj)
+                d2 = cpsi * math.sin(bj)
+                i = base + a * n_el + j
+                for q in range(3):
+                    dirs[i, q] = rot[b, q, 0] * d0 + rot[b, q, 1] * d1 + rot[b, q, 2] * d2
+                    origins[i, q] = pos[b, q]
+
+
+@njit(cache=True, nogil=True)
+def _sinc(x):
+    if abs(x) < 1e-8:
+        return 1.0 - x * x / 6.0
+    return math.sin(x) / x
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def fan_echoes(s, ds, beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals, face_mu,
+               beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, range_out, extent_out,
+               weight_out, points_out):
+    """Expected echo of every ray of a block: range, range extent and intensity (PHYSICS.md §2–3).
+
+    The hit range is the float64 intersection with the hit triangle's plane (Embree's
+    float32 distance where that is ill-conditioned). A ray of cell ds × dβ on a
+    surface of normal n̂ returns
+
+        w = Γ⁴ · μ · cos θi · exp(−2α'R) · ds·dβ / max(R, R_min)²
+
+    spread over the slant-range interval R ± ΔR/2 its cell covers on the plane,
+    ΔR = R·|n̂·∂u/∂β| / cos θi · dβ (at most ``slope_cap_m_rad``·dβ). Misses, back
+    faces, grazing hits (cos θi ≤ 1e-9) and hits beyond ``max_range_m`` get w = 0.
+
+    Parameters
+    ----------
+    s, ds, beta, dbeta, el_start, rot, pos
+        The block's fan, as for :func:`fan_rays`; ``dbeta`` the cell width of each
+        elevation ray, ``ds`` the azimuth spacing.
+    prim : (n,) int32
+        Triangle hit by each ray, −1 for a miss.
+    tfar : (n,) float32
+        Embree's hit distance, m.
+    vertices : (v, 3) float64; faces : (f, 3) int32; face_normals : (f, 3) float64
+        The scene in its local frame.
+    face_mu : (f,) float64
+        Linear Lambert coefficient of each triangle.
+    beam : (4,) float64
+        k·lx/2, k·ly/2, tilt δ (rad) and 0 (reserved).
+    two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad : float
+        Two-way absorption (Np/m), near-field range bound, range window and bound
+        on |dR/dβ| (m/rad).
+    range_out, extent_out, weight_out : (n,) float64
+        Written with R (m), ΔR (m) and w.
+    points_out : (n, 3) or (0, 3) float64
+        Written with the hit points (local frame, m) when it has n rows.
+    """
+    n_az = s.shape[0]
+    want_points = points_out.shape[0] == range_out.shape[0]
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        n_el = el_start[r + 1] - el_start[r]
+        base = n_az * el_start[r]
+        for a in range(n_az):
+            sa = s[a]
+            cpsi = math.sqrt(1.0 - sa * sa)
+            g_az = _sinc(beam[0] * sa)
+            for j in range(n_el):
+                i = base + a * n_el + j
+                range_out[i] = math.inf
+                extent_out[i] = 0.0
+                weight_out[i] = 0.0
+                if want_points:
+                    points_out[i, 0] = 0.0
+                    points_out[i, 1] = 0.0
+                    points_out[i, 2] = 0.0
+                t = prim[i]
+                if t < 0:
+                    continue
+                bj = beta[el_start[r] + j]
+                cb = math.cos(bj)
+                sb = math.sin(bj)
+                e0 = sa
+                e1 = side * cpsi * cb
+                e2 = cpsi * sb
+                f1 = -side * cpsi * sb  # ∂u/∂β in body axes (0, f1, f2)
+                f2 = cpsi * cb
+                dn = 0.0
+                num = 0.0
+                fn = 0.0
+                for q in range(3):
+                    dq = rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2
+                    nq = face_normals[t, q]
+                    dn += dq * nq
+                    num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
+                    fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
+                t_emb = np.float64(tfar[i])
+                rr = t_emb
+                if abs(dn) > 1e-6:
+                    t64 = num / dn
+                    if abs(t64 - t_emb) <= 1e-3 * (1.0 + t_emb):
+                        rr = t64
+                cos_i = -dn
+                if not (cos_i > 1e-9) or not (rr <= max_range_m):
+                    continue
+                rel = bj - beam[2]
+                if cpsi * math.cos(rel) <= 0.0:
+                    continue
+                g = g_az * _sinc(beam[1] * cpsi * math.sin(rel))
+                g2 = g * g
+                rb = rr if rr > min_range_m else min_range_m
+                range_out[i] = rr
+                weight_out[i] = (g2 * g2 * face_mu[t] * cos_i * math.exp(-two_way_np_per_m * rr)
+                                 * ds * dbeta[el_start[r] + j] / (rb * rb))
+                slope = rr * abs(fn) / cos_i
+                if slope > slope_cap_m_rad:
+                    slope = slope_cap_m_rad
+                extent_out[i] = slope * dbeta[el_start[r] + j]
+                if want_points:
+                    points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
+                    points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
+                    points_out[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)
+
+
+@njit(cache=True, nogil=True)
+def _hat_integral(x):
+    """∫_{−∞}^{x} max(0, 1 − |u|) du."""
+    if x <= -1.0:
+        return 0.0
+    if x < 0.0:
+        return 0.5 * (x + 1.0) * (x + 1.0)
+    if x < 1.0:
+        return 1.0 - 0.5 * (1.0 - x) * (1.0 - x)
+    return 1.0
+
+
+@njit(cache=True, nogil=True)
+def _splat_box(row, x, width, w, n):
+    """Add weight w spread uniformly over [x − width/2, x + width/2] (samples), linearly interpolated."""
+    if not (w != 0.0) or not (abs(x) < math.inf):
+        return
+    if width < 1e-6:
+        if x < 0.0 or x > n - 1:
+            return
+        j = int(x)
+        f = x - j
+        row[j] += w * (1.0 - f)
+        if j + 1 < n:
+            row[j + 1] += w * f
+        return
+    scale = w / width
+    lo = max(x - 0.5 * width, 0.0)  # the part outside the record is dropped, as for a point echo
+    hi = min(x + 0.5 * width, n - 1.0)
+    if not (hi > lo):
+        return
+    first = int(math.floor(lo))
+    last = min(int(math.floor(hi)) + 1, n - 1)
+    for k in range(first, last + 1):
+        row[k] += scale * (_hat_integral(hi - k) - _hat_integral(lo - k))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def splat_rows(ray_start, delay_samples, width_samples, weights, out):
+    """Footprint splatting of every row of a block: each ray's weight spread over its delay interval.
+
+    ``out[r, k] += w/W · ∫_{x−W/2}^{x+W/2} Λ(u − k) du`` (Λ the linear-interpolation
+    hat), which conserves Σw for intervals inside the record, falls back to linear
+    splatting for W → 0, and drops (never wraps) what lies outside the record.
+    Rows are independent, so the result does not depend on the thread count.
+
+    Parameters
+    ----------
+    ray_start : (rows + 1,) int64
+        Rays of row r are ``ray_start[r] … ray_start[r + 1] − 1``.
+    delay_samples, width_samples : (n,) float64
+        Centre and width of each ray's delay interval, in samples.
+    weights : (n,) float64
+        Echo of each ray (zero: skipped).
+    out : (rows, n_samples) float64
+        Accumulator, added to in place.
+    """
+    n = out.shape[1]
+    for r in prange(ray_start.shape[0] - 1):
+        for i in range(ray_start[r], ray_start[r + 1]):
+            _splat_box(out[r], delay_samples[i], width_samples[i], weights[i], n)

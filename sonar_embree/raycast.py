@@ -57,6 +57,31 @@ class RayCaster:
         TriangleMesh(self._scene, compiled.vertices.astype(np.float32),
                      compiled.faces.astype(np.int32))
 
+    def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
+        """Embree's first hits, unrefined: the hot path of :mod:`sonar_embree.fan`.
+
+        Parameters
+        ----------
+        origins_f32, directions_f32 : (n, 3) float32, C-contiguous
+            Ray origins (local frame, m) and unit directions.
+        max_range_m : float
+            Longest distance searched, m.
+
+        Returns
+        -------
+        prim : (n,) int32
+            Triangle index, −1 for a miss.
+        tfar : (n,) float32
+            Hit distance in m (float32 accuracy; refine in float64).
+        """
+        n = directions_f32.shape[0]
+        if n == 0:
+            return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
+        res = self._scene.run(origins_f32, directions_f32, dists=np.full(n, max_range_m, dtype=np.float32),
+                              output=1)
+        return (np.ascontiguousarray(res["primID"], dtype=np.int32),
+                np.ascontiguousarray(res["tfar"], dtype=np.float32))
+
     def cast(self, origins_local, directions, max_range_m: float) -> Hits:
         """First hit of each ray within ``max_range_m``.
 

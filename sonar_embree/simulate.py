@@ -24,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import beam, kernels, processing, pulses
+from . import kernels, processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .errors import ConfigError
+from .fan import BlockEchoes, FanPlan, cast_block
 from .processing import absorption_np_per_m, convolve_time
 from .raycast import RayCaster
 from .record import Record
@@ -39,31 +40,6 @@ PORT, STARBOARD = 0, 1
 _SIDE_SIGN = {PORT: -1, STARBOARD: +1}
 
 
-@dataclass(frozen=True, eq=False)
-class FanPlan:
-    """Everything about the ray fan that does not depend on the pose."""
-
-    s: np.ndarray            # (n_az,) along-track direction cosines
-    ds: float                # their spacing
-    probe_beta: np.ndarray   # (m,) probe depressions (uniform), also the cell edges
-    probe_body: np.ndarray   # (2m, 3) body-frame probe directions, port then starboard (_ping adds nadir)
-    dr_target_m: float
-    max_step_rad: float
-    slope_cap_m_rad: float
-    max_rays: int
-
-    @classmethod
-    def build(cls, sonar: Sonar, fan: FanSettings) -> "FanPlan":
-        s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
-                                     fan.azimuth_nulls)
-        lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad)
-        m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
-        probe = np.linspace(lo, hi, m)
-        body = np.concatenate([beam.fan_body([0.0], probe, -1), beam.fan_body([0.0], probe, +1)])
-        return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin,
-                   math.radians(fan.max_step_deg), 10.0 * sonar.max_range_m, fan.max_rays_per_side)
-
-
 def _check_inputs(scene, trajectory, sonar, pulse, fan):
     for name, value, cls in (("scene", scene, Scene), ("trajectory", trajectory, Trajectory),
                              ("sonar", sonar, Sonar), ("pulse", pulse, Pulse), ("fan", fan, FanSettings)):
@@ -71,52 +47,6 @@ def _check_inputs(scene, trajectory, sonar, pulse, fan):
             raise ConfigError(f"simulate: {name} must be a sonar_embree.{cls.__name__}, got {type(value).__name__}")
     if not scene.objects:
         raise ConfigError("simulate: the scene is empty; add a mesh or a seafloor")
-
-
-@dataclass(frozen=True, eq=False)
-class PingEchoes:
-    """Expected echo intensity of every ray of one ping that returns an echo (flat arrays)."""
-
-    channel: np.ndarray   # (n,) int64, PORT or STARBOARD
-    range_m: np.ndarray   # (n,) float64 slant range
-    weight: np.ndarray    # (n,) float64 expected intensity (PHYSICS.md §3)
-    point_m: np.ndarray   # (n, 3) float64 hit point, scene-local frame
-    altitude_m: float     # nadir range, NaN if none
-
-
-def _cast_ping(caster: RayCaster, plan: FanPlan, sonar: Sonar, rot: np.ndarray, pos_local: np.ndarray,
-               two_way_np: float, max_r: float) -> PingEchoes:
-    """Probe, place the fan for the range resolution, cast both sides at once (to ``max_r``), weight every echo."""
-    m = plan.probe_beta.shape[0]
-    probe_dirs = np.concatenate([plan.probe_body @ rot.T, [[0.0, 0.0, -1.0]]])
-    ph = caster.cast(pos_local, probe_dirs, max_r)
-    probe_r = np.where(ph.tri >= 0, ph.range_m, np.nan)
-
-    dirs, gam, dom, chan = [], [], [], []
-    for side in (PORT, STARBOARD):
-        r_side = probe_r[side * m:(side + 1) * m]
-        dens = beam.elevation_density(plan.probe_beta, r_side, plan.dr_target_m, plan.max_step_rad,
-                                      plan.slope_cap_m_rad)
-        beta, dbeta = beam.place_rays(plan.probe_beta, dens, plan.max_rays)
-        dirs.append(beam.fan_body(plan.s, beta, _SIDE_SIGN[side]))
-        gam.append(beam.fan_directivity(plan.s, beta, sonar))
-        dom.append(np.tile(dbeta * plan.ds, plan.s.shape[0]))
-        chan.append(np.full(plan.s.shape[0] * beta.shape[0], side, dtype=np.int64))
-    dirs = np.concatenate(dirs) @ rot.T
-    gam, dom, chan = np.concatenate(gam), np.concatenate(dom), np.concatenate(chan)
-
-    hits = caster.cast(pos_local, dirs, max_r)
-    sel = np.nonzero(hits.echo & (gam != 0.0))[0]
-    r = hits.range_m[sel]
-    w = np.empty(sel.size)
-    if sel.size:
-        mu = caster.compiled.mu[hits.object_id[sel]]
-        kernels.lambert_intensity(r, hits.cos_inc[sel], gam[sel], dom[sel], mu, two_way_np,
-                                  sonar.wavelength_m, w)
-    keep = w > 0.0
-    sel, r, w = sel[keep], r[keep], w[keep]
-    point = pos_local + dirs[sel] * r[:, None]
-    return PingEchoes(chan[sel], r, w, point, float(probe_r[-1]))
 
 
 class _ScattererLattice:
@@ -151,16 +81,16 @@ class _ScattererLattice:
         self.rmax = np.zeros(cap)
         self.order = np.zeros(cap, dtype=np.int64)
 
-    def scatterers(self, echoes: PingEchoes, origin_m: np.ndarray, pos_world: np.ndarray, wavelength_m: float):
-        """One ping's scatterers: channel (k,), envelope range R (k,) in m, complex amplitude (k,).
+    def scatterers(self, channel, point_world_m, weight, range_m, extent_m, pos_world: np.ndarray,
+                   wavelength_m: float):
+        """One ping's scatterers from its rays: channel (k,), envelope range R (k,) in m, complex amplitude (k,).
 
         Amplitude √(W/S)·g·e^(−j2k·R_node), R_node the range of the node itself, so the
         carrier phase follows the sonar's motion relative to a fixed point.
         """
-        points = echoes.point_m + origin_m  # world, float64
         while True:  # the table grows (and stays grown) until the ping's nodes fill at most half of it
             self.epoch += 1
-            k = kernels.gather_nodes(echoes.channel, points, echoes.weight, echoes.range_m, self.cell_m,
+            k = kernels.gather_nodes(channel, point_world_m, weight, range_m, extent_m, self.cell_m,
                                      self.key, self.stamp, self.epoch, self.w, self.wr, self.wr2, self.rmin,
                                      self.rmax, self.order)
             if k >= 0:
@@ -226,6 +156,27 @@ def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, 
     if chain.detection == "coherent":
         return processing.analytic_baseband(x, f0, fc, step=m)
     return processing.square_law(x, f0, fc)[:, ::m]
+
+
+def _speckle_ping(e: BlockEchoes, b: int, ping: int, lattice: _ScattererLattice, synth: _Synth, sonar: Sonar,
+                  chain: SignalChain, origin_m, pos_world, n0, out):
+    """Synthesise ping ``ping`` (row pair ``b`` of the block) into ``out`` (2, n_s)."""
+    fs, c = sonar.sample_rate_hz, sonar.sound_speed_m_s
+    n_s = out.shape[1]
+    rays = slice(int(e.ray_start[2 * b]), int(e.ray_start[2 * b + 2]))
+    channel = np.repeat(np.array([PORT, STARBOARD], dtype=np.int64), np.diff(e.ray_start[2 * b:2 * b + 3]))
+    ch, r_env, amp = lattice.scatterers(channel, e.point_m[rays] + origin_m, e.weight[rays], e.range_m[rays],
+                                        e.extent_m[rays], pos_world, sonar.wavelength_m)
+    noise = None
+    if n0 is not None:  # per-ping stream: the same bits for any ping order or worker count
+        rng = np.random.default_rng([chain.seed, 0x5EED_0015E, ping])
+        noise = processing.complex_noise(rng, (2, n_s), n0 * fs)
+    if chain.band == "baseband":
+        kernels.splat_table(ch, r_env * (2.0 * fs / c), amp, synth.table, synth.table_start, synth.table_rate, out)
+        if noise is not None:
+            out += noise
+    else:
+        out[:] = _carrier_ping(synth, sonar, chain, ch, r_env * (2.0 / c), amp, noise, n_s)
 
 
 def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, pulse: Pulse | None = None, *,
@@ -298,50 +249,53 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     two_way = absorption_np_per_m(sonar.alpha_db_per_m)
     n0 = None if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
 
-    pings = range(n_p)
+    face_mu = compiled.mu[compiled.face_object]
+    coherent = chain.detection == "coherent"
+    if not chain.speckle:
+        out = np.zeros((n_p, 2, n_s))
+    else:
+        lattice = _ScattererLattice(chain.speckle_cell_m, chain.seed)
+        synth = _Synth.build(sonar, pulse, chain)
+        out = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
+    n_rays = np.zeros(n_p, dtype=np.int64)
+    bar = None
     if progress:
         from tqdm.auto import tqdm
-        pings = tqdm(pings, desc="pings", unit="ping")
+        bar = tqdm(total=n_p, desc="pings", unit="ping")
+    delay_per_m = 2.0 * fs / c
+    a, block = 0, 4
+    while a < n_p:
+        b = min(a + block, n_p)
+        e = cast_block(caster, plan, rots[a:b], pos_local[a:b], face_mu, two_way, max_r, want_points=chain.speckle)
+        altitude[a:b], n_rays[a:b] = e.altitude_m, e.n_rays
+        if not chain.speckle:
+            kernels.splat_rows(e.ray_start, e.range_m * delay_per_m, e.extent_m * delay_per_m, e.weight,
+                               out[a:b].reshape(2 * (b - a), n_s))
+        else:
+            for i in range(a, b):
+                _speckle_ping(e, i - a, i, lattice, synth, sonar, chain, compiled.origin_m,
+                              trajectory.positions_m[i], n0, out[i])
+        if bar is not None:
+            bar.update(b - a)
+        a = b  # blocks of ~256k rays: results do not depend on the block size
+        block = int(np.clip(2 ** 18 // max(int(e.n_rays.max()), 1), 1, 64))
+    if bar is not None:
+        bar.close()
 
     if not chain.speckle:
-        raw = np.zeros((n_p, 2, n_s))
-        for i in pings:
-            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way, max_r)
-            altitude[i] = e.altitude_m
-            kernels.splat_linear(e.channel, e.range_m * (2.0 * fs / c), e.weight, raw[i])
         kernel, lead = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
-        intensity = convolve_time(raw, kernel, lead)
+        intensity = convolve_time(out, kernel, lead)
         if n0 is not None:  # mean intensity of the noise after the matched filter
             gain = 1.0 / np.sum(np.abs(pulses.replica(pulse, f0, fs)) ** 2) if chain.matched_filter else 1.0
             intensity += n0 * fs * gain
         mode = "expected_intensity"
     else:
-        lattice = _ScattererLattice(chain.speckle_cell_m, chain.seed)
-        synth = _Synth.build(sonar, pulse, chain)
-        coherent = chain.detection == "coherent"
-        sig = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
-        for i in pings:
-            e = _cast_ping(caster, plan, sonar, rots[i], pos_local[i], two_way, max_r)
-            altitude[i] = e.altitude_m
-            ch, r_env, amp = lattice.scatterers(e, compiled.origin_m, trajectory.positions_m[i],
-                                                sonar.wavelength_m)
-            noise = None
-            if n0 is not None:  # per-ping stream: the same bits for any ping order or worker count
-                rng = np.random.default_rng([chain.seed, 0x5EED_0015E, i])
-                noise = processing.complex_noise(rng, (2, n_s), n0 * fs)
-            if chain.band == "baseband":
-                kernels.splat_table(ch, r_env * (2.0 * fs / c), amp, synth.table, synth.table_start,
-                                    synth.table_rate, sig[i])
-                if noise is not None:
-                    sig[i] += noise
-            else:
-                sig[i] = _carrier_ping(synth, sonar, chain, ch, r_env * (2.0 / c), amp, noise, n_s)
         if coherent:
             if chain.matched_filter:
-                sig = processing.matched_filter(sig, pulses.replica(pulse, f0, fs))
-            intensity = sig.real ** 2 + sig.imag ** 2
+                out = processing.matched_filter(out, pulses.replica(pulse, f0, fs))
+            intensity = out.real ** 2 + out.imag ** 2
         else:
-            intensity = sig
+            intensity = out
         mode = "speckle"
 
     intensity = intensity[..., :n_out]
@@ -351,7 +305,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if chain.tvg:
         intensity = intensity * processing.tvg_gain(time_s, c, sonar.alpha_db_per_m)
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
-    attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m}
+    attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
+             "quality": fan.quality, "rays_per_ping": float(n_rays.mean()) if n_p else 0.0}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = synth.carrier_factor * fs
     return Record(port=np.ascontiguousarray(intensity[:, PORT]),

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree import beam
+from sonar_embree import beam, kernels
 
 LAM = 1500.0 / 400e3
 K = 2 * np.pi / LAM
@@ -62,7 +62,8 @@ def test_fan_integrates_two_way_pattern():
     s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, 2.0, 4)
     lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad)
     edges = np.linspace(lo, hi, 200)
-    b, db = beam.place_rays(edges, np.full(199, 3000.0), 10**6)
+    b, db = np.empty(7800), np.empty(7800)
+    kernels.place_rows(edges, np.full((1, 199), 3000.0), np.array([0, 7800]), b, db)
     assert db.sum() == pytest.approx(hi - lo, rel=1e-12)
     fan = np.sum(beam.fan_directivity(s, b, sonar) ** 4 * np.tile(db * ds, s.size))
     # independent: ψ, β grid with dΩ = cosψ dψ dβ

@@ -1,7 +1,9 @@
 """Every Numba kernel against its naive NumPy twin (tests/naive.py)."""
 import numpy as np
+import pytest
 
 import naive
+import sonar_embree as se
 from sonar_embree import kernels
 
 
@@ -112,14 +114,16 @@ def test_gather_nodes_matches_naive(rng):
     w = rng.uniform(0, 1, n)
     w[:7] = 0.0
     r = rng.uniform(10, 50, n)
+    ext = rng.uniform(0, 0.2, n)
+    ext[:100] = 0.0
     cap = 1 << 16
     key = np.zeros((cap, 4), dtype=np.int64)
     stamp = np.full(cap, -1, dtype=np.int64)
     bufs = [np.zeros(cap) for _ in range(5)]
     order = np.zeros(cap, dtype=np.int64)
     for epoch in (1, 2):  # the second call reuses the table without clearing it
-        k = kernels.gather_nodes(ch, pts, w, r, 0.25, key, stamp, epoch, *bufs, order)
-        ref = naive.gather_nodes(ch, pts, w, r, 0.25)
+        k = kernels.gather_nodes(ch, pts, w, r, ext, 0.25, key, stamp, epoch, *bufs, order)
+        ref = naive.gather_nodes(ch, pts, w, r, ext, 0.25)
         assert k == len(ref)
         slots = order[:k]
         got = {tuple(key[s]): tuple(b[s] for b in bufs) for s in slots}
@@ -130,4 +134,100 @@ def test_gather_nodes_matches_naive(rng):
     small = 1 << 10                                    # too small a table: says so instead of overfilling
     args = [np.zeros((small, 4), dtype=np.int64), np.full(small, -1, dtype=np.int64), 1,
             *[np.zeros(small) for _ in range(5)], np.zeros(small, dtype=np.int64)]
-    assert kernels.gather_nodes(ch, pts, w, r, 0.25, *args) == -1
+    assert kernels.gather_nodes(ch, pts, w, r, ext, 0.25, *args) == -1
+
+
+# --------------------------------------------------------------------------- ray fan kernels
+
+
+def _block(rng, n_p=3):
+    """A small block: random poses, random per-row elevation rays."""
+    from scipy.spatial.transform import Rotation
+
+    # body (forward, starboard, down) → world (x, −y, −z), then a random attitude
+    rot = Rotation.from_euler("zyx", rng.uniform(-0.5, 0.5, (n_p, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
+    pos = rng.uniform(-1, 1, (n_p, 3)) + [0, 0, 10.0]
+    counts = rng.integers(1, 40, 2 * n_p)
+    el_start = np.concatenate(([0], np.cumsum(counts)))
+    beta = rng.uniform(-0.3, 1.5, el_start[-1])
+    dbeta = rng.uniform(1e-4, 3e-3, el_start[-1])
+    s = np.array([-0.02, 0.0, 0.011])
+    return s, beta, dbeta, el_start, rot, pos
+
+
+def test_place_rows_matches_naive(rng):
+    edges = np.linspace(-1.0, 1.5, 60)
+    density = rng.uniform(0, 500, (4, 59))
+    density[1, 10:30] = 0.0  # empty cells take no rays
+    counts = np.array([1, 17, 300, 55])
+    el_start = np.concatenate(([0], np.cumsum(counts)))
+    beta, dbeta = np.empty(el_start[-1]), np.empty(el_start[-1])
+    kernels.place_rows(edges, density, el_start, beta, dbeta)
+    ref_b, ref_db = naive.place_rows(edges, density, counts)
+    np.testing.assert_allclose(beta, ref_b, atol=1e-12)
+    np.testing.assert_allclose(dbeta, ref_db, atol=1e-12)
+    for r in range(4):  # each row's cells tile the span exactly
+        assert dbeta[el_start[r]:el_start[r + 1]].sum() == pytest.approx(2.5, rel=1e-12)
+
+
+def test_fan_rays_match_naive(rng):
+    s, beta, _, el_start, rot, pos = _block(rng)
+    n = s.size * el_start[-1]
+    dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    kernels.fan_rays(s, beta, el_start, rot, pos, dirs, org)
+    np.testing.assert_allclose(dirs, naive.fan_directions(s, beta, el_start, rot), atol=1e-7)
+    rows = np.repeat(np.arange(len(el_start) - 1), s.size * np.diff(el_start))
+    np.testing.assert_allclose(org, pos[rows // 2], atol=1e-6)
+
+
+def test_fan_echoes_match_naive_on_sloped_facets(rng):
+    """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight."""
+    from sonar_embree.raycast import RayCaster
+
+    heights = rng.uniform(-0.3, 0.3, (21, 21)) + np.linspace(0, 4, 21)[None, :]
+    scene = se.Scene().add(se.seafloor.from_heights(heights, spacing_m=4.0, origin_m=(-40, -40)), label="floor",
+                           material=se.Material(-20.0))
+    c = scene.compiled()
+    caster = RayCaster(c)
+    s, beta, dbeta, el_start, rot, pos = _block(rng)
+    pos = pos - c.origin_m  # the local frame
+    n = s.size * el_start[-1]
+    dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    kernels.fan_rays(s, beta, el_start, rot, pos, dirs, org)
+    prim, tfar = caster.cast_raw(org, dirs, 60.0)
+    assert (prim >= 0).sum() > 100
+    mu_face = c.mu[c.face_object]
+    k, lx, ly, tilt = 2 * np.pi / 0.00375, 0.19, 0.0038, np.radians(20)
+    rng_k, ext_k, w_k, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
+    kernels.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, tfar, c.vertices, c.faces, c.face_normals,
+                       mu_face, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004, 60.0, 500.0,
+                       rng_k, ext_k, w_k, pts)
+    rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,
+                                         mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0)
+    hit = w_n > 0
+    assert hit.sum() > 100
+    np.testing.assert_array_equal(w_k > 0, hit)
+    np.testing.assert_allclose(rng_k[hit], rng_n[hit], rtol=1e-12)
+    np.testing.assert_allclose(w_k[hit], w_n[hit], rtol=1e-9)
+    np.testing.assert_allclose(ext_k[hit], ext_n[hit], rtol=2e-3, atol=1e-9)
+    rows = np.repeat(np.arange(len(el_start) - 1), s.size * np.diff(el_start))
+    np.testing.assert_allclose(pts[hit], pos[rows[hit] // 2] + rng_n[hit, None] * dirs[hit], atol=1e-5)
+
+
+def test_splat_rows_matches_naive_and_conserves_weight(rng):
+    n_s = 50
+    ray_start = np.array([0, 40, 40, 100])
+    delay = rng.uniform(-5, n_s + 5, 100)
+    width = rng.uniform(0, 8, 100)
+    width[::7] = 0.0   # point echoes: linear splatting
+    w = rng.uniform(0, 1, 100)
+    w[::11] = 0.0
+    got = np.zeros((3, n_s))
+    kernels.splat_rows(ray_start, delay, width, w, got)
+    ref = naive.splat_rows(ray_start, delay, width, w, np.zeros((3, n_s)))
+    np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-9)
+    assert np.all(got[1] == 0.0)
+    inside = (delay - width / 2 >= 0) & (delay + width / 2 <= n_s - 1)
+    one = np.zeros((1, n_s))
+    kernels.splat_rows(np.array([0, int(inside.sum())]), delay[inside], width[inside], w[inside], one)
+    assert one.sum() == pytest.approx(w[inside].sum(), rel=1e-12)

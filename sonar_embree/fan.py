@@ -1,0 +1,154 @@
+"""The ray budget: where each ping's rays go, and their echoes (PHYSICS.md §7).
+
+Per block of pings: one Embree call for the probes (one azimuth line per side at a
+coarse elevation step, plus a nadir ray for the altitude), a ray density per
+elevation cell from the probed slant ranges (rays uniform in slant range where the
+scene's range changes fastest, a coarse step where it is smooth, next to nothing
+where nothing is within range), one Embree call for every fan of the block, and one
+Numba pass that turns hits into echoes. No Python loop touches rays or samples.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import beam, kernels
+from .config import FanSettings, Sonar
+from .raycast import RayCaster
+
+#: A probe cell with nothing within range on both ends and both neighbours gets this
+#: many times the largest step: next to no rays, yet no blind spot.
+EMPTY_STEP_FACTOR = 8.0
+
+
+@dataclass(frozen=True, eq=False)
+class FanPlan:
+    """Everything about the ray fan that does not depend on the pose."""
+
+    s: np.ndarray            # (n_az,) along-track direction cosines
+    ds: float                # their spacing
+    probe_beta: np.ndarray   # (m,) probe depressions (uniform), also the cell edges
+    probe_body: np.ndarray   # (2m, 3) body-frame probe directions: port, then starboard
+    dr_target_m: float
+    max_step_rad: float
+    slope_cap_m_rad: float
+    max_rays: int
+    beam: np.ndarray         # (4,) k·lx/2, k·ly/2, tilt (rad), 0
+    min_range_m: float       # near-field bound on R in the weights
+
+    @classmethod
+    def build(cls, sonar: Sonar, fan: FanSettings) -> "FanPlan":
+        fan = fan.resolved()
+        s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
+                                     fan.azimuth_nulls)
+        lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad)
+        m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
+        probe = np.linspace(lo, hi, m)
+        body = np.concatenate([beam.fan_body([0.0], probe, -1), beam.fan_body([0.0], probe, +1)])
+        k = sonar.wavenumber_rad_m
+        return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
+                   10.0 * sonar.max_range_m, fan.max_rays_per_side,
+                   np.array([0.5 * k * sonar.length_m, 0.5 * k * sonar.height_m, sonar.tilt_rad, 0.0]),
+                   sonar.wavelength_m)
+
+    @property
+    def n_probe(self) -> int:
+        """Probe rays per ping (both sides and the nadir ray)."""
+        return self.probe_body.shape[0] + 1
+
+
+@dataclass(frozen=True, eq=False)
+class BlockEchoes:
+    """The echoes of every ray of a block of pings, aligned with the rays.
+
+    Row r = 2·b + side (b the ping in the block, side 0 port, 1 starboard) owns rays
+    ``ray_start[r] … ray_start[r + 1] − 1``. Rays that return nothing have weight 0.
+    """
+
+    ray_start: np.ndarray   # (rows + 1,) int64
+    range_m: np.ndarray     # (n,) float64 slant range (inf: no echo)
+    extent_m: np.ndarray    # (n,) float64 slant-range interval the ray's cell covers
+    weight: np.ndarray      # (n,) float64 expected intensity (PHYSICS.md §3)
+    point_m: np.ndarray     # (n, 3) float64 hit points in the local frame, or (0, 3)
+    altitude_m: np.ndarray  # (pings,) nadir range, NaN if none
+    n_rays: np.ndarray      # (pings,) rays cast per ping, probes included
+
+    def row(self, r: int) -> slice:
+        return slice(int(self.ray_start[r]), int(self.ray_start[r + 1]))
+
+
+def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
+    """Elevation rays of every row from the probed ranges.
+
+    Parameters
+    ----------
+    plan : FanPlan
+    probe_r : (rows, m) float64
+        Probed slant range per row and probe depression, NaN for nothing in range.
+
+    Returns
+    -------
+    el_start : (rows + 1,) int64
+    beta, dbeta : (el_start[-1],) float64
+        Depression and cell width of each elevation ray, rad.
+    """
+    dens = beam.elevation_density(plan.probe_beta, probe_r, plan.dr_target_m, plan.max_step_rad,
+                                  plan.slope_cap_m_rad, EMPTY_STEP_FACTOR)
+    total = dens @ np.diff(plan.probe_beta)
+    counts = np.clip(np.ceil(total - 1e-9), 1, plan.max_rays).astype(np.int64)
+    el_start = np.concatenate(([0], np.cumsum(counts)))
+    beta, dbeta = np.empty(el_start[-1]), np.empty(el_start[-1])
+    kernels.place_rows(plan.probe_beta, np.ascontiguousarray(dens), el_start, beta, dbeta)
+    return el_start, beta, dbeta
+
+
+def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray, face_mu: np.ndarray,
+               two_way_np_per_m: float, max_range_m: float, want_points: bool = False) -> BlockEchoes:
+    """Probe, place and cast the fans of a block of pings and weight every echo.
+
+    Parameters
+    ----------
+    caster : RayCaster
+    plan : FanPlan
+    rot : (pings, 3, 3) float64
+        Body-to-world rotations.
+    pos_local : (pings, 3) float64
+        Sonar positions in the scene's local frame, m.
+    face_mu : (faces,) float64
+        Lambert coefficient per triangle.
+    two_way_np_per_m : float
+        Two-way absorption, Np/m.
+    max_range_m : float
+        Echoes beyond this slant range are dropped (and not searched for).
+    want_points : bool
+        Also return the hit points (the speckle lattice needs them).
+    """
+    n_p = rot.shape[0]
+    m = plan.probe_beta.shape[0]
+    pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
+    probe_dirs = np.einsum("bij,pj->bpi", rot, plan.probe_body).reshape(-1, 3)
+    probe_org = np.repeat(pos_local, 2 * m, axis=0)
+    prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
+    probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, m)
+    nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
+    altitude = np.where(nadir.tri >= 0, nadir.range_m, np.nan)  # world vertical, float64
+    el_start, beta, dbeta = elevation_rows(plan, probe_r)
+
+    n_az = plan.s.shape[0]
+    n = n_az * int(el_start[-1])
+    dirs = np.empty((n, 3), dtype=np.float32)
+    org = np.empty((n, 3), dtype=np.float32)
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
+    kernels.fan_rays(plan.s, beta, el_start, rot, pos_local, dirs, org)
+    prim, tfar = caster.cast_raw(org, dirs, max_range_m)
+
+    rng, ext, w = np.empty(n), np.empty(n), np.empty(n)
+    pts = np.empty((n, 3) if want_points else (0, 3))
+    c = caster.compiled
+    kernels.fan_echoes(plan.s, plan.ds, beta, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
+                       c.face_normals, face_mu, plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
+                       plan.slope_cap_m_rad, rng, ext, w, pts)
+    n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe
+    return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays)
