@@ -8,6 +8,8 @@ but return no echo.
 """
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -18,6 +20,9 @@ from .scene import CompiledScene
 
 #: Hits whose |cos θi| is below this count as grazing: they occlude but return nothing.
 GRAZING_COS = 1e-9
+
+#: Batches of at least this many rays are split over threads (Embree releases the GIL).
+THREADED_MIN_RAYS = 16384
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,11 +56,28 @@ class Hits:
 class RayCaster:
     """An Embree BVH of a :class:`CompiledScene`, built once and cast many times."""
 
-    def __init__(self, compiled: CompiledScene):
+    def __init__(self, compiled: CompiledScene, threads: int | None = None):
+        """Build the BVH. ``threads``: Embree calls in parallel per batch (default: the CPU count)."""
         self.compiled = compiled
         self._scene = rtcs.EmbreeScene()
         TriangleMesh(self._scene, compiled.vertices.astype(np.float32),
                      compiled.faces.astype(np.int32))
+        self.threads = max(int(threads if threads is not None else (os.cpu_count() or 1)), 1)
+        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+
+    def _run(self, origins_f32, directions_f32, max_range_m: float, output: int):
+        n = directions_f32.shape[0]
+        if self._pool is None or n < THREADED_MIN_RAYS:
+            return self._scene.run(origins_f32, directions_f32, dists=np.full(n, max_range_m, dtype=np.float32),
+                                   output=output)
+        cuts = np.linspace(0, n, self.threads + 1).astype(int)  # each ray is independent: same bits for any split
+        parts = list(self._pool.map(
+            lambda ab: self._scene.run(origins_f32[ab[0]:ab[1]], directions_f32[ab[0]:ab[1]],
+                                       dists=np.full(ab[1] - ab[0], max_range_m, dtype=np.float32), output=output),
+            zip(cuts[:-1], cuts[1:])))
+        if output == 0:
+            return np.concatenate(parts)
+        return {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in ("primID", "tfar")}
 
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
         """Embree's first hits, unrefined: the hot path of :mod:`sonar_embree.fan`.
@@ -77,8 +99,7 @@ class RayCaster:
         n = directions_f32.shape[0]
         if n == 0:
             return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
-        res = self._scene.run(origins_f32, directions_f32, dists=np.full(n, max_range_m, dtype=np.float32),
-                              output=1)
+        res = self._run(origins_f32, directions_f32, max_range_m, 1)
         return (np.ascontiguousarray(res["primID"], dtype=np.int32),
                 np.ascontiguousarray(res["tfar"], dtype=np.float32))
 
@@ -101,8 +122,7 @@ class RayCaster:
         d = np.ascontiguousarray(directions, dtype=np.float64)
         n = d.shape[0]
         o = np.broadcast_to(np.asarray(origins_local, dtype=np.float64), (n, 3))
-        res = self._scene.run(np.ascontiguousarray(o, dtype=np.float32), d.astype(np.float32),
-                              dists=np.full(n, max_range_m, dtype=np.float32), output=1)
+        res = self._run(np.ascontiguousarray(o, dtype=np.float32), d.astype(np.float32), max_range_m, 1)
         tri = np.asarray(res["primID"]).astype(np.int64)
         hit = tri >= 0
         range_m = np.full(n, np.inf)

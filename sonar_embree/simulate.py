@@ -50,65 +50,47 @@ def _check_inputs(scene, trajectory, sonar, pulse, fan):
 
 
 class _ScattererLattice:
-    """Scatterers frozen to the surface: a world-fixed cubic lattice with a hash table reused across pings.
+    """Scatterers frozen to the surface: a world-fixed cubic lattice (see :func:`kernels.speckle_block`).
 
     Every node holds :data:`SUB_SCATTERERS` point scatterers with independent frozen
     complex Gaussian reflectivities, sharing the node's echo W equally and placed in
     range at R̄ + √3·σ·(2v − 1), where R̄ and σ² are the W-weighted mean and variance
-    of the ranges of the rays the node collected and v a frozen stratified-uniform
-    position in [0, 1) (mean 0, variance ≈ σ² over the node's scatterers), clipped to
-    the node's least and greatest ray range (nothing arrives before the first
-    surface). The echo energy keeps its place and spread in range, and neighbouring
-    nodes' scatterers interleave, so the expected intensity has no comb at the
-    lattice spacing.
+    of the ranges its rays' footprints cover and v a frozen stratified-uniform
+    position in [0, 1), clipped to the least and greatest of those ranges (nothing
+    arrives before the first surface). The echo energy keeps its place and spread in
+    range, and neighbouring nodes' scatterers interleave, so the expected intensity
+    has no comb at the lattice spacing. One hash table per worker thread; a table
+    grows (and stays grown) when a ping's nodes would fill more than half of it.
     """
 
     SUB_SCATTERERS = 4
 
-    def __init__(self, cell_m: float, seed: int):
+    def __init__(self, cell_m: float, seed: int, n_tables: int):
         self.cell_m = float(cell_m)
         self.seed = int(seed)
-        self.epoch = 0
-        self._alloc(1 << 17)
+        self._alloc(max(int(n_tables), 1), 1 << 16)
 
-    def _alloc(self, cap):
-        self.key = np.zeros((cap, 4), dtype=np.int64)
-        self.stamp = np.full(cap, -1, dtype=np.int64)
-        self.w = np.zeros(cap)
-        self.wr = np.zeros(cap)
-        self.wr2 = np.zeros(cap)
-        self.rmin = np.zeros(cap)
-        self.rmax = np.zeros(cap)
-        self.order = np.zeros(cap, dtype=np.int64)
+    def _alloc(self, n_t, cap):
+        self.key = np.zeros((n_t, cap, 4), dtype=np.int64)
+        self.stamp = np.full((n_t, cap), -1, dtype=np.int64)
+        self.epochs = np.zeros(n_t, dtype=np.int64)
+        self.vals = [np.zeros((n_t, cap)) for _ in range(5)]  # W, WR, WR2, R_min, R_max
+        self.order = np.zeros((n_t, cap), dtype=np.int64)
 
-    def scatterers(self, channel, point_world_m, weight, range_m, extent_m, pos_world: np.ndarray,
-                   wavelength_m: float):
-        """One ping's scatterers from its rays: channel (k,), envelope range R (k,) in m, complex amplitude (k,).
-
-        Amplitude √(W/S)·g·e^(−j2k·R_node), R_node the range of the node itself, so the
-        carrier phase follows the sonar's motion relative to a fixed point.
-        """
-        while True:  # the table grows (and stays grown) until the ping's nodes fill at most half of it
-            self.epoch += 1
-            k = kernels.gather_nodes(channel, point_world_m, weight, range_m, extent_m, self.cell_m,
-                                     self.key, self.stamp, self.epoch, self.w, self.wr, self.wr2, self.rmin,
-                                     self.rmax, self.order)
-            if k >= 0:
-                break
-            self._alloc(2 * self.stamp.shape[0])
-        slots = self.order[:k]
-        ch, ijk, w = self.key[slots, 0], self.key[slots, 1:], self.w[slots]
-        r_mean = self.wr[slots] / w
-        sigma = np.sqrt(np.maximum(self.wr2[slots] / w - r_mean ** 2, 0.0))
-        g = np.empty((k, self.SUB_SCATTERERS), dtype=np.complex128)
-        v = np.empty((k, self.SUB_SCATTERERS))
-        kernels.frozen_scatterers(self.seed, ijk, g, v)
-        r_node = np.sqrt(np.sum((ijk * self.cell_m - pos_world) ** 2, axis=1))
-        cycles = (2.0 * r_node / wavelength_m) % 1.0
-        amp = (np.sqrt(w / self.SUB_SCATTERERS) * np.exp(-2j * np.pi * cycles))[:, None] * g
-        r_env = np.clip(r_mean[:, None] + (math.sqrt(3.0) * sigma)[:, None] * (2.0 * v - 1.0), self.rmin[slots, None],
-                        self.rmax[slots, None])
-        return np.repeat(ch, self.SUB_SCATTERERS), r_env.ravel(), amp.ravel()
+    def synthesise(self, e: BlockEchoes, origin_m, pos_world, wavelength_m: float, delay_per_m: float,
+                   phase_cycles_per_m: float, synth: "_Synth", out):
+        """Add the block's scatterer echoes to ``out`` (pings, 2, n) complex, h from ``synth``'s table."""
+        status = np.zeros(pos_world.shape[0], dtype=np.int64)
+        while True:
+            kernels.speckle_block(e.ray_start, e.point_m, origin_m, e.weight, e.range_m, e.extent_m,
+                                  np.ascontiguousarray(pos_world), self.seed, self.cell_m, wavelength_m, delay_per_m,
+                                  phase_cycles_per_m, self.SUB_SCATTERERS, synth.table, synth.table_start,
+                                  synth.table_rate, self.key, self.stamp, self.epochs, *self.vals, self.order,
+                                  status, out)
+            if np.all(status > 0):
+                return
+            self._alloc(self.key.shape[0], 2 * self.key.shape[1])
+            status[status < 0] = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -133,19 +115,18 @@ class _Synth:
         return cls(table, start, float(rate), factor, pulses.passband_analytic(pulse, f0, factor * fs))
 
 
-def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, amp, noise_bb, n_s):
-    """One ping on the carrier: real passband signal at the carrier rate, detected, at the record rate.
+def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, buf, noise_bb, n_s):
+    """Detect one ping synthesised on the carrier.
 
-    Returns complex baseband (coherent) or intensity (incoherent), shape (2, n_s).
+    ``buf`` (2, n_c) holds impulses C·e^(j2πf0τ) at the carrier rate (band-limited
+    fractional delays); convolved with p̃(t)·e^(j2πf0 t) its real part is
+    Re{C·p̃(t − τ)·e^(j2πf0 t)}. Returns complex baseband (coherent) or intensity
+    (incoherent), shape (2, n_s), at the record rate.
     """
     f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
     m = synth.carrier_factor
     fc = m * fs
     n_c = (n_s - 1) * m + 1
-    buf = np.zeros((2, n_c), dtype=np.complex128)
-    # Re{C·p̃(t − τ)·e^(j2πf0 t)}: impulse C·e^(j2πf0τ) at τ convolved with p̃(t)·e^(j2πf0 t)
-    amp_c = amp * np.exp(2j * np.pi * ((f0 * delay_s) % 1.0))
-    kernels.splat_table(ch, delay_s * fc, amp_c, synth.table, synth.table_start, synth.table_rate, buf)
     x = convolve_time(buf, synth.carrier_pulse).real
     t_c = np.arange(n_c) / fc
     if noise_bb is not None:  # the receiver band's noise, interpolated to the carrier rate and modulated
@@ -158,25 +139,28 @@ def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, ch, delay_s, 
     return processing.square_law(x, f0, fc)[:, ::m]
 
 
-def _speckle_ping(e: BlockEchoes, b: int, ping: int, lattice: _ScattererLattice, synth: _Synth, sonar: Sonar,
-                  chain: SignalChain, origin_m, pos_world, n0, out):
-    """Synthesise ping ``ping`` (row pair ``b`` of the block) into ``out`` (2, n_s)."""
-    fs, c = sonar.sample_rate_hz, sonar.sound_speed_m_s
-    n_s = out.shape[1]
-    rays = slice(int(e.ray_start[2 * b]), int(e.ray_start[2 * b + 2]))
-    channel = np.repeat(np.array([PORT, STARBOARD], dtype=np.int64), np.diff(e.ray_start[2 * b:2 * b + 3]))
-    ch, r_env, amp = lattice.scatterers(channel, e.point_m[rays] + origin_m, e.weight[rays], e.range_m[rays],
-                                        e.extent_m[rays], pos_world, sonar.wavelength_m)
-    noise = None
-    if n0 is not None:  # per-ping stream: the same bits for any ping order or worker count
-        rng = np.random.default_rng([chain.seed, 0x5EED_0015E, ping])
-        noise = processing.complex_noise(rng, (2, n_s), n0 * fs)
+def _speckle_block(e: BlockEchoes, a: int, lattice: _ScattererLattice, synth: _Synth, sonar: Sonar,
+                   chain: SignalChain, origin_m, pos_world, n0, out):
+    """Synthesise the pings a … a + len(pos_world) − 1 of a block into ``out`` (pings, 2, n_s)."""
+    fs, c, f0 = sonar.sample_rate_hz, sonar.sound_speed_m_s, sonar.frequency_hz
+    n_b, _, n_s = out.shape
     if chain.band == "baseband":
-        kernels.splat_table(ch, r_env * (2.0 * fs / c), amp, synth.table, synth.table_start, synth.table_rate, out)
-        if noise is not None:
-            out += noise
+        buf = out if out.dtype == np.complex128 else np.zeros(out.shape, dtype=np.complex128)
+        lattice.synthesise(e, origin_m, pos_world, sonar.wavelength_m, 2.0 * fs / c, 0.0, synth, buf)
     else:
-        out[:] = _carrier_ping(synth, sonar, chain, ch, r_env * (2.0 / c), amp, noise, n_s)
+        fc = synth.carrier_factor * fs
+        buf = np.zeros((n_b, 2, (n_s - 1) * synth.carrier_factor + 1), dtype=np.complex128)
+        lattice.synthesise(e, origin_m, pos_world, sonar.wavelength_m, 2.0 * fc / c, 2.0 * f0 / c, synth, buf)
+    for b in range(n_b):
+        noise = None
+        if n0 is not None:  # per-ping stream: the same bits for any ping order, block or worker count
+            rng = np.random.default_rng([chain.seed, 0x5EED_0015E, a + b])
+            noise = processing.complex_noise(rng, (2, n_s), n0 * fs)
+        if chain.band == "baseband":
+            if noise is not None:
+                out[b] += noise
+        else:
+            out[b] = _carrier_ping(synth, sonar, chain, buf[b], noise, n_s)
 
 
 def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, pulse: Pulse | None = None, *,
@@ -254,7 +238,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if not chain.speckle:
         out = np.zeros((n_p, 2, n_s))
     else:
-        lattice = _ScattererLattice(chain.speckle_cell_m, chain.seed)
+        lattice = _ScattererLattice(chain.speckle_cell_m, chain.seed, kernels.num_threads())
         synth = _Synth.build(sonar, pulse, chain)
         out = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
     n_rays = np.zeros(n_p, dtype=np.int64)
@@ -272,9 +256,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             kernels.splat_rows(e.ray_start, e.range_m * delay_per_m, e.extent_m * delay_per_m, e.weight,
                                out[a:b].reshape(2 * (b - a), n_s))
         else:
-            for i in range(a, b):
-                _speckle_ping(e, i - a, i, lattice, synth, sonar, chain, compiled.origin_m,
-                              trajectory.positions_m[i], n0, out[i])
+            _speckle_block(e, a, lattice, synth, sonar, chain, compiled.origin_m, trajectory.positions_m[a:b], n0,
+                           out[a:b])
         if bar is not None:
             bar.update(b - a)
         a = b  # blocks of ~256k rays: results do not depend on the block size

@@ -77,7 +77,7 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m):
 
     Each ray's echo is uniform over R ± ΔR/2: second moment R² + ΔR²/12, support [R − ΔR/2, R + ΔR/2].
 
-    Returns a dict {(ch, i, j, k): (W, WR, WR2, Rmin, Rmax)}.
+    Returns a dict {(ch, i, j, k): (W, mean R, centred second moment M2, Rmin, Rmax)}.
     """
     f = np.asarray(points) / cell_m
     base = np.floor(f)
@@ -100,13 +100,14 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m):
     out = {}
     w = np.bincount(inv, wb)
     wr = np.bincount(inv, wb * rr)
-    wr2 = np.bincount(inv, wb * (rr * rr + ee * ee / 12))
+    mean = wr / w  # two-pass centred second moment
+    m2 = np.bincount(inv, wb * ((rr - mean[inv]) ** 2 + ee * ee / 12))
     rmin = np.full(len(uniq), np.inf)
     rmax = np.full(len(uniq), -np.inf)
     np.minimum.at(rmin, inv, rr - ee / 2)
     np.maximum.at(rmax, inv, rr + ee / 2)
     for n, key in enumerate(map(tuple, uniq)):
-        out[key] = (w[n], wr[n], wr2[n], rmin[n], rmax[n])
+        out[key] = (w[n], mean[n], m2[n], rmin[n], rmax[n])
     return out
 
 
@@ -190,4 +191,27 @@ def splat_rows(ray_start, delay, width, weights, out, sub=4001):
                 x = lo + (hi - lo) * (np.arange(sub) + 0.5) / sub
                 each = weights[i] / width[i] * (hi - lo) / sub
             splat_linear(np.zeros(x.size, dtype=int), x, np.full(x.size, each), out[r:r + 1])
+    return out
+
+
+def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
+                  delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out):
+    """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table."""
+    for b in range(pos_world.shape[0]):
+        lo, mid, hi = ray_start[2 * b], ray_start[2 * b + 1], ray_start[2 * b + 2]
+        ch = np.where(np.arange(lo, hi) < mid, 0, 1)
+        nodes = gather_nodes(ch, points_world[lo:hi], weights[lo:hi], ranges[lo:hi], extents[lo:hi], cell_m)
+        if not nodes:
+            continue
+        keys = np.array(list(nodes.keys()))
+        vals = np.array(list(nodes.values()))
+        w, r_mean, m2, rmin, rmax = vals.T
+        sigma = np.sqrt(m2 / w)
+        g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
+        r_node = np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
+        base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((2 * r_node / wavelength_m) % 1))
+        r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None], rmax[:, None])
+        amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
+        splat_table(np.repeat(keys[:, 0], n_sub), r_env.ravel() * delay_per_m, amp.ravel(), table, table_start,
+                    table_rate, out[b])
     return out

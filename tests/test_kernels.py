@@ -129,7 +129,7 @@ def test_gather_nodes_matches_naive(rng):
         got = {tuple(key[s]): tuple(b[s] for b in bufs) for s in slots}
         assert got.keys() == ref.keys()
         for kk, vals in ref.items():
-            np.testing.assert_allclose(got[kk], vals, rtol=1e-10)
+            np.testing.assert_allclose(got[kk], vals, rtol=1e-10, atol=1e-20)
     np.testing.assert_allclose(bufs[0][order[:k]].sum(), w.sum(), rtol=1e-12)  # ΣW = Σw
     small = 1 << 10                                    # too small a table: says so instead of overfilling
     args = [np.zeros((small, 4), dtype=np.int64), np.full(small, -1, dtype=np.int64), 1,
@@ -231,3 +231,39 @@ def test_splat_rows_matches_naive_and_conserves_weight(rng):
     one = np.zeros((1, n_s))
     kernels.splat_rows(np.array([0, int(inside.sum())]), delay[inside], width[inside], w[inside], one)
     assert one.sum() == pytest.approx(w[inside].sum(), rel=1e-12)
+
+
+@pytest.mark.parametrize("n_tables", [1, 2, 3])
+def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
+    n_p, per_row = 4, 150
+    ray_start = np.arange(2 * n_p + 1) * per_row
+    ray_start[3:] -= 40  # an uneven row
+    n = ray_start[-1]
+    origin = np.array([512_000.0, 5_412_000.0, -20.0])
+    pts = rng.uniform(-1, 1, (n, 3)) * [2, 2, 0.2]
+    w = rng.uniform(0, 1, n)
+    w[::9] = 0.0
+    r = rng.uniform(10, 12, n)
+    ext = rng.uniform(0, 0.05, n)
+    pos = origin + rng.uniform(-1, 1, (n_p, 3)) + [0, 0, 10]
+    table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
+    out = np.zeros((n_p, 2, 200), dtype=np.complex128)
+    cap = 1 << 8  # small: the kernel must report pings that do not fit, and fit after growing
+    tabs = dict(slot_key=np.zeros((n_tables, cap, 4), np.int64), slot_epoch=np.full((n_tables, cap), -1, np.int64),
+                epochs=np.zeros(n_tables, np.int64))
+    status = np.zeros(n_p, dtype=np.int64)
+    args = (ray_start, pts, origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0, 10.0)
+    kernels.speckle_block(*args, tabs["slot_key"], tabs["slot_epoch"], tabs["epochs"],
+                          *[np.zeros((n_tables, cap)) for _ in range(5)], np.zeros((n_tables, cap), np.int64),
+                          status, out)
+    assert np.all(status == -1) and np.all(out == 0)  # too small a table: says so, writes nothing
+    cap = 1 << 12
+    status[:] = 0
+    kernels.speckle_block(*args, np.zeros((n_tables, cap, 4), np.int64), np.full((n_tables, cap), -1, np.int64),
+                          np.zeros(n_tables, np.int64), *[np.zeros((n_tables, cap)) for _ in range(5)],
+                          np.zeros((n_tables, cap), np.int64), status, out)
+    assert np.all(status == 1)
+    ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
+                              -2.0, 10.0, np.zeros_like(out))
+    assert np.abs(ref).max() > 0
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
