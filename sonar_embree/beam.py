@@ -121,7 +121,7 @@ def elevation_span_rad(wavelength_m: float, height_m: float, tilt_rad: float):
 
 
 def elevation_density(beta_rad, range_m, dr_target_m: float, max_step_rad: float, slope_cap_m_rad: float,
-                      empty_step_factor: float = 1.0):
+                      empty_step_factor: float = 1.0, edge_density_factor: float = 1.0):
     """Rays per radian wanted in each probe cell, from the probed slant ranges.
 
     Parameters
@@ -140,6 +140,10 @@ def elevation_density(beta_rad, range_m, dr_target_m: float, max_step_rad: float
     empty_step_factor : float
         A cell with nothing in range at either end, nor in its neighbours, gets a
         step this many times ``max_step_rad``.
+    edge_density_factor : float
+        Cells at a range jump or a silhouette (one end in range, the other not),
+        and their neighbours, get at least this many times ``1/max_step_rad``:
+        objects are resolved finer than smooth floors.
 
     Returns
     -------
@@ -172,6 +176,11 @@ def elevation_density(beta_rad, range_m, dr_target_m: float, max_step_rad: float
     near = live | live_pad[..., :-2] | live_pad[..., 2:]
     slope = np.where(np.isfinite(slope), np.minimum(slope, slope_cap_m_rad), 0.0)
     floor = np.where(near, 1.0 / max_step_rad, 1.0 / (empty_step_factor * max_step_rad))
+    # edges of objects (range jumps, silhouettes against nothing) and their neighbours: a finer step
+    edge = jump | partial
+    edge_pad = np.concatenate((no, edge, no), axis=-1)
+    edge = edge | edge_pad[..., :-2] | edge_pad[..., 2:]
+    floor = np.where(edge, np.maximum(floor, edge_density_factor / max_step_rad), floor)
     return np.maximum(floor, slope / dr_target_m)
 
 

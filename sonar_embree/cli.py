@@ -28,8 +28,9 @@ dataclasses (units in the key names):
   [pulse]       kind = "cw" | "lfm" | "exp_chirp", duration_s, taper (0 rectangle
                 ... 1 Blackman-Harris; default 0.1); lfm: bandwidth_hz, center_hz;
                 exp_chirp: f_start_hz, f_stop_hz
-  [fan]         rays_per_bin, azimuth_oversample, azimuth_nulls, max_step_deg,
-                probe_step_deg, max_rays_per_side
+  [fan]         quality (1: flat floor within 0.2 dB; 0.5 faster; 2-4 references),
+                or explicitly rays_per_bin, azimuth_oversample, azimuth_nulls,
+                max_step_deg, probe_step_deg, max_rays_per_side
   [simulation]  speckle (false), band ("baseband"|"carrier"), detection
                 ("coherent"|"incoherent"), matched_filter (default: on for FM),
                 tvg (false), noise_db_per_hz, lowpass_hz, speckle_cell_m, seed (0)
@@ -85,6 +86,8 @@ def _add_chain_options(p):
     g.add_argument("--noise-db-per-hz", type=float, metavar="DB", help="receiver noise spectral density")
     g.add_argument("--lowpass-hz", type=float, metavar="HZ", help="low-pass FIR cut-off after detection")
     g.add_argument("--seed", type=int, help="seed of the speckle and noise")
+    p.add_argument("--quality", type=float, metavar="Q",
+                   help="ray density, trading error for speed (overrides [fan] quality; default 1)")
 
 
 _CHAIN_FLAGS = ("speckle", "band", "detection", "matched_filter", "tvg", "noise_db_per_hz", "lowpass_hz", "seed")
@@ -101,6 +104,16 @@ def _chain(args, base=None):
     if ("band" in overrides and overrides["band"] == "carrier") or "detection" in overrides:
         overrides.setdefault("speckle", True)
     return dataclasses.replace(base, **overrides)
+
+
+def _fan(args, base=None):
+    """The fan settings of ``base`` (default: FanSettings()) with ``--quality`` applied."""
+    import dataclasses
+
+    from .config import FanSettings
+
+    base = FanSettings() if base is None else base
+    return base if args.quality is None else dataclasses.replace(base, quality=args.quality)
 
 
 def _write_outputs(rec, out_dir, png=True, npz=True, png_kwargs=None):
@@ -126,12 +139,12 @@ def _run(args) -> list:
         if args.pings < 1:
             raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
-        rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), progress=not args.no_progress)
+        rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress)
         return _write_outputs(rec, args.output, png_kwargs=DEMO_PNG)
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
-    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain), fan=cfg.fan,
+    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain), fan=_fan(args, cfg.fan),
                    progress=not args.no_progress)
     o = cfg.output
     if not (o.png or o.npz):

@@ -55,8 +55,11 @@ class Sonar:
         Depression δ of the boresight below horizontal, in degrees, in [0, 90].
     max_range_m : float
         Slant range of the last recorded sample, in m.
-    sample_rate_hz : float
-        Sample rate of the recorded (detected) time series, in Hz.
+    sample_rate_hz : float or None
+        Sample rate of the recorded (detected) time series, in Hz. ``None``
+        (default) derives it from the pulse when simulating (:meth:`for_pulse`):
+        max(4/τ, 4·the sweep's largest offset from f0), i.e. 40 kHz for the
+        default 100 µs CW pulse and 2·B for an LFM of bandwidth B centred on f0.
     sound_speed_m_s : float
         Speed of sound c in m/s, constant over the water column.
     absorption_db_per_m : float or None
@@ -79,7 +82,7 @@ class Sonar:
     height_m: float = 0.0038
     tilt_deg: float = 20.0
     max_range_m: float = 50.0
-    sample_rate_hz: float = 40e3
+    sample_rate_hz: float | None = None
     sound_speed_m_s: float = 1500.0
     absorption_db_per_m: float | None = None
     temperature_c: float = 10.0
@@ -88,8 +91,7 @@ class Sonar:
     ph: float = 8.0
 
     def __post_init__(self):
-        for name in ("frequency_hz", "length_m", "height_m", "max_range_m",
-                     "sample_rate_hz", "sound_speed_m_s"):
+        for name in ("frequency_hz", "length_m", "height_m", "max_range_m", "sound_speed_m_s"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)
         if self.absorption_db_per_m is not None:
@@ -98,6 +100,9 @@ class Sonar:
         _check_number("Sonar", "salinity_ppt", self.salinity_ppt, lo=0.0, hi=45.0)
         _check_number("Sonar", "depth_m", self.depth_m, lo=0.0, hi=12000.0)
         _check_number("Sonar", "ph", self.ph, lo=6.0, hi=9.5)
+        if self.sample_rate_hz is None:
+            return
+        _check_number("Sonar", "sample_rate_hz", self.sample_rate_hz, positive=True)
         if self.n_samples > 50_000_000:
             raise ConfigError(
                 f"Sonar.max_range_m={self.max_range_m} with sample_rate_hz={self.sample_rate_hz} "
@@ -129,15 +134,35 @@ class Sonar:
         """Boresight depression δ in rad."""
         return math.radians(self.tilt_deg)
 
+    def for_pulse(self, pulse: "Pulse") -> "Sonar":
+        """This sonar with ``sample_rate_hz`` filled in for ``pulse`` when it is ``None``.
+
+        fs = max(4/τ, 4·max|f − f0|) over the pulse's sweep, rounded up to 1 Hz: four
+        samples per CW pulse length, twice the bandwidth of an FM sweep centred on
+        f0 (the detected intensity's bandwidth), so matched filtering always works.
+        """
+        if self.sample_rate_hz is not None:
+            return self
+        f_lo, f_hi = pulse.frequency_span_hz(self.frequency_hz)
+        off = max(abs(f_lo - self.frequency_hz), abs(f_hi - self.frequency_hz))
+        fs = max(4.0 / pulse.duration_s, 4.0 * off)
+        return dataclasses.replace(self, sample_rate_hz=float(math.ceil(fs * (1.0 - 1e-12))))
+
+    def _rate(self) -> float:
+        if self.sample_rate_hz is None:
+            raise ConfigError("Sonar.sample_rate_hz is None (derived from the pulse): use Sonar.for_pulse(pulse) "
+                              "or give sample_rate_hz")
+        return self.sample_rate_hz
+
     @property
     def n_samples(self) -> int:
         """Samples per ping and side: t = 0 … 2·max_range/c inclusive."""
-        return int(math.floor(2.0 * self.max_range_m / self.sound_speed_m_s * self.sample_rate_hz)) + 1
+        return int(math.floor(2.0 * self.max_range_m / self.sound_speed_m_s * self._rate())) + 1
 
     @property
     def range_bin_m(self) -> float:
         """Slant-range spacing of the samples, c / (2 fs), in m."""
-        return self.sound_speed_m_s / (2.0 * self.sample_rate_hz)
+        return self.sound_speed_m_s / (2.0 * self._rate())
 
     @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,
@@ -314,8 +339,10 @@ class FanSettings:
     ----------
     quality : float
         Scales every ray density: elevation rays per range bin ≈ quality (on the
-        steepest part of the scene), azimuth oversampling max(1, quality), and
-        the largest elevation step 0.5°/quality.
+        steepest part of the scene), azimuth oversampling max(1, 2·quality) (objects
+        need more azimuth lines than a floor), the azimuth span (main lobe for
+        quality ≤ 1, first side lobes above), the largest elevation step
+        0.5°/quality and the probe step 0.2°/max(1, quality).
     rays_per_bin : float or None
         Elevation rays per range bin (c/2fs) where the scene's slant range changes
         fastest with depression angle. Each ray's echo is spread over the range
@@ -335,6 +362,10 @@ class FanSettings:
         finds where range changes fast and where nothing is within range.
     max_rays_per_side : int
         Hard cap on elevation rays per azimuth line and side (a guard, not a budget).
+    footprint : bool
+        Spread each ray's echo over the slant-range interval its cell covers on the
+        surface (default). False treats rays as point echoes with linear splatting,
+        the PHYSICS.md §7 baseline, which needs about one ray per range bin.
     """
 
     quality: float = 1.0
@@ -344,8 +375,11 @@ class FanSettings:
     max_step_deg: float | None = None
     probe_step_deg: float | None = None
     max_rays_per_side: int = 200_000
+    footprint: bool = True
 
     def __post_init__(self):
+        if not isinstance(self.footprint, bool):
+            raise ConfigError(f"FanSettings.footprint must be true or false, got {self.footprint!r}")
         _check_number("FanSettings", "quality", self.quality, positive=True, hi=64)
         if self.quality < 1.0 / 64:
             raise ConfigError(f"FanSettings.quality must be >= {1 / 64}, got {self.quality!r}")
@@ -362,8 +396,8 @@ class FanSettings:
     def resolved(self) -> "FanSettings":
         """These settings with every ``None`` filled in from ``quality``."""
         q = float(self.quality)
-        derived = dict(rays_per_bin=q, azimuth_oversample=max(1.0, q), azimuth_nulls=1 if q <= 1.0 else 2,
-                       max_step_deg=min(0.5 / q, 10.0), probe_step_deg=min(0.1 / max(q, 1.0), 5.0))
+        derived = dict(rays_per_bin=q, azimuth_oversample=max(1.0, 2.0 * q), azimuth_nulls=1 if q <= 1.0 else 2,
+                       max_step_deg=min(0.5 / q, 10.0), probe_step_deg=min(0.2 / max(q, 1.0), 5.0))
         return dataclasses.replace(self, **{k: v for k, v in derived.items() if getattr(self, k) is None})
 
 
@@ -460,6 +494,7 @@ class SignalChain:
             if pulse.is_fm and self.detection == "incoherent":
                 raise ConfigError("SignalChain: an FM pulse needs pulse compression, which incoherent detection "
                                   "cannot do; use detection='coherent' or set matched_filter=False")
+        sonar = sonar.for_pulse(pulse)
         fs = sonar.sample_rate_hz
         f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
         if mf:

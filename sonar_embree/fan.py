@@ -10,6 +10,7 @@ Numba pass that turns hits into echoes. No Python loop touches rays or samples.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +22,9 @@ from .raycast import RayCaster
 #: A probe cell with nothing within range on both ends and both neighbours gets this
 #: many times the largest step: next to no rays, yet no blind spot.
 EMPTY_STEP_FACTOR = 8.0
+#: Cells at object edges (range jumps, silhouettes) and their neighbours get this many times the density
+#: of the largest step.
+EDGE_DENSITY_FACTOR = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,6 +41,7 @@ class FanPlan:
     max_rays: int
     beam: np.ndarray         # (4,) k·lx/2, k·ly/2, tilt (rad), 0
     min_range_m: float       # near-field bound on R in the weights
+    footprint: bool          # spread echoes over their cells' range intervals (else point echoes)
 
     @classmethod
     def build(cls, sonar: Sonar, fan: FanSettings) -> "FanPlan":
@@ -51,7 +56,7 @@ class FanPlan:
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side,
                    np.array([0.5 * k * sonar.length_m, 0.5 * k * sonar.height_m, sonar.tilt_rad, 0.0]),
-                   sonar.wavelength_m)
+                   sonar.wavelength_m, fan.footprint)
 
     @property
     def n_probe(self) -> int:
@@ -95,7 +100,7 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
         Depression and cell width of each elevation ray, rad.
     """
     dens = beam.elevation_density(plan.probe_beta, probe_r, plan.dr_target_m, plan.max_step_rad,
-                                  plan.slope_cap_m_rad, EMPTY_STEP_FACTOR)
+                                  plan.slope_cap_m_rad, EMPTY_STEP_FACTOR, EDGE_DENSITY_FACTOR)
     total = dens @ np.diff(plan.probe_beta)
     counts = np.clip(np.ceil(total - 1e-9), 1, plan.max_rays).astype(np.int64)
     el_start = np.concatenate(([0], np.cumsum(counts)))
@@ -105,7 +110,8 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
 
 
 def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray, face_mu: np.ndarray,
-               two_way_np_per_m: float, max_range_m: float, want_points: bool = False) -> BlockEchoes:
+               two_way_np_per_m: float, max_range_m: float, want_points: bool = False,
+               timings: dict | None = None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
     Parameters
@@ -124,15 +130,26 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
         Echoes beyond this slant range are dropped (and not searched for).
     want_points : bool
         Also return the hit points (the speckle lattice needs them).
+    timings : dict, optional
+        Seconds spent are added under ``"embree"`` (ray casting) and ``"rays"``
+        (placing rays and weighting echoes).
     """
+    t0 = time.perf_counter()
+    t_embree = 0.0
     n_p = rot.shape[0]
     m = plan.probe_beta.shape[0]
+    # hits a little beyond the window still reach into it with their footprints; the splatting crops them
+    max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
-    probe_dirs = np.einsum("bij,pj->bpi", rot, plan.probe_body).reshape(-1, 3)
+    probe_dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1)).reshape(-1, 3)
     probe_org = np.repeat(pos_local, 2 * m, axis=0)
+    t = time.perf_counter()
     prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
+    t_embree += time.perf_counter() - t
     probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, m)
+    t = time.perf_counter()
     nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
+    t_embree += time.perf_counter() - t
     altitude = np.where(nadir.tri >= 0, nadir.range_m, np.nan)  # world vertical, float64
     el_start, beta, dbeta = elevation_rows(plan, probe_r)
 
@@ -141,14 +158,22 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     dirs = np.empty((n, 3), dtype=np.float32)
     org = np.empty((n, 3), dtype=np.float32)
     rot = np.ascontiguousarray(rot, dtype=np.float64)
-    kernels.fan_rays(plan.s, beta, el_start, rot, pos_local, dirs, org)
+    cos_b, sin_b = np.cos(beta), np.sin(beta)
+    kernels.fan_rays(plan.s, cos_b, sin_b, el_start, rot, pos_local, dirs, org)
+    t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
+    t_embree += time.perf_counter() - t
 
     rng, ext, w = np.empty(n), np.empty(n), np.empty(n)
     pts = np.empty((n, 3) if want_points else (0, 3))
     c = caster.compiled
-    kernels.fan_echoes(plan.s, plan.ds, beta, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
+    kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
                        c.face_normals, face_mu, plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
                        plan.slope_cap_m_rad, rng, ext, w, pts)
+    if not plan.footprint:
+        ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe
+    if timings is not None:
+        timings["embree"] = timings.get("embree", 0.0) + t_embree
+        timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree
     return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays)

@@ -71,3 +71,31 @@ def mosaic_png(images, titles, path, columns=2) -> None:
         ax.set_title(title, fontsize=10)
     fig.tight_layout()
     _save(fig, path)
+
+
+def speed_error_png(series, path, title="Speed against error") -> None:
+    """Error against rays per ping and against time per ping, one line per series.
+
+    Parameters
+    ----------
+    series : dict
+        label → dict of equal-length sequences ``rays``, ``ms``, ``max_db``, ``rms_db``
+        (rays per ping, ms per ping, max and RMS |error| in dB).
+    path : str
+        Output PNG (written atomically).
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
+    for label, s in series.items():
+        for ax, x in zip(axes, ("rays", "ms")):
+            line, = ax.loglog(s[x], s["rms_db"], "o-", label=f"{label}: RMS")
+            ax.loglog(s[x], s["max_db"], "s--", color=line.get_color(), alpha=0.6, label=f"{label}: max")
+    axes[0].set_xlabel("rays per ping")
+    axes[1].set_xlabel("ms per ping")
+    for ax in axes:
+        ax.set_ylabel("|error| (dB)")
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(title)
+    fig.tight_layout()
+    _save(fig, path)

@@ -64,6 +64,17 @@ class RayCaster:
                      compiled.faces.astype(np.int32))
         self.threads = max(int(threads if threads is not None else (os.cpu_count() or 1)), 1)
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+        one = np.zeros((1, 3), dtype=np.float32)
+        self._scene.run(one, one + np.float32([0, 0, 1]), dists=np.ones(1, np.float32), output=0)  # build the BVH now
+
+    @classmethod
+    def for_scene(cls, compiled: CompiledScene) -> "RayCaster":
+        """The caster of ``compiled``, built on first use and kept with it (freed with it)."""
+        caster = compiled.__dict__.get("_caster")
+        if caster is None:
+            caster = cls(compiled)
+            object.__setattr__(compiled, "_caster", caster)  # a cache, not state: CompiledScene stays immutable
+        return caster
 
     def _run(self, origins_f32, directions_f32, max_range_m: float, output: int):
         n = directions_f32.shape[0]

@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -140,7 +141,7 @@ def _carrier_ping(synth: _Synth, sonar: Sonar, chain: SignalChain, buf, noise_bb
 
 
 def _speckle_block(e: BlockEchoes, a: int, lattice: _ScattererLattice, synth: _Synth, sonar: Sonar,
-                   chain: SignalChain, origin_m, pos_world, n0, out):
+                   chain: SignalChain, origin_m, pos_world, n0, out, clock):
     """Synthesise the pings a … a + len(pos_world) − 1 of a block into ``out`` (pings, 2, n_s)."""
     fs, c, f0 = sonar.sample_rate_hz, sonar.sound_speed_m_s, sonar.frequency_hz
     n_b, _, n_s = out.shape
@@ -151,6 +152,7 @@ def _speckle_block(e: BlockEchoes, a: int, lattice: _ScattererLattice, synth: _S
         fc = synth.carrier_factor * fs
         buf = np.zeros((n_b, 2, (n_s - 1) * synth.carrier_factor + 1), dtype=np.complex128)
         lattice.synthesise(e, origin_m, pos_world, sonar.wavelength_m, 2.0 * fc / c, 2.0 * f0 / c, synth, buf)
+    t = time.perf_counter()
     for b in range(n_b):
         noise = None
         if n0 is not None:  # per-ping stream: the same bits for any ping order, block or worker count
@@ -161,14 +163,17 @@ def _speckle_block(e: BlockEchoes, a: int, lattice: _ScattererLattice, synth: _S
                 out[b] += noise
         else:
             out[b] = _carrier_ping(synth, sonar, chain, buf[b], noise, n_s)
+    dt = time.perf_counter() - t  # per-ping detection on the carrier is processing, not synthesis
+    clock["processing"] = clock.get("processing", 0.0) + dt
+    clock["synthesis"] = clock.get("synthesis", 0.0) - dt
 
 
 def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, pulse: Pulse | None = None, *,
              speckle: bool = False, band: str = "baseband", detection: str = "coherent",
              matched_filter: bool | None = None, tvg: bool = False, noise_db_per_hz: float | None = None,
              lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
-             fan: FanSettings | None = None, chain: SignalChain | None = None,
-             progress: bool = False) -> Record:
+             fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
+             progress: bool = False, timings: dict | None = None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
     Parameters
@@ -185,11 +190,20 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         The signal chain; see :class:`SignalChain` (units in the names). Invalid
         combinations raise :class:`ConfigError`.
     fan : FanSettings, optional
-        Ray density; default :class:`FanSettings` ().
+        Ray density; default :class:`FanSettings` () (quality 1).
+    quality : float, optional
+        Shorthand for ``fan=FanSettings(quality=quality)``: scales every ray
+        density (1: flat-floor error below 0.2 dB; 0.5 about twice as fast; see
+        docs/benchmarks.md). Not allowed together with ``fan``.
     chain : SignalChain, optional
         The whole signal chain at once; overrides the keywords above.
     progress : bool
         Show a progress bar over pings (tqdm, on stderr).
+    timings : dict, optional
+        If given, seconds spent are added under ``"setup"`` (BVH build and tables),
+        ``"embree"`` (ray casting), ``"rays"`` (ray placement and echo weights),
+        ``"synthesis"`` (binning echoes into samples) and ``"processing"``
+        (convolution, matched filter, detection, filters, TVG).
 
     Returns
     -------
@@ -206,10 +220,16 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     and echoes √W·g·e^(−j2k·R_node)·p̃(t − 2R̄/c), g a complex Gaussian frozen to
     the node and R̄ the W-weighted range of its rays, so E|Σ|² = Σ w·|p̃|².
     """
+    t_start = time.perf_counter()
     sonar = Sonar() if sonar is None else sonar
     pulse = Pulse.cw() if pulse is None else pulse
+    if quality is not None:
+        if fan is not None:
+            raise ConfigError("simulate: give either quality or fan, not both (FanSettings has a quality field)")
+        fan = FanSettings(quality=quality)
     fan = FanSettings() if fan is None else fan
     _check_inputs(scene, trajectory, sonar, pulse, fan)
+    sonar = sonar.for_pulse(pulse)
     if chain is None:
         chain = SignalChain(speckle=speckle, band=band, detection=detection, matched_filter=matched_filter,
                             tvg=tvg, noise_db_per_hz=noise_db_per_hz, lowpass_hz=lowpass_hz,
@@ -220,7 +240,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     chain = chain.resolved(sonar, pulse)
 
     compiled = scene.compiled()
-    caster = RayCaster(compiled)
+    caster = RayCaster.for_scene(compiled)  # the BVH is built once per scene
     plan = FanPlan.build(sonar, fan)
     n_p, n_out = len(trajectory), sonar.n_samples
     # The compressed sample at t needs echoes up to t + τ: synthesise a pulse length past the window.
@@ -247,17 +267,22 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         from tqdm.auto import tqdm
         bar = tqdm(total=n_p, desc="pings", unit="ping")
     delay_per_m = 2.0 * fs / c
+    clock = {} if timings is None else timings
+    clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
     a, block = 0, 4
     while a < n_p:
         b = min(a + block, n_p)
-        e = cast_block(caster, plan, rots[a:b], pos_local[a:b], face_mu, two_way, max_r, want_points=chain.speckle)
+        e = cast_block(caster, plan, rots[a:b], pos_local[a:b], face_mu, two_way, max_r, want_points=chain.speckle,
+                       timings=clock)
         altitude[a:b], n_rays[a:b] = e.altitude_m, e.n_rays
+        t = time.perf_counter()
         if not chain.speckle:
             kernels.splat_rows(e.ray_start, e.range_m * delay_per_m, e.extent_m * delay_per_m, e.weight,
                                out[a:b].reshape(2 * (b - a), n_s))
         else:
             _speckle_block(e, a, lattice, synth, sonar, chain, compiled.origin_m, trajectory.positions_m[a:b], n0,
-                           out[a:b])
+                           out[a:b], clock)
+        clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
         a = b  # blocks of ~256k rays: results do not depend on the block size
@@ -265,6 +290,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if bar is not None:
         bar.close()
 
+    t = time.perf_counter()
     if not chain.speckle:
         kernel, lead = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
         intensity = convolve_time(out, kernel, lead)
@@ -288,6 +314,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if chain.tvg:
         intensity = intensity * processing.tvg_gain(time_s, c, sonar.alpha_db_per_m)
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
+    clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
     attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
              "quality": fan.quality, "rays_per_ping": float(n_rays.mean()) if n_p else 0.0}
     if chain.speckle and chain.band == "carrier":

@@ -174,7 +174,7 @@ def test_fan_rays_match_naive(rng):
     s, beta, _, el_start, rot, pos = _block(rng)
     n = s.size * el_start[-1]
     dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
-    kernels.fan_rays(s, beta, el_start, rot, pos, dirs, org)
+    kernels.fan_rays(s, np.cos(beta), np.sin(beta), el_start, rot, pos, dirs, org)
     np.testing.assert_allclose(dirs, naive.fan_directions(s, beta, el_start, rot), atol=1e-7)
     rows = np.repeat(np.arange(len(el_start) - 1), s.size * np.diff(el_start))
     np.testing.assert_allclose(org, pos[rows // 2], atol=1e-6)
@@ -193,13 +193,13 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng):
     pos = pos - c.origin_m  # the local frame
     n = s.size * el_start[-1]
     dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
-    kernels.fan_rays(s, beta, el_start, rot, pos, dirs, org)
+    kernels.fan_rays(s, np.cos(beta), np.sin(beta), el_start, rot, pos, dirs, org)
     prim, tfar = caster.cast_raw(org, dirs, 60.0)
     assert (prim >= 0).sum() > 100
     mu_face = c.mu[c.face_object]
     k, lx, ly, tilt = 2 * np.pi / 0.00375, 0.19, 0.0038, np.radians(20)
     rng_k, ext_k, w_k, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
-    kernels.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, tfar, c.vertices, c.faces, c.face_normals,
+    kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, prim, tfar, c.vertices, c.faces, c.face_normals,
                        mu_face, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004, 60.0, 500.0,
                        rng_k, ext_k, w_k, pts)
     rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,

@@ -22,3 +22,14 @@ def test_paper_modes_script_writes_every_mode(tmp_path):
     assert free.shape == speckled.shape and free.shape[0] == 3
     # speckle makes neighbouring pixels differ far more than the smooth expected intensity
     assert np.std(np.diff(speckled.astype(float), axis=1)) > 3 * np.std(np.diff(free.astype(float), axis=1))
+
+
+def test_bench_script_writes_report_and_plot(tmp_path):
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_speed_vs_error.py"), "--quick",
+                           "-o", str(tmp_path)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(os.listdir(tmp_path)) == ["benchmarks.md", "speed_vs_error.png"]
+    md = (tmp_path / "benchmarks.md").read_text()
+    for needle in ("Flat floor", "Shipwreck", "per 100 000 rays", "pings/s", "| footprint | 1 |"):
+        assert needle in md
+    assert iio.imread(tmp_path / "speed_vs_error.png").shape[0] > 100

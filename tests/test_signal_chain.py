@@ -193,8 +193,8 @@ def test_invalid_chains_fail_before_any_work(kwargs, needle):
 
 def test_fm_checks_against_the_sonar():
     lfm = se.Pulse.lfm(bandwidth_hz=60e3)
-    with pytest.raises(se.ConfigError, match="sample_rate_hz"):
-        se.simulate(flat_scene(), line_along_x(n_pings=1), se.Sonar(), lfm)
+    with pytest.raises(se.ConfigError, match="sample_rate_hz"):  # an explicit rate too low for the sweep
+        se.simulate(flat_scene(), line_along_x(n_pings=1), se.Sonar(sample_rate_hz=40e3), lfm)
     with pytest.raises(se.ConfigError, match="compression"):
         se.simulate(flat_scene(), line_along_x(n_pings=1), se.Sonar(), se.Pulse.lfm(20e3), speckle=True,
                     band="carrier", detection="incoherent")
@@ -253,3 +253,20 @@ def test_compressed_record_is_not_darkened_at_the_end_of_the_window(speckle):
     tail = slice(n - 20, n)                                   # the last 0.375 m
     ratio = short.starboard[0, tail].mean() / long.starboard[0, tail].mean()
     assert ratio == pytest.approx(1.0, abs=0.03 if speckle else 1e-3)
+
+
+def test_sample_rate_follows_the_pulse_unless_given():
+    """fs = max(4/τ, 4·max|f − f0|): 4 samples per CW pulse, 2B for a centred LFM, 4× the offset of an
+    off-centre exponential chirp; an explicit rate is kept."""
+    base = se.Sonar()
+    assert base.sample_rate_hz is None
+    with pytest.raises(se.ConfigError, match="for_pulse"):
+        _ = base.n_samples
+    assert base.for_pulse(se.Pulse.cw(100e-6)).sample_rate_hz == 40e3
+    assert base.for_pulse(se.Pulse.cw(250e-6)).sample_rate_hz == 16e3
+    assert base.for_pulse(se.Pulse.lfm(60e3, duration_s=2e-3)).sample_rate_hz == 120e3
+    assert base.for_pulse(se.Pulse.exp_chirp(390e3, 430e3)).sample_rate_hz == 120e3
+    assert se.Sonar(sample_rate_hz=25e3).for_pulse(se.Pulse.cw()).sample_rate_hz == 25e3
+    rec = se.simulate(flat_scene(), line_along_x(n_pings=1), base, se.Pulse.lfm(60e3))
+    assert rec.sonar.sample_rate_hz == 120e3 and rec.attrs["matched_filter"]
+    assert rec.port.shape[1] == rec.sonar.n_samples

@@ -40,7 +40,7 @@ def test_mean_of_speckled_pings_converges_to_speckle_free(independent_pings):
     assert err[0] > err[1] > err[2]                  # falls as 1/√N: err(82)/err(8) ≈ √(8/82) = 0.31
     assert err[2] < 0.5 * err[0]
     # nothing arrives before the first bottom return, speckle or not
-    early = speckled.time_s < 2 * H / SONAR.sound_speed_m_s - 1 / SONAR.sample_rate_hz
+    early = speckled.time_s < 2 * H / SONAR.sound_speed_m_s - 1 / speckled.sonar.sample_rate_hz
     assert np.all(speckled.starboard[:, early] == 0) and np.all(speckled.port[:, early] == 0)
 
 

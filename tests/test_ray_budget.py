@@ -1,0 +1,87 @@
+"""The ray budget follows the scene and the quality setting (issue 4), and costs nothing where nothing echoes."""
+import numpy as np
+import pytest
+
+import sonar_embree as se
+from conftest import H, box, flat_scene, line_along_x
+
+
+def _rays(scene, sonar=None, traj=None, **kw):
+    rec = se.simulate(scene, traj or line_along_x(2), sonar or se.Sonar(max_range_m=40.0), **kw)
+    return rec.attrs["rays_per_ping"], rec
+
+
+def test_quality_scales_the_budget_and_defaults_to_one():
+    n = {q: _rays(flat_scene(), quality=q)[0] for q in (0.25, 0.5, 1.0, 2.0)}
+    assert n[0.25] < n[0.5] < n[1.0] < n[2.0]
+    rec = _rays(flat_scene())[1]
+    assert rec.attrs["quality"] == 1.0 and rec.attrs["rays_per_ping"] == n[1.0]
+    assert se.FanSettings().resolved().rays_per_bin == 1.0
+    assert se.FanSettings(quality=2, rays_per_bin=0.3).resolved().rays_per_bin == 0.3  # explicit fields win
+    with pytest.raises(se.ConfigError, match="either quality or fan"):
+        se.simulate(flat_scene(), line_along_x(1), quality=1.0, fan=se.FanSettings())
+    with pytest.raises(se.ConfigError, match="quality"):
+        se.FanSettings(quality=-1)
+
+
+def test_rays_are_uniform_in_slant_range_on_the_floor():
+    """Elevation rays per azimuth line grow with the slant-range extent of the floor in the window, not with angle."""
+    n20 = _rays(flat_scene(), se.Sonar(max_range_m=20.0))[0]
+    n40 = _rays(flat_scene(), se.Sonar(max_range_m=40.0))[0]
+    n80 = _rays(se.Scene().add(se.seafloor.flat((400, 200)), label="f"), se.Sonar(max_range_m=80.0))[0]
+    # (R_max − h) / bin rays per line plus a fixed part: the increments are in proportion 20 : 40
+    assert (n80 - n40) / (n40 - n20) == pytest.approx(2.0, rel=0.15)
+
+
+def test_nothing_in_range_costs_next_to_nothing():
+    """A floor beyond the window gets the coarse empty-cell step: an all-zero record, and besides the fixed probe
+    (0.2° steps over the 150° elevation span, both sides) a few hundred rays."""
+    from sonar_embree.fan import FanPlan
+
+    full = _rays(flat_scene())[0]
+    empty, rec = _rays(flat_scene(), traj=line_along_x(2, z=60.0))
+    assert np.all(rec.port == 0) and np.all(rec.starboard == 0)
+    probe = FanPlan.build(rec.sonar, se.FanSettings()).n_probe
+    assert empty - probe < 0.05 * (full - probe)
+
+
+def test_density_follows_range_rate_and_refines_edges():
+    """Per probe cell: |dR/dβ|/dr on the floor, the largest step where range changes slowly, a 4× finer step at an
+    object's edges, 8× coarser where nothing is in range."""
+    from sonar_embree import beam
+
+    b = np.radians(np.arange(-30.0, 90.0, 0.2))
+    r = H / np.sin(b)
+    r[(b <= 0) | (r > 50.0)] = np.nan                        # sky and beyond the window
+    obj = (b > np.radians(40)) & (b < np.radians(42))
+    r[obj] = 12.0                                            # a face at constant range: two range jumps
+    step, dr = np.radians(0.5), 0.01875
+    d = beam.elevation_density(b, r, dr, step, 500.0, empty_step_factor=8.0, edge_density_factor=4.0)
+    mid = 0.5 * (b[1:] + b[:-1])
+    floor = np.isfinite(r[1:]) & np.isfinite(r[:-1]) & ~obj[1:] & ~obj[:-1]
+    expect = np.maximum(H * np.cos(mid) / np.sin(mid) ** 2 / dr, 1 / step)   # |dR/dβ| = h·cosβ/sin²β
+    smooth = floor & (np.abs(mid - np.radians(41)) > np.radians(3)) & (mid > np.radians(13))
+    np.testing.assert_allclose(d[smooth], expect[smooth], rtol=0.01)
+    edges = np.nonzero(np.diff(obj.astype(int)))[0]
+    for e in edges:
+        assert np.all(d[e - 1:e + 2] >= 4 / step - 1e-9)
+    inside = obj[1:] & obj[:-1]
+    assert np.all(d[inside][1:-1] >= 1 / step) and np.all(d[inside][2:-2] < 1.01 / step)  # a flat face: no refining
+    sky = ~np.isfinite(r[1:]) & ~np.isfinite(r[:-1]) & (mid < np.radians(-5))
+    np.testing.assert_allclose(d[sky], 1 / (8 * step))
+
+
+def test_an_object_shows_at_its_range():
+    rec = _rays(flat_scene().add(box((2, 2, 3), (0, -20, 1.5)), label="box", material=se.Material(-10)))[1]
+    near_face = np.hypot(19.0, H - 3.0)  # the top edge of the near face returns first and brightest
+    assert abs(rec.slant_range_m[np.argmax(rec.starboard[0])] - near_face) < 1.5
+
+
+def test_cli_quality_flag(tmp_path):
+    from sonar_embree.cli import main
+
+    assert main(["demo", "-o", str(tmp_path), "--pings", "2", "--quality", "0.5", "--no-progress"]) == 0
+    rec = se.Record.load(tmp_path / "record.npz")
+    assert rec.attrs["quality"] == 0.5
+    assert main(["demo", "-o", str(tmp_path / "x"), "--quality", "0", "--no-progress"]) == 2
+    assert not (tmp_path / "x").exists()
