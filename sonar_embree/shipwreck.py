@@ -54,11 +54,12 @@ def hull(length_m: float = HULL_LENGTH_M, beam_m: float = HULL_BEAM_M, depth_m: 
     # deck: one strip between the two deck edges of every station pair; transoms close both ends
     p, s = idx[:, 0], idx[:, -1]
     faces += [np.stack([p[:-1], s[:-1], s[1:]], -1), np.stack([p[:-1], s[1:], p[1:]], -1)]
-    for end, flip in ((idx[0], True), (idx[-1], False)):
+    for end, flip in ((idx[0], False), (idx[-1], True)):
         fan = np.stack([np.full(nt - 2, end[0]), end[1:-1], end[2:]], -1)
         faces.append(fan[:, ::-1] if flip else fan)
     body = trimesh.Trimesh(verts, np.concatenate(faces), process=True)
-    trimesh.repair.fix_normals(body)
+    if body.volume < 0:  # outward normals without trimesh.repair (which needs networkx)
+        body.invert()
     house = trimesh.creation.box(extents=(0.3 * length_m, 0.55 * beam_m, 3.2))
     house.apply_translation((0.05 * length_m, 0.0, depth_m + 1.6))
     mast = trimesh.creation.box(extents=(1.2, 1.2, 5.0))
