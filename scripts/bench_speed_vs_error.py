@@ -97,7 +97,8 @@ def ship_sweep(scene, n_pings, qualities, reference_quality=4.0):
     for q in qualities:
         rec, ms, t = _timed(scene, traj, sonar, pulse, quality=q)
         x = np.concatenate([rec.port, rec.starboard])
-        out.append(dict(quality=q, rays=rec.attrs["rays_per_ping"], ms=ms, timings=t, **_db_errors(x[mask], refs[mask])))
+        out.append(dict(quality=q, rays=rec.attrs["rays_per_ping"], ms=ms, timings=t,
+                        **_db_errors(x[mask], refs[mask])))
     return out, dict(quality=reference_quality, rays=ref.attrs["rays_per_ping"], ms=ref_ms)
 
 
@@ -187,8 +188,9 @@ def write_report(path, flat, ship, ship_ref, thr_flat, thr_ship, long, ship_info
               "5 000 rays per ping.",
               "", "## Shipwreck against a 4× denser reference", "",
               f"{n_tri:,} triangles (scene built in {t_build:.1f} s, BVH in {t_bvh:.1f} s, once per scene). "
-              f"Default sonar, 100 µs CW (10 % taper), speckle-free, {args.ship_pings} pings 2 m apart along the wreck. "
-              f"Reference: quality {ship_ref['quality']:g} ({ship_ref['rays']:.0f} rays/ping, {ship_ref['ms']:.1f} ms/ping). "
+              f"Default sonar, 100 µs CW (10 % taper), speckle-free, {args.ship_pings} pings 2 m apart along the "
+              f"wreck. Reference: quality {ship_ref['quality']:g} ({ship_ref['rays']:.0f} rays/ping, "
+              f"{ship_ref['ms']:.1f} ms/ping). "
               "Errors over the samples within 30 dB of the reference's 99th percentile.", "",
               "| quality | rays/ping | ms/ping | max dB | 99th pct dB | RMS dB | holes | Embree / rays / synthesis / "
               "processing (%) |", "|---:|---:|---:|---:|---:|---:|---:|---|"]

@@ -144,7 +144,8 @@ def _run(args) -> list:
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
-    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain), fan=_fan(args, cfg.fan),
+    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
+                   fan=_fan(args, cfg.fan),
                    progress=not args.no_progress)
     o = cfg.output
     if not (o.png or o.npz):

@@ -36,8 +36,8 @@ def hull(length_m: float = HULL_LENGTH_M, beam_m: float = HULL_BEAM_M, depth_m: 
         raise ConfigError("hull needs positive length_m, beam_m, depth_m, stations >= 8, section_points >= 4")
     u = np.linspace(0.0, 1.0, stations)                  # stern (0) … bow (1)
     x = (u - 0.5) * length_m
-    half = 0.5 * beam_m * np.where(u < 0.6, 1.0 - 0.15 * ((0.6 - u) / 0.6) ** 2, np.cos(0.5 * np.pi * np.clip(u - 0.6, 0.0, 0.4) / 0.4)
-                                   ** 0.8)
+    bow = np.cos(0.5 * np.pi * np.clip(u - 0.6, 0.0, 0.4) / 0.4) ** 0.8  # the forward 40 % narrows to the stem
+    half = 0.5 * beam_m * np.where(u < 0.6, 1.0 - 0.15 * ((0.6 - u) / 0.6) ** 2, bow)
     half = np.maximum(half, 1e-3 * beam_m)
     power = 0.35 + 0.45 * u                              # fuller sections aft, V at the bow
     keel = depth_m * 0.35 * np.clip((u - 0.8) / 0.2, 0.0, 1.0) ** 2   # the forefoot rises to the bow

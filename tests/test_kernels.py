@@ -199,9 +199,9 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng):
     mu_face = c.mu[c.face_object]
     k, lx, ly, tilt = 2 * np.pi / 0.00375, 0.19, 0.0038, np.radians(20)
     rng_k, ext_k, w_k, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
-    kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, prim, tfar, c.vertices, c.faces, c.face_normals,
-                       mu_face, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004, 60.0, 500.0,
-                       rng_k, ext_k, w_k, pts)
+    kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, prim, tfar, c.vertices,
+                       c.faces, c.face_normals, mu_face, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004,
+                       60.0, 500.0, rng_k, ext_k, w_k, pts)
     rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,
                                          mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0)
     hit = w_n > 0

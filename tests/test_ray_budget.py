@@ -85,3 +85,13 @@ def test_cli_quality_flag(tmp_path):
     assert rec.attrs["quality"] == 0.5
     assert main(["demo", "-o", str(tmp_path / "x"), "--quality", "0", "--no-progress"]) == 2
     assert not (tmp_path / "x").exists()
+
+
+def test_timings_report_every_stage_without_changing_the_record():
+    t = {}
+    a = se.simulate(flat_scene(), line_along_x(2), se.Sonar(max_range_m=30.0), speckle=True, timings=t)
+    b = se.simulate(flat_scene(), line_along_x(2), se.Sonar(max_range_m=30.0), speckle=True)
+    assert set(t) == {"setup", "embree", "rays", "synthesis", "processing"}
+    assert all(v >= 0 for v in t.values()) and t["embree"] > 0
+    np.testing.assert_array_equal(a.starboard, b.starboard)
+    assert a.attrs == b.attrs  # timings stay out of the record: same inputs, same bits
