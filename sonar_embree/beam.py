@@ -209,13 +209,3 @@ def fan_body(s, beta_rad, side: int):
     d[..., 1] = side * cpsi * cb
     d[..., 2] = cpsi * sb
     return d.reshape(-1, 3)
-
-
-def fan_directivity(s, beta_rad, sonar):
-    """Γ for every (s, β) pair (azimuth-major), membrane of ``sonar``. Shape (n_az·n_el,)."""
-    s = np.asarray(s, dtype=np.float64)[:, None]
-    cpsi = np.sqrt(1.0 - s * s)
-    rel = np.asarray(beta_rad)[None, :] - sonar.tilt_rad
-    g = directivity(np.broadcast_to(s, (s.shape[0], rel.shape[1])), cpsi * np.sin(rel),
-                    cpsi * np.cos(rel), sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m)
-    return g.reshape(-1)

@@ -80,9 +80,6 @@ class BlockEchoes:
     altitude_m: np.ndarray  # (pings,) nadir range, NaN if none
     n_rays: np.ndarray      # (pings,) rays cast per ping, probes included
 
-    def row(self, r: int) -> slice:
-        return slice(int(self.ray_start[r]), int(self.ray_start[r + 1]))
-
 
 def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     """Elevation rays of every row from the probed ranges.

@@ -1,11 +1,11 @@
 """Orchestration: the only module that knows the order of the stages.
 
-Per ping: pose → probe cast (where does range change fast?) → ray fan placed for the
-range resolution → one Embree call for both sides → expected echo intensity per ray
-(Numba). Then, by mode:
+Per block of pings (:mod:`sonar_embree.fan`): poses → probe cast (where does range
+change fast?) → ray fans placed for the range resolution → one Embree call for the
+block → expected echo intensity and range footprint per ray (Numba). Then, by mode:
 
-- speckle-free (``speckle=False``): linear fractional-delay splatting of the
-  intensities, one convolution with the pulse intensity (or, with matched
+- speckle-free (``speckle=False``): footprint splatting of the intensities (each
+  spread over the range interval its ray covers), one convolution with the pulse intensity (or, with matched
   filtering, the compressed pulse's |q|²): PHYSICS.md eq. (1) sampled at t_n;
 - speckle: the rays' intensities are gathered onto scatterers frozen to the
   surface (a world-fixed lattice, each node a complex Gaussian reflectivity), whose
@@ -146,8 +146,7 @@ def _speckle_block(e: BlockEchoes, a: int, lattice: _ScattererLattice, synth: _S
     fs, c, f0 = sonar.sample_rate_hz, sonar.sound_speed_m_s, sonar.frequency_hz
     n_b, _, n_s = out.shape
     if chain.band == "baseband":
-        buf = out if out.dtype == np.complex128 else np.zeros(out.shape, dtype=np.complex128)
-        lattice.synthesise(e, origin_m, pos_world, sonar.wavelength_m, 2.0 * fs / c, 0.0, synth, buf)
+        lattice.synthesise(e, origin_m, pos_world, sonar.wavelength_m, 2.0 * fs / c, 0.0, synth, out)  # coherent
     else:
         fc = synth.carrier_factor * fs
         buf = np.zeros((n_b, 2, (n_s - 1) * synth.carrier_factor + 1), dtype=np.complex128)

@@ -2,15 +2,6 @@
 import numpy as np
 
 
-def lambert_intensity(range_m, cos_inc, gamma, d_omega, mu, two_way_np_per_m, min_range_m):
-    """w = Γ⁴ μ cosθ exp(−a R) dΩ / max(R, Rmin)², 0 where cosθ ≤ 0 or R is not finite."""
-    r = np.asarray(range_m, dtype=float)
-    ok = (np.asarray(cos_inc) > 0) & np.isfinite(r)
-    rr = np.where(ok, np.maximum(r, min_range_m), 1.0)
-    w = gamma ** 4 * mu * cos_inc * np.exp(-two_way_np_per_m * np.where(ok, r, 0.0)) * d_omega / rr ** 2
-    return np.where(ok, w, 0.0)
-
-
 def splat_linear(channel, delay_samples, weights, out):
     """Linear fractional-delay splatting with np.add.at, out-of-window entries dropped."""
     n_ch, n = out.shape

@@ -65,7 +65,11 @@ def test_fan_integrates_two_way_pattern():
     b, db = np.empty(7800), np.empty(7800)
     kernels.place_rows(edges, np.full((1, 199), 3000.0), np.array([0, 7800]), b, db)
     assert db.sum() == pytest.approx(hi - lo, rel=1e-12)
-    fan = np.sum(beam.fan_directivity(s, b, sonar) ** 4 * np.tile(db * ds, s.size))
+    u = beam.fan_body(s, b, +1)  # (forward, starboard, down): boresight depressed by δ in the starboard plane
+    d = np.radians(20.0)
+    g = beam.directivity(u[:, 0], -u[:, 1] * np.sin(d) + u[:, 2] * np.cos(d), u[:, 1] * np.cos(d) + u[:, 2] * np.sin(d),
+                         K, 0.19, 0.0038)
+    fan = np.sum(g ** 4 * np.tile(db * ds, s.size))
     # independent: ψ, β grid with dΩ = cosψ dψ dβ
     psi = np.linspace(-0.2, 0.2, 8001)
     beta = np.linspace(lo, hi, 4001)
