@@ -79,6 +79,9 @@ class BlockEchoes:
     point_m: np.ndarray     # (n, 3) float64 hit points in the local frame, or (0, 3)
     altitude_m: np.ndarray  # (pings,) nadir range, NaN if none
     n_rays: np.ndarray      # (pings,) rays cast per ping, probes included
+    el_start: np.ndarray    # (rows + 1,) int64 elevation rays per row (one azimuth line)
+    beta: np.ndarray        # (el_start[-1],) depression of each elevation ray, rad
+    dbeta: np.ndarray       # (el_start[-1],) its cell width, rad
 
 
 def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
@@ -173,4 +176,120 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     if timings is not None:
         timings["embree"] = timings.get("embree", 0.0) + t_embree
         timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree
-    return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays)
+    return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays, el_start, beta, dbeta)
+
+
+#: Surfaces a label ray may pass (objects, back faces) looking for the seafloor behind its first hit.
+MAX_HIDDEN_LAYERS = 8
+#: The continued ray starts this far (m) past the previous hit, well above float32 round-off.
+CONTINUE_EPS_M = 1e-3
+
+
+def _footprint_lines(u, f, normals, range_m, dbeta, slope_cap):
+    """Unit direction of each footprint's line on its facet, and its slant-range extent ΔR (m).
+
+    The point P(β) = O + R(β)·u(β) moves along dP/dβ = R'·u + R·∂u/∂β on the plane,
+    R' = R·(n̂·∂u/∂β)/cos θi.
+    """
+    cos_i = -np.einsum("ij,ij->i", u, normals)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_prime = range_m * np.einsum("ij,ij->i", f, normals) / cos_i
+        d = r_prime[:, None] * u + range_m[:, None] * f
+        d /= np.linalg.norm(d, axis=1)[:, None]
+    extent = np.minimum(np.abs(r_prime), slope_cap) * dbeta
+    return np.nan_to_num(d), extent
+
+
+def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
+                face_mu: np.ndarray, is_seafloor: np.ndarray, two_way_np_per_m: float, max_range_m: float,
+                dr_m: float, origin_z_m: float, out) -> None:
+    """Ground truth of a block of pings along each ping's centre line (along-track angle 0).
+
+    The centre line's elevation rays are those of the block's fan (same density).
+    Each is followed past its first hit, through objects and back faces, to the
+    first seafloor surface facing the sonar: where only such hidden footprints
+    reach a sample, the sample is in shadow. See :func:`kernels.label_rows`.
+
+    Parameters
+    ----------
+    e : BlockEchoes
+        The block's echoes (its elevation rows are reused).
+    is_seafloor : (n_objects,) bool
+    dr_m : float
+        Slant range per sample, m.
+    origin_z_m : float
+        World z of the scene's local origin, m.
+    out : tuple of 5 arrays (pings, 2, n_s)
+        kind (int8), object_id, shadow_of (int32), height_m, ground_range_m (float32), written.
+    """
+    max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
+    c = caster.compiled
+    el_start, n = e.el_start, int(e.el_start[-1])
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
+    pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
+    cos_b, sin_b = np.cos(e.beta), np.sin(e.beta)
+    s0 = np.zeros(1)
+    dirs = np.empty((n, 3), dtype=np.float32)
+    org = np.empty((n, 3), dtype=np.float32)
+    kernels.fan_rays(s0, cos_b, sin_b, el_start, rot, pos_local, dirs, org)
+    prim, tfar = caster.cast_raw(org, dirs, max_range_m)
+    rng, ext, w, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
+    kernels.fan_echoes(s0, 1.0, cos_b, sin_b, e.dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
+                       c.face_normals, face_mu, plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
+                       plan.slope_cap_m_rad, rng, ext, w, pts)
+
+    # float64 directions u and ∂u/∂β of every centre-line ray, in the world frame
+    row = np.repeat(np.arange(el_start.shape[0] - 1), np.diff(el_start))
+    b, side = row // 2, np.where(row % 2, 1.0, -1.0)
+    zero = np.zeros(n)
+    u = np.einsum("nij,nj->ni", rot[b], np.stack([zero, side * cos_b, sin_b], axis=1))
+    f = np.einsum("nij,nj->ni", rot[b], np.stack([zero, -side * sin_b, cos_b], axis=1))
+    origin = pos_local[b]
+
+    lit = w > 0.0
+    lit_obj = np.where(prim >= 0, c.face_object[np.maximum(prim, 0)], -1).astype(np.int32)
+    lit_dir = np.zeros((n, 3))
+    if lit.any():
+        lit_dir[lit], _ = _footprint_lines(u[lit], f[lit], c.face_normals[prim[lit]], rng[lit], e.dbeta[lit],
+                                           plan.slope_cap_m_rad)
+    score = np.where(lit, w / np.maximum(ext, dr_m), 0.0)
+
+    # follow every hit to the first seafloor surface behind it that faces the sonar
+    hid_r = np.full(n, np.nan)
+    hid_prim = np.full(n, -1, dtype=np.int64)
+    active = np.nonzero(prim >= 0)[0]
+    t_cur = tfar[active].astype(np.float64)
+    for _ in range(MAX_HIDDEN_LAYERS):
+        if active.size == 0:
+            break
+        o = origin[active] + (t_cur + CONTINUE_EPS_M)[:, None] * u[active]
+        p2, t2 = caster.cast_raw(o.astype(np.float32), u[active].astype(np.float32), max_range_m)
+        total = t_cur + CONTINUE_EPS_M + t2
+        ok = (p2 >= 0) & (total <= max_range_m)
+        p2c = np.maximum(p2, 0)
+        facing = np.einsum("ij,ij->i", u[active], c.face_normals[p2c]) < 0.0
+        found = ok & facing & is_seafloor[c.face_object[p2c]]
+        hid_prim[active[found]] = p2[found]
+        hid_r[active[found]] = total[found]
+        keep = ok & ~found
+        active, t_cur = active[keep], total[keep]
+    hid = np.nonzero(hid_prim >= 0)[0]
+    hid_pt = np.zeros((n, 3))
+    hid_dir = np.zeros((n, 3))
+    hid_ext = np.zeros(n)
+    if hid.size:
+        nrm = c.face_normals[hid_prim[hid]]
+        # float64 range from the hit triangle's plane (the float32 distance is only a guide)
+        v0 = c.vertices[c.faces[hid_prim[hid], 0]]
+        den = np.einsum("ij,ij->i", u[hid], nrm)
+        r64 = np.einsum("ij,ij->i", v0 - origin[hid], nrm) / den
+        good = np.abs(r64 - hid_r[hid]) <= 1e-3 * (1.0 + hid_r[hid])
+        hid_r[hid] = np.where(good, r64, hid_r[hid])
+        hid_pt[hid] = origin[hid] + hid_r[hid][:, None] * u[hid]
+        hid_dir[hid], hid_ext[hid] = _footprint_lines(u[hid], f[hid], nrm, hid_r[hid], e.dbeta[hid],
+                                                      plan.slope_cap_m_rad)
+    rows, n_s = 2 * rot.shape[0], out[0].shape[-1]
+    flat = [a.reshape(rows, n_s) for a in out]
+    kernels.label_rows(el_start, float(dr_m), rng, ext, score, lit_obj, pts, lit_dir, hid_r, hid_ext, lit_obj,
+                       hid_pt, hid_dir, pos_local, np.ascontiguousarray(is_seafloor, dtype=np.bool_),
+                       float(origin_z_m), np.empty((rows, n_s)), *flat)

@@ -11,6 +11,7 @@ import numpy as np
 
 from .config import Pulse, Sonar
 from .errors import ConfigError
+from .labels import Labels
 from .trajectory import Trajectory
 
 FORMAT_VERSION = 1
@@ -52,6 +53,9 @@ class Record:
         Distance to the first surface straight below the sonar (NaN if none in range).
     attrs : dict
         Mode, seed and other settings.
+    labels : Labels or None
+        Per-sample ground truth (``simulate(labels=True)``), aligned with ``port`` and
+        ``starboard``.
     """
 
     port: np.ndarray
@@ -62,6 +66,7 @@ class Record:
     pulse: Pulse
     altitude_m: np.ndarray
     attrs: dict = field(default_factory=dict)
+    labels: Labels | None = None
 
     @property
     def slant_range_m(self) -> np.ndarray:
@@ -72,6 +77,25 @@ class Record:
     def n_pings(self) -> int:
         return self.port.shape[0]
 
+    @classmethod
+    def concatenate(cls, parts) -> "Record":
+        """Join records of consecutive pieces of one survey (simulated with ``ping_offset``)."""
+        parts = list(parts)
+        if not parts:
+            raise ConfigError("Record.concatenate needs at least one record")
+        first = parts[0]
+        for p in parts[1:]:
+            if p.sonar != first.sonar or p.pulse != first.pulse or not np.array_equal(p.time_s, first.time_s):
+                raise ConfigError("Record.concatenate: the records differ in sonar, pulse or time axis")
+        attrs = dict(first.attrs)
+        if "rays_per_ping" in attrs:
+            n = np.array([p.n_pings for p in parts], dtype=float)
+            attrs["rays_per_ping"] = float(np.dot(n, [p.attrs["rays_per_ping"] for p in parts]) / n.sum())
+        labels = None if first.labels is None else Labels.concatenate([p.labels for p in parts])
+        return cls(np.concatenate([p.port for p in parts]), np.concatenate([p.starboard for p in parts]),
+                   first.time_s, Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
+                   np.concatenate([p.altitude_m for p in parts]), attrs, labels)
+
     # ------------------------------------------------------------------ files
     def save(self, path) -> None:
         """Write the record to ``path`` (.npz); written atomically."""
@@ -81,13 +105,17 @@ class Record:
                 "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),
                 "attrs": self.attrs}
         t = self.trajectory
+        extra = {}
+        if self.labels is not None:
+            meta["labels"] = {"names": list(self.labels.names), "is_seafloor": list(self.labels.is_seafloor)}
+            extra = {f"labels_{k}": getattr(self.labels, k) for k in Labels.ARRAYS}
 
         def write(tmp):
             with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, port=self.port, starboard=self.starboard, time_s=self.time_s,
                                     altitude_m=self.altitude_m, positions_m=t.positions_m,
                                     heading_deg=t.heading_deg, pitch_deg=t.pitch_deg, roll_deg=t.roll_deg,
-                                    times_s=t.times_s, meta=np.array(json.dumps(meta)))
+                                    times_s=t.times_s, meta=np.array(json.dumps(meta)), **extra)
 
         atomic_write(path, write, suffix=".npz")
 
@@ -103,8 +131,12 @@ class Record:
             raise ConfigError(f"{path}: not a sonar_embree record ({exc})") from None
         traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
                           arrays["roll_deg"], arrays["times_s"])
+        labels = None
+        if "labels" in meta:
+            labels = Labels(**{k: arrays[f"labels_{k}"] for k in Labels.ARRAYS}, names=tuple(meta["labels"]["names"]),
+                            is_seafloor=tuple(meta["labels"]["is_seafloor"]))
         return cls(arrays["port"], arrays["starboard"], arrays["time_s"], traj, Sonar(**meta["sonar"]),
-                   Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}))
+                   Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}), labels)
 
     def waterfall(self, **kwargs) -> np.ndarray:
         """The waterfall as an 8-bit image; keywords as :func:`sonar_embree.waterfall.waterfall_image`."""

@@ -5,8 +5,8 @@ Tables: ``[sonar]`` (fields of :class:`Sonar`), ``[pulse]`` (:class:`Pulse`),
 band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_m, seed),
 ``[trajectory]`` (``kind`` = "line" | "waypoints" | "csv" and that constructor's
 arguments), ``[[objects]]`` (``path`` to a mesh file *or* ``seafloor`` =
-"flat" | "perlin" | "ripples" with that function's arguments; optional ``label``
-and ``material = {backscatter_db = …}``) and ``[output]``. Relative paths are taken
+"flat" | "perlin" | "ripples" with that function's arguments; optional ``label``,
+``material = {backscatter_db = …}`` and, for mesh files, ``is_seafloor``) and ``[output]``. Relative paths are taken
 from the config file's folder. Any unknown key is an error naming it.
 """
 from __future__ import annotations
@@ -155,8 +155,11 @@ def load_run_config(path) -> RunConfig:
         if ("path" in obj) == ("seafloor" in obj):
             raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
         if "path" in obj:
-            _check_keys(where, obj, ("path",), source)
-            scene.add(_resolve(base, obj["path"]), material=material, label=label)
+            _check_keys(where, obj, ("path", "is_seafloor"), source)
+            is_floor = obj.get("is_seafloor")
+            if is_floor is not None and not isinstance(is_floor, bool):
+                raise ConfigError(f"{source}: {where} is_seafloor must be true or false, got {is_floor!r}")
+            scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor)
         else:
             kind = obj.pop("seafloor")
             if kind not in SEAFLOORS:
@@ -164,6 +167,6 @@ def load_run_config(path) -> RunConfig:
             fn = SEAFLOORS[kind]
             _check_keys(f"{where} (seafloor {kind!r})", obj, tuple(inspect.signature(fn).parameters), source)
             mesh = _build(source, where, fn, obj)
-            scene.add(mesh, material=material, label=label or "seafloor")
+            scene.add(mesh, material=material, label=label or "seafloor", seafloor=True)
 
     return RunConfig(scene, traj, sonar, pulse, fan, chain, output)

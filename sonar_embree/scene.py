@@ -30,6 +30,7 @@ class SceneObject:
     vertices: np.ndarray
     faces: np.ndarray
     material: Material
+    seafloor: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +53,8 @@ class CompiledScene:
         Label per object.
     mu : (n_objects,) float64
         Linear Lambert coefficient per object.
+    is_seafloor : (n_objects,) bool
+        Which objects are seafloor (ground truth: their hidden parts are shadow).
     """
 
     origin_m: np.ndarray
@@ -61,6 +64,7 @@ class CompiledScene:
     face_object: np.ndarray
     labels: tuple
     mu: np.ndarray
+    is_seafloor: np.ndarray
 
 
 def _validate(vertices, faces, source: str):
@@ -148,7 +152,7 @@ class Scene:
         return scene
 
     def add(self, mesh_or_path, material: Material | None = None, label: str | None = None,
-            materials: dict | None = None) -> "Scene":
+            materials: dict | None = None, seafloor: bool | None = None) -> "Scene":
         """Add a mesh (a ``trimesh.Trimesh``) or every object of a mesh file.
 
         Parameters
@@ -162,6 +166,11 @@ class Scene:
             ``label/name``; without ``label`` each object is labelled by its name.
         materials : dict of str to Material, optional
             Per-object materials by (final) label, for multi-object files.
+        seafloor : bool, optional
+            Whether this is seafloor (for ground-truth labels: seafloor hidden
+            behind other surfaces is shadow, everything else is an object). By
+            default an object is seafloor when its label is ``"seafloor"`` or
+            starts with ``"seafloor/"``.
 
         Returns
         -------
@@ -199,7 +208,8 @@ class Scene:
                 raise SceneError(f"{source}: label {lab!r} is already in the scene")
             taken.add(lab)
             v, f = _validate(mesh.vertices, mesh.faces, source)
-            new.append(SceneObject(lab, v, f, materials.get(lab, material)))
+            floor = (lab == "seafloor" or lab.startswith("seafloor/")) if seafloor is None else bool(seafloor)
+            new.append(SceneObject(lab, v, f, materials.get(lab, material), floor))
         self._objects.extend(new)
         self._compiled = None
         return self
@@ -243,5 +253,6 @@ class Scene:
             n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
             n /= np.linalg.norm(n, axis=1)[:, None]
             self._compiled = CompiledScene(origin, v, f, n, np.concatenate(obj), self.labels,
-                                           np.array([o.material.mu for o in self._objects]))
+                                           np.array([o.material.mu for o in self._objects]),
+                                           np.array([o.seafloor for o in self._objects], dtype=bool))
         return self._compiled

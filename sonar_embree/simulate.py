@@ -28,7 +28,8 @@ import numpy as np
 from . import kernels, processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .errors import ConfigError
-from .fan import BlockEchoes, FanPlan, cast_block
+from .fan import BlockEchoes, FanPlan, cast_block, label_block
+from .labels import Labels
 from .processing import absorption_np_per_m, convolve_time
 from .raycast import RayCaster
 from .record import Record
@@ -172,7 +173,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              matched_filter: bool | None = None, tvg: bool = False, noise_db_per_hz: float | None = None,
              lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
              fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
-             progress: bool = False, timings: dict | None = None) -> Record:
+             labels: bool = False, ping_offset: int = 0, progress: bool = False,
+             timings: dict | None = None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
     Parameters
@@ -196,12 +198,21 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         docs/benchmarks.md). Not allowed together with ``fan``.
     chain : SignalChain, optional
         The whole signal chain at once; overrides the keywords above.
+    labels : bool
+        Also compute per-sample ground truth (``Record.labels``, see
+        :class:`~sonar_embree.labels.Labels`): one extra centre-line cast per ping
+        and side, followed through to the seafloor behind each hit.
+    ping_offset : int
+        Index of the first ping of ``trajectory`` within a longer survey. Per-ping
+        random streams (receiver noise) are keyed by the survey's ping index, so a
+        survey simulated in pieces gives the same bits as in one call.
     progress : bool
         Show a progress bar over pings (tqdm, on stderr).
     timings : dict, optional
         If given, seconds spent are added under ``"setup"`` (BVH build and tables),
         ``"embree"`` (ray casting), ``"rays"`` (ray placement and echo weights),
-        ``"synthesis"`` (binning echoes into samples) and ``"processing"``
+        ``"synthesis"`` (binning echoes into samples), ``"labels"`` (ground truth,
+        when asked for) and ``"processing"``
         (convolution, matched filter, detection, filters, TVG).
 
     Returns
@@ -228,6 +239,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         fan = FanSettings(quality=quality)
     fan = FanSettings() if fan is None else fan
     _check_inputs(scene, trajectory, sonar, pulse, fan)
+    if isinstance(ping_offset, bool) or not isinstance(ping_offset, (int, np.integer)) or ping_offset < 0:
+        raise ConfigError(f"simulate: ping_offset must be an integer >= 0, got {ping_offset!r}")
     sonar = sonar.for_pulse(pulse)
     if chain is None:
         chain = SignalChain(speckle=speckle, band=band, detection=detection, matched_filter=matched_filter,
@@ -261,6 +274,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         synth = _Synth.build(sonar, pulse, chain)
         out = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
     n_rays = np.zeros(n_p, dtype=np.int64)
+    if labels:
+        truth = (np.zeros((n_p, 2, n_out), dtype=np.int8), np.zeros((n_p, 2, n_out), dtype=np.int32),
+                 np.zeros((n_p, 2, n_out), dtype=np.int32), np.zeros((n_p, 2, n_out), dtype=np.float32),
+                 np.zeros((n_p, 2, n_out), dtype=np.float32))
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -274,12 +291,17 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         e = cast_block(caster, plan, rots[a:b], pos_local[a:b], face_mu, two_way, max_r, want_points=chain.speckle,
                        timings=clock)
         altitude[a:b], n_rays[a:b] = e.altitude_m, e.n_rays
+        if labels:
+            t = time.perf_counter()
+            label_block(caster, plan, e, rots[a:b], pos_local[a:b], face_mu, compiled.is_seafloor, two_way, max_r,
+                        c / (2.0 * fs), float(compiled.origin_m[2]), tuple(x[a:b] for x in truth))
+            clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         if not chain.speckle:
             kernels.splat_rows(e.ray_start, e.range_m * delay_per_m, e.extent_m * delay_per_m, e.weight,
                                out[a:b].reshape(2 * (b - a), n_s))
         else:
-            _speckle_block(e, a, lattice, synth, sonar, chain, compiled.origin_m, trajectory.positions_m[a:b], n0,
+            _speckle_block(e, ping_offset + a, lattice, synth, sonar, chain, compiled.origin_m, trajectory.positions_m[a:b], n0,
                            out[a:b], clock)
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
@@ -318,7 +340,11 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              "quality": fan.quality, "rays_per_ping": float(n_rays.mean()) if n_p else 0.0}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = synth.carrier_factor * fs
+    truth_labels = None
+    if labels:
+        truth_labels = Labels(*(np.ascontiguousarray(x.transpose(1, 0, 2)) for x in truth), names=compiled.labels,
+                              is_seafloor=tuple(bool(x) for x in compiled.is_seafloor))
     return Record(port=np.ascontiguousarray(intensity[:, PORT]),
                   starboard=np.ascontiguousarray(intensity[:, STARBOARD]),
                   time_s=time_s, trajectory=trajectory, sonar=sonar, pulse=pulse, altitude_m=altitude,
-                  attrs=attrs)
+                  attrs=attrs, labels=truth_labels)

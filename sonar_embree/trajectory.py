@@ -116,6 +116,23 @@ class Trajectory:
     def __len__(self) -> int:
         return self.positions_m.shape[0]
 
+    def __getitem__(self, index) -> "Trajectory":
+        """The poses of a slice of pings (``traj[a:b]``), as a trajectory; times are kept."""
+        if not isinstance(index, slice):
+            raise ConfigError(f"Trajectory takes slices of pings (traj[a:b]), got {index!r}")
+        idx = np.arange(len(self))[index]
+        if idx.size == 0:
+            raise ConfigError(f"Trajectory slice {index} selects no ping of {len(self)}")
+        return Trajectory(self.positions_m[idx], self.heading_deg[idx], self.pitch_deg[idx], self.roll_deg[idx],
+                          self.times_s[idx])
+
+    @classmethod
+    def concatenate(cls, parts) -> "Trajectory":
+        """Consecutive pieces of one trajectory, joined."""
+        parts = list(parts)
+        return cls(*(np.concatenate([getattr(p, k) for p in parts])
+                     for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s")))
+
     def __eq__(self, other) -> bool:
         if not isinstance(other, Trajectory):
             return NotImplemented

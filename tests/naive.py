@@ -206,3 +206,47 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
         splat_table(np.repeat(keys[:, 0], n_sub), r_env.ravel() * delay_per_m, amp.ravel(), table, table_start,
                     table_rate, out[b])
     return out
+
+
+def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_point, lit_dir, hid_range, hid_extent,
+               hid_object, hid_point, hid_dir, pos, is_seafloor, origin_z, n_s):
+    """Per sample: the best-scoring lit footprint whose range cell overlaps it, else the first hidden one."""
+    rows = el_start.shape[0] - 1
+    kind = np.zeros((rows, n_s), np.int8)
+    obj = np.full((rows, n_s), -1, np.int32)
+    shadow_of = np.full((rows, n_s), -1, np.int32)
+    height = np.full((rows, n_s), np.nan, np.float32)
+    ground = np.full((rows, n_s), np.nan, np.float32)
+    cells_lo, cells_hi = (np.arange(n_s) - 0.5) * dr, (np.arange(n_s) + 0.5) * dr
+
+    def point(p, d, o, r_target, ext, r):
+        q = p - o
+        b, c = d @ q, q @ q - r_target ** 2
+        roots = np.array([-b + np.sqrt(max(b * b - c, 0.0)), -b - np.sqrt(max(b * b - c, 0.0))])
+        t = roots[np.argmin(np.abs(roots))]
+        half = (0.5 * ext + dr) / max(abs(b) / r, 1e-6)
+        return p + np.clip(t, -half, half) * d
+
+    for r in range(rows):
+        o = pos[r // 2]
+        js = range(el_start[r], el_start[r + 1])
+        for n in range(n_s):
+            def overlaps(rr, ext):
+                return cells_hi[n] > rr - 0.5 * ext and cells_lo[n] < rr + 0.5 * ext
+            lit = [j for j in js if lit_score[j] > 0 and overlaps(lit_range[j], lit_extent[j])]
+            if lit:
+                j = lit[int(np.argmax([lit_score[j] for j in lit]))]
+                kind[r, n] = 1 if is_seafloor[lit_object[j]] else 2
+                obj[r, n] = lit_object[j]
+                p = point(lit_point[j], lit_dir[j], o, n * dr, lit_extent[j], lit_range[j])
+            else:
+                hid = [j for j in js if np.isfinite(hid_range[j]) and overlaps(hid_range[j], hid_extent[j])]
+                if not hid:
+                    continue
+                j = hid[0]
+                kind[r, n] = 3
+                shadow_of[r, n] = hid_object[j]
+                p = point(hid_point[j], hid_dir[j], o, n * dr, hid_extent[j], hid_range[j])
+            height[r, n] = p[2] + origin_z
+            ground[r, n] = np.hypot(p[0] - o[0], p[1] - o[1])
+    return kind, obj, shadow_of, height, ground

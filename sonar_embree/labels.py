@@ -1,0 +1,173 @@
+"""Ground truth aligned sample for sample with a record: what each sample sees.
+
+Labels come from each ping's centre line (along-track angle 0), the geometric
+truth of the waterfall row: the first surface at each sample's slant range that
+faces the sonar, or the seafloor an object hides (shadow). See
+:func:`sonar_embree.kernels.label_rows` for the exact rule.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError
+
+#: ``Labels.kind`` values.
+WATER, SEAFLOOR, OBJECT, SHADOW = 0, 1, 2, 3
+KIND_NAMES = ("water", "seafloor", "object", "shadow")
+SIDES = ("port", "starboard")
+
+
+@dataclass(frozen=True, eq=False)
+class Labels:
+    """Per-sample ground truth, each array shaped (2, n_pings, n_samples): side 0 port, 1 starboard.
+
+    Attributes
+    ----------
+    kind : int8
+        0 water column (no surface at this range), 1 seafloor, 2 object, 3 shadow.
+    object_id : int32
+        Index (into ``names``) of the object whose echo dominates the sample; −1 for
+        water and shadow.
+    shadow_of : int32
+        For shadow samples the object that casts the shadow (the first surface the
+        centre-line ray hits), else −1.
+    height_m : float32
+        World z of the surface point at the sample's slant range (for shadow: of the
+        hidden seafloor), m; NaN for water.
+    ground_range_m : float32
+        Horizontal distance from the sonar to that point, m; NaN for water.
+    names : tuple of str
+        Object labels of the scene, by object index.
+    is_seafloor : tuple of bool
+        Which objects are seafloor.
+    """
+
+    kind: np.ndarray
+    object_id: np.ndarray
+    shadow_of: np.ndarray
+    height_m: np.ndarray
+    ground_range_m: np.ndarray
+    names: tuple
+    is_seafloor: tuple
+
+    ARRAYS = ("kind", "object_id", "shadow_of", "height_m", "ground_range_m")
+
+    def __post_init__(self):
+        shape = self.kind.shape
+        if len(shape) != 3 or shape[0] != 2:
+            raise ConfigError(f"Labels arrays must be shaped (2, n_pings, n_samples), got {shape}")
+        for name in self.ARRAYS:
+            if getattr(self, name).shape != shape:
+                raise ConfigError(f"Labels.{name} has shape {getattr(self, name).shape}, expected {shape}")
+        if len(self.names) != len(self.is_seafloor):
+            raise ConfigError("Labels.names and Labels.is_seafloor differ in length")
+
+    @property
+    def highlight(self) -> np.ndarray:
+        """(2, n_pings, n_samples) bool: samples whose echo comes from an object (not seafloor)."""
+        return self.kind == OBJECT
+
+    @property
+    def shadow(self) -> np.ndarray:
+        """(2, n_pings, n_samples) bool: seafloor hidden from the sonar by something nearer."""
+        return self.kind == SHADOW
+
+    @property
+    def objects(self) -> tuple:
+        """Indices of the objects that are not seafloor."""
+        return tuple(i for i, f in enumerate(self.is_seafloor) if not f)
+
+    @classmethod
+    def concatenate(cls, parts) -> "Labels":
+        """Join labels of consecutive ping ranges of one survey."""
+        parts = list(parts)
+        arrays = {k: np.concatenate([getattr(p, k) for p in parts], axis=1) for k in cls.ARRAYS}
+        return cls(**arrays, names=parts[0].names, is_seafloor=parts[0].is_seafloor)
+
+    # ------------------------------------------------------------- waterfall
+    def waterfall(self, name: str = "kind", max_columns: int | None = 1024) -> np.ndarray:
+        """One label array in the layout of :meth:`Record.waterfall` (port mirrored on the left).
+
+        When the waterfall averages blocks of samples into one column (``max_columns``),
+        a column takes the value of the block's first sample that is not water (kind 0);
+        float arrays take the block's first finite value.
+
+        Returns
+        -------
+        (n_pings, 2·n_columns) array of the label's dtype.
+        """
+        if name not in self.ARRAYS:
+            raise ConfigError(f"unknown label array {name!r}; one of {self.ARRAYS}")
+        block = waterfall_block(self.kind.shape[2], max_columns)
+        sides = []
+        for side in range(2):
+            a = getattr(self, name)[side]
+            keep = self.kind[side] != WATER
+            sides.append(_block_first(a, keep, block))
+        return np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
+
+    def boxes(self, max_columns: int | None = 1024) -> list:
+        """Bounding boxes of every object's highlight in the waterfall image.
+
+        Returns
+        -------
+        list of dict
+            ``object`` (index), ``label``, ``bbox`` [x, y, width, height] in pixels
+            (x the column, y the ping row; a box covers whole pixels), ``area``
+            (highlight pixels) and ``shadow_bbox`` (the box of the shadow it casts, or
+            None). Objects with no highlight pixel are left out.
+        """
+        out = []
+        for i in self.objects:
+            mask = self.mask((self.kind == OBJECT) & (self.object_id == i), max_columns)
+            if not mask.any():
+                continue
+            shadow = self.mask((self.kind == SHADOW) & (self.shadow_of == i), max_columns)
+            out.append({"object": i, "label": self.names[i], "bbox": _bbox(mask), "area": int(mask.sum()),
+                        "shadow_bbox": _bbox(shadow) if shadow.any() else None})
+        return out
+
+    def mask(self, selected: np.ndarray, max_columns: int | None = 1024) -> np.ndarray:
+        """A (2, n_pings, n_samples) bool selection as a waterfall image: a pixel is set when
+        any of its samples is.
+
+        Returns
+        -------
+        (n_pings, 2·n_columns) bool
+        """
+        block = waterfall_block(self.kind.shape[2], max_columns)
+        sides = []
+        for side in range(2):
+            m = selected[side]
+            pad = (-m.shape[1]) % block
+            sides.append(np.pad(m, ((0, 0), (0, pad))).reshape(m.shape[0], -1, block).any(axis=2))
+        return np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
+
+
+def waterfall_block(n_samples: int, max_columns: int | None) -> int:
+    """Samples per waterfall column (as :func:`sonar_embree.waterfall.waterfall_image` averages them)."""
+    if max_columns is None:
+        return 1
+    if max_columns < 1:
+        raise ConfigError(f"waterfall max_columns must be >= 1, got {max_columns!r}")
+    return int(np.ceil(n_samples / max_columns))
+
+
+def _block_first(a, keep, block):
+    """Per block of columns: the first value where ``keep`` (else the first value)."""
+    if block <= 1:
+        return a.copy()
+    n_p, n = a.shape
+    pad = (-n) % block
+    ap = np.pad(a, ((0, 0), (0, pad)), mode="edge").reshape(n_p, -1, block)
+    kp = np.pad(keep, ((0, 0), (0, pad))).reshape(n_p, -1, block)
+    first = np.argmax(kp, axis=2)  # 0 where no sample is kept: the block's first value
+    return np.take_along_axis(ap, first[..., None], axis=2)[..., 0]
+
+
+def _bbox(mask) -> list:
+    rows = np.nonzero(mask.any(axis=1))[0]
+    cols = np.nonzero(mask.any(axis=0))[0]
+    return [int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1)]
