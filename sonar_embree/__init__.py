@@ -9,13 +9,15 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 __version__ = "0.1.0"
 
-from . import seafloor
+from . import batch, seafloor, sweep
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .errors import ConfigError, SceneError, SonarEmbreeError
+from .labels import Labels
 from .record import Record
 from .scene import Scene
 from .simulate import simulate
 from .trajectory import Trajectory
 
-__all__ = ["ConfigError", "FanSettings", "Material", "Pulse", "Record", "Scene", "SceneError",
-           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "seafloor", "simulate", "__version__"]
+__all__ = ["ConfigError", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "seafloor", "simulate", "sweep",
+           "__version__"]

@@ -1,4 +1,4 @@
-"""The ``sonar-embree`` command line: ``demo`` and ``render``.
+"""The ``sonar-embree`` command line: ``demo``, ``render`` and ``batch``.
 
 Errors in the user's input print one line (``sonar-embree: error: …``) and exit
 with status 2; no traceback.
@@ -47,6 +47,29 @@ Relative paths are relative to CONFIG.toml. See assets/configs/ for examples.
 """
 
 
+BATCH_HELP = """\
+SWEEP.toml holds [sonar], [pulse], [fan] and [simulation] as in render configs
+(base settings; no seed), and:
+
+  [sweep]         name, seeds (list, or a count n for 0..n-1), pings_per_task (32),
+                  outputs (of "zarr", "xtf", "png", "labels", "coco", "npz";
+                  default zarr, xtf, png, coco)
+  [vary]          "table.field" = [values, ...]; every combination is a job
+  [[scenes]]      name, and [[scenes.objects]]: a mesh path or a seafloor (as in
+                  render configs; a seafloor without seed takes the job's seed), or
+                  placed instances of a mesh: path, label, count + region =
+                  [[x0, x1], [y0, y1]] + yaw_deg = [lo, hi], or poses = [[x, y, yaw_deg], ...];
+                  z_m (height above the floor), material = {backscatter_db = [lo, hi]}
+  [[trajectories]] as [trajectory] of render configs, plus name
+  [png]           scale, dynamic_range_db, gamma, tvg, max_columns
+
+Jobs = scenes x trajectories x [vary] combinations x seeds. Outputs per job in
+OUT/<id>/: record.zarr, record.xtf, waterfall.png, labels.png, coco.json, record.npz,
+job.json; OUT/sweep.json and OUT/coco.json for the whole batch. Same sweep, same
+bits, whatever the number of workers. See assets/configs/ for an example.
+"""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="sonar-embree",
                                 description="Physically based side-scan sonar simulator (Embree ray casting).",
@@ -71,6 +94,18 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
     r.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     _add_chain_options(r)
+
+    b = sub.add_parser("batch", help="render a sweep of scenes x trajectories x settings x seeds on Dask",
+                       description="Expand SWEEP.toml into jobs and render them on Dask (a LocalCluster "
+                                   "unless --scheduler is given). Each job is written whole into OUT/<job id>/.",
+                       epilog=BATCH_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    b.add_argument("sweep", metavar="SWEEP.toml", help="sweep description (see below)")
+    b.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new, empty, or --resume)")
+    b.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler (tcp://host:8786)")
+    b.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster "
+                                                            "(default: CPU count, at most 8)")
+    b.add_argument("--resume", action="store_true", help="continue a batch in OUT: keep finished jobs, redo the rest")
+    b.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return p
 
 
@@ -133,6 +168,12 @@ def _write_outputs(rec, out_dir, png=True, npz=True, png_kwargs=None):
 def _run(args) -> list:
     from .simulate import simulate
 
+    if args.command == "batch":
+        from . import batch
+
+        ids = batch.run(args.sweep, args.output, scheduler=args.scheduler, workers=args.workers,
+                        resume=args.resume, progress=not args.no_progress)
+        return [os.path.join(args.output, i) for i in ids]
     if args.command == "demo":
         from .demo import DEMO_PNG, anchor_mine_setup
 

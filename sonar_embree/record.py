@@ -138,6 +138,38 @@ class Record:
         return cls(arrays["port"], arrays["starboard"], arrays["time_s"], traj, Sonar(**meta["sonar"]),
                    Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}), labels)
 
+    def to_xarray(self):
+        """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""
+        from .io.dataset import to_xarray
+
+        return to_xarray(self)
+
+    def to_zarr(self, path) -> None:
+        """Write a Zarr store that ``xarray.open_zarr`` opens lazily; atomic (see :mod:`sonar_embree.io.dataset`)."""
+        from .io.dataset import to_zarr
+
+        to_zarr(self, path)
+
+    def to_xtf(self, path, start=None) -> None:
+        """Write an XTF file (2 sonar channels, one packet per ping) that pyxtf reads; atomic.
+
+        Samples are float32 linear intensity; port is stored from far range to nadir,
+        starboard from nadir outwards. Conventions in :mod:`sonar_embree.io.xtf`.
+        """
+        from .io.xtf import to_xtf
+
+        to_xtf(self, path, start=start)
+
+    def to_coco(self, path, file_name: str = "waterfall.png", categories=None, max_columns: int | None = 1024):
+        """Write COCO JSON with each object's box in the waterfall PNG ``file_name``; atomic.
+
+        The PNG must be written with the same ``max_columns`` (:meth:`save_png`).
+        See :func:`sonar_embree.io.coco.coco_dict`.
+        """
+        from .io.coco import coco_dict, write_json
+
+        write_json(coco_dict(self, file_name, categories=categories, max_columns=max_columns), path)
+
     def waterfall(self, **kwargs) -> np.ndarray:
         """The waterfall as an 8-bit image; keywords as :func:`sonar_embree.waterfall.waterfall_image`."""
         from .waterfall import waterfall_image

@@ -124,49 +124,71 @@ def load_run_config(path) -> RunConfig:
     _check_keys("[output]", out, OUTPUT_KEYS, source)
     output = _build(source, "[output]", OutputOptions, out)
 
-    traj_t = dict(data.get("trajectory", {}))
+    traj_t = data.get("trajectory", {})
     if not traj_t:
         raise ConfigError(f"{source}: missing [trajectory] table")
-    kind = traj_t.pop("kind", "line")
-    if kind not in TRAJECTORY_KINDS:
-        raise ConfigError(f"{source}: [trajectory] kind must be one of {list(TRAJECTORY_KINDS)}, got {kind!r}")
-    _check_keys(f"[trajectory] (kind {kind!r})", traj_t, TRAJECTORY_KINDS[kind], source)
-    if kind == "line":
-        traj = _build(source, "[trajectory]", Trajectory.line, traj_t)
-    elif kind == "waypoints":
-        traj = _build(source, "[trajectory]", Trajectory.through_waypoints,
-                      {"waypoints_m": traj_t.pop("waypoints", None), **traj_t})
-    else:
-        traj = Trajectory.from_csv(_resolve(base, traj_t.get("path")))
+    traj = parse_trajectory(traj_t, source, base, "[trajectory]")
 
     objects = data.get("objects", [])
     if not isinstance(objects, list) or not objects:
         raise ConfigError(f"{source}: needs at least one [[objects]] entry (a mesh path or a seafloor)")
     scene = Scene()
     for i, obj in enumerate(objects):
-        where = f"[[objects]] #{i + 1}"
-        if not isinstance(obj, dict):
-            raise ConfigError(f"{source}: {where} must be a table")
-        obj = dict(obj)
-        label = obj.pop("label", None)
-        mat_t = obj.pop("material", {})
-        _check_keys(f"{where} material", mat_t, field_names(Material), source)
-        material = _build(source, f"{where} material", Material, mat_t)
-        if ("path" in obj) == ("seafloor" in obj):
-            raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
-        if "path" in obj:
-            _check_keys(where, obj, ("path", "is_seafloor"), source)
-            is_floor = obj.get("is_seafloor")
-            if is_floor is not None and not isinstance(is_floor, bool):
-                raise ConfigError(f"{source}: {where} is_seafloor must be true or false, got {is_floor!r}")
-            scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor)
-        else:
-            kind = obj.pop("seafloor")
-            if kind not in SEAFLOORS:
-                raise ConfigError(f"{source}: {where} seafloor must be one of {list(SEAFLOORS)}, got {kind!r}")
-            fn = SEAFLOORS[kind]
-            _check_keys(f"{where} (seafloor {kind!r})", obj, tuple(inspect.signature(fn).parameters), source)
-            mesh = _build(source, where, fn, obj)
-            scene.add(mesh, material=material, label=label or "seafloor", seafloor=True)
+        add_object(scene, obj, source, base, f"[[objects]] #{i + 1}")
 
     return RunConfig(scene, traj, sonar, pulse, fan, chain, output)
+
+
+def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:
+    """A :class:`Trajectory` from a ``[trajectory]``-style table (``kind`` and that constructor's keys)."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: {where} must be a table")
+    traj_t = dict(table)
+    kind = traj_t.pop("kind", "line")
+    if kind not in TRAJECTORY_KINDS:
+        raise ConfigError(f"{source}: {where} kind must be one of {list(TRAJECTORY_KINDS)}, got {kind!r}")
+    _check_keys(f"{where} (kind {kind!r})", traj_t, TRAJECTORY_KINDS[kind], source)
+    if kind == "line":
+        return _build(source, where, Trajectory.line, traj_t)
+    if kind == "waypoints":
+        return _build(source, where, Trajectory.through_waypoints,
+                      {"waypoints_m": traj_t.pop("waypoints", None), **traj_t})
+    try:
+        return Trajectory.from_csv(_resolve(base, traj_t.get("path")))
+    except ConfigError as exc:
+        raise ConfigError(f"{source}: {where}: {exc}") from None
+
+
+def parse_material(table, source: str, where: str) -> Material:
+    _check_keys(f"{where} material", table, field_names(Material), source)
+    return _build(source, f"{where} material", Material, table)
+
+
+def seafloor_mesh(obj: dict, source: str, where: str):
+    """The mesh of a procedural ``seafloor = "kind"`` entry (its other keys are the function's arguments)."""
+    obj = dict(obj)
+    kind = obj.pop("seafloor")
+    if kind not in SEAFLOORS:
+        raise ConfigError(f"{source}: {where} seafloor must be one of {list(SEAFLOORS)}, got {kind!r}")
+    fn = SEAFLOORS[kind]
+    _check_keys(f"{where} (seafloor {kind!r})", obj, tuple(inspect.signature(fn).parameters), source)
+    return _build(source, where, fn, obj)
+
+
+def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
+    """Add one ``[[objects]]`` entry (a mesh ``path`` or a procedural ``seafloor``) to ``scene``."""
+    if not isinstance(obj, dict):
+        raise ConfigError(f"{source}: {where} must be a table")
+    obj = dict(obj)
+    label = obj.pop("label", None)
+    material = parse_material(obj.pop("material", {}), source, where)
+    if ("path" in obj) == ("seafloor" in obj):
+        raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
+    if "path" in obj:
+        _check_keys(where, obj, ("path", "is_seafloor"), source)
+        is_floor = obj.get("is_seafloor")
+        if is_floor is not None and not isinstance(is_floor, bool):
+            raise ConfigError(f"{source}: {where} is_seafloor must be true or false, got {is_floor!r}")
+        scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor)
+    else:
+        scene.add(seafloor_mesh(obj, source, where), material=material, label=label or "seafloor", seafloor=True)

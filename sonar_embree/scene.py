@@ -93,6 +93,15 @@ def _validate(vertices, faces, source: str):
     return v, f[good].astype(np.int64)
 
 
+def load_mesh(path) -> trimesh.Trimesh:
+    """One mesh file as a single ``trimesh.Trimesh`` (all its objects joined), checked like :meth:`Scene.add`."""
+    path = os.fspath(path)
+    parts = _meshes_from_file(path)
+    mesh = parts[0][1] if len(parts) == 1 else trimesh.util.concatenate([m for _, m in parts])
+    v, f = _validate(mesh.vertices, mesh.faces, path)
+    return trimesh.Trimesh(v, f, process=False)
+
+
 def _meshes_from_file(path: str):
     """(name, Trimesh) pairs of a mesh file, scene-graph transforms applied."""
     if not os.path.exists(path):

@@ -1,0 +1,364 @@
+"""Sweeps: a TOML description of many simulations, expanded into jobs (for :mod:`sonar_embree.batch`).
+
+A sweep file holds the tables of a render config (``[sonar]``, ``[pulse]``,
+``[fan]``, ``[simulation]`` without ``seed``) as the base settings, plus:
+
+- ``[sweep]``: ``name``; ``seeds`` (a list, or a count n for 0 … n − 1);
+  ``outputs`` (any of "zarr", "xtf", "png", "labels", "coco", "npz"; default
+  zarr, xtf, png, coco); ``pings_per_task`` (pings per Dask task, default 32).
+- ``[vary]``: ``"table.field" = [values]``; every combination is a job.
+- ``[[scenes]]``: ``name`` and ``[[scenes.objects]]``. An object is a mesh
+  ``path`` or a procedural ``seafloor`` (as in render configs; a seafloor without
+  ``seed`` takes the job's seed), or a mesh ``path`` placed as instances:
+  ``count`` random poses (``region = [[x0, x1], [y0, y1]]`` m, ``yaw_deg = [lo, hi]``)
+  or listed ``poses = [[x, y, yaw_deg], …]`` (a 4th value: height above the floor,
+  m). Instances rest on the seafloor (their lowest point at the floor's height
+  under their origin, plus ``z_m``), are yawed about z (counter-clockwise from +x,
+  degrees), labelled ``label#k`` and get a ``material`` whose values may be
+  ``[lo, hi]`` ranges drawn per instance.
+- ``[[trajectories]]``: tables like ``[trajectory]`` of a render config, with an
+  optional ``name``.
+- ``[png]``: waterfall options ``scale``, ``dynamic_range_db``, ``gamma``,
+  ``tvg``, ``max_columns`` (slant range, so labels and boxes stay aligned).
+
+Jobs are scenes × trajectories × [vary] combinations × seeds, in that order. Random
+placements and floors draw from the job's seed only: the same sweep gives the
+same jobs anywhere. Loading checks every key and value and builds each scene once
+(first seed), so bad input stops before any job runs.
+"""
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import itertools
+import json
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import runconfig
+from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from .errors import ConfigError, SonarEmbreeError
+from .scene import Scene, load_mesh
+from .trajectory import Trajectory
+
+TOP_KEYS = ("sweep", "sonar", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
+SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task")
+OUTPUTS = ("zarr", "xtf", "png", "labels", "coco", "npz")
+DEFAULT_OUTPUTS = ("zarr", "xtf", "png", "coco")
+PNG_KEYS = ("scale", "dynamic_range_db", "gamma", "tvg", "max_columns")
+PLACED_KEYS = ("path", "label", "material", "count", "region", "yaw_deg", "z_m", "poses")
+TABLES = {"sonar": Sonar, "pulse": Pulse, "fan": FanSettings, "simulation": SignalChain}
+DEFAULT_PINGS_PER_TASK = 32
+
+
+@dataclass(frozen=True, eq=False)
+class Job:
+    """One simulation of a sweep: everything a worker needs besides the scene description."""
+
+    index: int
+    scene_index: int
+    trajectory_index: int
+    vary: tuple          # ((key, value), …)
+    seed: int
+    trajectory: Trajectory
+    sonar: Sonar
+    pulse: Pulse
+    fan: FanSettings
+    chain: SignalChain
+    labels: bool
+
+    @property
+    def id(self) -> str:
+        """Folder name of the job's outputs."""
+        return f"{self.index:05d}"
+
+    def describe(self, sweep: "Sweep") -> dict:
+        return {"id": self.id, "scene": sweep.scene_names[self.scene_index],
+                "trajectory": sweep.trajectory_names[self.trajectory_index], "seed": self.seed,
+                "vary": {k: v for k, v in self.vary}, "n_pings": len(self.trajectory)}
+
+
+@dataclass(frozen=True, eq=False)
+class SceneSpec:
+    """A scene description from a sweep, buildable for any seed (picklable: plain data)."""
+
+    index: int
+    name: str
+    objects: tuple       # the [[scenes.objects]] tables
+    source: str
+    base: str
+
+    def build(self, seed: int) -> Scene:
+        """The scene for ``seed``: procedural floors and random placements drawn from it."""
+        scene = Scene()
+        placed = []
+        for i, obj in enumerate(self.objects):
+            where = f"scene {self.name!r} object #{i + 1}"
+            if isinstance(obj, dict) and ("count" in obj or "poses" in obj):
+                placed.append((i, obj, where))
+                continue
+            if isinstance(obj, dict) and "seafloor" in obj:
+                obj = dict(obj)
+                fn = runconfig.SEAFLOORS.get(obj["seafloor"])
+                if fn is not None and "seed" in _params(fn) and "seed" not in obj:
+                    obj["seed"] = int(seed)
+            with _named(self.source, where):
+                runconfig.add_object(scene, obj, self.source, self.base, where)
+        caster = None
+        if placed and scene.objects:  # instances rest on what lies below them (floors and fixed meshes)
+            from .raycast import RayCaster
+            caster = RayCaster.for_scene(scene.compiled())
+        support = scene.compiled() if caster is not None else None
+        top = scene.bounds[1, 2] + 1.0 if caster is not None else 0.0
+        for i, obj, where in placed:
+            with _named(self.source, where):
+                self._place(scene, caster, support, top, seed, i, obj, where)
+        return scene
+
+    def _place(self, scene, caster, support, top, seed, i, obj, where):
+        src = self.source
+        mesh = load_mesh(runconfig._resolve(self.base, obj["path"]))
+        label = obj.get("label") or os.path.splitext(os.path.basename(obj["path"]))[0]
+        rng = np.random.default_rng([int(seed), self.index, i])
+        poses = _poses(obj, rng, src, where)
+        mat_t = obj.get("material", {})
+        for k, (x, y, yaw, z) in enumerate(poses):
+            values = {key: (rng.uniform(*v) if isinstance(v, list) else v) for key, v in mat_t.items()}
+            material = runconfig.parse_material(values, src, where)
+            c, s = math.cos(math.radians(yaw)), math.sin(math.radians(yaw))
+            v = mesh.vertices @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
+            ground = 0.0
+            if caster is not None:
+                o = np.array([[x, y, top]]) - support.origin_m
+                hit = caster.cast(o, np.array([[0.0, 0.0, -1.0]]), 1e9)
+                if hit.tri[0] < 0:
+                    raise ConfigError(f"{src}: {where}: instance {k} at ({x:.2f}, {y:.2f}) m has no seafloor "
+                                      "below it")
+                ground = top - float(hit.range_m[0])
+            m = mesh.copy()
+            m.vertices = v + np.array([x, y, ground + z - v[:, 2].min()])
+            scene.add(m, material=material, label=f"{label}#{k}", seafloor=False)
+
+
+@contextlib.contextmanager
+def _named(source: str, where: str):
+    """Prefix errors that do not name the sweep file yet (mesh files, scene labels) with it."""
+    try:
+        yield
+    except SonarEmbreeError as exc:
+        if str(exc).startswith(source):
+            raise
+        raise type(exc)(f"{source}: {where}: {exc}") from None
+
+
+def _params(fn):
+    import inspect
+    return inspect.signature(fn).parameters
+
+
+def _pair(value, name, src, where):
+    if (not isinstance(value, list) or len(value) != 2
+            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in value)
+            or not value[0] <= value[1]):
+        raise ConfigError(f"{src}: {where}: {name} must be [low, high] with low <= high, got {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def _poses(obj, rng, src, where):
+    """(k, 4) x, y, yaw_deg, height above floor."""
+    if "poses" in obj:
+        poses = obj["poses"]
+        try:
+            a = [list(map(float, p)) for p in poses]
+        except (TypeError, ValueError):
+            a = None
+        if not isinstance(poses, list) or a is None or any(len(p) not in (3, 4) for p in a):
+            raise ConfigError(f"{src}: {where}: poses must be a list of [x, y, yaw_deg] or [x, y, yaw_deg, z_m]")
+        return [(p[0], p[1], p[2], p[3] if len(p) == 4 else float(obj.get("z_m", 0.0))) for p in a]
+    count = obj["count"]
+    if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+        raise ConfigError(f"{src}: {where}: count must be an integer >= 0, got {count!r}")
+    region = obj.get("region")
+    if not isinstance(region, list) or len(region) != 2:
+        raise ConfigError(f"{src}: {where}: random poses need region = [[x0, x1], [y0, y1]] (m)")
+    (x0, x1), (y0, y1) = (_pair(r, "region", src, where) for r in region)
+    yaw = _pair(obj.get("yaw_deg", [0.0, 360.0]), "yaw_deg", src, where)
+    z = float(obj.get("z_m", 0.0))
+    return [(rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(*yaw), z) for _ in range(count)]
+
+
+@dataclass(frozen=True, eq=False)
+class Sweep:
+    """A loaded, checked sweep: its jobs and output options."""
+
+    source: str
+    name: str
+    scenes: tuple        # SceneSpec per [[scenes]]
+    trajectory_names: tuple
+    jobs: tuple          # Job
+    outputs: tuple
+    pings_per_task: int
+    png: dict
+    categories: tuple    # COCO categories (object labels before '#'), sorted
+
+    @property
+    def scene_names(self) -> tuple:
+        return tuple(s.name for s in self.scenes)
+
+    @property
+    def labels(self) -> bool:
+        return "labels" in self.outputs or "coco" in self.outputs
+
+    def manifest(self) -> dict:
+        """What identifies the sweep's outputs (written as OUT/sweep.json, compared on resume)."""
+        from . import __version__
+
+        jobs = [j.describe(self) for j in self.jobs]
+        body = {"name": self.name, "outputs": list(self.outputs), "pings_per_task": self.pings_per_task,
+                "png": self.png, "categories": list(self.categories), "package_version": __version__,
+                "settings": _job_settings_digest(self.jobs), "scenes": _scenes_digest(self.scenes), "jobs": jobs}
+        return body
+
+
+def _digest(obj) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
+
+
+def _job_settings_digest(jobs) -> str:
+    return _digest([[dataclasses.asdict(x) for x in (j.sonar, j.pulse, j.fan, j.chain)]
+                    + [j.trajectory.positions_m.tolist(), j.trajectory.times_s.tolist()] for j in jobs])
+
+
+def _scenes_digest(scenes) -> str:
+    return _digest([[s.name, list(s.objects)] for s in scenes])
+
+
+def _seeds(value, src):
+    if isinstance(value, int) and not isinstance(value, bool):
+        if value < 1:
+            raise ConfigError(f"{src}: [sweep] seeds must be a count >= 1 or a list of integers, got {value!r}")
+        return list(range(value))
+    if (not isinstance(value, list) or not value
+            or not all(isinstance(s, int) and not isinstance(s, bool) and s >= 0 for s in value)):
+        raise ConfigError(f"{src}: [sweep] seeds must be a count >= 1 or a list of integers >= 0, got {value!r}")
+    if len(set(value)) != len(value):
+        raise ConfigError(f"{src}: [sweep] seeds repeat a value: {value!r}")
+    return list(value)
+
+
+def load_sweep(path) -> Sweep:
+    """Read and check a sweep file; every error is one line naming the file and key."""
+    src = os.fspath(path)
+    try:
+        with open(src, "rb") as fh:
+            data = runconfig.tomllib.load(fh)
+    except OSError as exc:
+        raise ConfigError(f"{src}: cannot read sweep ({exc.strerror or exc})") from None
+    except runconfig.tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{src}: invalid TOML ({exc})") from None
+    base = os.path.dirname(os.path.abspath(src))
+    runconfig._check_keys("the top level", data, TOP_KEYS, src)
+
+    sw = data.get("sweep", {})
+    runconfig._check_keys("[sweep]", sw, SWEEP_KEYS, src)
+    name = str(sw.get("name", os.path.splitext(os.path.basename(src))[0]))
+    seeds = _seeds(sw.get("seeds", 1), src)
+    outputs = sw.get("outputs", list(DEFAULT_OUTPUTS))
+    if not isinstance(outputs, list) or not outputs or any(o not in OUTPUTS for o in outputs):
+        raise ConfigError(f"{src}: [sweep] outputs must be a non-empty list of {list(OUTPUTS)}, got {outputs!r}")
+    ppt = sw.get("pings_per_task", DEFAULT_PINGS_PER_TASK)
+    if isinstance(ppt, bool) or not isinstance(ppt, int) or ppt < 1:
+        raise ConfigError(f"{src}: [sweep] pings_per_task must be an integer >= 1, got {ppt!r}")
+    png = data.get("png", {})
+    runconfig._check_keys("[png]", png, PNG_KEYS, src)
+
+    base_tables = {}
+    for t, cls in TABLES.items():
+        table = data.get(t, {})
+        runconfig._check_keys(f"[{t}]", table, field_names(cls), src)
+        base_tables[t] = dict(table)
+    if "seed" in base_tables["simulation"]:
+        raise ConfigError(f"{src}: [simulation] seed is set per job by [sweep] seeds; remove it")
+
+    vary = data.get("vary", {})
+    if not isinstance(vary, dict):
+        raise ConfigError(f"{src}: [vary] must be a table")
+    for key, values in vary.items():
+        table, _, fld = key.partition(".")
+        if table not in TABLES or fld not in field_names(TABLES[table]) or (table, fld) == ("simulation", "seed"):
+            raise ConfigError(f"{src}: [vary] key {key!r} must be 'table.field' with table one of "
+                              f"{list(TABLES)} and a field of it (seed comes from [sweep] seeds)")
+        if not isinstance(values, list) or not values:
+            raise ConfigError(f"{src}: [vary] {key!r} must be a non-empty list of values")
+    combos = [tuple(zip(vary, c)) for c in itertools.product(*vary.values())] if vary else [()]
+
+    settings = []
+    for combo in combos:
+        tables = {t: dict(v) for t, v in base_tables.items()}
+        for key, value in combo:
+            t, _, fld = key.partition(".")
+            tables[t][fld] = value
+        where = "[vary] " + ", ".join(f"{k} = {v!r}" for k, v in combo) if combo else "base settings"
+        built = {}
+        for t, cls in TABLES.items():
+            built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
+        try:
+            built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
+        except SonarEmbreeError as exc:
+            raise ConfigError(f"{src}: {where}: {exc}") from None
+        settings.append(built)
+
+    trajs = data.get("trajectories", [])
+    if not isinstance(trajs, list) or not trajs:
+        raise ConfigError(f"{src}: needs at least one [[trajectories]] entry")
+    trajectories, traj_names = [], []
+    for i, t in enumerate(trajs):
+        if not isinstance(t, dict):
+            raise ConfigError(f"{src}: [[trajectories]] #{i + 1} must be a table")
+        t = dict(t)
+        traj_names.append(str(t.pop("name", f"trajectory{i}")))
+        trajectories.append(runconfig.parse_trajectory(t, src, base, f"[[trajectories]] #{i + 1}"))
+
+    scenes_t = data.get("scenes", [])
+    if not isinstance(scenes_t, list) or not scenes_t:
+        raise ConfigError(f"{src}: needs at least one [[scenes]] entry")
+    scenes, categories = [], set()
+    for i, sc in enumerate(scenes_t):
+        where = f"[[scenes]] #{i + 1}"
+        runconfig._check_keys(where, sc, ("name", "objects"), src)
+        objs = sc.get("objects", [])
+        if not isinstance(objs, list) or not objs:
+            raise ConfigError(f"{src}: {where} needs at least one [[scenes.objects]] entry")
+        for j, obj in enumerate(objs):
+            if isinstance(obj, dict) and ("count" in obj or "poses" in obj):
+                runconfig._check_keys(f"{where} object #{j + 1}", obj, PLACED_KEYS, src)
+                if "path" not in obj:
+                    raise ConfigError(f"{src}: {where} object #{j + 1}: placed instances need a mesh 'path'")
+                label = obj.get("label") or os.path.splitext(os.path.basename(str(obj["path"])))[0]
+                if "#" in label:
+                    raise ConfigError(f"{src}: {where} object #{j + 1}: label {label!r} must not contain '#'")
+                mat = obj.get("material", {})
+                runconfig._check_keys(f"{where} object #{j + 1} material", mat, field_names(Material), src)
+                for key, v in mat.items():  # both ends of a range must be valid materials
+                    if isinstance(v, list):
+                        _pair(v, f"material {key}", src, f"{where} object #{j + 1}")
+                    for end in (v if isinstance(v, list) else [v]):
+                        runconfig.parse_material({key: end}, src, f"{where} object #{j + 1}")
+                categories.add(label)
+        spec = SceneSpec(i, str(sc.get("name", f"scene{i}")), tuple(objs), src, base)
+        spec.build(seeds[0])  # every key, file and value checked before any job runs
+        scenes.append(spec)
+
+    jobs = []
+    for si, ti, ci, seed in itertools.product(range(len(scenes)), range(len(trajectories)), range(len(combos)),
+                                              seeds):
+        s = settings[ci]
+        chain = dataclasses.replace(s["simulation"], seed=int(seed))
+        jobs.append(Job(len(jobs), si, ti, combos[ci], int(seed), trajectories[ti], s["sonar"], s["pulse"],
+                        s["fan"], chain, "labels" in outputs or "coco" in outputs))
+    return Sweep(src, name, tuple(scenes), tuple(traj_names), tuple(jobs), tuple(outputs), ppt, dict(png),
+                 tuple(sorted(categories)))

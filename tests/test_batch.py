@@ -1,0 +1,202 @@
+"""Sweeps on real Dask clusters: same bits for any worker count, resumable after a kill, checked input."""
+import filecmp
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import trimesh
+
+import sonar_embree as se
+from sonar_embree import cli
+from sonar_embree.labels import OBJECT
+from sonar_embree.sweep import load_sweep
+
+SWEEP = """\
+[sweep]
+name = "crates"
+seeds = 3
+outputs = ["zarr", "xtf", "png", "labels", "coco", "npz"]
+pings_per_task = 4
+
+[sonar]
+max_range_m = 16.0
+
+[simulation]
+speckle = true
+noise_db_per_hz = -200.0
+
+[vary]
+"fan.quality" = [0.5, 0.75]
+
+[[scenes]]
+name = "ripples"
+  [[scenes.objects]]
+  seafloor = "ripples"
+  size_m = [40.0, 40.0]
+  resolution_m = 0.4
+  wavelength_m = 1.6
+  [[scenes.objects]]
+  path = "crate.obj"
+  label = "crate"
+  count = 2
+  region = [[-3.0, 3.0], [5.0, 10.0]]
+  material = {backscatter_db = [-20.0, -10.0]}
+  [[scenes.objects]]
+  path = "crate.obj"
+  label = "drum"
+  poses = [[1.0, -7.0, 30.0]]
+
+[[trajectories]]
+name = "pass"
+kind = "line"
+start = [-4.0, 0.0, 7.0]
+end = [4.0, 0.0, 7.0]
+n_pings = 10
+"""
+
+
+@pytest.fixture(scope="module")
+def sweep_file(tmp_path_factory):
+    d = tmp_path_factory.mktemp("sweep")
+    trimesh.creation.box((1.5, 1.0, 0.8)).export(d / "crate.obj")
+    (d / "sweep.toml").write_text(SWEEP)
+    return d / "sweep.toml"
+
+
+@pytest.fixture(scope="module")
+def reference(sweep_file, tmp_path_factory):
+    """The sweep on one local worker, through the command line."""
+    out = tmp_path_factory.mktemp("ref") / "out"
+    assert cli.main(["batch", str(sweep_file), "-o", str(out), "--workers", "1", "--no-progress"]) == 0
+    return out
+
+
+def _same_tree(a, b):
+    cmp = filecmp.dircmp(a, b)
+    assert not cmp.left_only and not cmp.right_only, (cmp.left_only, cmp.right_only)
+    _, mismatch, errors = filecmp.cmpfiles(a, b, cmp.common_files, shallow=False)
+    assert not mismatch and not errors, (a, mismatch, errors)
+    for sub in cmp.common_dirs:
+        _same_tree(os.path.join(a, sub), os.path.join(b, sub))
+
+
+def test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds(sweep_file, reference):
+    sweep = load_sweep(sweep_file)
+    assert len(sweep.jobs) == 6 and sweep.categories == ("crate", "drum")
+    assert [(j.seed, j.fan.quality) for j in sweep.jobs] == [(0, 0.5), (1, 0.5), (2, 0.5), (0, 0.75), (1, 0.75),
+                                                            (2, 0.75)]
+    assert sorted(p for p in os.listdir(reference)) == ["00000", "00001", "00002", "00003", "00004", "00005",
+                                                       "coco.json", "sweep.json"]
+    assert sorted(os.listdir(reference / "00000")) == ["coco.json", "job.json", "labels.png", "record.npz",
+                                                       "record.xtf", "record.zarr", "waterfall.png"]
+    job = json.loads((reference / "00004" / "job.json").read_text())
+    assert job == {"id": "00004", "scene": "ripples", "trajectory": "pass", "seed": 1,
+                   "vary": {"fan.quality": 0.75}, "n_pings": 10}
+
+
+def test_batch_output_equals_a_direct_simulation(sweep_file, reference):
+    sweep = load_sweep(sweep_file)
+    job = sweep.jobs[4]
+    scene = sweep.scenes[0].build(job.seed)
+    direct = se.simulate(scene, job.trajectory, job.sonar, job.pulse, fan=job.fan, chain=job.chain, labels=True)
+    rec = se.Record.load(reference / "00004" / "record.npz")
+    np.testing.assert_array_equal(rec.port, direct.port)
+    np.testing.assert_array_equal(rec.starboard, direct.starboard)
+    np.testing.assert_array_equal(rec.labels.kind, direct.labels.kind)
+    assert rec.attrs["seed"] == 1 and rec.attrs["job"] == "00004"
+    # random placements follow the seed: other seeds put the crates elsewhere
+    a, b = (sweep.scenes[0].build(s) for s in (0, 1))
+    assert not np.array_equal(a.objects[1].vertices, b.objects[1].vertices)
+    np.testing.assert_array_equal(a.objects[3].vertices, b.objects[3].vertices)  # listed pose: fixed
+    # instances rest on the floor
+    assert abs(a.objects[3].vertices[:, 2].min()) < 0.2
+
+
+def test_two_workers_on_a_scheduler_give_identical_files(sweep_file, reference, tmp_path):
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        assert cli.main(["batch", str(sweep_file), "-o", str(tmp_path / "out"), "--scheduler",
+                         cluster.scheduler_address, "--no-progress"]) == 0
+    _same_tree(reference, tmp_path / "out")
+
+
+def test_killed_batch_resumes_to_the_same_files(sweep_file, reference, tmp_path):
+    out = tmp_path / "out"
+    cmd = [sys.executable, "-m", "sonar_embree.cli", "batch", str(sweep_file), "-o", str(out), "--workers", "1",
+           "--no-progress"]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / "00000").exists():
+            assert proc.poll() is None and time.monotonic() < deadline, "batch ended before its first job"
+            time.sleep(0.005)
+        os.killpg(proc.pid, signal.SIGKILL)  # the driver, its cluster and workers: mid-way through the jobs
+    finally:
+        proc.wait()
+    done = sorted(n for n in os.listdir(out) if n.isdigit())
+    assert 1 <= len(done) < 6, done
+    assert cli.main(["batch", str(sweep_file), "-o", str(out), "--no-progress"]) == 2  # not without --resume
+    assert cli.main(["batch", str(sweep_file), "-o", str(out), "--resume", "--workers", "1", "--no-progress"]) == 0
+    _same_tree(reference, out)
+    assert not [n for n in os.listdir(out) if n.startswith(".")]
+    # a second resume has nothing left to do
+    assert se.batch.run(sweep_file, out, resume=True) == []
+
+
+def test_coco_dataset_loads_and_boxes_cover_the_objects(reference):
+    coco = json.loads((reference / "coco.json").read_text())
+    assert [c["name"] for c in coco["categories"]] == ["crate", "drum"]
+    assert len(coco["images"]) == 6 and len({a["id"] for a in coco["annotations"]}) == len(coco["annotations"])
+    assert coco["annotations"], "no object is visible"
+    by_image = {im["id"]: im for im in coco["images"]}
+    for ann in coco["annotations"]:
+        im = by_image[ann["image_id"]]
+        rec = se.Record.load(reference / im["file_name"].replace("waterfall.png", "record.npz"))
+        lab = rec.labels
+        obj = lab.names.index(ann["object_label"])
+        mask = lab.mask((lab.kind == OBJECT) & (lab.object_id == obj), 1024)
+        x, y, w, h = ann["bbox"]
+        assert mask.shape == (im["height"], im["width"])
+        assert mask.sum() == ann["area"] and mask[y:y + h, x:x + w].sum() == mask.sum()
+        cat = {c["id"]: c["name"] for c in coco["categories"]}[ann["category_id"]]
+        assert ann["object_label"].split("#")[0] == cat
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("[sonar]", "[sonar]\nbeam_width = 3"), "unknown key 'beam_width' in [sonar]"),
+    (("[sweep]", "[sweep]\nworkers = 3"), "unknown key 'workers' in [sweep]"),
+    (('path = "crate.obj"\n  label = "crate"', 'path = "missing.obj"\n  label = "crate"'), "missing.obj"),
+    (("max_range_m = 16.0", "max_range_m = -16.0"), "max_range_m"),
+    (('"fan.quality" = [0.5, 0.75]', '"fan.quality" = [0.5, -1.0]'), "quality"),
+    (('"fan.quality"', '"fan.qualty"'), "fan.qualty"),
+    (("count = 2", "count = -2"), "count"),
+    (("backscatter_db = [-20.0, -10.0]", "backscatter_db = [-10.0, -20.0]"), "backscatter_db"),
+    (("region = [[-3.0, 3.0], [5.0, 10.0]]", "region = [[300.0, 301.0], [5.0, 10.0]]"), "no seafloor below"),
+    (("seeds = 3", "seeds = [1, 1]"), "seeds"),
+    (('outputs = ["zarr"', 'outputs = ["tiff", "zarr"'), "outputs"),
+])
+def test_bad_sweeps_stop_before_any_work_naming_the_problem(sweep_file, tmp_path, capsys, edit, message):
+    bad = tmp_path / "bad.toml"
+    text = SWEEP.replace(*edit)
+    assert text != SWEEP
+    bad.write_text(text)
+    os.symlink(sweep_file.parent / "crate.obj", tmp_path / "crate.obj")
+    out = tmp_path / "out"
+    assert cli.main(["batch", str(bad), "-o", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and str(bad) in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_resume_refuses_another_sweep(sweep_file, reference, tmp_path, capsys):
+    other = tmp_path / "other.toml"
+    other.write_text(SWEEP.replace("n_pings = 10", "n_pings = 12"))
+    os.symlink(sweep_file.parent / "crate.obj", tmp_path / "crate.obj")
+    assert cli.main(["batch", str(other), "-o", str(reference), "--resume", "--no-progress"]) == 2
+    assert "different sweep" in capsys.readouterr().err

@@ -1,0 +1,94 @@
+"""Record formats read back by independent readers: pyxtf for XTF, xarray/Zarr, json for COCO."""
+import datetime as dt
+import json
+import os
+
+import dask.array
+import numpy as np
+import pytest
+import pyxtf
+import xarray as xr
+
+import sonar_embree as se
+from conftest import box, flat_scene
+from sonar_embree.labels import OBJECT, Labels
+
+
+@pytest.fixture(scope="module")
+def record():
+    """A curved, rolling pass over a box, with labels and speckle, at UTM-like coordinates."""
+    e0, n0 = 512_000.0, 5_412_000.0
+    scene = se.Scene().add(se.seafloor.flat((120, 120), center_m=(e0, n0)), label="seafloor")
+    scene.add(box((2.0, 2.0, 1.0), (e0 + 1.0, n0 + 12.0, 0.5)), label="crate#0")
+    traj = se.Trajectory.through_waypoints([(e0 - 4, n0, 9.0), (e0, n0 + 0.5, 9.0), (e0 + 5, n0 + 0.7, 9.5)],
+                                           n_pings=9, speed_m_s=1.5, roll_deg=2.0)
+    return se.simulate(scene, traj, se.Sonar(max_range_m=25.0), speckle=True, seed=4, labels=True)
+
+
+def test_pyxtf_reads_channels_pings_samples_and_navigation(record, tmp_path):
+    path = tmp_path / "run.xtf"
+    record.to_xtf(path, start=dt.datetime(2026, 3, 4, 5, 6, 7))
+    header, packets = pyxtf.xtf_read(str(path))
+    assert header.NumberOfSonarChannels == 2
+    assert [c.TypeOfChannel for c in header.sonar_info] == [1, 2]  # port, starboard
+    pings = packets[pyxtf.XTFHeaderType.sonar]
+    assert len(pings) == record.n_pings and set(packets) == {pyxtf.XTFHeaderType.sonar}
+    t = record.trajectory
+    for i, p in enumerate(pings):
+        assert len(p.data) == 2
+        # port is stored far range first (pyxtf's convention), starboard nadir first
+        np.testing.assert_array_equal(p.data[0][::-1], record.port[i].astype(np.float32))
+        np.testing.assert_array_equal(p.data[1], record.starboard[i].astype(np.float32))
+        assert p.SensorXcoordinate == t.positions_m[i, 0] and p.SensorYcoordinate == t.positions_m[i, 1]
+        assert p.SensorHeading == np.float32(t.heading_deg[i])
+        assert p.SensorRoll == np.float32(t.roll_deg[i]) and p.SensorPitch == np.float32(t.pitch_deg[i])
+        assert p.SensorDepth == np.float32(-t.positions_m[i, 2])
+        assert p.PingNumber == i
+        want = np.datetime64("2026-03-04T05:06:07") + np.timedelta64(int(t.times_s[i] * 100) * 10, "ms")
+        assert p.get_time() == want
+    # the waterfall as pyxtf users build it
+    port = pyxtf.concatenate_channel(pings, header, 0)[::-1]
+    np.testing.assert_array_equal(port[:, ::-1], record.port.astype(np.float32))
+    assert not list(tmp_path.glob(".tmp-*"))
+
+
+def test_zarr_opens_lazily_and_equals_the_record(record, tmp_path):
+    path = tmp_path / "run.zarr"
+    record.to_zarr(path)
+    record.to_zarr(path)  # replacing an existing store is atomic too
+    ds = xr.open_zarr(path)
+    assert isinstance(ds.port.data, dask.array.Array)
+    np.testing.assert_array_equal(ds.port.values, record.port)
+    np.testing.assert_array_equal(ds.starboard.values, record.starboard)
+    np.testing.assert_array_equal(ds.time_s.values, record.time_s)
+    np.testing.assert_array_equal(ds.slant_range_m.values, record.slant_range_m)
+    for i, axis in enumerate("xyz"):
+        np.testing.assert_array_equal(ds[f"{axis}_m"].values, record.trajectory.positions_m[:, i])
+    np.testing.assert_array_equal(ds.heading_deg.values, record.trajectory.heading_deg)
+    np.testing.assert_array_equal(ds.altitude_m.values, record.altitude_m)
+    for k in Labels.ARRAYS:
+        np.testing.assert_array_equal(ds[f"label_{k}"].values, getattr(record.labels, k))
+    assert ds.attrs["simulation.seed"] == 4 and ds.attrs["simulation.speckle"] is True
+    assert ds.attrs["sonar.max_range_m"] == 25.0 and ds.attrs["package_version"] == se.__version__
+    assert ds.attrs["labels.names"] == ["seafloor", "crate#0"]
+    assert sorted(os.listdir(tmp_path)) == ["run.zarr"]
+
+
+def test_coco_boxes_cover_the_label_mask(record, tmp_path):
+    record.to_coco(tmp_path / "coco.json", max_columns=None)
+    d = json.loads((tmp_path / "coco.json").read_text())
+    assert d["categories"] == [{"id": 1, "name": "crate", "supercategory": "object"}]
+    img = d["images"][0]
+    assert (img["height"], img["width"]) == (record.n_pings, 2 * record.port.shape[1])
+    (ann,) = d["annotations"]
+    lab = record.labels
+    mask = lab.mask((lab.kind == OBJECT) & (lab.object_id == 1), None)
+    x, y, w, h = ann["bbox"]
+    assert mask.sum() == ann["area"] > 0
+    assert mask[y:y + h, x:x + w].sum() == mask.sum()
+
+
+def test_coco_needs_labels(flat_record, tmp_path):
+    with pytest.raises(se.ConfigError, match="labels=True"):
+        flat_record.to_coco(tmp_path / "c.json")
+    assert not (tmp_path / "c.json").exists()
