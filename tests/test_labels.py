@@ -1,4 +1,4 @@
-"""Ground-truth labels against geometry worked out by hand (PHYSICS.md §5 shadow formula)."""
+"""Ground-truth labels against geometry worked out by hand (PHYSICS.md §6 shadow formula)."""
 import numpy as np
 import pytest
 

@@ -1,4 +1,5 @@
 """The figure scripts run from a fresh install and write their PNGs (at reduced size)."""
+import json
 import os
 import subprocess
 import sys
@@ -33,3 +34,19 @@ def test_bench_script_writes_report_and_plot(tmp_path):
     for needle in ("Flat floor", "Shipwreck", "per 100 000 rays", "pings/s", "| footprint | 1 |"):
         assert needle in md
     assert iio.imread(tmp_path / "speed_vs_error.png").shape[0] > 100
+
+
+def test_detection_dataset_script_writes_a_coco_dataset(tmp_path):
+    out = tmp_path / "det"
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "make_detection_dataset.py"), "--quick",
+                           "--workers", "1", "-o", str(out)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    coco = json.loads((out / "dataset" / "coco.json").read_text())
+    assert [c["name"] for c in coco["categories"]] == ["box", "cylinder_mine", "sphere_mine"]
+    assert len(coco["images"]) == 2
+    for im in coco["images"]:
+        assert (out / "dataset" / im["file_name"]).exists()
+        assert (out / "dataset" / im["file_name"]).with_name("labels.png").exists()
+    names = {a["object_label"].split("#")[0] for a in coco["annotations"]}
+    assert names == {"box", "cylinder_mine", "sphere_mine"}
+    assert sorted(os.listdir(out / "meshes")) == ["box.obj", "cylinder_mine.obj", "sphere_mine.obj"]
