@@ -53,7 +53,7 @@ def render_part(spec: SceneSpec, job: Job, start: int, stop: int) -> Record:
     from .simulate import simulate
 
     return simulate(_scene(spec, job.seed), job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan,
-                    chain=job.chain, labels=job.labels, ping_offset=start)
+                    chain=job.chain, labels=job.labels, keep_complex=job.keep_complex, ping_offset=start)
 
 
 def _write_job(rec: Record, job: Job, sweep: Sweep, out_dir: str) -> None:

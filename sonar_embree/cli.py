@@ -52,6 +52,7 @@ SWEEP.toml holds [sonar], [pulse], [fan] and [simulation] as in render configs
 (base settings; no seed), and:
 
   [sweep]         name, seeds (list, or a count n for 0..n-1), pings_per_task (32),
+                  complex (false: keep complex baseband in Zarr/npz, coherent speckle only),
                   outputs (of "zarr", "xtf", "png", "labels", "coco", "npz";
                   default zarr, xtf, png, coco)
   [vary]          "table.field" = [values, ...]; every combination is a job

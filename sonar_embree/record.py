@@ -56,6 +56,8 @@ class Record:
     labels : Labels or None
         Per-sample ground truth (``simulate(labels=True)``), aligned with ``port`` and
         ``starboard``.
+    port_complex, starboard_complex : (n_pings, n_samples) complex128 or None
+        Detected complex baseband (``simulate(keep_complex=True)``); intensity = |·|².
     """
 
     port: np.ndarray
@@ -67,6 +69,8 @@ class Record:
     altitude_m: np.ndarray
     attrs: dict = field(default_factory=dict)
     labels: Labels | None = None
+    port_complex: np.ndarray | None = None
+    starboard_complex: np.ndarray | None = None
 
     @property
     def slant_range_m(self) -> np.ndarray:
@@ -92,9 +96,11 @@ class Record:
             n = np.array([p.n_pings for p in parts], dtype=float)
             attrs["rays_per_ping"] = float(np.dot(n, [p.attrs["rays_per_ping"] for p in parts]) / n.sum())
         labels = None if first.labels is None else Labels.concatenate([p.labels for p in parts])
+        cplx = {k: (None if getattr(first, k) is None else np.concatenate([getattr(p, k) for p in parts]))
+                for k in ("port_complex", "starboard_complex")}
         return cls(np.concatenate([p.port for p in parts]), np.concatenate([p.starboard for p in parts]),
                    first.time_s, Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
-                   np.concatenate([p.altitude_m for p in parts]), attrs, labels)
+                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, **cplx)
 
     # ------------------------------------------------------------------ files
     def save(self, path) -> None:
@@ -109,6 +115,9 @@ class Record:
         if self.labels is not None:
             meta["labels"] = {"names": list(self.labels.names), "is_seafloor": list(self.labels.is_seafloor)}
             extra = {f"labels_{k}": getattr(self.labels, k) for k in Labels.ARRAYS}
+        for k in ("port_complex", "starboard_complex"):
+            if getattr(self, k) is not None:
+                extra[k] = getattr(self, k)
 
         def write(tmp):
             with open(tmp, "wb") as fh:
@@ -136,7 +145,8 @@ class Record:
             labels = Labels(**{k: arrays[f"labels_{k}"] for k in Labels.ARRAYS}, names=tuple(meta["labels"]["names"]),
                             is_seafloor=tuple(meta["labels"]["is_seafloor"]))
         return cls(arrays["port"], arrays["starboard"], arrays["time_s"], traj, Sonar(**meta["sonar"]),
-                   Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}), labels)
+                   Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}), labels,
+                   arrays.get("port_complex"), arrays.get("starboard_complex"))
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""

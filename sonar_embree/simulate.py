@@ -173,7 +173,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              matched_filter: bool | None = None, tvg: bool = False, noise_db_per_hz: float | None = None,
              lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
              fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
-             labels: bool = False, ping_offset: int = 0, progress: bool = False,
+             labels: bool = False, keep_complex: bool = False, ping_offset: int = 0, progress: bool = False,
              timings: dict | None = None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
@@ -202,6 +202,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         Also compute per-sample ground truth (``Record.labels``, see
         :class:`~sonar_embree.labels.Labels`): one extra centre-line cast per ping
         and side, followed through to the seafloor behind each hit.
+    keep_complex : bool
+        Also keep the detected complex baseband signal (``Record.port_complex``,
+        ``starboard_complex``; |·|² is the intensity, TVG applied as its square
+        root). Needs coherent speckle without ``lowpass_hz``.
     ping_offset : int
         Index of the first ping of ``trajectory`` within a longer survey. Per-ping
         random streams (receiver noise) are keyed by the survey's ping index, so a
@@ -250,6 +254,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     elif not isinstance(chain, SignalChain):
         raise ConfigError(f"simulate: chain must be a sonar_embree.SignalChain, got {type(chain).__name__}")
     chain = chain.resolved(sonar, pulse)
+    if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
+        raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
+                          "(the complex signal exists only there)")
 
     compiled = scene.compiled()
     caster = RayCaster.for_scene(compiled)  # the BVH is built once per scene
@@ -324,6 +331,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             if chain.matched_filter:
                 out = processing.matched_filter(out, pulses.replica(pulse, f0, fs))
             intensity = out.real ** 2 + out.imag ** 2
+            if keep_complex:
+                cplx = out[..., :n_out]
         else:
             intensity = out
         mode = "speckle"
@@ -333,7 +342,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if chain.lowpass_hz is not None:
         intensity = processing.lowpass(intensity, chain.lowpass_hz, fs)
     if chain.tvg:
-        intensity = intensity * processing.tvg_gain(time_s, c, sonar.alpha_db_per_m)
+        gain = processing.tvg_gain(time_s, c, sonar.alpha_db_per_m)
+        intensity = intensity * gain
+        if keep_complex:
+            cplx = cplx * np.sqrt(gain)
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
     attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
@@ -347,4 +359,6 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     return Record(port=np.ascontiguousarray(intensity[:, PORT]),
                   starboard=np.ascontiguousarray(intensity[:, STARBOARD]),
                   time_s=time_s, trajectory=trajectory, sonar=sonar, pulse=pulse, altitude_m=altitude,
-                  attrs=attrs, labels=truth_labels)
+                  attrs=attrs, labels=truth_labels,
+                  port_complex=np.ascontiguousarray(cplx[:, PORT]) if keep_complex else None,
+                  starboard_complex=np.ascontiguousarray(cplx[:, STARBOARD]) if keep_complex else None)

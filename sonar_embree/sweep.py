@@ -5,7 +5,8 @@ A sweep file holds the tables of a render config (``[sonar]``, ``[pulse]``,
 
 - ``[sweep]``: ``name``; ``seeds`` (a list, or a count n for 0 … n − 1);
   ``outputs`` (any of "zarr", "xtf", "png", "labels", "coco", "npz"; default
-  zarr, xtf, png, coco); ``pings_per_task`` (pings per Dask task, default 32).
+  zarr, xtf, png, coco); ``pings_per_task`` (pings per Dask task, default 32);
+  ``complex`` (keep the complex baseband in Zarr/npz; coherent speckle only).
 - ``[vary]``: ``"table.field" = [values]``; every combination is a job.
 - ``[[scenes]]``: ``name`` and ``[[scenes.objects]]``. An object is a mesh
   ``path`` or a procedural ``seafloor`` (as in render configs; a seafloor without
@@ -46,7 +47,7 @@ from .scene import Scene, load_mesh
 from .trajectory import Trajectory
 
 TOP_KEYS = ("sweep", "sonar", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
-SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task")
+SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex")
 OUTPUTS = ("zarr", "xtf", "png", "labels", "coco", "npz")
 DEFAULT_OUTPUTS = ("zarr", "xtf", "png", "coco")
 PNG_KEYS = ("scale", "dynamic_range_db", "gamma", "tvg", "max_columns")
@@ -70,6 +71,7 @@ class Job:
     fan: FanSettings
     chain: SignalChain
     labels: bool
+    keep_complex: bool = False
 
     @property
     def id(self) -> str:
@@ -218,7 +220,8 @@ class Sweep:
         from . import __version__
 
         jobs = [j.describe(self) for j in self.jobs]
-        body = {"name": self.name, "outputs": list(self.outputs), "pings_per_task": self.pings_per_task,
+        body = {"name": self.name, "outputs": list(self.outputs),
+                "complex": any(j.keep_complex for j in self.jobs), "pings_per_task": self.pings_per_task,
                 "png": self.png, "categories": list(self.categories), "package_version": __version__,
                 "settings": _job_settings_digest(self.jobs), "scenes": _scenes_digest(self.scenes), "jobs": jobs}
         return body
@@ -273,6 +276,9 @@ def load_sweep(path) -> Sweep:
     ppt = sw.get("pings_per_task", DEFAULT_PINGS_PER_TASK)
     if isinstance(ppt, bool) or not isinstance(ppt, int) or ppt < 1:
         raise ConfigError(f"{src}: [sweep] pings_per_task must be an integer >= 1, got {ppt!r}")
+    keep_complex = sw.get("complex", False)
+    if not isinstance(keep_complex, bool):
+        raise ConfigError(f"{src}: [sweep] complex must be true or false, got {keep_complex!r}")
     png = data.get("png", {})
     runconfig._check_keys("[png]", png, PNG_KEYS, src)
 
@@ -307,9 +313,11 @@ def load_sweep(path) -> Sweep:
         for t, cls in TABLES.items():
             built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
         try:
-            built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
+            chain = built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
         except SonarEmbreeError as exc:
             raise ConfigError(f"{src}: {where}: {exc}") from None
+        if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
+            raise ConfigError(f"{src}: [sweep] complex needs coherent speckle without lowpass_hz ({where})")
         settings.append(built)
 
     trajs = data.get("trajectories", [])
@@ -359,6 +367,6 @@ def load_sweep(path) -> Sweep:
         s = settings[ci]
         chain = dataclasses.replace(s["simulation"], seed=int(seed))
         jobs.append(Job(len(jobs), si, ti, combos[ci], int(seed), trajectories[ti], s["sonar"], s["pulse"],
-                        s["fan"], chain, "labels" in outputs or "coco" in outputs))
+                        s["fan"], chain, "labels" in outputs or "coco" in outputs, keep_complex))
     return Sweep(src, name, tuple(scenes), tuple(traj_names), tuple(jobs), tuple(outputs), ppt, dict(png),
                  tuple(sorted(categories)))

@@ -22,6 +22,7 @@ name = "crates"
 seeds = 3
 outputs = ["zarr", "xtf", "png", "labels", "coco", "npz"]
 pings_per_task = 4
+complex = true
 
 [sonar]
 max_range_m = 16.0
@@ -103,11 +104,13 @@ def test_batch_output_equals_a_direct_simulation(sweep_file, reference):
     sweep = load_sweep(sweep_file)
     job = sweep.jobs[4]
     scene = sweep.scenes[0].build(job.seed)
-    direct = se.simulate(scene, job.trajectory, job.sonar, job.pulse, fan=job.fan, chain=job.chain, labels=True)
+    direct = se.simulate(scene, job.trajectory, job.sonar, job.pulse, fan=job.fan, chain=job.chain, labels=True,
+                         keep_complex=True)
     rec = se.Record.load(reference / "00004" / "record.npz")
     np.testing.assert_array_equal(rec.port, direct.port)
     np.testing.assert_array_equal(rec.starboard, direct.starboard)
     np.testing.assert_array_equal(rec.labels.kind, direct.labels.kind)
+    np.testing.assert_array_equal(rec.port_complex, direct.port_complex)
     assert rec.attrs["seed"] == 1 and rec.attrs["job"] == "00004"
     # random placements follow the seed: other seeds put the crates elsewhere
     a, b = (sweep.scenes[0].build(s) for s in (0, 1))
@@ -179,6 +182,7 @@ def test_coco_dataset_loads_and_boxes_cover_the_objects(reference):
     (("backscatter_db = [-20.0, -10.0]", "backscatter_db = [-10.0, -20.0]"), "backscatter_db"),
     (("region = [[-3.0, 3.0], [5.0, 10.0]]", "region = [[300.0, 301.0], [5.0, 10.0]]"), "no seafloor below"),
     (("seeds = 3", "seeds = [1, 1]"), "seeds"),
+    (("speckle = true", "speckle = false"), "complex"),
     (('outputs = ["zarr"', 'outputs = ["tiff", "zarr"'), "outputs"),
 ])
 def test_bad_sweeps_stop_before_any_work_naming_the_problem(sweep_file, tmp_path, capsys, edit, message):

@@ -22,7 +22,8 @@ def record():
     scene.add(box((2.0, 2.0, 1.0), (e0 + 1.0, n0 + 12.0, 0.5)), label="crate#0")
     traj = se.Trajectory.through_waypoints([(e0 - 4, n0, 9.0), (e0, n0 + 0.5, 9.0), (e0 + 5, n0 + 0.7, 9.5)],
                                            n_pings=9, speed_m_s=1.5, roll_deg=2.0)
-    return se.simulate(scene, traj, se.Sonar(max_range_m=25.0), speckle=True, seed=4, labels=True)
+    return se.simulate(scene, traj, se.Sonar(max_range_m=25.0), speckle=True, seed=4, labels=True, tvg=True,
+                       keep_complex=True)
 
 
 def test_pyxtf_reads_channels_pings_samples_and_navigation(record, tmp_path):
@@ -60,6 +61,8 @@ def test_zarr_opens_lazily_and_equals_the_record(record, tmp_path):
     assert isinstance(ds.port.data, dask.array.Array)
     np.testing.assert_array_equal(ds.port.values, record.port)
     np.testing.assert_array_equal(ds.starboard.values, record.starboard)
+    np.testing.assert_array_equal(ds.port_complex.values, record.port_complex)
+    np.testing.assert_array_equal(ds.starboard_complex.values, record.starboard_complex)
     np.testing.assert_array_equal(ds.time_s.values, record.time_s)
     np.testing.assert_array_equal(ds.slant_range_m.values, record.slant_range_m)
     for i, axis in enumerate("xyz"):
@@ -92,3 +95,20 @@ def test_coco_needs_labels(flat_record, tmp_path):
     with pytest.raises(se.ConfigError, match="labels=True"):
         flat_record.to_coco(tmp_path / "c.json")
     assert not (tmp_path / "c.json").exists()
+
+
+def test_complex_baseband_is_the_square_root_of_the_intensity(record, tmp_path):
+    for z, i in ((record.port_complex, record.port), (record.starboard_complex, record.starboard)):
+        assert z.dtype == np.complex128 and z.shape == i.shape
+        np.testing.assert_allclose(np.abs(z) ** 2, i, rtol=1e-9, atol=1e-300)
+    assert np.any(np.abs(np.angle(record.port_complex[record.port > 0])) > 1.0)  # a phase, not only a magnitude
+    record.save(tmp_path / "r.npz")
+    np.testing.assert_array_equal(se.Record.load(tmp_path / "r.npz").port_complex, record.port_complex)
+
+
+@pytest.mark.parametrize("kw", [{}, {"speckle": True, "band": "carrier", "detection": "incoherent"},
+                                {"speckle": True, "lowpass_hz": 5e3}])
+def test_complex_output_only_where_it_exists(kw):
+    scene = se.Scene().add(se.seafloor.flat((50, 50)), label="seafloor")
+    with pytest.raises(se.ConfigError, match="keep_complex"):
+        se.simulate(scene, se.Trajectory.line((0, 0, 5), (1, 0, 5), 2), keep_complex=True, **kw)

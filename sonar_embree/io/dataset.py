@@ -30,7 +30,8 @@ def _flat_attrs(record) -> dict:
 def to_xarray(record):
     """The record as an ``xarray.Dataset``.
 
-    Variables: ``port``, ``starboard`` (ping, sample) linear intensity; ``x_m``,
+    Variables: ``port``, ``starboard`` (ping, sample) linear intensity (and
+    ``port_complex``, ``starboard_complex`` when the record keeps them); ``x_m``,
     ``y_m``, ``z_m``, ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``altitude_m``
     (ping); with labels ``label_kind``, ``label_object_id``, ``label_shadow_of``,
     ``label_height_m``, ``label_ground_range_m`` (side, ping, sample). Coordinates
@@ -45,6 +46,10 @@ def to_xarray(record):
             "starboard": (("ping", "sample"), record.starboard,
                           {"units": "1", "long_name": "starboard intensity, unit source"}),
             "altitude_m": (("ping",), record.altitude_m, {"units": "m"})}
+    for side in ("port", "starboard"):
+        z = getattr(record, f"{side}_complex")
+        if z is not None:
+            data[f"{side}_complex"] = (("ping", "sample"), z, {"long_name": f"{side} complex baseband, |.|^2 = {side}"})
     for i, axis in enumerate("xyz"):
         data[f"{axis}_m"] = (("ping",), t.positions_m[:, i], {"units": "m"})
     for name in ("heading_deg", "pitch_deg", "roll_deg"):
