@@ -99,3 +99,35 @@ def speed_error_png(series, path, title="Speed against error") -> None:
     fig.suptitle(title)
     fig.tight_layout()
     _save(fig, path)
+
+
+def line_panels_png(panels, path, title=None) -> None:
+    """Side-by-side line plots.
+
+    Parameters
+    ----------
+    panels : list of dict
+        Each: ``x`` (n,), ``lines`` [(label, y (n,)), …], ``xlabel``, ``ylabel``,
+        optional ``title``, ``ylim`` (lo, hi) and ``vlines`` [(x, label), …].
+    path : str
+        PNG written atomically.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
+    for ax, p in zip(axes[0], panels):
+        for label, y in p["lines"]:
+            ax.plot(p["x"], y, label=label, lw=1.0)
+        for x, label in p.get("vlines", []):
+            ax.axvline(x, color="0.4", ls="--", lw=0.8)
+            ax.annotate(label, (x, 0.97), xycoords=("data", "axes fraction"), fontsize=8, ha="left", va="top")
+        if "ylim" in p:
+            ax.set_ylim(*p["ylim"])
+        ax.set_xlabel(p["xlabel"])
+        ax.set_ylabel(p["ylabel"])
+        ax.set_title(p.get("title", ""), fontsize=10)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="lower center" if p.get("legend_low") else "best")
+    if title:
+        fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    _save(fig, path)

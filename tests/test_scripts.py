@@ -50,3 +50,13 @@ def test_detection_dataset_script_writes_a_coco_dataset(tmp_path):
     names = {a["object_label"].split("#")[0] for a in coco["annotations"]}
     assert names == {"box", "cylinder_mine", "sphere_mine"}
     assert sorted(os.listdir(out / "meshes")) == ["box.obj", "cylinder_mine.obj", "sphere_mine.obj"]
+
+
+def test_physics_plots_script_writes_beam_pattern_and_ping(tmp_path):
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "physics_plots.py"), "-o", str(tmp_path),
+                           "--pings", "8"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["beam_pattern.png", "ping.png"]
+    for name in ("beam_pattern.png", "ping.png"):
+        img = iio.imread(tmp_path / name)
+        assert img.ndim == 3 and img.shape[1] > 800 and img.std() > 10  # a drawn figure, not a blank page
