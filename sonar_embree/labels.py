@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
+from .waterfall import waterfall_block
 
 #: ``Labels.kind`` values.
 WATER, SEAFLOOR, OBJECT, SHADOW = 0, 1, 2, 3
@@ -144,15 +145,6 @@ class Labels:
             pad = (-m.shape[1]) % block
             sides.append(np.pad(m, ((0, 0), (0, pad))).reshape(m.shape[0], -1, block).any(axis=2))
         return np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
-
-
-def waterfall_block(n_samples: int, max_columns: int | None) -> int:
-    """Samples per waterfall column (as :func:`sonar_embree.waterfall.waterfall_image` averages them)."""
-    if max_columns is None:
-        return 1
-    if max_columns < 1:
-        raise ConfigError(f"waterfall max_columns must be >= 1, got {max_columns!r}")
-    return int(np.ceil(n_samples / max_columns))
 
 
 def _block_first(a, keep, block):

@@ -49,6 +49,15 @@ def block_mean(x, block: int):
     return xp.reshape(x.shape[0], -1, block).sum(axis=2) / counts
 
 
+def waterfall_block(n_samples: int, max_columns: int | None) -> int:
+    """Samples averaged into one waterfall column so that a side has at most ``max_columns`` (None: 1)."""
+    if max_columns is None:
+        return 1
+    if max_columns < 1:
+        raise ConfigError(f"waterfall max_columns must be >= 1, got {max_columns!r}")
+    return int(np.ceil(n_samples / max_columns))
+
+
 def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
                     ground_range: bool = False, tvg: bool = False, reference_percentile: float = 99.5,
                     max_columns: int | None = 1024):
@@ -89,10 +98,7 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
         sides = [s * gain for s in sides]
     if ground_range:
         sides = [to_ground_range(s, r, record.altitude_m)[1] for s in sides]
-    if max_columns is not None:
-        if max_columns < 1:
-            raise ConfigError(f"waterfall max_columns must be >= 1, got {max_columns!r}")
-        sides = [block_mean(s, int(np.ceil(s.shape[1] / max_columns))) for s in sides]
+    sides = [block_mean(s, waterfall_block(s.shape[1], max_columns)) for s in sides]
     both = np.concatenate(sides, axis=1)
     pos = both[both > 0]
     ref = np.percentile(pos, reference_percentile) if pos.size else 1.0

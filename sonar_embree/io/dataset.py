@@ -8,7 +8,7 @@ import tempfile
 
 import numpy as np
 
-from ..labels import SIDES, Labels
+from ..labels import KIND_NAMES, SIDES, Labels
 
 #: Pings per Zarr chunk (each chunk holds whole pings).
 PING_CHUNK = 256
@@ -62,7 +62,7 @@ def to_xarray(record):
         lab = record.labels
         for k in Labels.ARRAYS:
             data[f"label_{k}"] = (("side", "ping", "sample"), getattr(lab, k), {})
-        data["label_kind"][2].update(flag_values=[0, 1, 2, 3], flag_meanings="water seafloor object shadow")
+        data["label_kind"][2].update(flag_values=list(range(len(KIND_NAMES))), flag_meanings=" ".join(KIND_NAMES))
         data["label_height_m"][2]["units"] = data["label_ground_range_m"][2]["units"] = "m"
         coords["side"] = (("side",), list(SIDES))
         attrs["labels.names"] = list(lab.names)
