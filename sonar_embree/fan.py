@@ -82,6 +82,8 @@ class BlockEchoes:
     el_start: np.ndarray    # (rows + 1,) int64 elevation rays per row (one azimuth line)
     beta: np.ndarray        # (el_start[-1],) depression of each elevation ray, rad
     dbeta: np.ndarray       # (el_start[-1],) its cell width, rad
+    prim: np.ndarray        # (n,) int32 triangle hit by each ray, −1 for none
+    tfar: np.ndarray        # (n,) float32 Embree's hit distance, m
 
 
 def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
@@ -176,7 +178,7 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     if timings is not None:
         timings["embree"] = timings.get("embree", 0.0) + t_embree
         timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree
-    return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays, el_start, beta, dbeta)
+    return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, prim, tfar)
 
 
 #: Surfaces a label ray may pass (objects, back faces) looking for the seafloor behind its first hit.
@@ -201,11 +203,11 @@ def _footprint_lines(u, f, normals, range_m, dbeta, slope_cap):
 
 
 def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
-                face_mu: np.ndarray, is_seafloor: np.ndarray, two_way_np_per_m: float, max_range_m: float,
-                dr_m: float, origin_z_m: float, out) -> None:
+                is_seafloor: np.ndarray, max_range_m: float, dr_m: float, origin_z_m: float, out) -> None:
     """Ground truth of a block of pings along each ping's centre line (along-track angle 0).
 
-    The centre line's elevation rays are those of the block's fan (same density).
+    The centre line is the block fan's boresight azimuth line (its rays and echoes are
+    reused; weights carry the fan's azimuth factor, which scales every score alike).
     Each is followed past its first hit, through objects and back faces, to the
     first seafloor surface facing the sonar: where only such hidden footprints
     reach a sample, the sample is in shadow. See :func:`kernels.label_rows`.
@@ -215,6 +217,8 @@ def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarra
     e : BlockEchoes
         The block's echoes (its elevation rows are reused).
     is_seafloor : (n_objects,) bool
+    max_range_m : float
+        Range window, m (hidden surfaces beyond it are not searched for).
     dr_m : float
         Slant range per sample, m.
     origin_z_m : float
@@ -228,18 +232,15 @@ def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarra
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
     cos_b, sin_b = np.cos(e.beta), np.sin(e.beta)
-    s0 = np.zeros(1)
-    dirs = np.empty((n, 3), dtype=np.float32)
-    org = np.empty((n, 3), dtype=np.float32)
-    kernels.fan_rays(s0, cos_b, sin_b, el_start, rot, pos_local, dirs, org)
-    prim, tfar = caster.cast_raw(org, dirs, max_range_m)
-    rng, ext, w, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
-    kernels.fan_echoes(s0, 1.0, cos_b, sin_b, e.dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
-                       c.face_normals, face_mu, plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
-                       plan.slope_cap_m_rad, rng, ext, w, pts)
+    # the fan's boresight azimuth line (s = 0) is the centre line: its rays were cast already
+    a0 = int(np.flatnonzero(plan.s == 0.0)[0])
+    row = np.repeat(np.arange(el_start.shape[0] - 1), np.diff(el_start))
+    n_el = np.diff(el_start)[row]
+    centre = plan.s.shape[0] * el_start[row] + a0 * n_el + (np.arange(n) - el_start[row])
+    prim, tfar = e.prim[centre], e.tfar[centre]
+    rng, w = e.range_m[centre], e.weight[centre]
 
     # float64 directions u and ∂u/∂β of every centre-line ray, in the world frame
-    row = np.repeat(np.arange(el_start.shape[0] - 1), np.diff(el_start))
     b, side = row // 2, np.where(row % 2, 1.0, -1.0)
     zero = np.zeros(n)
     u = np.einsum("nij,nj->ni", rot[b], np.stack([zero, side * cos_b, sin_b], axis=1))
@@ -247,11 +248,12 @@ def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarra
     origin = pos_local[b]
 
     lit = w > 0.0
+    pts = origin + np.where(lit, rng, 0.0)[:, None] * u
     lit_obj = np.where(prim >= 0, c.face_object[np.maximum(prim, 0)], -1).astype(np.int32)
-    lit_dir = np.zeros((n, 3))
+    lit_dir, ext = np.zeros((n, 3)), np.zeros(n)  # footprints even where the fan splats point echoes
     if lit.any():
-        lit_dir[lit], _ = _footprint_lines(u[lit], f[lit], c.face_normals[prim[lit]], rng[lit], e.dbeta[lit],
-                                           plan.slope_cap_m_rad)
+        lit_dir[lit], ext[lit] = _footprint_lines(u[lit], f[lit], c.face_normals[prim[lit]], rng[lit], e.dbeta[lit],
+                                                  plan.slope_cap_m_rad)
     score = np.where(lit, w / np.maximum(ext, dr_m), 0.0)
 
     # follow every hit to the first seafloor surface behind it that faces the sonar

@@ -200,8 +200,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         The whole signal chain at once; overrides the keywords above.
     labels : bool
         Also compute per-sample ground truth (``Record.labels``, see
-        :class:`~sonar_embree.labels.Labels`): one extra centre-line cast per ping
-        and side, followed through to the seafloor behind each hit.
+        :class:`~sonar_embree.labels.Labels`) from the fan's centre line, each hit
+        followed through to the seafloor behind it (extra casts for that only).
     keep_complex : bool
         Also keep the detected complex baseband signal (``Record.port_complex``,
         ``starboard_complex``; |·|² is the intensity, TVG applied as its square
@@ -300,8 +300,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         altitude[a:b], n_rays[a:b] = e.altitude_m, e.n_rays
         if labels:
             t = time.perf_counter()
-            label_block(caster, plan, e, rots[a:b], pos_local[a:b], face_mu, compiled.is_seafloor, two_way, max_r,
-                        c / (2.0 * fs), float(compiled.origin_m[2]), tuple(x[a:b] for x in truth))
+            label_block(caster, plan, e, rots[a:b], pos_local[a:b], compiled.is_seafloor, max_r, c / (2.0 * fs),
+                        float(compiled.origin_m[2]), tuple(x[a:b] for x in truth))
             clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         if not chain.speckle:
