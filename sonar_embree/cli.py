@@ -42,7 +42,8 @@ dataclasses (units in the key names):
                 optional label, material = { backscatter_db = -27 }, is_seafloor (mesh files;
                 default: label "seafloor" or "seafloor/...", for ground-truth shadows)
   [output]      png, npz, scale ("db"|"gamma"), dynamic_range_db, gamma,
-                ground_range, tvg (display only)
+                ground_range, tvg (display only), reference_percentile (99.5:
+                the level shown white), max_columns (1024 per side)
 
 Relative paths are relative to CONFIG.toml. See assets/configs/ for examples.
 """

@@ -26,6 +26,7 @@ from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_name
 from .errors import ConfigError, SonarEmbreeError
 from .scene import Scene
 from .trajectory import Trajectory
+from .waterfall import check_display
 
 SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
 TRAJECTORY_KINDS = {
@@ -34,12 +35,14 @@ TRAJECTORY_KINDS = {
     "csv": ("path",),
 }
 TOP_KEYS = ("sonar", "pulse", "fan", "simulation", "trajectory", "objects", "output")
-OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg")
+OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
+               "max_columns")
 
 
 @dataclass(frozen=True)
 class OutputOptions:
-    """What ``render`` writes: waterfall PNG and/or the record (.npz), and how the PNG looks."""
+    """What ``render`` writes: waterfall PNG and/or the record (.npz), and how the PNG looks
+    (the display keywords of :func:`~sonar_embree.waterfall.waterfall_image`, checked here)."""
 
     png: bool = True
     npz: bool = True
@@ -48,10 +51,19 @@ class OutputOptions:
     gamma: float = 0.5
     ground_range: bool = False
     tvg: bool = False
+    reference_percentile: float = 99.5
+    max_columns: int | None = 1024
+
+    def __post_init__(self):
+        for name in ("png", "npz", "ground_range", "tvg"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns)
 
     def png_kwargs(self) -> dict:
         return {"scale": self.scale, "dynamic_range_db": self.dynamic_range_db, "gamma": self.gamma,
-                "ground_range": self.ground_range, "tvg": self.tvg}
+                "ground_range": self.ground_range, "tvg": self.tvg,
+                "reference_percentile": self.reference_percentile, "max_columns": self.max_columns}
 
 
 @dataclass(frozen=True, eq=False)

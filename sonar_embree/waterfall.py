@@ -58,6 +58,26 @@ def waterfall_block(n_samples: int, max_columns: int | None) -> int:
     return int(np.ceil(n_samples / max_columns))
 
 
+def check_display(scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
+                  reference_percentile: float = 99.5, max_columns: int | None = 1024) -> None:
+    """Raise a one-line :class:`ConfigError` for display settings :func:`waterfall_image` cannot use.
+
+    Config readers call it before any work, so a bad ``[output]`` or ``[png]``
+    value stops a run before it starts rather than after the simulation.
+    """
+    if scale not in ("db", "gamma"):
+        raise ConfigError(f"waterfall scale must be 'db' or 'gamma', got {scale!r}")
+    for name, value in (("dynamic_range_db", dynamic_range_db), ("gamma", gamma)):
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < float("inf"):
+            raise ConfigError(f"waterfall {name} must be a number > 0, got {value!r}")
+    if (isinstance(reference_percentile, bool) or not isinstance(reference_percentile, (int, float))
+            or not 0 < reference_percentile <= 100):
+        raise ConfigError(f"waterfall reference_percentile must be in (0, 100], got {reference_percentile!r}")
+    if max_columns is not None and (isinstance(max_columns, bool) or not isinstance(max_columns, int)
+                                    or max_columns < 1):
+        raise ConfigError(f"waterfall max_columns must be an integer >= 1, got {max_columns!r}")
+
+
 def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
                     ground_range: bool = False, tvg: bool = False, reference_percentile: float = 99.5,
                     max_columns: int | None = 1024):
@@ -87,10 +107,7 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
     -------
     (n_pings, 2·n_columns) uint8
     """
-    if scale not in ("db", "gamma"):
-        raise ConfigError(f"waterfall scale must be 'db' or 'gamma', got {scale!r}")
-    if not dynamic_range_db > 0 or not gamma > 0:
-        raise ConfigError("waterfall dynamic_range_db and gamma must be > 0")
+    check_display(scale, dynamic_range_db, gamma, reference_percentile, max_columns)
     r = record.slant_range_m
     sides = [np.asarray(record.port, dtype=np.float64), np.asarray(record.starboard, dtype=np.float64)]
     if tvg:

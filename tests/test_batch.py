@@ -184,6 +184,7 @@ def test_coco_dataset_loads_and_boxes_cover_the_objects(reference):
     (("seeds = 3", "seeds = [1, 1]"), "seeds"),
     (("speckle = true", "speckle = false"), "complex"),
     (('outputs = ["zarr"', 'outputs = ["tiff", "zarr"'), "outputs"),
+    (("[sweep]", "[png]\ndynamic_range_db = -40.0\n[sweep]"), "[png]: waterfall dynamic_range_db"),
 ])
 def test_bad_sweeps_stop_before_any_work_naming_the_problem(sweep_file, tmp_path, capsys, edit, message):
     bad = tmp_path / "bad.toml"

@@ -88,6 +88,18 @@ def test_unknown_config_keys(tmp_path, capsys, snippet, needle):
     assert not os.path.exists(tmp_path / "out")
 
 
+@pytest.mark.parametrize("line, needle", [
+    ('scale = "log"', "scale"), ("dynamic_range_db = -30", "dynamic_range_db"), ("gamma = 0", "gamma"),
+    ("reference_percentile = 120", "reference_percentile"), ("max_columns = 0", "max_columns"),
+    ('tvg = "yes"', "tvg"),
+])
+def test_bad_display_values_stop_before_the_run(tmp_path, capsys, line, needle):
+    cfg = _write(tmp_path / "run.toml", GOOD_TOML + f"[output]\n{line}\n")
+    err = _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
+    assert needle in err and "[output]" in err and "run.toml" in err
+    assert not os.path.exists(tmp_path / "out")  # nothing simulated, nothing written
+
+
 def test_misspelled_key_gets_a_suggestion(tmp_path, capsys):
     cfg = _write(tmp_path / "run.toml", GOOD_TOML.replace("max_range_m", "max_rnage_m"))
     err = _cli_error(capsys, ["render", cfg, "-o", str(tmp_path / "out")])
