@@ -1,6 +1,14 @@
-"""Regenerate the shipped assets deterministically: assets/scenes/anchor_mine.obj and docs/demo.png.
+"""Regenerate the shipped assets deterministically: the meshes in assets/scenes/ and docs/demo.png.
 
     python scripts/make_assets.py
+
+- assets/scenes/anchor_mine.obj   the paper's anchor-mine test scene (§4.1): sinker and three spheres
+- assets/scenes/wreck.obj         the procedural patrol-boat wreck of Fig. 1, posed and sunk as in
+                                  sonar_embree.shipwreck.WRECK_POSE (its floors are procedural and
+                                  built on first use by the configs in assets/configs/)
+- docs/demo.png                   the waterfall of ``sonar-embree demo``
+
+Tests check that the shipped meshes equal what their generators give.
 """
 import os
 import sys
@@ -11,8 +19,11 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 def main() -> int:
     from sonar_embree.cli import main as cli_main
     from sonar_embree.demo import write_anchor_mine_obj
+    from sonar_embree.shipwreck import write_wreck_obj
 
-    write_anchor_mine_obj(os.path.join(ROOT, "assets", "scenes", "anchor_mine.obj"))
+    scenes = os.path.join(ROOT, "assets", "scenes")
+    write_anchor_mine_obj(os.path.join(scenes, "anchor_mine.obj"))
+    write_wreck_obj(os.path.join(scenes, "wreck.obj"))
     out = os.path.join(ROOT, "out", "demo")
     code = cli_main(["demo", "-o", out, "--no-progress"])
     if code == 0:

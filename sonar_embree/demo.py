@@ -6,16 +6,16 @@ points roughly at the mooring.
 """
 from __future__ import annotations
 
-import numpy as np
 import trimesh
 
 from . import seafloor
 from .config import Material, Pulse, Sonar
-from .scene import Scene
+from .scene import Scene, write_obj
 from .trajectory import Trajectory
 
-#: Waterfall display of the demo: display-only TVG, 30 dB, so both swaths and the shadows show.
-DEMO_PNG = {"dynamic_range_db": 30.0, "tvg": True, "reference_percentile": 99.9, "max_columns": 540}
+#: Waterfall display of the demo: display-only TVG, 35 dB below the brightest 0.01 % (the objects),
+#: so the floor is grey and the shadows show.
+DEMO_PNG = {"dynamic_range_db": 35.0, "tvg": True, "reference_percentile": 99.99, "max_columns": 540}
 
 #: Object positions (m): sinker cube edge 1 m; spheres (centre, radius).
 MINE_GROUND_RANGE_M = 24.0
@@ -55,16 +55,6 @@ def anchor_mine_setup(n_pings: int = 240):
 
 def write_anchor_mine_obj(path) -> None:
     """Write the mine (without seafloor) as a multi-object OBJ, one named object per part."""
-    from .record import atomic_write
-
-    def write(tmp):
-        lines, base = ["# sonar_embree anchor-mine test scene (Woock & Beyerer 4.1), metres, z up"], 1
-        for label, mesh, _ in anchor_mine_objects():
-            lines.append(f"o {label}")
-            lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in np.asarray(mesh.vertices)]
-            lines += [f"f {a + base} {b + base} {c + base}" for a, b, c in np.asarray(mesh.faces)]
-            base += len(mesh.vertices)
-        with open(tmp, "w") as fh:
-            fh.write("\n".join(lines) + "\n")
-
-    atomic_write(path, write, suffix=".obj")
+    write_obj(path, [(label, mesh) for label, mesh, _ in anchor_mine_objects()],
+              "sonar_embree anchor-mine test scene (Woock & Beyerer 4.1), metres, z up\n"
+              "written by scripts/make_assets.py (sonar_embree.demo.write_anchor_mine_obj)")

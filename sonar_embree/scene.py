@@ -102,6 +102,27 @@ def load_mesh(path) -> trimesh.Trimesh:
     return trimesh.Trimesh(v, f, process=False)
 
 
+def write_obj(path, named_meshes, comment: str = "") -> None:
+    """Write ``(name, trimesh.Trimesh)`` pairs as one OBJ, one ``o name`` object each (atomic).
+
+    Coordinates in metres with 10 µm resolution (``%.5f``); :meth:`Scene.load` reads
+    the objects back as separately labelled parts.
+    """
+    from .record import atomic_write
+
+    def write(tmp):
+        lines, base = [f"# {line}" for line in comment.splitlines()], 1
+        for name, mesh in named_meshes:
+            lines.append(f"o {name}")
+            lines += [f"v {x:.5f} {y:.5f} {z:.5f}" for x, y, z in np.asarray(mesh.vertices)]
+            lines += [f"f {a + base} {b + base} {c + base}" for a, b, c in np.asarray(mesh.faces)]
+            base += len(mesh.vertices)
+        with open(tmp, "w") as fh:
+            fh.write("\n".join(lines) + "\n")
+
+    atomic_write(path, write, suffix=".obj")
+
+
 def _meshes_from_file(path: str):
     """(name, Trimesh) pairs of a mesh file, scene-graph transforms applied."""
     if not os.path.exists(path):

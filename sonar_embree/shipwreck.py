@@ -15,13 +15,18 @@ import trimesh
 from . import seafloor
 from .config import Material
 from .errors import ConfigError
-from .scene import Scene
+from .scene import Scene, write_obj
 from .trajectory import Trajectory
 
 HULL_LENGTH_M = 56.0
 HULL_BEAM_M = 10.5
 #: Default placement: centre (x, y) in m, heading of the bow (deg, clockwise from north), roll (deg), sunk depth (m).
 WRECK_POSE = {"center_m": (0.0, 30.0), "heading_deg": 60.0, "roll_deg": 18.0, "pitch_deg": 2.0, "sink_m": 1.2}
+#: The survey of the paper's Fig. 8 and 9 (scripts/paper_shipwreck.py, assets/configs/shipwreck_*.toml):
+#: 800 pings 0.1 m apart (1 m/s at 10 Hz) over 80 m, 15 m above the floor; the deckhouse rises
+#: to about 8 m and the mast to 12 m, so most shadows run past the 60 m range.
+PAPER_PASS = {"n_pings": 800, "altitude_m": 15.0, "ping_rate_hz": 10.0, "speed_m_s": 1.0}
+PAPER_MAX_RANGE_M = 60.0
 
 
 def hull(length_m: float = HULL_LENGTH_M, beam_m: float = HULL_BEAM_M, depth_m: float = 5.5,
@@ -79,6 +84,13 @@ def wreck(pose: dict | None = None, **hull_kw) -> trimesh.Trimesh:
     return m
 
 
+def write_wreck_obj(path, pose: dict | None = None) -> None:
+    """Write the posed wreck (no floor) as an OBJ with one object ``wreck`` (world metres, z up)."""
+    write_obj(path, [("wreck", wreck(pose))],
+              "sonar_embree procedural shipwreck (Woock & Beyerer Fig. 1-like patrol boat), metres, z up,\n"
+              "posed as shipwreck.WRECK_POSE; written by scripts/make_assets.py")
+
+
 def shipwreck_scene(floor: str = "perlin", size_m: float = 203.0, resolution_m: float = 0.2, seed: int = 0,
                     pose: dict | None = None) -> Scene:
     """The wreck on a ``size_m`` square seafloor, ``floor`` ∈ {"perlin", "ripples"}.
@@ -103,3 +115,22 @@ def straight_pass(n_pings: int = 1000, altitude_m: float = 12.0, ping_rate_hz: f
     half = 0.5 * (n_pings - 1) * speed_m_s / ping_rate_hz
     return Trajectory.line((-half, offset_m, altitude_m), (half, offset_m, altitude_m), n_pings,
                            speed_m_s=speed_m_s)
+
+
+def curved_waypoints(length_m: float, altitude_m: float = 12.0, bend_m: float = 2.5,
+                     offset_m: float = 0.0) -> np.ndarray:
+    """Waypoints (5, 3) in m of a gentle S-bend along +x: lateral offsets 0, +bend, 0, −bend, 0 (y, m)."""
+    x = np.linspace(-0.5 * length_m, 0.5 * length_m, 5)
+    y = offset_m + bend_m * np.array([0.0, 1.0, 0.0, -1.0, 0.0])
+    return np.column_stack([x, y, np.full(5, float(altitude_m))])
+
+
+def curved_pass(n_pings: int = 1000, altitude_m: float = 12.0, ping_rate_hz: float = 10.0, speed_m_s: float = 2.0,
+                offset_m: float = 0.0, bend_m: float = 2.5) -> Trajectory:
+    """A slightly curved pass past the wreck (the paper's Fig. 9): an S-bend through
+    :func:`curved_waypoints` (± ``bend_m`` across track, about ±9° of heading at the
+    default 200 m), ``n_pings`` evenly spaced in arc length like :func:`straight_pass`.
+    """
+    length = (n_pings - 1) * speed_m_s / ping_rate_hz
+    return Trajectory.through_waypoints(curved_waypoints(length, altitude_m, bend_m, offset_m), n_pings,
+                                        speed_m_s=speed_m_s)
