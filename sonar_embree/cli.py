@@ -39,8 +39,9 @@ dataclasses (units in the key names):
                 kind = "csv": path (columns time_s,x_m,y_m,z_m,heading_deg,pitch_deg,roll_deg)
   [[objects]]   path = mesh file (OBJ/PLY/STL/GLB, metres, z up)  or
                 seafloor = "flat" | "perlin" | "ripples" and its arguments (size_m, ...);
-                optional label, material = { backscatter_db = -27 }, is_seafloor (mesh files;
-                default: label "seafloor" or "seafloor/...", for ground-truth shadows)
+                optional label, material = { backscatter_db = -27 }, and for mesh files
+                is_seafloor (default: label "seafloor" or "seafloor/...", for ground-truth
+                shadows) and materials = { name = { backscatter_db = -15 }, ... } per object
   [output]      png, npz, scale ("db"|"gamma"), dynamic_range_db, gamma,
                 ground_range, tvg (display only), reference_percentile (99.5:
                 the level shown white), max_columns (1024 per side)

@@ -6,7 +6,8 @@ band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_
 ``[trajectory]`` (``kind`` = "line" | "waypoints" | "csv" and that constructor's
 arguments), ``[[objects]]`` (``path`` to a mesh file *or* ``seafloor`` =
 "flat" | "perlin" | "ripples" with that function's arguments; optional ``label``,
-``material = {backscatter_db = …}`` and, for mesh files, ``is_seafloor``) and ``[output]``. Relative paths are taken
+``material = {backscatter_db = …}`` and, for mesh files, ``is_seafloor`` and ``materials``, a table of
+per-object materials by object name) and ``[output]``. Relative paths are taken
 from the config file's folder. Any unknown key is an error naming it.
 """
 from __future__ import annotations
@@ -23,7 +24,7 @@ except ModuleNotFoundError:  # Python < 3.11
 
 from . import seafloor
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
-from .errors import ConfigError, SonarEmbreeError
+from .errors import ConfigError, SceneError, SonarEmbreeError
 from .scene import Scene
 from .trajectory import Trajectory
 from .waterfall import check_display
@@ -197,10 +198,18 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
     if ("path" in obj) == ("seafloor" in obj):
         raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
     if "path" in obj:
-        _check_keys(where, obj, ("path", "is_seafloor"), source)
+        _check_keys(where, obj, ("path", "is_seafloor", "materials"), source)
         is_floor = obj.get("is_seafloor")
         if is_floor is not None and not isinstance(is_floor, bool):
             raise ConfigError(f"{source}: {where} is_seafloor must be true or false, got {is_floor!r}")
-        scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor)
+        per_object = obj.get("materials", {})
+        if not isinstance(per_object, dict):
+            raise ConfigError(f"{source}: {where} materials must be a table of object name = {{ backscatter_db = … }}")
+        per_object = {name: parse_material(t, source, f"{where} materials.{name}") for name, t in per_object.items()}
+        try:
+            scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor,
+                      materials=per_object)
+        except SceneError as exc:
+            raise SceneError(f"{source}: {where}: {exc}") from None
     else:
         scene.add(seafloor_mesh(obj, source, where), material=material, label=label or "seafloor", seafloor=True)
