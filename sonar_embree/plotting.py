@@ -1,7 +1,8 @@
 """Figures (the only module that imports matplotlib, an optional dependency: ``pip install sonar_embree[plots]``).
 
 Waterfall images themselves need no plotting library (:mod:`sonar_embree.waterfall`);
-this module draws the figures around them: mode comparisons and brightness histograms.
+this module draws the figures around them: mode comparisons, brightness histograms,
+line plots and plan views of tracks.
 """
 from __future__ import annotations
 
@@ -129,5 +130,38 @@ def line_panels_png(panels, path, title=None) -> None:
         ax.legend(fontsize=8, loc="lower center" if p.get("legend_low") else "best")
     if title:
         fig.suptitle(title, fontsize=11)
+    fig.tight_layout()
+    _save(fig, path)
+
+
+def plan_view_png(tracks, outlines, path, title=None) -> None:
+    """Plan view (x east, y north, metres): vehicle tracks over object outlines.
+
+    Parameters
+    ----------
+    tracks : dict
+        label → (n, 2) track positions x, y in m (an arrow marks the direction of travel).
+    outlines : dict
+        label → (m, 2) closed polygon x, y in m (e.g. an object's convex footprint).
+    path : str
+        PNG written atomically.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 5.0))
+    for label, poly in outlines.items():
+        poly = np.asarray(poly, dtype=float)
+        ax.fill(poly[:, 0], poly[:, 1], color="0.75", ec="0.3", lw=0.8, label=label)
+    for label, xy in tracks.items():
+        xy = np.asarray(xy, dtype=float)
+        line, = ax.plot(xy[:, 0], xy[:, 1], lw=1.4, label=label)
+        k = max(1, len(xy) // 10)
+        ax.annotate("", xy[-1], xy[-1 - k], arrowprops={"arrowstyle": "->", "color": line.get_color()})
+    ax.set_aspect("equal")
+    ax.set_xlabel("x, east (m)")
+    ax.set_ylabel("y, north (m)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="best")
+    if title:
+        ax.set_title(title, fontsize=10)
     fig.tight_layout()
     _save(fig, path)

@@ -60,3 +60,59 @@ def test_physics_plots_script_writes_beam_pattern_and_ping(tmp_path):
     for name in ("beam_pattern.png", "ping.png"):
         img = iio.imread(tmp_path / name)
         assert img.ndim == 3 and img.shape[1] > 800 and img.std() > 10  # a drawn figure, not a blank page
+
+
+def _ripple_period_m(rec, lo_m=25.0, hi_m=50.0, step_m=0.05):
+    """Strongest period (m) of the starboard seafloor intensity along ground range, over all pings."""
+    from sonar_embree.labels import SEAFLOOR
+    from sonar_embree.processing import tvg_gain
+
+    x = rec.starboard * tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+    grid = np.arange(lo_m, hi_m, step_m)
+    spec = np.zeros(4 * grid.size // 2 + 1)
+    for p in range(rec.n_pings):
+        floor = rec.labels.kind[1, p] == SEAFLOOR
+        g, y = rec.labels.ground_range_m[1, p, floor], x[p, floor]
+        order = np.argsort(g)
+        y = np.interp(grid, g[order], y[order])
+        spec += np.abs(np.fft.rfft((y / y.mean() - 1) * np.hanning(grid.size), n=4 * grid.size)) ** 2
+    f = np.fft.rfftfreq(4 * grid.size, step_m)
+    band = (f > 0.2) & (f < 3.0)
+    return 1.0 / f[band][np.argmax(spec[band])], spec[band].max() / np.median(spec[band])
+
+
+def test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend(tmp_path):
+    import sonar_embree as se
+    from sonar_embree import shipwreck
+    from sonar_embree.labels import OBJECT, SEAFLOOR, SHADOW
+    from sonar_embree.processing import tvg_gain
+
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "paper_shipwreck.py"), "-o", str(tmp_path),
+                           "--pings", "64", "--floor-size", "110", "--records"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    pngs = ["fig8_fm_baseband_straight", "fig9_cw_incoherent_curved", "fig9_straight_vs_curved", "fig9_tracks"]
+    records = ["fig8_fm_baseband_straight", "fig9_cw_incoherent_curved", "fig9_cw_incoherent_straight"]
+    assert sorted(os.listdir(tmp_path)) == sorted([f"{n}.png" for n in pngs] + [f"{n}.npz" for n in records])
+    for name in pngs:
+        assert iio.imread(tmp_path / f"{name}.png").std() > 10
+    recs = {n: se.Record.load(tmp_path / f"{n}.npz") for n in records}
+    for name, rec in recs.items():
+        port = rec.port * tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+        kind = rec.labels.kind[0]  # the wreck lies to port
+        floor = np.median(port[kind == SEAFLOOR])
+        assert (kind == OBJECT).mean() > 0.02 and (kind == SHADOW).mean() > 0.05, name
+        assert np.median(port[kind == OBJECT]) > 4.0 * floor, name    # highlight: +6 dB over the floor
+        assert np.median(port[kind == SHADOW]) < 0.01 * floor, name   # shadow: −20 dB under it
+    # seafloor texture: the ripples (0.8 m, crests at 30°) repeat every 0.8 m / sin 30° = 1.6 m across track
+    period, contrast = _ripple_period_m(recs["fig8_fm_baseband_straight"])
+    assert abs(period - 0.8 / np.sin(np.radians(30.0))) < 0.1 and contrast > 100
+    # Fig. 9 runs along the curved pass, which moves the wreck's leading edge by metres in the waterfall
+    curved, straight = recs["fig9_cw_incoherent_curved"], recs["fig9_cw_incoherent_straight"]
+    kw = dict(shipwreck.PAPER_PASS, n_pings=64, ping_rate_hz=63 * 1.0 / 79.9)
+    assert curved.trajectory == shipwreck.curved_pass(**kw) and straight.trajectory == shipwreck.straight_pass(**kw)
+    on_c, on_s = curved.labels.kind[0] == OBJECT, straight.labels.kind[0] == OBJECT
+    both = on_c.any(axis=1) & on_s.any(axis=1)
+    r = curved.slant_range_m
+    shift = (r[np.argmax(on_c, axis=1)] - r[np.argmax(on_s, axis=1)])[both]
+    assert both.sum() > 20 and np.max(np.abs(shift)) > 3.0 and np.median(np.abs(shift)) > 1.0
