@@ -358,7 +358,7 @@ class FanSettings:
     max_step_deg : float or None
         Largest elevation step in degrees, wherever the scene is smooth.
     probe_step_deg : float or None
-        Elevation step of the coarse probe cast (one azimuth line per side) that
+        Elevation step of the coarse probe cast (three azimuth lines per side) that
         finds where range changes fast and where nothing is within range.
     max_rays_per_side : int
         Hard cap on elevation rays per azimuth line and side (a guard, not a budget).

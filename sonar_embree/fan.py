@@ -1,10 +1,10 @@
 """The ray budget: where each ping's rays go, and their echoes (PHYSICS.md §7).
 
-Per block of pings: one Embree call for the probes (one azimuth line per side at a
-coarse elevation step, plus a nadir ray for the altitude), a ray density per
-elevation cell from the probed slant ranges (rays uniform in slant range where the
-scene's range changes fastest, a coarse step where it is smooth, next to nothing
-where nothing is within range), one Embree call for every fan of the block, and one
+Per block of pings: one Embree call for the probes (three azimuth lines per side, at
+boresight and at the fan's edges, at a coarse elevation step, plus a nadir ray for the
+altitude), a ray density per elevation cell from the probed slant ranges (rays uniform
+in slant range where the scene's range changes fastest, a coarse step where it is
+smooth, next to nothing where nothing is within range), one Embree call for every fan of the block, and one
 Numba pass that turns hits into echoes. No Python loop touches rays or samples.
 """
 from __future__ import annotations
@@ -22,6 +22,9 @@ from .raycast import RayCaster
 #: A probe cell with nothing within range on both ends and both neighbours gets this
 #: many times the largest step: next to no rays, yet no blind spot.
 EMPTY_STEP_FACTOR = 8.0
+#: Probe lines per side, as fractions of the fan's outermost azimuth: the boresight line and the
+#: fan's edges, so that an object anywhere in the fan gets its edges refined.
+PROBE_LINES = np.array([0.0, -1.0, 1.0])
 #: Cells at object edges (range jumps, silhouettes) and their neighbours get this many times the density
 #: of the largest step.
 EDGE_DENSITY_FACTOR = 4.0
@@ -51,7 +54,8 @@ class FanPlan:
         lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad)
         m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
         probe = np.linspace(lo, hi, m)
-        body = np.concatenate([beam.fan_body([0.0], probe, -1), beam.fan_body([0.0], probe, +1)])
+        lines = PROBE_LINES * np.abs(s).max()
+        body = np.concatenate([beam.fan_body(lines, probe, -1), beam.fan_body(lines, probe, +1)])
         k = sonar.wavenumber_rad_m
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side,
@@ -92,8 +96,10 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     Parameters
     ----------
     plan : FanPlan
-    probe_r : (rows, m) float64
-        Probed slant range per row and probe depression, NaN for nothing in range.
+    probe_r : (rows, L·m) float64
+        Probed slant range per row, probe line (``PROBE_LINES``, line-major) and
+        probe depression, NaN for nothing in range. Each cell takes the densest
+        line's density.
 
     Returns
     -------
@@ -101,8 +107,10 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     beta, dbeta : (el_start[-1],) float64
         Depression and cell width of each elevation ray, rad.
     """
-    dens = beam.elevation_density(plan.probe_beta, probe_r, plan.dr_target_m, plan.max_step_rad,
+    rows, m = probe_r.shape[0], plan.probe_beta.shape[0]
+    dens = beam.elevation_density(plan.probe_beta, probe_r.reshape(-1, m), plan.dr_target_m, plan.max_step_rad,
                                   plan.slope_cap_m_rad, EMPTY_STEP_FACTOR, EDGE_DENSITY_FACTOR)
+    dens = np.ascontiguousarray(dens.reshape(rows, -1, m - 1).max(axis=1))  # the densest line per cell
     total = dens @ np.diff(plan.probe_beta)
     counts = np.clip(np.ceil(total - 1e-9), 1, plan.max_rays).astype(np.int64)
     el_start = np.concatenate(([0], np.cumsum(counts)))
@@ -139,16 +147,15 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     t0 = time.perf_counter()
     t_embree = 0.0
     n_p = rot.shape[0]
-    m = plan.probe_beta.shape[0]
     # hits a little beyond the window still reach into it with their footprints; the splatting crops them
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
     probe_dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1)).reshape(-1, 3)
-    probe_org = np.repeat(pos_local, 2 * m, axis=0)
+    probe_org = np.repeat(pos_local, plan.probe_body.shape[0], axis=0)
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
     t_embree += time.perf_counter() - t
-    probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, m)
+    probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, -1)
     t = time.perf_counter()
     nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
     t_embree += time.perf_counter() - t
