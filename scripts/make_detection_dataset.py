@@ -2,12 +2,14 @@
 
     python scripts/make_detection_dataset.py -o out/detection [--seeds 4] [--pings 160]
                                              [--workers N | --scheduler ADDRESS] [--quick] [--resume]
+                                             [--example docs/detection_example.png]
 
 Writes OUT/meshes/ (a cylindrical mine, a spherical mine, a box; metres, z up),
 OUT/sweep.toml (the sweep, readable and re-runnable with ``sonar-embree batch``)
 and OUT/dataset/: per job waterfall.png, labels.png, coco.json, record.zarr and
 job.json, plus dataset/coco.json with every box (categories box, cylinder_mine,
-sphere_mine). Each seed draws new ripples, object positions, headings and
+sphere_mine), and OUT/example.png (or ``--example``): the first job's waterfall
+above its labels. Each seed draws new ripples, object positions, headings and
 backscatter; coherent CW speckle, 400 kHz, 30 m range.
 """
 from __future__ import annotations
@@ -94,6 +96,20 @@ def write_meshes(folder: str) -> None:
         mesh.export(os.path.join(folder, f"{name}.obj"))
 
 
+def write_example(job_dir: str, path: str) -> None:
+    """The job's waterfall (grey) above its label image (colour), 4 white rows between (atomic)."""
+    import imageio.v3 as iio
+    import numpy as np
+
+    from sonar_embree.record import atomic_write
+
+    wf = iio.imread(os.path.join(job_dir, "waterfall.png"))
+    lab = iio.imread(os.path.join(job_dir, "labels.png"))[..., :3]
+    gap = np.full((4,) + lab.shape[1:], 255, dtype=np.uint8)
+    img = np.concatenate([np.repeat(wf[..., None], 3, axis=2), gap, lab], axis=0)
+    atomic_write(path, lambda tmp: iio.imwrite(tmp, img, extension=".png"), suffix=".png")
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("-o", "--output", default=os.path.join(ROOT, "out", "detection"), help="output folder")
@@ -103,6 +119,7 @@ def main(argv=None) -> int:
     p.add_argument("--scheduler", help="address of a running Dask scheduler")
     p.add_argument("--resume", action="store_true", help="continue an interrupted run")
     p.add_argument("--quick", action="store_true", help="2 seeds, 32 pings, quality 0.5 (for tests)")
+    p.add_argument("--example", help="where to write the example image (default OUT/example.png)")
     args = p.parse_args(argv)
     sys.path.insert(0, ROOT)
     import sonar_embree as se
@@ -121,7 +138,10 @@ def main(argv=None) -> int:
     except se.SonarEmbreeError as exc:
         print(f"make_detection_dataset: error: {exc}", file=sys.stderr)
         return 2
+    example = args.example or os.path.join(args.output, "example.png")
+    write_example(os.path.join(args.output, "dataset", "00000"), example)
     print(os.path.join(args.output, "dataset", "coco.json"))
+    print(example)
     return 0
 
 

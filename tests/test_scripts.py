@@ -50,6 +50,11 @@ def test_detection_dataset_script_writes_a_coco_dataset(tmp_path):
     names = {a["object_label"].split("#")[0] for a in coco["annotations"]}
     assert names == {"box", "cylinder_mine", "sphere_mine"}
     assert sorted(os.listdir(out / "meshes")) == ["box.obj", "cylinder_mine.obj", "sphere_mine.obj"]
+    example = iio.imread(out / "example.png")
+    waterfall = iio.imread(out / "dataset" / "00000" / "waterfall.png")
+    labels = iio.imread(out / "dataset" / "00000" / "labels.png")
+    assert example.shape == (waterfall.shape[0] + 4 + labels.shape[0], waterfall.shape[1], 3)
+    np.testing.assert_array_equal(example[:waterfall.shape[0], :, 0], waterfall)
 
 
 def test_physics_plots_script_writes_beam_pattern_and_ping(tmp_path):
