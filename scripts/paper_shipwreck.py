@@ -36,8 +36,10 @@ FM_BASEBAND = ("lfm", {})
 CW_INCOHERENT = ("cw", {"speckle": True, "band": "carrier", "detection": "incoherent"})
 
 
-def passes(shipwreck, n_pings: int, track_m: float):
+def passes(n_pings: int, track_m: float):
     """Straight and curved passes of ``n_pings`` over ``track_m`` metres (PAPER_PASS otherwise)."""
+    from sonar_embree import shipwreck
+
     kw = dict(shipwreck.PAPER_PASS, n_pings=n_pings)
     kw["ping_rate_hz"] = (n_pings - 1) * kw["speed_m_s"] / track_m
     return shipwreck.straight_pass(**kw), shipwreck.curved_pass(**kw)
@@ -73,7 +75,7 @@ def main(argv=None) -> int:
     scene = shipwreck.shipwreck_scene(floor=args.floor, size_m=args.floor_size)
     sonar = se.Sonar(max_range_m=args.max_range or shipwreck.PAPER_MAX_RANGE_M)
     pulses = {"lfm": se.Pulse.lfm(20e3, 1e-3, taper=0.1), "cw": se.Pulse.cw(100e-6, taper=0.1)}
-    straight, curved = passes(shipwreck, args.pings, args.track_m)
+    straight, curved = passes(args.pings, args.track_m)
     print(f"scene: {scene.n_faces} triangles on a {args.floor} floor ({time.perf_counter() - t0:.1f} s)")
 
     def render(name, traj, mode, png=True):

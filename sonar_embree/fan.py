@@ -4,8 +4,9 @@ Per block of pings: one Embree call for the probes (three azimuth lines per side
 boresight and at the fan's edges, at a coarse elevation step, plus a nadir ray for the
 altitude), a ray density per elevation cell from the probed slant ranges (rays uniform
 in slant range where the scene's range changes fastest, a coarse step where it is
-smooth, next to nothing where nothing is within range), one Embree call for every fan of the block, and one
-Numba pass that turns hits into echoes. No Python loop touches rays or samples.
+smooth, next to nothing where nothing is within range), one Embree call for every fan
+of the block, and one Numba pass that turns hits into echoes. No Python loop touches
+rays or samples.
 """
 from __future__ import annotations
 

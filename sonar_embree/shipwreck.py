@@ -128,8 +128,9 @@ def curved_waypoints(length_m: float, altitude_m: float = 12.0, bend_m: float = 
 def curved_pass(n_pings: int = 1000, altitude_m: float = 12.0, ping_rate_hz: float = 10.0, speed_m_s: float = 2.0,
                 offset_m: float = 0.0, bend_m: float = 2.5) -> Trajectory:
     """A slightly curved pass past the wreck (the paper's Fig. 9): an S-bend through
-    :func:`curved_waypoints` (± ``bend_m`` across track, about ±9° of heading at the
-    default 200 m), ``n_pings`` evenly spaced in arc length like :func:`straight_pass`.
+    :func:`curved_waypoints` (± ``bend_m`` across track: the heading swings ±4.3° over the
+    default 200 m, ±10.6° over the 80 m of :data:`PAPER_PASS`), ``n_pings`` evenly spaced
+    in arc length like :func:`straight_pass`.
     """
     length = (n_pings - 1) * speed_m_s / ping_rate_hz
     return Trajectory.through_waypoints(curved_waypoints(length, altitude_m, bend_m, offset_m), n_pings,

@@ -45,7 +45,6 @@ from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_name
 from .errors import ConfigError, SonarEmbreeError
 from .scene import Scene, load_mesh
 from .trajectory import Trajectory
-from .waterfall import check_display
 
 TOP_KEYS = ("sweep", "sonar", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
 SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex")
@@ -282,12 +281,7 @@ def load_sweep(path) -> Sweep:
         raise ConfigError(f"{src}: [sweep] complex must be true or false, got {keep_complex!r}")
     png = data.get("png", {})
     runconfig._check_keys("[png]", png, PNG_KEYS, src)
-    try:
-        check_display(**{k: v for k, v in png.items() if k != "tvg"})
-    except ConfigError as exc:
-        raise ConfigError(f"{src}: [png]: {exc}") from None
-    if not isinstance(png.get("tvg", False), bool):
-        raise ConfigError(f"{src}: [png]: tvg must be true or false, got {png['tvg']!r}")
+    runconfig._build(src, "[png]", runconfig.OutputOptions, png)  # the render [output] checks, one place
 
     base_tables = {}
     for t, cls in TABLES.items():
