@@ -4,7 +4,7 @@
     python scripts/bench_speed_vs_error.py --quick -o /tmp/bench   # a small run (used by the tests)
 
 Flat floor (10 m altitude, default sonar, 100 µs rectangular CW, speckle-free): the
-error is against the independent quadrature of PHYSICS.md eq. (2) (tests/analytic.py)
+error is against the independent quadrature of docs/physics.md eq. (2) (tests/analytic.py)
 over 11–49 m slant range. Shipwreck (56 m hull on a 203 m, ~2 M-triangle Perlin floor):
 the error is against quality 4 (4× the ray density along each axis), over samples
 within 30 dB of the reference's 99th percentile, speckle-free so that only the ray
@@ -165,9 +165,9 @@ def write_report(path, flat, ship, ship_ref, thr_flat, thr_ship, long, ship_info
              "run; the tests assert none of them.", "",
              "## Flat floor against the analytic return", "",
              "Default sonar at 10 m altitude, 100 µs rectangular CW, speckle-free; error of the mean line against "
-             "the independent quadrature of PHYSICS.md eq. (2) over 11–49 m slant range (both sides). "
+             "the independent quadrature of docs/physics.md eq. (2) over 11–49 m slant range (both sides). "
              "`footprint` is the simulator's default (each ray's echo spread over the range interval its cell "
-             "covers); `point echoes` is the PHYSICS.md §7 baseline (linear splatting of point echoes).", "",
+             "covers); `point echoes` is the docs/physics.md §7 baseline (linear splatting of point echoes).", "",
              "| splatting | quality | rays/ping | ms/ping | max dB | RMS dB | holes | Embree / rays / synthesis / "
              "processing (%) |", "|---|---:|---:|---:|---:|---:|---:|---|"]
     for label, rows in flat.items():
@@ -181,7 +181,7 @@ def write_report(path, flat, ship, ship_ref, thr_flat, thr_ship, long, ship_info
               f"{q1['max_db']:.3f} dB max error (target ≤ 0.2 dB and ≤ the 100 000-ray time).", "",
               "`holes`: share of samples that got no echo at all (rays sparser than the pulse). Point echoes on a "
               "regular grid with linear splatting are exact only when the ray spacing divides the range bin "
-              "evenly; in between they alias (the jagged curve on the plot, PHYSICS.md §7 asks ≥ 1 ray per bin). "
+              "evenly; in between they alias (the jagged curve on the plot, docs/physics.md §7 asks ≥ 1 ray per bin). "
               "Spreading each echo over its footprint removes that: the error is then set by how well g(R) is "
               "resolved, not by the bin grid, and reaches the floor of the azimuth span (main lobe only: "
               "−0.016 dB of ∫sinc⁴; 0.009 dB RMS once the first side lobes are in, quality > 1) at about "

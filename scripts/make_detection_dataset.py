@@ -104,7 +104,7 @@ def write_example(job_dir: str, path: str) -> None:
     from sonar_embree.record import atomic_write
 
     wf = iio.imread(os.path.join(job_dir, "waterfall.png"))
-    lab = iio.imread(os.path.join(job_dir, "labels.png"))[..., :3]
+    lab = iio.imread(os.path.join(job_dir, "labels_preview.png"))[..., :3]
     gap = np.full((4,) + lab.shape[1:], 255, dtype=np.uint8)
     img = np.concatenate([np.repeat(wf[..., None], 3, axis=2), gap, lab], axis=0)
     atomic_write(path, lambda tmp: iio.imwrite(tmp, img, extension=".png"), suffix=".png")

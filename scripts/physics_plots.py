@@ -3,7 +3,7 @@
     python scripts/physics_plots.py [-o docs/physics]
 
 - beam_pattern.png   one-way Γ² and two-way Γ⁴ (dB) of the default 400 kHz membrane
-                     (190 mm × 3.8 mm, PHYSICS.md §2) along track and in elevation,
+                     (190 mm × 3.8 mm, docs/physics.md §2) along track and in elevation,
                      with the −3 dB beamwidths and first nulls marked
 - ping.png           one starboard ping over the anchor-mine scene: expected intensity
                      (speckle-free) and one coherent-speckle realisation, in dB, with

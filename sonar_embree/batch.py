@@ -20,6 +20,7 @@ its scene once per worker.
 """
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import logging
@@ -27,16 +28,13 @@ import os
 import shutil
 import tempfile
 
-import numpy as np
-
 from .errors import ConfigError
 from .io.coco import coco_dict, merge, write_json
-from .record import Record
+from .record import Record, clean_stale
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
 
-LABEL_COLOURS = np.array([[0, 0, 0], [110, 110, 110], [255, 210, 0], [30, 90, 255]], dtype=np.uint8)
 _SCENE_CACHE: dict = {}
 
 
@@ -53,39 +51,66 @@ def render_part(spec: SceneSpec, job: Job, start: int, stop: int) -> Record:
     from .simulate import simulate
 
     return simulate(_scene(spec, job.seed), job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan,
-                    chain=job.chain, labels=job.labels, keep_complex=job.keep_complex, ping_offset=start)
+                    chain=job.chain, labels=job.labels, keep_complex=job.keep_complex, ping_offset=start,
+                    start_time=job.start_time)
 
 
-def _write_job(rec: Record, job: Job, sweep: Sweep, out_dir: str) -> None:
+def _write_outputs(rec: Record, job: Job, sweep: Sweep, folder: str) -> None:
+    """Every output the sweep asks for, of one job's record, into ``folder``."""
     info = job.describe(sweep)
     rec = dataclasses.replace(rec, attrs={**rec.attrs, "job": info["id"], "scene": info["scene"],
                                           "trajectory": info["trajectory"], "sweep": sweep.name,
                                           **{f"vary.{k}": v for k, v in info["vary"].items()}})
+    png = dict(sweep.png)
+    cols = png.pop("max_columns", 1024)
+    if "zarr" in sweep.outputs:
+        rec.to_zarr(os.path.join(folder, "record.zarr"))
+    if "xtf" in sweep.outputs:
+        rec.to_xtf(os.path.join(folder, "record.xtf"))
+    if "png" in sweep.outputs:
+        rec.save_png(os.path.join(folder, "waterfall.png"), max_columns=cols, **png)
+    if "labels" in sweep.outputs:
+        rec.labels.save_png(os.path.join(folder, "labels.png"), cols)
+    if "coco" in sweep.outputs:
+        write_json(coco_dict(rec, "waterfall.png", categories=sweep.categories, image_id=job.index,
+                             max_columns=cols), os.path.join(folder, "coco.json"))
+    if "npz" in sweep.outputs:
+        rec.save(os.path.join(folder, "record.npz"))
+    write_json(info, os.path.join(folder, "job.json"))
+
+
+def _write_job(rec: Record, job: Job, sweep: Sweep, out_dir: str) -> None:
     tmp = tempfile.mkdtemp(dir=out_dir, prefix=".tmp-")
     try:
-        png = dict(sweep.png)
-        cols = png.pop("max_columns", 1024)
-        if "zarr" in sweep.outputs:
-            rec.to_zarr(os.path.join(tmp, "record.zarr"))
-        if "xtf" in sweep.outputs:
-            rec.to_xtf(os.path.join(tmp, "record.xtf"))
-        if "png" in sweep.outputs:
-            rec.save_png(os.path.join(tmp, "waterfall.png"), max_columns=cols, **png)
-        if "labels" in sweep.outputs:
-            import imageio.v3 as iio
-
-            img = LABEL_COLOURS[rec.labels.waterfall("kind", cols)]
-            iio.imwrite(os.path.join(tmp, "labels.png"), img, extension=".png")
-        if "coco" in sweep.outputs:
-            write_json(coco_dict(rec, "waterfall.png", categories=sweep.categories, image_id=job.index,
-                                 max_columns=cols), os.path.join(tmp, "coco.json"))
-        if "npz" in sweep.outputs:
-            rec.save(os.path.join(tmp, "record.npz"))
-        write_json(info, os.path.join(tmp, "job.json"))
+        _write_outputs(rec, job, sweep, tmp)
         os.replace(tmp, os.path.join(out_dir, job.id))  # the job appears whole or not at all
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+
+
+def preflight(sweep: Sweep) -> None:
+    """Render one ping of each scene's first job and write all its outputs to a scratch folder.
+
+    Runs before anything is written to the output folder, so a sweep whose outputs
+    cannot be made (a COCO category, a label, a format) stops in seconds with one line
+    instead of after the jobs have rendered.
+    """
+    from .errors import SonarEmbreeError
+
+    seen = set()
+    try:
+        for job in sweep.jobs:
+            if job.scene_index in seen:
+                continue
+            seen.add(job.scene_index)
+            rec = render_part(sweep.scenes[job.scene_index], job, 0, 1)
+            with tempfile.TemporaryDirectory(prefix="sonar-embree-check-") as tmp:
+                _write_outputs(rec, job, sweep, tmp)
+    except SonarEmbreeError as exc:
+        raise type(exc)(f"{sweep.source}: outputs of job {job.id}: {exc}") from None
+    finally:
+        _SCENE_CACHE.clear()
 
 
 def _merged_coco(sweep: Sweep, out_dir: str) -> None:
@@ -102,31 +127,49 @@ def _merged_coco(sweep: Sweep, out_dir: str) -> None:
     write_json(merged, os.path.join(out_dir, "coco.json"))
 
 
-def _prepare(sweep: Sweep, out_dir: str, resume: bool) -> list:
-    os.makedirs(out_dir, exist_ok=True)
-    manifest = sweep.manifest()
+def _manifest_json(sweep: Sweep) -> dict:
+    return json.loads(json.dumps(sweep.manifest(), sort_keys=True, default=str))
+
+
+def _check_folder(sweep: Sweep, out_dir: str, resume: bool) -> None:
+    """Refuse an output folder that holds something else, before any work (nothing is written here)."""
     path = os.path.join(out_dir, "sweep.json")
     if os.path.exists(path):
-        with open(path, encoding="utf-8") as fh:
-            old = json.load(fh)
         if not resume:
             raise ConfigError(f"{out_dir}: already holds a batch (sweep.json); use --resume to continue it, "
                               "or choose an empty folder")
-        if old != json.loads(json.dumps(manifest, sort_keys=True, default=str)):
-            raise ConfigError(f"{out_dir}: holds a different sweep than {sweep.source}; choose another folder")
-    else:
+        try:
+            with open(path, encoding="utf-8") as fh:
+                old = json.load(fh)
+        except (OSError, ValueError) as exc:
+            raise ConfigError(f"{path}: unreadable ({exc}); choose another folder") from None
+        new = _manifest_json(sweep)
+        if old != new:
+            what = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+            raise ConfigError(f"{out_dir}: holds a different sweep than {sweep.source} (changed: "
+                              f"{', '.join(what)}); choose another folder")
+    elif os.path.isdir(out_dir):
         stray = [n for n in os.listdir(out_dir) if not n.startswith(".tmp-")]
         if stray:
             raise ConfigError(f"{out_dir}: not empty and not a batch folder (found {stray[0]!r})")
-        write_json(json.loads(json.dumps(manifest, default=str)), path)
-    for name in os.listdir(out_dir):  # what a killed run was writing
-        if name.startswith(".tmp-"):
-            shutil.rmtree(os.path.join(out_dir, name), ignore_errors=True)
-    return [j for j in sweep.jobs if not os.path.isdir(os.path.join(out_dir, j.id))]
+    elif os.path.exists(out_dir):
+        raise ConfigError(f"{out_dir}: exists and is not a folder")
+
+
+def _prepare(sweep: Sweep, out_dir: str, resume: bool) -> tuple:
+    """Write ``sweep.json`` (unless resuming) and clear what a killed run left; return (jobs to run, fresh)."""
+    os.makedirs(out_dir, exist_ok=True)
+    path = os.path.join(out_dir, "sweep.json")
+    fresh = not os.path.exists(path)
+    if fresh:
+        write_json(_manifest_json(sweep), path)
+    clean_stale(out_dir)  # what a killed run was writing
+    return [j for j in sweep.jobs if not os.path.isdir(os.path.join(out_dir, j.id))], fresh
 
 
 def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: int | None = None,
-        resume: bool = False, progress: bool = False) -> list:
+        resume: bool = False, progress: bool = False, dashboard: str | None = None,
+        max_in_flight: int | None = None) -> list:
     """Render every job of a sweep into ``out_dir``.
 
     Parameters
@@ -145,9 +188,17 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
         Worker processes of the ``LocalCluster`` started when neither ``client`` nor
         ``scheduler`` is given (default: the CPU count, at most 8).
     resume : bool
-        Continue a batch in ``out_dir``: finished jobs are kept, the rest run.
+        Continue a batch in ``out_dir``: finished jobs are kept, the rest run. Refused
+        when any input (settings, trajectories, mesh and CSV file contents) changed.
     progress : bool
         A progress bar over jobs (tqdm, on stderr).
+    dashboard : str, optional
+        Address of the local cluster's Dask dashboard (``":8787"``); default: none,
+        and no HTTP port is bound on a public interface.
+    max_in_flight : int, optional
+        Most tasks submitted and not yet collected (default: 4 per worker thread,
+        at least 8). Later tasks are submitted as earlier ones finish, so a sweep of
+        any number of jobs runs in bounded memory on the scheduler and here.
 
     Returns
     -------
@@ -156,75 +207,132 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
     """
     sweep = sweep if isinstance(sweep, Sweep) else load_sweep(sweep)
     out_dir = os.path.abspath(os.fspath(out_dir))
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-        raise ConfigError(f"batch: workers must be an integer >= 1, got {workers!r}")
+    for name, value in (("workers", workers), ("max_in_flight", max_in_flight)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, int) or value < 1):
+            raise ConfigError(f"batch: {name} must be an integer >= 1, got {value!r}")
     if client is not None and scheduler is not None:
         raise ConfigError("batch: give either a client or a scheduler address, not both")
-    todo = _prepare(sweep, out_dir, resume)
-    if todo:
-        from distributed import Client, LocalCluster
-
-        cluster = None
-        own = client is None
-        if own and scheduler is not None:
-            try:
-                client = Client(scheduler, timeout="20s")
-            except OSError as exc:
-                raise ConfigError(f"batch: cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
-        elif own:
-            n = workers or max(1, min(os.cpu_count() or 1, 8))
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   silence_logs=logging.ERROR)
-            client = Client(cluster)
-        try:
-            _run_jobs(client, sweep, todo, out_dir, progress)
-        finally:
-            if own:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
-    if "coco" in sweep.outputs:
-        _merged_coco(sweep, out_dir)
+    _check_folder(sweep, out_dir, resume)
+    preflight(sweep)
+    created = not os.path.exists(out_dir)
+    todo, fresh = _prepare(sweep, out_dir, resume)
+    try:
+        if todo:
+            _run_on_cluster(sweep, todo, out_dir, client, scheduler, workers, dashboard, max_in_flight, progress)
+        if "coco" in sweep.outputs:
+            _merged_coco(sweep, out_dir)
+    except BaseException:
+        if fresh and not any(os.path.isdir(os.path.join(out_dir, j.id)) for j in sweep.jobs):
+            _remove_started(out_dir, created)  # nothing finished: leave no batch to refuse a re-run
+        raise
     return [j.id for j in todo]
 
 
-def _run_jobs(client, sweep: Sweep, todo: list, out_dir: str, progress: bool) -> None:
+def _remove_started(out_dir: str, created: bool) -> None:
+    for name in ("sweep.json", "coco.json"):
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(os.path.join(out_dir, name))
+    if created:
+        with contextlib.suppress(OSError):
+            os.rmdir(out_dir)
+
+
+@contextlib.contextmanager
+def _cluster(client, scheduler, workers, dashboard):
+    """The client to run on: the caller's, one connected to ``scheduler``, or a quiet LocalCluster's."""
+    if client is not None:
+        yield client
+        return
+    from distributed import Client, LocalCluster
+
+    if scheduler is not None:
+        try:
+            own = Client(scheduler, timeout="20s")
+        except OSError as exc:
+            raise ConfigError(f"batch: cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
+        with own:
+            yield own
+        return
+    import dask
+
+    n = workers or max(1, min(os.cpu_count() or 1, 8))
+    # Without a dashboard the scheduler's HTTP server (health routes only) listens on a free loopback port.
+    http = {} if dashboard else {"dashboard": False, "dashboard_address": "127.0.0.1:0"}
+    with dask.config.set({"distributed.scheduler.http.routes": [] if not dashboard else
+                          dask.config.get("distributed.scheduler.http.routes")}):
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
+                               silence_logs=logging.ERROR, scheduler_kwargs=http)
+    with cluster, Client(cluster) as own:
+        yield own
+
+
+def _run_on_cluster(sweep, todo, out_dir, client, scheduler, workers, dashboard, max_in_flight, progress):
+    with _cluster(client, scheduler, workers, dashboard) as c:
+        if max_in_flight is None:
+            threads = sum(c.nthreads().values()) or 1
+            max_in_flight = max(8, 4 * threads)
+        _run_jobs(c, sweep, todo, out_dir, progress, max_in_flight)
+
+
+def _tasks(sweep: Sweep, todo: list):
+    """(job, start, stop) of every task, job by job: a job's pieces are submitted together."""
+    for job in todo:
+        n = len(job.trajectory)
+        for a in range(0, n, sweep.pings_per_task):
+            yield job, a, min(a + sweep.pings_per_task, n)
+
+
+def _run_jobs(client, sweep: Sweep, todo: list, out_dir: str, progress: bool, max_in_flight: int,
+              stats: dict | None = None) -> None:
+    """Submit tasks with back-pressure (at most ``max_in_flight`` uncollected) and write jobs as they finish."""
     from distributed import as_completed
 
-    tag = sweep.manifest()["settings"][:10]
-    parts, owner = {}, {}
-    for job in todo:
-        spec = sweep.scenes[job.scene_index]
-        n = len(job.trajectory)
-        futs = [client.submit(render_part, spec, job, a, min(a + sweep.pings_per_task, n), pure=False,
-                              priority=-job.index, key=f"sonar-embree-{tag}-{job.id}-{a}")
-                for a in range(0, n, sweep.pings_per_task)]
-        parts[job.id] = futs
-        for f in futs:
-            owner[f.key] = job
+    tag = sweep.manifest_digest()[:10]
+    tasks = _tasks(sweep, todo)
+    parts: dict = {}              # job id -> {start: Record}
+    expected = {j.id: -(-len(j.trajectory) // sweep.pings_per_task) for j in todo}
+    pending = as_completed([])
+    owner: dict = {}              # future key -> (job, first ping)
+    in_flight, peak = 0, 0
+
+    def submit_more():
+        nonlocal in_flight, peak
+        while in_flight < max_in_flight:
+            task = next(tasks, None)
+            if task is None:
+                return
+            job, a, b = task
+            fut = client.submit(render_part, sweep.scenes[job.scene_index], job, a, b, pure=False,
+                                priority=-job.index, key=f"sonar-embree-{tag}-{job.id}-{a}")
+            owner[fut.key] = (job, a)
+            pending.add(fut)
+            in_flight += 1
+            peak = max(peak, in_flight)
+
     bar = None
     if progress:
         from tqdm.auto import tqdm
         bar = tqdm(total=len(todo), desc="jobs", unit="job")
-    left = {j.id: len(parts[j.id]) for j in todo}
     try:
-        for fut in as_completed([f for fs in parts.values() for f in fs]):
-            job = owner[fut.key]
-            if fut.status == "error":
-                fut.result()  # raises the task's own exception
-            left[job.id] -= 1
-            if left[job.id]:
-                continue
-            rec = Record.concatenate(f.result() for f in parts[job.id])
-            _write_job(rec, job, sweep, out_dir)
-            del parts[job.id]
-            if bar is not None:
-                bar.update(1)
+        submit_more()
+        for fut in pending:
+            in_flight -= 1
+            job, a = owner.pop(fut.key)
+            got = parts.setdefault(job.id, {})
+            got[a] = fut.result()  # raises the task's own exception
+            fut.release()
+            if len(got) == expected[job.id]:
+                rec = Record.concatenate(got[a] for a in sorted(got))
+                del parts[job.id]
+                _write_job(rec, job, sweep, out_dir)
+                if bar is not None:
+                    bar.update(1)
+            submit_more()
     except BaseException:
-        for fs in parts.values():
-            client.cancel(fs)
+        client.cancel(list(pending.futures))
         raise
     finally:
         if bar is not None:
             bar.close()
-
+        if stats is not None:
+            stats["peak_in_flight"] = peak

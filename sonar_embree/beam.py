@@ -1,4 +1,4 @@
-"""Rectangular-membrane directivity and the per-ping ray fan (PHYSICS.md §2, §3, §7).
+"""Rectangular-membrane directivity and the per-ping ray fan (docs/physics.md §2, §3, §7).
 
 Body axes are (forward, starboard, down). A fan direction is parameterised by
 ``s`` = sin ψ, the along-track direction cosine, and the in-plane depression ``β``
@@ -93,7 +93,7 @@ def azimuth_samples(wavelength_m: float, length_m: float, oversample: float, n_n
     """Along-track direction cosines of the fan and their common spacing.
 
     Spacing ds = λ/(2·lx)/oversample integrates the band-limited sinc⁴ exactly
-    (PHYSICS.md §7); the span is ± ``n_nulls`` first nulls; the count is odd so
+    (docs/physics.md §7); the span is ± ``n_nulls`` first nulls; the count is odd so
     one line lies on boresight. Rays exactly on a null (zero weight) are dropped.
 
     Returns

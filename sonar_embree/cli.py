@@ -11,6 +11,7 @@ import os
 import sys
 
 from .errors import SonarEmbreeError
+from .record import STALE_PREFIXES, clean_stale
 
 EPILOG = """\
 Outputs (in OUT/): waterfall.png (port mirrored on the left, starboard on the right,
@@ -37,14 +38,16 @@ dataclasses (units in the key names):
   [trajectory]  kind = "line": start, end, n_pings, speed_m_s, pitch_deg, roll_deg, heading_deg
                 kind = "waypoints": waypoints, n_pings, speed_m_s, pitch_deg, roll_deg
                 kind = "csv": path (columns time_s,x_m,y_m,z_m,heading_deg,pitch_deg,roll_deg)
-  [[objects]]   path = mesh file (OBJ/PLY/STL/GLB, metres, z up)  or
+  [[objects]]   path = mesh file (OBJ/PLY/STL/GLB, metres; up_axis = "z" (default)
+                or "y" for a Y-up export; GLB/glTF are read y up as specified)  or
                 seafloor = "flat" | "perlin" | "ripples" and its arguments (size_m, ...);
                 optional label, material = { backscatter_db = -27 }, and for mesh files
                 is_seafloor (default: label "seafloor" or "seafloor/...", for ground-truth
                 shadows) and materials = { name = { backscatter_db = -15 }, ... } per object
-  [output]      png, npz, scale ("db"|"gamma"), dynamic_range_db, gamma,
-                ground_range, tvg (display only), reference_percentile (99.5:
-                the level shown white), max_columns (1024 per side)
+  [output]      png, npz, scale ("db"|"gamma"), dynamic_range_db (35), gamma,
+                ground_range, tvg (display only; default true), reference_percentile
+                (99.99: the level shown white), floor_headroom_db (12: white at least
+                this far above the median), max_columns (1024 per side)
 
 Relative paths are relative to CONFIG.toml. See assets/configs/ for examples.
 """
@@ -65,7 +68,8 @@ SWEEP.toml holds [sonar], [pulse], [fan] and [simulation] as in render configs
                   [[x0, x1], [y0, y1]] + yaw_deg = [lo, hi], or poses = [[x, y, yaw_deg], ...];
                   z_m (height above the floor), material = {backscatter_db = [lo, hi]}
   [[trajectories]] as [trajectory] of render configs, plus name
-  [png]           scale, dynamic_range_db, gamma, tvg, max_columns
+  [png]           scale, dynamic_range_db, gamma, tvg, reference_percentile,
+                  floor_headroom_db, max_columns (defaults as render's [output])
 
 Jobs = scenes x trajectories x [vary] combinations x seeds. Outputs per job in
 OUT/<id>/: record.zarr, record.xtf, waterfall.png, labels.png, coco.json, record.npz,
@@ -88,6 +92,7 @@ def _parser() -> argparse.ArgumentParser:
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     d.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
     d.add_argument("--pings", type=int, default=240, help="number of pings over the 24 m track (default 240)")
+    d.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in OUT")
     d.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     _add_chain_options(d)
 
@@ -96,6 +101,7 @@ def _parser() -> argparse.ArgumentParser:
                        formatter_class=argparse.RawDescriptionHelpFormatter)
     r.add_argument("config", metavar="CONFIG.toml", help="run description (see below)")
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
+    r.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in OUT")
     r.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     _add_chain_options(r)
 
@@ -109,6 +115,8 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster "
                                                             "(default: CPU count, at most 8)")
     b.add_argument("--resume", action="store_true", help="continue a batch in OUT: keep finished jobs, redo the rest")
+    b.add_argument("--dashboard", nargs="?", const=":8787", metavar="ADDRESS",
+                   help="serve the local cluster's Dask dashboard (default address :8787; off unless given)")
     b.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     return p
 
@@ -155,18 +163,44 @@ def _fan(args, base=None):
     return base if args.quality is None else dataclasses.replace(base, quality=args.quality)
 
 
+OUTPUT_NAMES = ("record.npz", "waterfall.png")
+
+
+def _check_output_folder(out_dir: str, overwrite: bool) -> None:
+    """Refuse to overwrite a folder that holds anything but what a killed run left, unless asked to."""
+    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
+        raise SonarEmbreeError(f"{out_dir}: exists and is not a folder")
+    if os.path.isdir(out_dir) and not overwrite:
+        held = sorted(n for n in os.listdir(out_dir) if not n.startswith(STALE_PREFIXES))
+        if held:
+            raise SonarEmbreeError(f"{out_dir}: not empty (holds {held[0]!r}); choose another folder or "
+                                   "add --overwrite")
+
+
 def _write_outputs(rec, out_dir, png=True, npz=True, png_kwargs=None):
+    """Write the outputs into a temporary folder, then move them into ``out_dir`` together."""
+    import shutil
+    import tempfile
+
     os.makedirs(out_dir, exist_ok=True)
-    written = []
-    if npz:
-        path = os.path.join(out_dir, "record.npz")
-        rec.save(path)
-        written.append(path)
-    if png:
-        path = os.path.join(out_dir, "waterfall.png")
-        rec.save_png(path, **(png_kwargs or {}))
-        written.append(path)
-    return written
+    clean_stale(out_dir)
+    tmp = tempfile.mkdtemp(dir=out_dir, prefix=".tmp-")
+    try:
+        names = []
+        for want, name, write in ((npz, "record.npz", lambda p: rec.save(p)),
+                                  (png, "waterfall.png", lambda p: rec.save_png(p, **(png_kwargs or {})))):
+            if want:
+                path = os.path.join(out_dir, name)
+                try:
+                    write(os.path.join(tmp, name))
+                except OSError as exc:
+                    raise OSError(exc.errno, exc.strerror or str(exc), path) from None
+                names.append(name)
+        for name in names:  # renames only: the new set lands together, the old stays until then
+            os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return [os.path.join(out_dir, n) for n in names]
 
 
 def _run(args) -> list:
@@ -176,19 +210,21 @@ def _run(args) -> list:
         from . import batch
 
         ids = batch.run(args.sweep, args.output, scheduler=args.scheduler, workers=args.workers,
-                        resume=args.resume, progress=not args.no_progress)
+                        resume=args.resume, progress=not args.no_progress, dashboard=args.dashboard)
         return [os.path.join(args.output, i) for i in ids]
     if args.command == "demo":
         from .demo import DEMO_PNG, anchor_mine_setup
 
         if args.pings < 1:
             raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
+        _check_output_folder(args.output, args.overwrite)
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
         rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress)
         return _write_outputs(rec, args.output, png_kwargs=DEMO_PNG)
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
+    _check_output_folder(args.output, args.overwrite)
     rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
                    fan=_fan(args, cfg.fan),
                    progress=not args.no_progress)
@@ -198,13 +234,26 @@ def _run(args) -> list:
     return _write_outputs(rec, args.output, png=o.png, npz=o.npz, png_kwargs=o.png_kwargs())
 
 
+def _configure_logging(verbose: bool) -> None:
+    """Our messages at INFO with ``-v``, else warnings only; Dask's only with ``-v`` (errors always)."""
+    logging.basicConfig(format="sonar-embree: %(message)s")
+    level = logging.INFO if verbose else logging.WARNING
+    logging.getLogger().setLevel(level)
+    for handler in logging.getLogger().handlers:
+        handler.setLevel(level)  # records propagated from Dask's loggers bypass the root logger's level
+    for name in ("distributed", "dask", "bokeh", "tornado"):
+        logging.getLogger(name).setLevel(logging.INFO if verbose else logging.ERROR)
+
+
 def main(argv=None) -> int:
     """Entry point of ``sonar-embree``; returns the exit status."""
     args = _parser().parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="sonar-embree: %(message)s")
+    _configure_logging(args.verbose)
     try:
         written = _run(args)
+    except KeyboardInterrupt:
+        print("sonar-embree: interrupted; no output was left half-written", file=sys.stderr)
+        return 130
     except SonarEmbreeError as exc:
         print(f"sonar-embree: error: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2

@@ -41,7 +41,7 @@ def field_names(cls) -> tuple[str, ...]:
 
 @dataclass(frozen=True)
 class Sonar:
-    """A side-scan sonar with one rectangular membrane per side (PHYSICS.md §1–2).
+    """A side-scan sonar with one rectangular membrane per side (docs/physics.md §1–2).
 
     Parameters
     ----------
@@ -66,7 +66,7 @@ class Sonar:
         One-way absorption α in dB/m (the two-way loss is 2αR dB), an explicit
         override. ``None`` (default) computes it with Francois–Garrison from
         ``frequency_hz`` and the water below: 0.0961 dB/m at 400 kHz, 10 °C,
-        35 ppt, pH 8 (PHYSICS.md §3). Read the value in use from :attr:`alpha_db_per_m`.
+        35 ppt, pH 8 (docs/physics.md §3). Read the value in use from :attr:`alpha_db_per_m`.
     temperature_c : float
         Water temperature in °C, for Francois–Garrison.
     salinity_ppt : float
@@ -199,7 +199,7 @@ class Sonar:
 
 @dataclass(frozen=True)
 class Pulse:
-    """A transmitted pulse: its kind, length, envelope taper and sweep (PHYSICS.md §5).
+    """A transmitted pulse: its kind, length, envelope taper and sweep (docs/physics.md §5).
 
     Use the constructors: ``Pulse.cw(duration_s, taper)``,
     ``Pulse.lfm(bandwidth_hz, duration_s, taper, center_hz=None)`` and
@@ -310,11 +310,18 @@ class Material:
     backscatter_db : float
         Lambert backscatter strength μ in dB (σ = μ·cos²θi per unit area per
         steradian). −27 dB is Mackenzie's value for sand/mud.
+    two_sided : bool
+        Scatter from both sides of every face (default False: faces seen from behind
+        return nothing, as closed meshes need). For open surfaces of unknown
+        winding: sheets, plates, meshes with inverted normals.
     """
 
     backscatter_db: float = -27.0
+    two_sided: bool = False
 
     def __post_init__(self):
+        if not isinstance(self.two_sided, bool):
+            raise ConfigError(f"Material.two_sided must be true or false, got {self.two_sided!r}")
         _check_number("Material", "backscatter_db", self.backscatter_db, hi=30.0)
         if self.backscatter_db < -300:
             raise ConfigError(f"Material.backscatter_db must be >= -300 dB, got {self.backscatter_db!r}")
@@ -327,7 +334,7 @@ class Material:
 
 @dataclass(frozen=True)
 class FanSettings:
-    """How densely each ping's fan of rays samples the beam (PHYSICS.md §7).
+    """How densely each ping's fan of rays samples the beam (docs/physics.md §7).
 
     One number, ``quality``, trades error for speed; every other field left at
     ``None`` follows from it (see :meth:`resolved`), and any field given explicitly
@@ -365,7 +372,7 @@ class FanSettings:
     footprint : bool
         Spread each ray's echo over the slant-range interval its cell covers on the
         surface (default). False treats rays as point echoes with linear splatting,
-        the PHYSICS.md §7 baseline, which needs about one ray per range bin.
+        the docs/physics.md §7 baseline, which needs about one ray per range bin.
     """
 
     quality: float = 1.0
@@ -403,7 +410,7 @@ class FanSettings:
 
 @dataclass(frozen=True)
 class SignalChain:
-    """How echoes become the record: speckle, band, detection and processing (PHYSICS.md §4–5).
+    """How echoes become the record: speckle, band, detection and processing (docs/physics.md §4–5).
 
     The keyword arguments of :func:`sonar_embree.simulate` and the ``[simulation]``
     table of a run config map 1:1 onto these fields.

@@ -15,7 +15,7 @@ from .trajectory import Trajectory
 
 #: Waterfall display of the demo: display-only TVG, 35 dB below the brightest 0.01 % (the objects),
 #: so the floor is grey and the shadows show.
-DEMO_PNG = {"dynamic_range_db": 35.0, "tvg": True, "reference_percentile": 99.99, "max_columns": 540}
+DEMO_PNG = {"max_columns": 540}  # the display defaults (waterfall.DISPLAY_DEFAULTS), narrower
 
 #: Object positions (m): sinker cube edge 1 m; spheres (centre, radius).
 MINE_GROUND_RANGE_M = 24.0

@@ -1,4 +1,4 @@
-"""The ray budget: where each ping's rays go, and their echoes (PHYSICS.md §7).
+"""The ray budget: where each ping's rays go, and their echoes (docs/physics.md §7).
 
 Per block of pings: one Embree call for the probes (three azimuth lines per side, at
 boresight and at the fan's edges, at a coarse elevation step, plus a nadir ray for the
@@ -18,6 +18,7 @@ import numpy as np
 
 from . import beam, kernels
 from .config import FanSettings, Sonar
+from .processing import convolve_time
 from .raycast import RayCaster
 
 #: A probe cell with nothing within range on both ends and both neighbours gets this
@@ -80,7 +81,7 @@ class BlockEchoes:
     ray_start: np.ndarray   # (rows + 1,) int64
     range_m: np.ndarray     # (n,) float64 slant range (inf: no echo)
     extent_m: np.ndarray    # (n,) float64 slant-range interval the ray's cell covers
-    weight: np.ndarray      # (n,) float64 expected intensity (PHYSICS.md §3)
+    weight: np.ndarray      # (n,) float64 expected intensity (docs/physics.md §3)
     point_m: np.ndarray     # (n, 3) float64 hit points in the local frame, or (0, 3)
     altitude_m: np.ndarray  # (pings,) nadir range, NaN if none
     n_rays: np.ndarray      # (pings,) rays cast per ping, probes included
@@ -178,7 +179,7 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     pts = np.empty((n, 3) if want_points else (0, 3))
     c = caster.compiled
     kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
-                       c.face_normals, face_mu, plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
+                       c.face_normals, face_mu, c.two_sided[c.face_object], plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
                        plan.slope_cap_m_rad, rng, ext, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
@@ -303,3 +304,45 @@ def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarra
     kernels.label_rows(el_start, float(dr_m), rng, ext, score, lit_obj, pts, lit_dir, hid_r, hid_ext, lit_obj,
                        hid_pt, hid_dir, pos_local, np.ascontiguousarray(is_seafloor, dtype=np.bool_),
                        float(origin_z_m), np.empty((rows, n_s)), *flat)
+
+
+def object_echo_block(e: BlockEchoes, face_object: np.ndarray, is_seafloor: np.ndarray, delay_per_m: float,
+                      kernel: np.ndarray, lead: int, out_id: np.ndarray, out_value: np.ndarray) -> None:
+    """The strongest object echo at every sample of a block, from all azimuth lines of the fan.
+
+    Each object (not seafloor) hit in the block has its rays' expected echoes splatted
+    and convolved with the pulse intensity on their own, exactly as the record is
+    made; per sample the strongest object wins. This is what the waterfall shows of
+    each object, so detection boxes and masks follow it (docs/physics.md §9).
+
+    Parameters
+    ----------
+    e : BlockEchoes
+    face_object : (faces,) int32
+    is_seafloor : (n_objects,) bool
+    delay_per_m : float
+        Samples per metre of slant range, 2·fs/c.
+    kernel : (n_k,) float64
+        Expected intensity of a unit echo (:func:`sonar_embree.pulses.expected_kernel`).
+    lead : int
+        Kernel taps before the echo time.
+    out_id : (pings, 2, n_out) int32
+        Written: object index of the strongest object echo, −1 where none.
+    out_value : (pings, 2, n_out) float32
+        Written: its expected intensity (unit source, no TVG).
+    """
+    n_p, _, n_out = out_id.shape
+    obj = np.where(e.prim >= 0, face_object[np.maximum(e.prim, 0)], -1)
+    obj = np.where((obj >= 0) & (e.weight > 0) & ~is_seafloor[np.maximum(obj, 0)], obj, -1)
+    best = np.zeros((2 * n_p, n_out))
+    best_id = np.full((2 * n_p, n_out), -1, dtype=np.int32)
+    n_s = n_out + lead
+    for k in np.unique(obj[obj >= 0]):
+        buf = np.zeros((2 * n_p, n_s))
+        kernels.splat_rows(e.ray_start, e.range_m * delay_per_m, e.extent_m * delay_per_m,
+                           np.where(obj == k, e.weight, 0.0), buf)
+        img = convolve_time(buf, kernel, lead)[:, :n_out]
+        better = img > best
+        best[better], best_id[better] = img[better], k
+    out_id[...] = best_id.reshape(n_p, 2, n_out)
+    out_value[...] = best.reshape(n_p, 2, n_out)

@@ -362,9 +362,9 @@ def _sinc(x):
 
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals, face_mu,
-               beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, range_out, extent_out,
+               face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, range_out, extent_out,
                weight_out, points_out):
-    """Expected echo of every ray of a block: range, range extent and intensity (PHYSICS.md §2–3).
+    """Expected echo of every ray of a block: range, range extent and intensity (docs/physics.md §2–3).
 
     The hit range is the float64 intersection with the hit triangle's plane (Embree's
     float32 distance where that is ill-conditioned). A ray of cell ds × dβ on a
@@ -374,7 +374,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
 
     spread over the slant-range interval R ± ΔR/2 its cell covers on the plane,
     ΔR = R·|n̂·∂u/∂β| / cos θi · dβ (at most ``slope_cap_m_rad``·dβ). Misses, back
-    faces, grazing hits (cos θi ≤ 1e-9) and hits beyond ``max_range_m`` get w = 0.
+    faces (unless two-sided: then cos θi = |n̂·u|), grazing hits (cos θi ≤ 1e-9) and
+    hits beyond ``max_range_m`` get w = 0.
 
     Parameters
     ----------
@@ -389,6 +390,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
         The scene in its local frame.
     face_mu : (f,) float64
         Linear Lambert coefficient of each triangle.
+    face_two_sided : (f,) bool
+        Triangles that scatter from both sides (two-sided materials).
     beam : (4,) float64
         k·lx/2, k·ly/2, tilt δ (rad) and 0 (reserved).
     two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad : float
@@ -447,6 +450,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
                     if abs(t64 - t_emb) <= 1e-3 * (1.0 + t_emb):
                         rr = t64
                 cos_i = -dn
+                if cos_i < 0.0 and face_two_sided[t]:
+                    cos_i = dn
                 if not (cos_i > 1e-9) or not (rr <= max_range_m):
                     continue
                 if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle

@@ -18,6 +18,11 @@ from .waterfall import waterfall_block
 WATER, SEAFLOOR, OBJECT, SHADOW = 0, 1, 2, 3
 KIND_NAMES = ("water", "seafloor", "object", "shadow")
 SIDES = ("port", "starboard")
+#: Colours of the label preview PNG, by kind: water black, seafloor grey, object yellow, shadow blue.
+KIND_COLOURS = np.array([[0, 0, 0], [110, 110, 110], [255, 210, 0], [30, 90, 255]], dtype=np.uint8)
+#: A sample belongs to an object's echo where that object's expected echo is at least this fraction
+#: of its peak in the record (10 %, −10 dB) and stronger than any other object's there.
+ECHO_FRACTION = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -39,6 +44,12 @@ class Labels:
         hidden seafloor), m; NaN for water.
     ground_range_m : float32
         Horizontal distance from the sonar to that point, m; NaN for water.
+    echo_object : int32
+        Object (not seafloor) whose expected echo, over every azimuth line of the
+        fan, is the strongest at this sample; −1 where no object echoes. This is
+        what the waterfall shows of the objects: boxes and masks follow it.
+    echo_intensity : float32
+        That object's expected echo intensity (unit source, no TVG); 0 where none.
     names : tuple of str
         Object labels of the scene, by object index.
     is_seafloor : tuple of bool
@@ -50,10 +61,14 @@ class Labels:
     shadow_of: np.ndarray
     height_m: np.ndarray
     ground_range_m: np.ndarray
+    echo_object: np.ndarray
+    echo_intensity: np.ndarray
     names: tuple
     is_seafloor: tuple
 
-    ARRAYS = ("kind", "object_id", "shadow_of", "height_m", "ground_range_m")
+    ARRAYS = ("kind", "object_id", "shadow_of", "height_m", "ground_range_m", "echo_object", "echo_intensity")
+    DTYPES = {"kind": np.int8, "object_id": np.int32, "shadow_of": np.int32, "height_m": np.float32,
+              "ground_range_m": np.float32, "echo_object": np.int32, "echo_intensity": np.float32}
 
     def __post_init__(self):
         shape = self.kind.shape
@@ -109,26 +124,65 @@ class Labels:
             sides.append(_block_first(a, keep, block))
         return np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
 
-    def boxes(self, max_columns: int | None = 1024) -> list:
-        """Bounding boxes of every object's highlight in the waterfall image.
+    def echo_mask(self, i: int, fraction: float = ECHO_FRACTION) -> np.ndarray:
+        """(2, n_pings, n_samples) bool: where object ``i``'s echo is the strongest object echo and at
+        least ``fraction`` of its peak in this record (what the waterfall shows of it)."""
+        mine = self.echo_object == i
+        if not mine.any():
+            return mine
+        peak = float(self.echo_intensity[mine].max())
+        return mine & (self.echo_intensity >= fraction * peak) & (peak > 0)
+
+    def boxes(self, max_columns: int | None = 1024, source: str = "echo") -> list:
+        """Bounding boxes of every object in the waterfall image.
+
+        Parameters
+        ----------
+        max_columns : int or None
+            As :meth:`Record.waterfall`.
+        source : {"echo", "centre"}
+            "echo" (default): the object's echo as the waterfall shows it, from
+            every azimuth line (:meth:`echo_mask`); "centre": the geometric truth of
+            each ping's centre line (``kind == OBJECT``).
 
         Returns
         -------
         list of dict
             ``object`` (index), ``label``, ``bbox`` [x, y, width, height] in pixels
             (x the column, y the ping row; a box covers whole pixels), ``area``
-            (highlight pixels) and ``shadow_bbox`` (the box of the shadow it casts, or
-            None). Objects with no highlight pixel are left out.
+            (pixels), ``mask`` (the object's (rows, columns) bool image) and
+            ``shadow_bbox`` (the box of the shadow it casts along the centre lines,
+            or None). Objects with no pixel are left out.
         """
+        if source not in ("echo", "centre"):
+            raise ConfigError(f"Labels.boxes source must be 'echo' or 'centre', got {source!r}")
         out = []
         for i in self.objects:
-            mask = self.mask((self.kind == OBJECT) & (self.object_id == i), max_columns)
+            sel = self.echo_mask(i) if source == "echo" else (self.kind == OBJECT) & (self.object_id == i)
+            mask = self.mask(sel, max_columns)
             if not mask.any():
                 continue
             shadow = self.mask((self.kind == SHADOW) & (self.shadow_of == i), max_columns)
             out.append({"object": i, "label": self.names[i], "bbox": _bbox(mask), "area": int(mask.sum()),
-                        "shadow_bbox": _bbox(shadow) if shadow.any() else None})
+                        "mask": mask, "shadow_bbox": _bbox(shadow) if shadow.any() else None})
         return out
+
+    def save_png(self, path, max_columns: int | None = 1024, preview: bool = True) -> None:
+        """Write the kind of every waterfall pixel as a single-channel class-index PNG (0 water,
+        1 seafloor, 2 object, 3 shadow: :data:`KIND_NAMES`) and, with ``preview``, a colour
+        version beside it (``*_preview.png``); atomic."""
+        import os
+
+        import imageio.v3 as iio
+
+        from .record import atomic_write
+
+        kind = self.waterfall("kind", max_columns).astype(np.uint8)
+        atomic_write(path, lambda tmp: iio.imwrite(tmp, kind, extension=".png"), suffix=".png")
+        if preview:
+            root, ext = os.path.splitext(os.fspath(path))
+            atomic_write(f"{root}_preview{ext}", lambda tmp: iio.imwrite(tmp, KIND_COLOURS[kind], extension=".png"),
+                         suffix=".png")
 
     def mask(self, selected: np.ndarray, max_columns: int | None = 1024) -> np.ndarray:
         """A (2, n_pings, n_samples) bool selection as a waterfall image: a pixel is set when

@@ -1,4 +1,4 @@
-"""Signal processing between synthesis and the record (PHYSICS.md §5).
+"""Signal processing between synthesis and the record (docs/physics.md §5).
 
 Pulse shaping by convolution, matched filtering, detection of the carrier signal,
 low-pass FIR filters, perfect TVG, receiver noise and the band-limited interpolation
@@ -93,7 +93,7 @@ def analytic_baseband(x, carrier_hz: float, rate_hz: float, step: int = 1):
 
     x_a = x + j·H{x} (FFT Hilbert transform, zero-padded to twice the length so
     nothing wraps), then x̃(t) = x_a(t)·e^(−j2πf0 t). For x = Re{r̃·e^(j2πf0 t)}
-    this returns r̃ (PHYSICS.md §5), at every ``step``-th sample (only those are mixed).
+    this returns r̃ (docs/physics.md §5), at every ``step``-th sample (only those are mixed).
     """
     n = x.shape[-1]
     nfft = 1 << int(math.ceil(math.log2(2 * n)))

@@ -1,4 +1,4 @@
-"""Transmit waveforms and their envelopes (PHYSICS.md §5)."""
+"""Transmit waveforms and their envelopes (docs/physics.md §5)."""
 from __future__ import annotations
 
 import math
@@ -79,7 +79,7 @@ def phase_offset_rad(pulse, carrier_hz: float, t_s):
     - linear FM: f = f_s + κt, κ = B/τ, f_s = f_c − B/2;
     - exponential chirp: f = f_s·κ^t. With ln κ = ln(f_e/f_s)/τ the phase is
       2π f_s·expm1(t·ln κ)/ln κ (2π f_s t when ln κ = 0); κ itself is never formed,
-      so κ → 1, huge sweeps and very short pulses stay exact (PHYSICS.md §5).
+      so κ → 1, huge sweeps and very short pulses stay exact (docs/physics.md §5).
 
     Parameters
     ----------
@@ -106,7 +106,7 @@ def phase_offset_rad(pulse, carrier_hz: float, t_s):
 
 
 def instantaneous_frequency_hz(pulse, carrier_hz: float, t_s):
-    """Instantaneous frequency f(t) of the pulse in Hz (PHYSICS.md §5)."""
+    """Instantaneous frequency f(t) of the pulse in Hz (docs/physics.md §5)."""
     t = np.asarray(t_s, dtype=np.float64)
     if pulse.kind == "cw":
         return np.full_like(t, float(carrier_hz))
@@ -121,7 +121,7 @@ def complex_envelope(pulse, carrier_hz: float, t_s):
     """Complex baseband envelope p̃(t) = a(t)·e^(j(θ(t) − 2πf0 t)), 0 outside [0, τ).
 
     The transmitted signal is x(t) = Re{p̃(t)·e^(j2πf0 t)} = a(t)·cos θ(t); the
-    untapered pulse has |p̃|² = 1 (PHYSICS.md §3).
+    untapered pulse has |p̃|² = 1 (docs/physics.md §3).
     """
     t = np.asarray(t_s, dtype=np.float64)
     a = envelope(pulse, t)

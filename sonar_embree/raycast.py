@@ -2,7 +2,7 @@
 
 Geometry enters Embree in float32 relative to the scene's local origin; every hit is
 then re-intersected with its triangle's plane in float64, so ranges, normals and
-incidence are float64 (PHYSICS.md §8). Grazing hits (|cos θi| below
+incidence are float64 (docs/physics.md §8). Grazing hits (|cos θi| below
 :data:`GRAZING_COS`) and hits on the back of a face are flagged: they occlude the ray
 but return no echo.
 """

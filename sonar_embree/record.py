@@ -2,8 +2,10 @@
 from __future__ import annotations
 
 import dataclasses
+import contextlib
 import json
 import os
+import shutil
 import tempfile
 from dataclasses import dataclass, field
 
@@ -14,7 +16,50 @@ from .errors import ConfigError
 from .labels import Labels
 from .trajectory import Trajectory
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
+
+
+#: Prefixes of the temporaries that atomic writers leave only when killed (SIGKILL, power loss).
+STALE_PREFIXES = (".tmp-", ".old-")
+
+
+def clean_stale(folder) -> int:
+    """Remove the temporaries a killed writer left in ``folder`` (files and folders); return how many."""
+    n = 0
+    for name in os.listdir(folder):
+        if name.startswith(STALE_PREFIXES):
+            path = os.path.join(folder, name)
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(path)
+            n += 1
+    return n
+
+
+def iso_utc(value=None) -> str:
+    """A time as an ISO 8601 UTC string: ``None`` is now; a naive datetime is taken as UTC.
+
+    Accepts a ``datetime.datetime``, a ``datetime.date`` (midnight) or an ISO 8601 string.
+    """
+    import datetime as dt
+
+    if value is None:
+        value = dt.datetime.now(dt.timezone.utc)
+    elif isinstance(value, str):
+        try:
+            value = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+        except ValueError:
+            raise ConfigError(f"start time {value!r} is not an ISO 8601 date-time "
+                              "(e.g. 2026-05-01T12:00:00Z)") from None
+    elif isinstance(value, dt.date) and not isinstance(value, dt.datetime):
+        value = dt.datetime(value.year, value.month, value.day)
+    if not isinstance(value, dt.datetime):
+        raise ConfigError(f"start time must be a datetime or an ISO 8601 string, got {value!r}")
+    if value.tzinfo is None:
+        value = value.replace(tzinfo=dt.timezone.utc)
+    return value.astimezone(dt.timezone.utc).isoformat()
 
 
 def atomic_write(path, write_fn, suffix=""):
@@ -142,7 +187,10 @@ class Record:
                           arrays["roll_deg"], arrays["times_s"])
         labels = None
         if "labels" in meta:
-            labels = Labels(**{k: arrays[f"labels_{k}"] for k in Labels.ARRAYS}, names=tuple(meta["labels"]["names"]),
+            shape = arrays["labels_kind"].shape  # files of format 1 have no echo truth
+            fill = {"echo_object": np.full(shape, -1, np.int32), "echo_intensity": np.zeros(shape, np.float32)}
+            labels = Labels(**{k: arrays.get(f"labels_{k}", fill.get(k)) for k in Labels.ARRAYS},
+                            names=tuple(meta["labels"]["names"]),
                             is_seafloor=tuple(meta["labels"]["is_seafloor"]))
         return cls(arrays["port"], arrays["starboard"], arrays["time_s"], traj, Sonar(**meta["sonar"]),
                    Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}), labels,
@@ -160,15 +208,17 @@ class Record:
 
         to_zarr(self, path)
 
-    def to_xtf(self, path, start=None) -> None:
+    def to_xtf(self, path, start=None, *, scale="auto", surface_z_m: float | None = None) -> None:
         """Write an XTF file (2 sonar channels, one packet per ping) that pyxtf reads; atomic.
 
-        Samples are float32 linear intensity; port is stored from far range to nadir,
-        starboard from nadir outwards. Conventions in :mod:`sonar_embree.io.xtf`.
+        Samples are float32 intensity × ``scale`` ("auto": a power of ten that makes
+        the image visible in viewers, written in the header); port is stored from far
+        range to nadir, starboard from nadir outwards; ping times from ``start``
+        (default ``attrs["start_time"]``). Conventions in :mod:`sonar_embree.io.xtf`.
         """
         from .io.xtf import to_xtf
 
-        to_xtf(self, path, start=start)
+        to_xtf(self, path, start=start, scale=scale, surface_z_m=surface_z_m)
 
     def to_coco(self, path, file_name: str = "waterfall.png", categories=None, max_columns: int | None = 1024):
         """Write COCO JSON with each object's box in the waterfall PNG ``file_name``; atomic.

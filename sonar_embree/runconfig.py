@@ -27,7 +27,7 @@ from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_name
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .scene import Scene
 from .trajectory import Trajectory
-from .waterfall import check_display
+from .waterfall import DISPLAY_DEFAULTS, check_display
 
 SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
 TRAJECTORY_KINDS = {
@@ -37,7 +37,7 @@ TRAJECTORY_KINDS = {
 }
 TOP_KEYS = ("sonar", "pulse", "fan", "simulation", "trajectory", "objects", "output")
 OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
-               "max_columns")
+               "floor_headroom_db", "max_columns")
 
 
 @dataclass(frozen=True)
@@ -47,24 +47,24 @@ class OutputOptions:
 
     png: bool = True
     npz: bool = True
-    scale: str = "db"
-    dynamic_range_db: float = 50.0
-    gamma: float = 0.5
-    ground_range: bool = False
-    tvg: bool = False
-    reference_percentile: float = 99.5
-    max_columns: int | None = 1024
+    scale: str = DISPLAY_DEFAULTS["scale"]
+    dynamic_range_db: float = DISPLAY_DEFAULTS["dynamic_range_db"]
+    gamma: float = DISPLAY_DEFAULTS["gamma"]
+    ground_range: bool = DISPLAY_DEFAULTS["ground_range"]
+    tvg: bool = DISPLAY_DEFAULTS["tvg"]
+    reference_percentile: float = DISPLAY_DEFAULTS["reference_percentile"]
+    floor_headroom_db: float = DISPLAY_DEFAULTS["floor_headroom_db"]
+    max_columns: int | None = DISPLAY_DEFAULTS["max_columns"]
 
     def __post_init__(self):
         for name in ("png", "npz", "ground_range", "tvg"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns)
+        check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns,
+                      self.floor_headroom_db)
 
     def png_kwargs(self) -> dict:
-        return {"scale": self.scale, "dynamic_range_db": self.dynamic_range_db, "gamma": self.gamma,
-                "ground_range": self.ground_range, "tvg": self.tvg,
-                "reference_percentile": self.reference_percentile, "max_columns": self.max_columns}
+        return {k: getattr(self, k) for k in DISPLAY_DEFAULTS}
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +198,7 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
     if ("path" in obj) == ("seafloor" in obj):
         raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
     if "path" in obj:
-        _check_keys(where, obj, ("path", "is_seafloor", "materials"), source)
+        _check_keys(where, obj, ("path", "is_seafloor", "materials", "up_axis"), source)
         is_floor = obj.get("is_seafloor")
         if is_floor is not None and not isinstance(is_floor, bool):
             raise ConfigError(f"{source}: {where} is_seafloor must be true or false, got {is_floor!r}")
@@ -208,7 +208,7 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
         per_object = {name: parse_material(t, source, f"{where} materials.{name}") for name, t in per_object.items()}
         try:
             scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor,
-                      materials=per_object)
+                      materials=per_object, up_axis=obj.get("up_axis"))
         except SceneError as exc:
             raise SceneError(f"{source}: {where}: {exc}") from None
     else:

@@ -3,13 +3,14 @@
 trimesh is the only mesh reader. Geometry keeps its world coordinates in float64;
 :meth:`Scene.compiled` subtracts a local origin (the bounds centre rounded to 1 m)
 so UTM-sized coordinates keep full precision when they later reach Embree in
-float32 (PHYSICS.md §8).
+float32 (docs/physics.md §8).
 """
 from __future__ import annotations
 
 import logging
 import os
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import trimesh
@@ -55,6 +56,8 @@ class CompiledScene:
         Linear Lambert coefficient per object.
     is_seafloor : (n_objects,) bool
         Which objects are seafloor (ground truth: their hidden parts are shadow).
+    two_sided : (n_objects,) bool
+        Which objects scatter from both sides of their faces.
     """
 
     origin_m: np.ndarray
@@ -65,6 +68,19 @@ class CompiledScene:
     labels: tuple
     mu: np.ndarray
     is_seafloor: np.ndarray
+    two_sided: np.ndarray
+
+    @cached_property
+    def bounds_local(self) -> np.ndarray:
+        """(2, 3) min and max corner of the vertices in the local frame, m."""
+        return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @cached_property
+    def horizontal_area_share(self) -> float:
+        """Share of the surface area whose faces look up or down (|n_z| > 0.7)."""
+        tri = self.vertices[self.faces]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        return float(area[np.abs(self.face_normals[:, 2]) > 0.7].sum() / max(area.sum(), 1e-300))
 
 
 def _validate(vertices, faces, source: str):
@@ -93,10 +109,32 @@ def _validate(vertices, faces, source: str):
     return v, f[good].astype(np.int64)
 
 
-def load_mesh(path) -> trimesh.Trimesh:
+#: File formats whose axes are fixed by their specification: glTF 2.0 is y up (§3.4 of the spec).
+Y_UP_FORMATS = (".glb", ".gltf")
+UP_AXES = ("z", "y")
+
+
+def _up_axis(path: str, up_axis) -> str:
+    """The up axis to read ``path`` with: the given one, else y for glTF/GLB and z for the rest."""
+    if up_axis is None:
+        return "y" if path.lower().endswith(Y_UP_FORMATS) else "z"
+    if up_axis not in UP_AXES:
+        raise SceneError(f"{path}: up_axis must be one of {list(UP_AXES)}, got {up_axis!r}")
+    return up_axis
+
+
+def _to_z_up(mesh: trimesh.Trimesh, up_axis: str) -> trimesh.Trimesh:
+    """``mesh`` with a y-up frame turned to z up: (x, y, z) → (x, −z, y), a +90° turn about x."""
+    if up_axis == "z":
+        return mesh
+    v = np.asarray(mesh.vertices, dtype=np.float64)
+    return trimesh.Trimesh(np.column_stack([v[:, 0], -v[:, 2], v[:, 1]]), mesh.faces, process=False)
+
+
+def load_mesh(path, up_axis: str | None = None) -> trimesh.Trimesh:
     """One mesh file as a single ``trimesh.Trimesh`` (all its objects joined), checked like :meth:`Scene.add`."""
     path = os.fspath(path)
-    parts = _meshes_from_file(path)
+    parts = _meshes_from_file(path, up_axis)
     mesh = parts[0][1] if len(parts) == 1 else trimesh.util.concatenate([m for _, m in parts])
     v, f = _validate(mesh.vertices, mesh.faces, path)
     return trimesh.Trimesh(v, f, process=False)
@@ -123,18 +161,73 @@ def write_obj(path, named_meshes, comment: str = "") -> None:
     atomic_write(path, write, suffix=".obj")
 
 
-def _meshes_from_file(path: str):
-    """(name, Trimesh) pairs of a mesh file, scene-graph transforms applied."""
+_FORMAT_NAMES = {".obj": "OBJ", ".ply": "PLY", ".stl": "STL", ".glb": "GLB", ".gltf": "glTF", ".off": "OFF"}
+
+
+def _sniff(path: str, head: bytes, size: int) -> None:
+    """Raise a one-line :class:`SceneError` when the file's first bytes cannot be its format's."""
+    ext = os.path.splitext(path)[1].lower()
+    fmt = _FORMAT_NAMES.get(ext)
+    if fmt is None:
+        raise SceneError(f"{path}: unknown mesh format {ext or '(no extension)'!r} "
+                         f"(one of {', '.join(MESH_SUFFIXES)})")
+    ok = True
+    if ext in (".obj", ".off", ".gltf"):
+        ok = b"\0" not in head  # text formats
+    elif ext == ".ply":
+        ok = head.startswith(b"ply")
+    elif ext == ".glb":
+        ok = head.startswith(b"glTF")
+    elif ext == ".stl":  # ASCII ("solid …") or binary: 80-byte header, count, 50 bytes per triangle
+        count = int.from_bytes(head[80:84], "little") if len(head) >= 84 else -1
+        ok = (head.lstrip().startswith(b"solid") and b"\0" not in head) or 84 + 50 * count == size
+    if not ok or size == 0:
+        what = "empty" if size == 0 else f"not a valid {fmt} file"
+        raise SceneError(f"{path}: {what} (its contents do not match the {ext} extension)")
+
+
+def _load_trimesh(path: str):
+    """trimesh's loader on ``path``; OBJ text is decoded here (UTF-8, else Latin-1), so a stray byte in
+    a comment does not depend on optional charset packages."""
+    ext = os.path.splitext(path)[1].lower()
+    if ext != ".obj":
+        return trimesh.load(path, process=False)
+    with open(path, "rb") as fh:
+        raw = fh.read()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        text = raw.decode("latin-1")
+    import io
+
+    return trimesh.load(io.BytesIO(text.encode("utf-8")), file_type="obj", process=False, split_objects=True,
+                        group_material=False, resolver=trimesh.resolvers.FilePathResolver(path))
+
+
+def _meshes_from_file(path: str, up_axis: str | None = None):
+    """(name, Trimesh) pairs of a mesh file, scene-graph transforms applied, turned z up."""
+    up = _up_axis(path, up_axis)
+    return [(name, _to_z_up(mesh, up)) for name, mesh in _read_meshes(path)]
+
+
+def _read_meshes(path: str):
     if not os.path.exists(path):
         raise SceneError(f"{path}: mesh file not found")
     if os.path.isdir(path):
         raise SceneError(f"{path}: is a directory, not a mesh file")
     try:
-        extra = {"split_objects": True, "group_material": False} if path.lower().endswith(".obj") else {}
-        loaded = trimesh.load(path, process=False, **extra)
+        with open(path, "rb") as fh:
+            head = fh.read(4096)
+        size = os.path.getsize(path)
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read mesh ({exc.strerror or exc})") from None
+    _sniff(path, head, size)
+    try:
+        loaded = _load_trimesh(path)
     except Exception as exc:  # trimesh raises many types for unreadable files
         msg = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise SceneError(f"{path}: cannot read mesh ({msg})") from None
+        raise SceneError(f"{path}: cannot read mesh as {_FORMAT_NAMES[os.path.splitext(path)[1].lower()]} "
+                         f"({msg})") from None
     if isinstance(loaded, trimesh.Trimesh):
         return [(os.path.splitext(os.path.basename(path))[0], loaded)]
     if isinstance(loaded, trimesh.Scene):
@@ -164,7 +257,8 @@ class Scene:
         self._compiled: CompiledScene | None = None
 
     @classmethod
-    def load(cls, path, material: Material | None = None, materials: dict | None = None) -> "Scene":
+    def load(cls, path, material: Material | None = None, materials: dict | None = None,
+             up_axis: str | None = None) -> "Scene":
         """A scene from one mesh file; each object of a multi-object file keeps its name as label
         (objects are added in sorted label order).
 
@@ -176,13 +270,15 @@ class Scene:
             Material of objects not named in ``materials`` (default μ = −27 dB).
         materials : dict of str to Material, optional
             Material per object label.
+        up_axis : {"z", "y"}, optional
+            The file's up axis; see :meth:`add`.
         """
         scene = cls()
-        scene.add(path, material=material, materials=materials)
+        scene.add(path, material=material, materials=materials, up_axis=up_axis)
         return scene
 
     def add(self, mesh_or_path, material: Material | None = None, label: str | None = None,
-            materials: dict | None = None, seafloor: bool | None = None) -> "Scene":
+            materials: dict | None = None, seafloor: bool | None = None, up_axis: str | None = None) -> "Scene":
         """Add a mesh (a ``trimesh.Trimesh``) or every object of a mesh file.
 
         Parameters
@@ -201,6 +297,11 @@ class Scene:
             behind other surfaces is shadow, everything else is an object). By
             default an object is seafloor when its label is ``"seafloor"`` or
             starts with ``"seafloor/"``.
+        up_axis : {"z", "y"}, optional
+            Which axis of a mesh file points up. Default: "y" for GLB/glTF (y up by
+            their specification), "z" for OBJ, PLY, STL and OFF, which carry no axis
+            convention; "y" turns an export with y up (Blender's default OBJ axes)
+            to z up: (x, y, z) → (x, −z, y). Meshes passed as objects are z up.
 
         Returns
         -------
@@ -213,7 +314,7 @@ class Scene:
         materials = dict(materials or {})
         if isinstance(mesh_or_path, (str, os.PathLike)):
             path = os.fspath(mesh_or_path)
-            parts = _meshes_from_file(path)
+            parts = _meshes_from_file(path, up_axis)
             items = []
             for name, mesh in parts:
                 if label is None:
@@ -224,6 +325,8 @@ class Scene:
                     lab = f"{label}/{name}"
                 items.append((lab, mesh, f"{path} (object {name!r})" if len(parts) > 1 else path))
         elif isinstance(mesh_or_path, trimesh.Trimesh):
+            if up_axis not in (None, "z"):
+                raise SceneError("Scene.add: up_axis applies to mesh files; turn a Trimesh yourself")
             lab = label if label is not None else f"object{len(self._objects)}"
             items = [(lab, mesh_or_path, f"mesh {lab!r}")]
         else:
@@ -284,5 +387,6 @@ class Scene:
             n /= np.linalg.norm(n, axis=1)[:, None]
             self._compiled = CompiledScene(origin, v, f, n, np.concatenate(obj), self.labels,
                                            np.array([o.material.mu for o in self._objects]),
-                                           np.array([o.seafloor for o in self._objects], dtype=bool))
+                                           np.array([o.seafloor for o in self._objects], dtype=bool),
+                                           np.array([o.material.two_sided for o in self._objects], dtype=bool))
         return self._compiled

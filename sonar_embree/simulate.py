@@ -6,7 +6,7 @@ block → expected echo intensity and range footprint per ray (Numba). Then, by 
 
 - speckle-free (``speckle=False``): footprint splatting of the intensities (each
   spread over the range interval its ray covers), one convolution with the pulse intensity (or, with matched
-  filtering, the compressed pulse's |q|²): PHYSICS.md eq. (1) sampled at t_n;
+  filtering, the compressed pulse's |q|²): docs/physics.md eq. (1) sampled at t_n;
 - speckle: the rays' intensities are gathered onto scatterers frozen to the
   surface (a world-fixed lattice, each node a complex Gaussian reflectivity), whose
   echoes are synthesised in complex baseband (exact delayed envelope and carrier
@@ -20,19 +20,20 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+import os
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels, processing, pulses
+from . import checks, kernels, processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .errors import ConfigError
-from .fan import BlockEchoes, FanPlan, cast_block, label_block
+from .fan import BlockEchoes, FanPlan, cast_block, label_block, object_echo_block
 from .labels import Labels
 from .processing import absorption_np_per_m, convolve_time
 from .raycast import RayCaster
-from .record import Record
+from .record import Record, iso_utc
 from .scene import Scene
 from .trajectory import Trajectory
 
@@ -40,6 +41,41 @@ log = logging.getLogger(__name__)
 
 PORT, STARBOARD = 0, 1
 _SIDE_SIGN = {PORT: -1, STARBOARD: +1}
+
+
+def memory_estimate_bytes(n_pings: int, n_samples: int, chain: SignalChain, labels: bool = False,
+                          keep_complex: bool = False) -> int:
+    """Peak memory of a :func:`simulate` call's record-sized arrays, bytes (an estimate, within ~20 %).
+
+    The synthesis buffer (complex for coherent speckle), about three record-sized
+    float64 arrays in processing (convolution, TVG, the port/starboard copies), the
+    label arrays (25 bytes per sample) and the complex outputs.
+    """
+    cells = 2 * int(n_pings) * int(n_samples)
+    per = (16 if chain.speckle and chain.detection == "coherent" else 8) + 3 * 8
+    per += 25 if labels else 0
+    per += 32 if keep_complex else 0
+    return cells * per
+
+
+def _physical_memory_bytes() -> int | None:
+    try:
+        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _check_memory(n_pings, n_samples, chain, labels, keep_complex) -> None:
+    """Refuse, before any work, a record that cannot fit in this machine's memory."""
+    need = memory_estimate_bytes(n_pings, n_samples, chain, labels, keep_complex)
+    have = _physical_memory_bytes()
+    if have is not None and need > 0.8 * have:
+        per_ping = need / max(n_pings, 1)
+        fit = int(0.5 * have / per_ping)
+        raise ConfigError(f"simulate: {n_pings} pings x 2 channels x {n_samples} samples need about "
+                          f"{need / 2**30:.1f} GiB in memory, more than this machine's {have / 2**30:.1f} GiB; "
+                          f"simulate at most about {fit} pings at a time (Trajectory slices with ping_offset), "
+                          "or render them as a batch (sonar-embree batch) that writes each job to disk")
 
 
 def _check_inputs(scene, trajectory, sonar, pulse, fan):
@@ -174,7 +210,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
              fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
              labels: bool = False, keep_complex: bool = False, ping_offset: int = 0, progress: bool = False,
-             timings: dict | None = None) -> Record:
+             timings: dict | None = None, start_time=None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
     Parameters
@@ -212,6 +248,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         survey simulated in pieces gives the same bits as in one call.
     progress : bool
         Show a progress bar over pings (tqdm, on stderr).
+    start_time : datetime or str, optional
+        Time of the trajectory's time 0 (a ``datetime``, naive taken as UTC, or an
+        ISO 8601 string); default: now. Stored as ``Record.attrs["start_time"]``
+        (ISO 8601 UTC) and used for the ping times of XTF and Zarr outputs.
     timings : dict, optional
         If given, seconds spent are added under ``"setup"`` (BVH build and tables),
         ``"embree"`` (ray casting), ``"rays"`` (ray placement and echo weights),
@@ -229,7 +269,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     -----
     Each ray of solid angle dΩ hitting at range R stands for dA = R² dΩ / cos θi and
     carries the expected intensity w = Γ⁴ σ(θi) 10^(−2αR/10) dΩ / (R² cos θi)
-    (PHYSICS.md eq. 1). Speckle-free: Σ w·|p(t − 2R/c)|². Speckle: every node of the
+    (docs/physics.md eq. 1). Speckle-free: Σ w·|p(t − 2R/c)|². Speckle: every node of the
     lattice of :class:`SignalChain` ``speckle_cell_m`` collects W = Σ w·b (trilinear b)
     and echoes √W·g·e^(−j2k·R_node)·p̃(t − 2R̄/c), g a complex Gaussian frozen to
     the node and R̄ the W-weighted range of its rays, so E|Σ|² = Σ w·|p̃|².
@@ -245,6 +285,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     _check_inputs(scene, trajectory, sonar, pulse, fan)
     if isinstance(ping_offset, bool) or not isinstance(ping_offset, (int, np.integer)) or ping_offset < 0:
         raise ConfigError(f"simulate: ping_offset must be an integer >= 0, got {ping_offset!r}")
+    start_iso = iso_utc(start_time)
     sonar = sonar.for_pulse(pulse)
     if chain is None:
         chain = SignalChain(speckle=speckle, band=band, detection=detection, matched_filter=matched_filter,
@@ -254,6 +295,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     elif not isinstance(chain, SignalChain):
         raise ConfigError(f"simulate: chain must be a sonar_embree.SignalChain, got {type(chain).__name__}")
     chain = chain.resolved(sonar, pulse)
+    _check_memory(len(trajectory), sonar.n_samples + (int(math.ceil(pulse.duration_s * sonar.sample_rate_hz))
+                                                      if chain.matched_filter else 0), chain, labels, keep_complex)
     if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
         raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
                           "(the complex signal exists only there)")
@@ -269,6 +312,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     altitude = np.full(n_p, np.nan)
     rots = trajectory.rotations()
     pos_local = trajectory.positions_m - compiled.origin_m
+    checks.check_setup(caster, sonar, pos_local, max_r + c * pulse.duration_s / 2.0)
     two_way = absorption_np_per_m(sonar.alpha_db_per_m)
     n0 = None if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
 
@@ -282,9 +326,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         out = np.zeros((n_p, 2, n_s), dtype=np.complex128) if coherent else np.zeros((n_p, 2, n_s))
     n_rays = np.zeros(n_p, dtype=np.int64)
     if labels:
-        truth = (np.zeros((n_p, 2, n_out), dtype=np.int8), np.zeros((n_p, 2, n_out), dtype=np.int32),
-                 np.zeros((n_p, 2, n_out), dtype=np.int32), np.zeros((n_p, 2, n_out), dtype=np.float32),
-                 np.zeros((n_p, 2, n_out), dtype=np.float32))
+        truth = tuple(np.zeros((n_p, 2, n_out), dtype=Labels.DTYPES[k]) for k in Labels.ARRAYS)
+        echo_kernel = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -301,7 +344,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         if labels:
             t = time.perf_counter()
             label_block(caster, plan, e, rots[a:b], pos_local[a:b], compiled.is_seafloor, max_r, c / (2.0 * fs),
-                        float(compiled.origin_m[2]), tuple(x[a:b] for x in truth))
+                        float(compiled.origin_m[2]), tuple(x[a:b] for x in truth[:5]))
+            object_echo_block(e, compiled.face_object, compiled.is_seafloor, 2.0 * fs / c, *echo_kernel,
+                              truth[5][a:b], truth[6][a:b])
             clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         if not chain.speckle:
@@ -349,7 +394,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
     attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
-             "quality": fan.quality, "rays_per_ping": float(n_rays.mean()) if n_p else 0.0}
+             "quality": fan.quality, "rays_per_ping": float(n_rays.mean()) if n_p else 0.0,
+             "start_time": start_iso}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = synth.carrier_factor * fs
     truth_labels = None

@@ -6,7 +6,10 @@ A sweep file holds the tables of a render config (``[sonar]``, ``[pulse]``,
 - ``[sweep]``: ``name``; ``seeds`` (a list, or a count n for 0 … n − 1);
   ``outputs`` (any of "zarr", "xtf", "png", "labels", "coco", "npz"; default
   zarr, xtf, png, coco); ``pings_per_task`` (pings per Dask task, default 32);
-  ``complex`` (keep the complex baseband in Zarr/npz; coherent speckle only).
+  ``complex`` (keep the complex baseband in Zarr/npz; coherent speckle only);
+  ``start_time`` (ISO 8601 or a TOML date-time: the time of ping time 0 in XTF,
+  Zarr and COCO; default 2000-01-01T00:00:00Z, fixed so a sweep's bytes do not
+  depend on when it ran).
 - ``[vary]``: ``"table.field" = [values]``; every combination is a job.
 - ``[[scenes]]``: ``name`` and ``[[scenes.objects]]``. An object is a mesh
   ``path`` or a procedural ``seafloor`` (as in render configs; a seafloor without
@@ -47,11 +50,14 @@ from .scene import Scene, load_mesh
 from .trajectory import Trajectory
 
 TOP_KEYS = ("sweep", "sonar", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
-SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex")
+SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex", "start_time")
+#: Start time of a sweep's records unless ``[sweep] start_time`` says otherwise: fixed, so that the
+#: same sweep gives the same bytes whenever it runs.
+DEFAULT_SWEEP_START = "2000-01-01T00:00:00+00:00"
 OUTPUTS = ("zarr", "xtf", "png", "labels", "coco", "npz")
 DEFAULT_OUTPUTS = ("zarr", "xtf", "png", "coco")
-PNG_KEYS = ("scale", "dynamic_range_db", "gamma", "tvg", "max_columns")
-PLACED_KEYS = ("path", "label", "material", "count", "region", "yaw_deg", "z_m", "poses")
+PNG_KEYS = ("scale", "dynamic_range_db", "gamma", "tvg", "reference_percentile", "floor_headroom_db", "max_columns")
+PLACED_KEYS = ("path", "label", "material", "count", "region", "yaw_deg", "z_m", "poses", "up_axis")
 TABLES = {"sonar": Sonar, "pulse": Pulse, "fan": FanSettings, "simulation": SignalChain}
 DEFAULT_PINGS_PER_TASK = 32
 
@@ -72,6 +78,7 @@ class Job:
     chain: SignalChain
     labels: bool
     keep_complex: bool = False
+    start_time: str = DEFAULT_SWEEP_START
 
     @property
     def id(self) -> str:
@@ -123,7 +130,7 @@ class SceneSpec:
 
     def _place(self, scene, caster, support, top, seed, i, obj, where):
         src = self.source
-        mesh = load_mesh(runconfig._resolve(self.base, obj["path"]))
+        mesh = load_mesh(runconfig._resolve(self.base, obj["path"]), obj.get("up_axis"))
         label = obj.get("label") or os.path.splitext(os.path.basename(obj["path"]))[0]
         rng = np.random.default_rng([int(seed), self.index, i])
         poses = _poses(obj, rng, src, where)
@@ -205,7 +212,9 @@ class Sweep:
     outputs: tuple
     pings_per_task: int
     png: dict
-    categories: tuple    # COCO categories (object labels before '#'), sorted
+    categories: tuple    # COCO categories (labels of every non-seafloor object, before '#'), sorted
+    start_time: str = DEFAULT_SWEEP_START   # ISO 8601, UTC: time of ping time 0 of every job
+    inputs: str = ""     # digest of the files the sweep reads (meshes, trajectory CSVs)
 
     @property
     def scene_names(self) -> tuple:
@@ -223,17 +232,65 @@ class Sweep:
         body = {"name": self.name, "outputs": list(self.outputs),
                 "complex": any(j.keep_complex for j in self.jobs), "pings_per_task": self.pings_per_task,
                 "png": self.png, "categories": list(self.categories), "package_version": __version__,
-                "settings": _job_settings_digest(self.jobs), "scenes": _scenes_digest(self.scenes), "jobs": jobs}
+                "settings": _job_settings_digest(self.jobs), "scenes": _scenes_digest(self.scenes),
+                "trajectories": _digest([_poses_of(t) for t in {id(j.trajectory): j.trajectory
+                                                               for j in self.jobs}.values()]),
+                "input_files": self.inputs, "start_time": self.start_time, "jobs": jobs}
         return body
+
+    def manifest_digest(self) -> str:
+        """A short hash of :meth:`manifest` (names Dask keys of this sweep's tasks)."""
+        return _digest(self.manifest())
 
 
 def _digest(obj) -> str:
     return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()
 
 
+def _poses_of(t: Trajectory) -> list:
+    return [t.positions_m.tolist(), t.heading_deg.tolist(), t.pitch_deg.tolist(), t.roll_deg.tolist(),
+            t.times_s.tolist()]
+
+
 def _job_settings_digest(jobs) -> str:
-    return _digest([[dataclasses.asdict(x) for x in (j.sonar, j.pulse, j.fan, j.chain)]
-                    + [j.trajectory.positions_m.tolist(), j.trajectory.times_s.tolist()] for j in jobs])
+    return _digest([[dataclasses.asdict(x) for x in (j.sonar, j.pulse, j.fan, j.chain)] for j in jobs])
+
+
+def _files_digest(paths) -> str:
+    """SHA-256 over the contents of ``paths`` (in order): a resume notices an edited mesh or CSV."""
+    h = hashlib.sha256()
+    for path in paths:
+        h.update(os.path.abspath(path).encode() + b"\0")
+        try:
+            with open(path, "rb") as fh:
+                for chunk in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(chunk)
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    return h.hexdigest()
+
+
+def _input_files(base: str, data: dict) -> list:
+    """Every file a sweep reads besides itself: meshes of [[scenes.objects]], CSVs of [[trajectories]]."""
+    paths = []
+    for sc in data.get("scenes", []):
+        for obj in sc.get("objects", []) if isinstance(sc, dict) else []:
+            if isinstance(obj, dict) and isinstance(obj.get("path"), str):
+                paths.append(runconfig._resolve(base, obj["path"]))
+    for t in data.get("trajectories", []):
+        if isinstance(t, dict) and t.get("kind") == "csv" and isinstance(t.get("path"), str):
+            paths.append(runconfig._resolve(base, t["path"]))
+    return paths
+
+
+def _start_time(value, src) -> str:
+    """``[sweep] start_time`` (TOML datetime or ISO 8601 string) as an ISO 8601 UTC string."""
+    from .record import iso_utc
+
+    try:
+        return iso_utc(value)
+    except ConfigError as exc:
+        raise ConfigError(f"{src}: [sweep] start_time: {exc}") from None
 
 
 def _scenes_digest(scenes) -> str:
@@ -359,15 +416,17 @@ def load_sweep(path) -> Sweep:
                         runconfig.parse_material({key: end}, src, f"{where} object #{j + 1}")
                 categories.add(label)
         spec = SceneSpec(i, str(sc.get("name", f"scene{i}")), tuple(objs), src, base)
-        spec.build(seeds[0])  # every key, file and value checked before any job runs
+        built = spec.build(seeds[0])  # every key, file and value checked before any job runs
+        categories |= {o.label.split("#", 1)[0] for o in built.objects if not o.seafloor}
         scenes.append(spec)
 
+    start = _start_time(sw.get("start_time", DEFAULT_SWEEP_START), src)
     jobs = []
     for si, ti, ci, seed in itertools.product(range(len(scenes)), range(len(trajectories)), range(len(combos)),
                                               seeds):
         s = settings[ci]
         chain = dataclasses.replace(s["simulation"], seed=int(seed))
         jobs.append(Job(len(jobs), si, ti, combos[ci], int(seed), trajectories[ti], s["sonar"], s["pulse"],
-                        s["fan"], chain, "labels" in outputs or "coco" in outputs, keep_complex))
+                        s["fan"], chain, "labels" in outputs or "coco" in outputs, keep_complex, start))
     return Sweep(src, name, tuple(scenes), tuple(traj_names), tuple(jobs), tuple(outputs), ppt, dict(png),
-                 tuple(sorted(categories)))
+                 tuple(sorted(categories)), start, _files_digest(_input_files(base, data)))

@@ -1,4 +1,4 @@
-"""Vehicle trajectories: time-stamped poses (PHYSICS.md §1).
+"""Vehicle trajectories: time-stamped poses (docs/physics.md §1).
 
 World axes: x east, y north, z up (m). Heading in degrees clockwise from north
 (+y), pitch positive nose up, roll positive starboard down; attitude composes as
@@ -222,10 +222,13 @@ class Trajectory:
         """
         path = os.fspath(path)
         try:
-            with open(path, newline="") as fh:
+            with open(path, newline="", encoding="utf-8-sig") as fh:
                 rows = list(csv.reader(fh))
         except OSError as exc:
             raise ConfigError(f"{path}: cannot read trajectory CSV ({exc.strerror or exc})") from None
+        except UnicodeDecodeError as exc:
+            raise ConfigError(f"{path}: not a UTF-8 text file (byte 0x{exc.object[exc.start]:02x} at offset "
+                              f"{exc.start}); save the trajectory CSV as UTF-8") from None
         rows = [r for r in rows if r and any(c.strip() for c in r)]
         if not rows:
             raise ConfigError(f"{path}: empty trajectory CSV")

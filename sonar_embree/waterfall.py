@@ -58,8 +58,16 @@ def waterfall_block(n_samples: int, max_columns: int | None) -> int:
     return int(np.ceil(n_samples / max_columns))
 
 
-def check_display(scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
-                  reference_percentile: float = 99.5, max_columns: int | None = 1024) -> None:
+#: The display defaults of every waterfall (API, render, batch, demo): display TVG on, 35 dB shown,
+#: white at the 99.99th percentile (the highlights) but at least FLOOR_HEADROOM_DB above the median
+#: (the floor), so that a scene without highlights is grey, not clipped white.
+DISPLAY_DEFAULTS = {"scale": "db", "dynamic_range_db": 35.0, "gamma": 0.5, "ground_range": False, "tvg": True,
+                    "reference_percentile": 99.99, "floor_headroom_db": 12.0, "max_columns": 1024}
+
+
+def check_display(scale: str = "db", dynamic_range_db: float = 35.0, gamma: float = 0.5,
+                  reference_percentile: float = 99.99, max_columns: int | None = 1024,
+                  floor_headroom_db: float = 12.0) -> None:
     """Raise a one-line :class:`ConfigError` for display settings :func:`waterfall_image` cannot use.
 
     Config readers call it before any work, so a bad ``[output]`` or ``[png]``
@@ -73,14 +81,17 @@ def check_display(scale: str = "db", dynamic_range_db: float = 50.0, gamma: floa
     if (isinstance(reference_percentile, bool) or not isinstance(reference_percentile, (int, float))
             or not 0 < reference_percentile <= 100):
         raise ConfigError(f"waterfall reference_percentile must be in (0, 100], got {reference_percentile!r}")
+    if (isinstance(floor_headroom_db, bool) or not isinstance(floor_headroom_db, (int, float))
+            or not 0 <= floor_headroom_db < float("inf")):
+        raise ConfigError(f"waterfall floor_headroom_db must be a number >= 0, got {floor_headroom_db!r}")
     if max_columns is not None and (isinstance(max_columns, bool) or not isinstance(max_columns, int)
                                     or max_columns < 1):
         raise ConfigError(f"waterfall max_columns must be an integer >= 1, got {max_columns!r}")
 
 
-def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, gamma: float = 0.5,
-                    ground_range: bool = False, tvg: bool = False, reference_percentile: float = 99.5,
-                    max_columns: int | None = 1024):
+def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, gamma: float = 0.5,
+                    ground_range: bool = False, tvg: bool = True, reference_percentile: float = 99.99,
+                    max_columns: int | None = 1024, floor_headroom_db: float = 12.0):
     """An 8-bit grey waterfall of both channels.
 
     Parameters
@@ -96,9 +107,14 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
     ground_range : bool
         Resample to ground range using the per-ping altitude.
     tvg : bool
-        Display-only range compensation by R⁴·10^(2αR/10), for viewing far range.
+        Display-only range compensation by R⁴·10^(2αR/10), for viewing far range
+        (skipped when the record has TVG already, ``attrs["tvg"]``).
     reference_percentile : float
-        Percentile of the positive intensities that maps to white.
+        Percentile of the positive intensities that maps to white ...
+    floor_headroom_db : float
+        ... unless the median positive intensity (the floor) lies closer to it than
+        this: then white is this many dB above the median, so that a scene without
+        highlights is shown grey rather than clipped.
     max_columns : int or None
         Most columns per side; longer records are averaged (in intensity) over
         blocks of whole samples. None keeps one column per sample.
@@ -110,7 +126,7 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
     check_display(scale, dynamic_range_db, gamma, reference_percentile, max_columns)
     r = record.slant_range_m
     sides = [np.asarray(record.port, dtype=np.float64), np.asarray(record.starboard, dtype=np.float64)]
-    if tvg:
+    if tvg and not record.attrs.get("tvg", False):
         gain = r ** 4 * 10.0 ** (2.0 * record.sonar.alpha_db_per_m * r / 10.0)
         sides = [s * gain for s in sides]
     if ground_range:
@@ -118,7 +134,9 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 50.0, g
     sides = [block_mean(s, waterfall_block(s.shape[1], max_columns)) for s in sides]
     both = np.concatenate(sides, axis=1)
     pos = both[both > 0]
-    ref = np.percentile(pos, reference_percentile) if pos.size else 1.0
+    ref = 1.0
+    if pos.size:
+        ref = max(np.percentile(pos, reference_percentile), np.median(pos) * 10.0 ** (floor_headroom_db / 10.0))
     if scale == "db":
         with np.errstate(divide="ignore"):
             db = 10.0 * np.log10(np.maximum(both, 0.0) / ref)

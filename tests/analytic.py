@@ -1,6 +1,6 @@
-"""Independent analytic references from PHYSICS.md, written without the simulator's code.
+"""Independent analytic references from docs/physics.md, written without the simulator's code.
 
-Flat seafloor at altitude h (PHYSICS.md §3, eq. 2):
+Flat seafloor at altitude h (docs/physics.md §3, eq. 2):
 
     g(R) = σ(h/R) · 10^(−2αR/10) · R⁻³ · ∫ Γ⁴(u(R, φ)) dφ,   E[I](t) = ∫ g(R) |p(t − 2R/c)|² dR
 
@@ -73,7 +73,7 @@ def flat_floor_expected_intensity(r_cell_end_m, pulse_extent_m=0.075, h=10.0, dr
 
 def tvg_flat_floor(r_m, h=10.0, mu_db=-27.0, pulse_extent_m=0.075, f0=400e3, c=1500.0, lx=0.19, ly=0.0038,
                    tilt_deg=20.0):
-    """PHYSICS.md §3: with perfect TVG a Lambertian flat floor follows μ·h²·Φ_eq·(cτ/2)·Γ_el⁴/ρ.
+    """docs/physics.md §3: with perfect TVG a Lambertian flat floor follows μ·h²·Φ_eq·(cτ/2)·Γ_el⁴/ρ.
 
     Φ_eq = 2λ/(3·lx); Γ_el the elevation pattern sinc(k·ly/2·sin(β − δ)) at the depression
     β = asin(h/R); ρ = √(R² − h²).
@@ -91,7 +91,7 @@ def tvg_flat_floor(r_m, h=10.0, mu_db=-27.0, pulse_extent_m=0.075, f0=400e3, c=1
 def ainslie_mccolm_db_per_km(f_hz, t_c=10.0, s_ppt=35.0, depth_m=0.0, ph=8.0):
     """Ainslie & McColm (1998), J. Acoust. Soc. Am. 103(3), 1671: a simplified absorption formula.
 
-    An independent check of Francois–Garrison (PHYSICS.md §3: within 10 % of it).
+    An independent check of Francois–Garrison (docs/physics.md §3: within 10 % of it).
     """
     f = f_hz / 1e3
     z = depth_m / 1e3

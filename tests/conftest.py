@@ -53,3 +53,9 @@ def facing_plate(slant_range_m=20.0, size_m=0.3, altitude_m=H, tilt_deg=20.0):
     if np.dot(m.face_normals[0], look) > 0:
         m.invert()
     return m
+
+
+def decoy_above(traj, height_m=5.0):
+    """A 0.2 m cube ``height_m`` above the first ping: within range of the sonar (so a scene whose surfaces
+    all lie beyond the window is not refused as "nothing in range") but behind every side-scan beam."""
+    return box((0.2, 0.2, 0.2), traj.positions_m[0] + np.array([0.0, 0.0, height_m]))

@@ -128,7 +128,7 @@ def fan_directions(s, beta, el_start, rot):
 
 
 def fan_echoes(s, ds, beta, dbeta, el_start, rot, pos, prim, vertices, faces, mu_face, k, lx, ly, tilt,
-               two_way, min_range, max_range, slope_cap):
+               two_way, min_range, max_range, slope_cap, two_sided=None):
     """Range, footprint extent and intensity per ray, by plain vector algebra.
 
     The extent is the difference of the plane ranges at the two edges of the ray's
@@ -150,6 +150,8 @@ def fan_echoes(s, ds, beta, dbeta, el_start, rot, pos, prim, vertices, faces, mu
         plane = lambda u: np.dot(tri[0] - o, nrm) / np.dot(u, nrm)  # noqa: E731
         R = plane(d[i])
         cos_i = -np.dot(d[i], nrm)
+        if two_sided is not None and two_sided[prim[i]]:
+            cos_i = abs(cos_i)  # a two-sided face scatters from its back as from its front
         if cos_i <= 1e-9 or R > max_range:
             continue
         rel = bb[i] - tilt

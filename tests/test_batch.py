@@ -7,6 +7,7 @@ import subprocess
 import sys
 import time
 
+import imageio.v3 as iio
 import numpy as np
 import pytest
 import trimesh
@@ -93,8 +94,8 @@ def test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds(sweep_file, 
                                                             (2, 0.75)]
     assert sorted(p for p in os.listdir(reference)) == ["00000", "00001", "00002", "00003", "00004", "00005",
                                                        "coco.json", "sweep.json"]
-    assert sorted(os.listdir(reference / "00000")) == ["coco.json", "job.json", "labels.png", "record.npz",
-                                                       "record.xtf", "record.zarr", "waterfall.png"]
+    assert sorted(os.listdir(reference / "00000")) == ["coco.json", "job.json", "labels.png", "labels_preview.png",
+                                                       "record.npz", "record.xtf", "record.zarr", "waterfall.png"]
     job = json.loads((reference / "00004" / "job.json").read_text())
     assert job == {"id": "00004", "scene": "ripples", "trajectory": "pass", "seed": 1,
                    "vary": {"fan.quality": 0.75}, "n_pings": 10}
@@ -152,23 +153,34 @@ def test_killed_batch_resumes_to_the_same_files(sweep_file, reference, tmp_path)
     assert se.batch.run(sweep_file, out, resume=True) == []
 
 
-def test_coco_dataset_loads_and_boxes_cover_the_objects(reference):
-    coco = json.loads((reference / "coco.json").read_text())
-    assert [c["name"] for c in coco["categories"]] == ["crate", "drum"]
-    assert len(coco["images"]) == 6 and len({a["id"] for a in coco["annotations"]}) == len(coco["annotations"])
-    assert coco["annotations"], "no object is visible"
-    by_image = {im["id"]: im for im in coco["images"]}
-    for ann in coco["annotations"]:
-        im = by_image[ann["image_id"]]
-        rec = se.Record.load(reference / im["file_name"].replace("waterfall.png", "record.npz"))
-        lab = rec.labels
-        obj = lab.names.index(ann["object_label"])
-        mask = lab.mask((lab.kind == OBJECT) & (lab.object_id == obj), 1024)
+def test_coco_dataset_loads_and_masks_match_the_labels(reference):
+    """pycocotools reads the merged dataset; every annotation's mask is a connected piece of its object's echo."""
+    from pycocotools.coco import COCO
+    from scipy import ndimage
+
+    coco = COCO(str(reference / "coco.json"))
+    coco.info()  # needs the info block
+    assert [c["name"] for c in coco.loadCats(coco.getCatIds())] == ["crate", "drum"]
+    assert len(coco.getImgIds()) == 6 and coco.getAnnIds(), "no object is visible"
+    per_object = {}
+    for ann in coco.loadAnns(coco.getAnnIds()):
+        im = coco.loadImgs(ann["image_id"])[0]
+        m = coco.annToMask(ann).astype(bool)
+        assert m.shape == (im["height"], im["width"]) and m.sum() == ann["area"] > 0
         x, y, w, h = ann["bbox"]
-        assert mask.shape == (im["height"], im["width"])
-        assert mask.sum() == ann["area"] and mask[y:y + h, x:x + w].sum() == mask.sum()
-        cat = {c["id"]: c["name"] for c in coco["categories"]}[ann["category_id"]]
+        assert m[y:y + h, x:x + w].sum() == m.sum()
+        assert ndimage.label(m, structure=np.ones((3, 3)))[1] == 1  # one connected piece per annotation
+        cat = coco.loadCats(ann["category_id"])[0]["name"]
         assert ann["object_label"].split("#")[0] == cat
+        key = (im["file_name"], ann["object_label"])
+        per_object[key] = per_object.get(key, np.zeros_like(m)) | m
+    for (file_name, label), union in per_object.items():
+        rec = se.Record.load(reference / file_name.replace("waterfall.png", "record.npz"))
+        lab = rec.labels
+        np.testing.assert_array_equal(union, lab.mask(lab.echo_mask(lab.names.index(label)), 1024))
+        kinds = iio.imread(reference / file_name.replace("waterfall.png", "labels.png"))
+        assert kinds.ndim == 2  # class indices, read back exactly
+        np.testing.assert_array_equal(kinds, lab.waterfall("kind", 1024))
 
 
 @pytest.mark.parametrize("edit, message", [

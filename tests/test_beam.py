@@ -1,4 +1,4 @@
-"""Rectangular-membrane beam pattern against PHYSICS.md §2."""
+"""Rectangular-membrane beam pattern against docs/physics.md §2."""
 import math
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""The speckle-free flat-floor return against independent quadrature of PHYSICS.md eq. (1)–(2)."""
+"""The speckle-free flat-floor return against independent quadrature of docs/physics.md eq. (1)–(2)."""
 import numpy as np
 import pytest
 
@@ -7,7 +7,7 @@ from conftest import H
 
 
 def test_reference_quadrature_reproduces_physics_md_numbers():
-    # PHYSICS.md §3: expected intensity of the 7.5 cm cell centred on R (default case).
+    # docs/physics.md §3: expected intensity of the 7.5 cm cell centred on R (default case).
     r = np.array([12.0, 13.74, 20.0, 29.24, 40.0, 50.0])
     published = np.array([-102.72, -101.35, -106.22, -115.70, -124.97, -132.16])
     got = 10 * np.log10(analytic.flat_floor_expected_intensity(r + 0.0375))

@@ -1,4 +1,4 @@
-"""Geometry: side separation, shadows (PHYSICS.md §6), UTM-scale precision (§8)."""
+"""Geometry: side separation, shadows (docs/physics.md §6), UTM-scale precision (§8)."""
 import numpy as np
 import pytest
 
@@ -27,7 +27,7 @@ def test_object_to_starboard_shows_in_starboard_only():
 
 
 def test_box_shadow_slant_extent():
-    """A 1 m high wall at ground range x = 20 m: floor shadow 22.361–24.369 m (PHYSICS.md §6)."""
+    """A 1 m high wall at ground range x = 20 m: floor shadow 22.361–24.369 m (docs/physics.md §6)."""
     x, height, thick = 20.0, 1.0, 0.01
     scene = flat_scene().add(box((12.0, thick, height), (0.0, -(x - thick / 2), height / 2)), label="wall")
     sonar = se.Sonar()

@@ -1,4 +1,4 @@
-"""Numerical stability on the hard cases of PHYSICS.md §8 and issue 4, through the whole simulator.
+"""Numerical stability on the hard cases of docs/physics.md §8 and issue 4, through the whole simulator.
 
 Each test checks a property that follows from geometry or symmetry alone (an independent
 reference), plus: finite, non-negative, nothing wrapped around the recording window.
@@ -134,8 +134,13 @@ def test_echoes_at_the_edges_of_the_window_do_not_wrap(pulse):
     assert x[-5:].max() > 0
     assert np.all(x[: len(x) // 2] == 0.0)
     # and one beyond the window (by more than the compressed pulse's half-length cτ/2) leaves the record empty
-    scene = se.Scene().add(facing_plate(slant_range_m=21.0, size_m=0.5), label="plate")
-    rec = se.simulate(scene, se.Trajectory.line((0, 0, H), (0.01, 0, H), 1), sonar, pulse)
+    from conftest import decoy_above
+
+    traj = se.Trajectory.line((0, 0, H), (0.01, 0, H), 1)
+    scene = se.Scene().add(facing_plate(slant_range_m=22.0, size_m=0.5), label="plate")
+    with pytest.raises(se.ConfigError, match="nothing of the scene lies within"):
+        se.simulate(scene, traj, sonar, pulse)  # alone it is out of range: refused
+    rec = se.simulate(scene.add(decoy_above(traj), label="decoy"), traj, sonar, pulse)
     assert np.all(rec.starboard == 0.0)
 
 

@@ -1,4 +1,5 @@
 """Record formats read back by independent readers: pyxtf for XTF, xarray/Zarr, json for COCO."""
+import dataclasses
 import datetime as dt
 import json
 import os
@@ -8,6 +9,7 @@ import numpy as np
 import pytest
 import pyxtf
 import xarray as xr
+from pycocotools.coco import COCO
 
 import sonar_embree as se
 from conftest import box, flat_scene
@@ -28,7 +30,7 @@ def record():
 
 def test_pyxtf_reads_channels_pings_samples_and_navigation(record, tmp_path):
     path = tmp_path / "run.xtf"
-    record.to_xtf(path, start=dt.datetime(2026, 3, 4, 5, 6, 7))
+    record.to_xtf(path, start=dt.datetime(2026, 3, 4, 5, 6, 7), scale=1.0, surface_z_m=30.0)
     header, packets = pyxtf.xtf_read(str(path))
     assert header.NumberOfSonarChannels == 2
     assert [c.TypeOfChannel for c in header.sonar_info] == [1, 2]  # port, starboard
@@ -43,7 +45,7 @@ def test_pyxtf_reads_channels_pings_samples_and_navigation(record, tmp_path):
         assert p.SensorXcoordinate == t.positions_m[i, 0] and p.SensorYcoordinate == t.positions_m[i, 1]
         assert p.SensorHeading == np.float32(t.heading_deg[i])
         assert p.SensorRoll == np.float32(t.roll_deg[i]) and p.SensorPitch == np.float32(t.pitch_deg[i])
-        assert p.SensorDepth == np.float32(-t.positions_m[i, 2])
+        assert p.SensorDepth == np.float32(30.0 - t.positions_m[i, 2])
         assert p.PingNumber == i
         want = np.datetime64("2026-03-04T05:06:07") + np.timedelta64(int(t.times_s[i] * 100) * 10, "ms")
         assert p.get_time() == want
@@ -51,6 +53,34 @@ def test_pyxtf_reads_channels_pings_samples_and_navigation(record, tmp_path):
     port = pyxtf.concatenate_channel(pings, header, 0)[::-1]
     np.testing.assert_array_equal(port[:, ::-1], record.port.astype(np.float32))
     assert not list(tmp_path.glob(".tmp-*"))
+
+
+def test_xtf_speed_start_time_and_visible_samples(record, tmp_path):
+    """Speed in knots from the trajectory, ping times from the record's start time, samples scaled to be seen."""
+    path = tmp_path / "run.xtf"
+    record.to_xtf(path)
+    header, packets = pyxtf.xtf_read(str(path))
+    pings = packets[pyxtf.XTFHeaderType.sonar]
+    t = record.trajectory
+    step = np.linalg.norm(np.diff(t.positions_m, axis=0), axis=1) / np.diff(t.times_s)
+    assert 1.3 < step.mean() < 1.7  # through_waypoints(speed_m_s=1.5): the path is a little longer than the chords
+    for i, p in enumerate(pings):
+        assert p.SensorSpeed == pytest.approx(step[min(i, len(step) - 1)] / 0.514444, rel=0.2)
+        assert p.SensorSpeed > 2.0  # knots, never 0
+        assert p.SensorDepth == 0.0  # no sea surface given: unknown depth, not -z
+    start = np.datetime64(record.attrs["start_time"].replace("+00:00", ""), "ms")
+    assert abs(pings[0].get_time() - start) <= np.timedelta64(10, "ms")
+    assert abs(start - np.datetime64(dt.datetime.now(dt.timezone.utc).replace(tzinfo=None), "ms")) \
+        < np.timedelta64(3600, "s")  # simulate's default start: now
+    factor = float(header.NoteString.decode().rsplit("x ", 1)[1]) if isinstance(header.NoteString, bytes) else \
+        float(str(header.NoteString).rsplit("x ", 1)[1])
+    data = np.array([p.data[1] for p in pings], dtype=np.float64)
+    assert 100 <= np.percentile(data[data > 0], 99.5) < 1000  # a viewer shows it, not black
+    np.testing.assert_allclose(data / factor, record.starboard, rtol=1e-6, atol=0)
+    with pytest.raises(se.ConfigError, match="above the sea surface"):
+        record.to_xtf(tmp_path / "bad.xtf", surface_z_m=5.0)
+    with pytest.raises(se.ConfigError, match="scale"):
+        record.to_xtf(tmp_path / "bad.xtf", scale=-1.0)
 
 
 def test_zarr_opens_lazily_and_equals_the_record(record, tmp_path):
@@ -71,10 +101,43 @@ def test_zarr_opens_lazily_and_equals_the_record(record, tmp_path):
     np.testing.assert_array_equal(ds.altitude_m.values, record.altitude_m)
     for k in Labels.ARRAYS:
         np.testing.assert_array_equal(ds[f"label_{k}"].values, getattr(record.labels, k))
-    assert ds.attrs["simulation.seed"] == 4 and ds.attrs["simulation.speckle"] is True
+    assert ds.attrs["simulation.seed"] == 4 and ds.attrs["simulation.speckle"] == 1  # NetCDF has no booleans
     assert ds.attrs["sonar.max_range_m"] == 25.0 and ds.attrs["package_version"] == se.__version__
     assert ds.attrs["labels.names"] == ["seafloor", "crate#0"]
     assert sorted(os.listdir(tmp_path)) == ["run.zarr"]
+
+
+def _cf_checks(ds):
+    assert ds.attrs["Conventions"].startswith("CF-")
+    assert not [k for k, v in ds.attrs.items() if v is None]
+    assert not [k for k, v in ds.attrs.items() if isinstance(v, str) and k.startswith(("sonar.", "pulse."))
+                and k != "pulse.kind"], "numbers stored as strings"
+    for name, var in ds.variables.items():
+        if name not in ("side",):
+            assert "long_name" in var.attrs, name
+    for name in ("x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_deg", "ping_time"):
+        assert name in ds.coords and ds[name].dims == ("ping",), name
+    assert ds.x_m.attrs["standard_name"] == "projection_x_coordinate" and ds.x_m.attrs["units"] == "m"
+    assert ds.heading_deg.attrs["standard_name"] == "platform_yaw"
+    assert ds.altitude_m.attrs["standard_name"] == "height_above_sea_floor"
+
+
+def test_zarr_to_netcdf_round_trip(record, tmp_path):
+    """xarray opens the Zarr, writes NetCDF with netCDF4, and reads back the same dataset (CF-style)."""
+    plain = dataclasses.replace(record, port_complex=None, starboard_complex=None)
+    plain.to_zarr(tmp_path / "plain.zarr")
+    ds = xr.open_zarr(tmp_path / "plain.zarr").load()
+    _cf_checks(ds)
+    ds.to_netcdf(tmp_path / "plain.nc")  # default engine, no options: every attribute is NetCDF-typed
+    back = xr.open_dataset(tmp_path / "plain.nc").load()
+    xr.testing.assert_identical(ds, back)
+    assert back.ping_time.values[0] == np.datetime64(record.attrs["start_time"].replace("+00:00", ""), "ns")
+    # complex baseband needs NetCDF's complex support, asked for explicitly
+    record.to_zarr(tmp_path / "cplx.zarr")
+    ds = xr.open_zarr(tmp_path / "cplx.zarr").load()
+    ds.to_netcdf(tmp_path / "cplx.nc", engine="netcdf4", auto_complex=True)
+    back = xr.open_dataset(tmp_path / "cplx.nc", engine="netcdf4", auto_complex=True).load()
+    xr.testing.assert_identical(ds, back)
 
 
 def test_coco_boxes_cover_the_label_mask(record, tmp_path):
@@ -83,12 +146,21 @@ def test_coco_boxes_cover_the_label_mask(record, tmp_path):
     assert d["categories"] == [{"id": 1, "name": "crate", "supercategory": "object"}]
     img = d["images"][0]
     assert (img["height"], img["width"]) == (record.n_pings, 2 * record.port.shape[1])
-    (ann,) = d["annotations"]
+    assert d["info"]["date_created"] == record.attrs["start_time"]
     lab = record.labels
-    mask = lab.mask((lab.kind == OBJECT) & (lab.object_id == 1), None)
-    x, y, w, h = ann["bbox"]
-    assert mask.sum() == ann["area"] > 0
-    assert mask[y:y + h, x:x + w].sum() == mask.sum()
+    want = lab.mask(lab.echo_mask(1), None)
+    coco = COCO(str(tmp_path / "coco.json"))
+    union = np.zeros_like(want)
+    for ann in coco.loadAnns(coco.getAnnIds()):
+        m = coco.annToMask(ann).astype(bool)  # pycocotools decodes our RLE
+        x, y, w, h = ann["bbox"]
+        assert m.sum() == ann["area"] > 0 and m[y:y + h, x:x + w].sum() == m.sum()
+        assert not (union & m).any()  # pieces do not overlap
+        union |= m
+    np.testing.assert_array_equal(union, want)
+    # the echo covers at least the centre line's geometric highlight
+    centre = lab.mask((lab.kind == OBJECT) & (lab.object_id == 1), None)
+    assert centre.any() and (want | centre).sum() <= want.sum() + 0.2 * centre.sum()
 
 
 def test_coco_needs_labels(flat_record, tmp_path):

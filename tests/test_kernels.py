@@ -153,14 +153,19 @@ def test_fan_rays_match_naive(rng):
     np.testing.assert_allclose(org, pos[rows // 2], atol=1e-6)
 
 
-def test_fan_echoes_match_naive_on_sloped_facets(rng):
-    """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight."""
+@pytest.mark.parametrize("inverted", [False, True])
+def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
+    """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight.
+    Inverted: the same mesh with its faces turned away, in a two-sided material, gives the same echoes."""
     from sonar_embree.raycast import RayCaster
 
     heights = rng.uniform(-0.3, 0.3, (21, 21)) + np.linspace(0, 4, 21)[None, :]
-    scene = se.Scene().add(se.seafloor.from_heights(heights, spacing_m=4.0, origin_m=(-40, -40)), label="floor",
-                           material=se.Material(-20.0))
+    mesh = se.seafloor.from_heights(heights, spacing_m=4.0, origin_m=(-40, -40))
+    if inverted:
+        mesh.invert()
+    scene = se.Scene().add(mesh, label="floor", material=se.Material(-20.0, two_sided=inverted))
     c = scene.compiled()
+    two_sided = c.two_sided[c.face_object]
     caster = RayCaster(c)
     s, beta, dbeta, el_start, rot, pos = _block(rng)
     pos = pos - c.origin_m  # the local frame
@@ -173,10 +178,11 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng):
     k, lx, ly, tilt = 2 * np.pi / 0.00375, 0.19, 0.0038, np.radians(20)
     rng_k, ext_k, w_k, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
     kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, prim, tfar, c.vertices,
-                       c.faces, c.face_normals, mu_face, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004,
+                       c.faces, c.face_normals, mu_face, two_sided, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02,
+                       0.004,
                        60.0, 500.0, rng_k, ext_k, w_k, pts)
     rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,
-                                         mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0)
+                                         mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0, two_sided)
     hit = w_n > 0
     assert hit.sum() > 100
     np.testing.assert_array_equal(w_k > 0, hit)

@@ -1,4 +1,4 @@
-"""Ground-truth labels against geometry worked out by hand (PHYSICS.md §6 shadow formula)."""
+"""Ground-truth labels against geometry worked out by hand (docs/physics.md §6 shadow formula)."""
 import numpy as np
 import pytest
 
@@ -47,7 +47,7 @@ def test_box_highlight_and_shadow_follow_the_shadow_formula(wall_record):
     h, height, x_near, x_far = H, 1.0, 19.0, 21.0
     r_lit_start = np.hypot(x_near, h - height)            # top of the near face: nearest point of the box
     r_top = np.hypot(x_far, h - height)                    # far top edge casts the shadow
-    r_end = h * r_top / (h - height)                       # PHYSICS.md: R_end = h·R_top/(h − H)
+    r_end = h * r_top / (h - height)                       # docs/physics.md: R_end = h·R_top/(h − H)
     for ping in range(3):
         kind = lab.kind[0, ping]                           # heading +x: +y is port
         lo, hi, _ = _runs(kind == OBJECT, r)
@@ -86,13 +86,16 @@ def test_labels_survive_save_and_load(tmp_path, wall_record):
     assert back.labels.is_seafloor == wall_record.labels.is_seafloor
 
 
-def test_boxes_cover_the_objects_pixels(wall_record):
+@pytest.mark.parametrize("source", ["echo", "centre"])
+def test_boxes_cover_the_objects_pixels(wall_record, source):
     lab = wall_record.labels
     for cols in (None, 64):
-        boxes = lab.boxes(cols)
+        boxes = lab.boxes(cols, source=source)
         assert [b["label"] for b in boxes] == ["box"]
         x, y, w, hgt = boxes[0]["bbox"]
-        mask = lab.mask((lab.kind == OBJECT) & (lab.object_id == 1), cols)
+        sel = lab.echo_mask(1) if source == "echo" else (lab.kind == OBJECT) & (lab.object_id == 1)
+        mask = lab.mask(sel, cols)
+        np.testing.assert_array_equal(boxes[0]["mask"], mask)
         inside = np.zeros_like(mask)
         inside[y:y + hgt, x:x + w] = True
         assert mask.any() and not np.any(mask & ~inside)

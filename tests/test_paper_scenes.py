@@ -78,7 +78,7 @@ def rail_scene():
 
 
 def _first_return_analytic(traj):
-    """Slant range to the rail's near top edge in each ping's zero-azimuth plane (PHYSICS.md conventions).
+    """Slant range to the rail's near top edge in each ping's zero-azimuth plane (docs/physics.md conventions).
 
     The plane through the sonar perpendicular to the heading ψ (clockwise from north) meets the
     edge line (x, y_e, H) where (x − px)·sin ψ + (y_e − py)·cos ψ = 0, at horizontal distance

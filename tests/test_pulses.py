@@ -1,4 +1,4 @@
-"""Pulses (PHYSICS.md §5) and absorption (§3) against closed forms and independent formulas."""
+"""Pulses (docs/physics.md §5) and absorption (§3) against closed forms and independent formulas."""
 import math
 
 import numpy as np
@@ -90,7 +90,7 @@ def test_pulse_validation():
 
 
 def test_francois_garrison_reproduces_physics_md():
-    # PHYSICS.md §3: 96 dB/km at 400 kHz, 10 °C, 35 ppt, pH 8; 94–124 dB/km over 4–20 °C.
+    # docs/physics.md §3: 96 dB/km at 400 kHz, 10 °C, 35 ppt, pH 8; 94–124 dB/km over 4–20 °C.
     assert francois_garrison_db_per_m(400e3, 10, 35, 0, 8) * 1e3 == pytest.approx(96, abs=0.5)
     assert francois_garrison_db_per_m(400e3, 4, 35, 0, 8) * 1e3 == pytest.approx(94, abs=0.5)
     assert francois_garrison_db_per_m(400e3, 20, 35, 0, 8) * 1e3 == pytest.approx(124, abs=0.5)

@@ -38,8 +38,11 @@ def test_nothing_in_range_costs_next_to_nothing():
     (0.2° steps over the 150° elevation span, both sides) a few hundred rays."""
     from sonar_embree.fan import FanPlan
 
+    from conftest import decoy_above
+
     full = _rays(flat_scene())[0]
-    empty, rec = _rays(flat_scene(), traj=line_along_x(2, z=60.0))
+    traj = line_along_x(2, z=60.0)
+    empty, rec = _rays(flat_scene().add(decoy_above(traj), label="decoy"), traj=traj)
     assert np.all(rec.port == 0) and np.all(rec.starboard == 0)
     probe = FanPlan.build(rec.sonar, se.FanSettings()).n_probe
     assert empty - probe < 0.05 * (full - probe)
@@ -89,8 +92,10 @@ def test_cli_quality_flag(tmp_path):
 
 def test_timings_report_every_stage_without_changing_the_record():
     t = {}
-    a = se.simulate(flat_scene(), line_along_x(2), se.Sonar(max_range_m=30.0), speckle=True, timings=t)
-    b = se.simulate(flat_scene(), line_along_x(2), se.Sonar(max_range_m=30.0), speckle=True)
+    a = se.simulate(flat_scene(), line_along_x(2), se.Sonar(max_range_m=30.0), speckle=True, timings=t,
+                    start_time="2026-01-01T00:00:00Z")
+    b = se.simulate(flat_scene(), line_along_x(2), se.Sonar(max_range_m=30.0), speckle=True,
+                    start_time="2026-01-01T00:00:00Z")
     assert set(t) == {"setup", "embree", "rays", "synthesis", "processing"}
     assert all(v >= 0 for v in t.values()) and t["embree"] > 0
     np.testing.assert_array_equal(a.starboard, b.starboard)

@@ -85,5 +85,10 @@ def test_same_inputs_same_bits():
                                   {"speckle": True, "band": "carrier", "detection": "incoherent"},
                                   {"speckle": True, "tvg": True, "lowpass_hz": 5e3}])
 def test_empty_range_window_gives_zero_record(mode):
-    rec = se.simulate(flat_scene(), line_along_x(n_pings=2, z=80.0), se.Sonar(max_range_m=50), **mode)
+    from conftest import decoy_above
+
+    traj = line_along_x(n_pings=2, z=80.0)
+    with pytest.raises(se.ConfigError, match="nothing of the scene lies within"):
+        se.simulate(flat_scene(), traj, se.Sonar(max_range_m=50), **mode)
+    rec = se.simulate(flat_scene().add(decoy_above(traj), label="decoy"), traj, se.Sonar(max_range_m=50), **mode)
     assert np.all(rec.port == 0) and np.all(rec.starboard == 0) and np.all(np.isnan(rec.altitude_m))

@@ -53,6 +53,7 @@ def test_detection_dataset_script_writes_a_coco_dataset(tmp_path):
     example = iio.imread(out / "example.png")
     waterfall = iio.imread(out / "dataset" / "00000" / "waterfall.png")
     labels = iio.imread(out / "dataset" / "00000" / "labels.png")
+    assert labels.ndim == 2 and set(np.unique(labels)) <= {0, 1, 2, 3}  # class indices, one channel
     assert example.shape == (waterfall.shape[0] + 4 + labels.shape[0], waterfall.shape[1], 3)
     np.testing.assert_array_equal(example[:waterfall.shape[0], :, 0], waterfall)
 

@@ -1,4 +1,4 @@
-"""The signal chain (PHYSICS.md §5): bands, detection, matched filter, noise, TVG, options."""
+"""The signal chain (docs/physics.md §5): bands, detection, matched filter, noise, TVG, options."""
 import numpy as np
 import pytest
 
@@ -100,7 +100,7 @@ def test_tapered_lfm_widens_the_compressed_peak(plate_scene):
     b, fs = 20e3, 200e3
     sonar = se.Sonar(max_range_m=30.0, sample_rate_hz=fs)
     rec = se.simulate(plate_scene, _still(), sonar, se.Pulse.lfm(b, 1e-3, taper=0.1))
-    assert _half_power_width(rec.starboard[0]) / fs == pytest.approx(1.03 / b, rel=0.1)  # PHYSICS.md §5
+    assert _half_power_width(rec.starboard[0]) / fs == pytest.approx(1.03 / b, rel=0.1)  # docs/physics.md §5
 
 
 def test_pulse_compression_gains_b_tau_in_peak_to_noise(plate_scene):

@@ -1,4 +1,4 @@
-"""Speckle (PHYSICS.md §4): Rayleigh statistics, frozen to the surface, unbiased."""
+"""Speckle (docs/physics.md §4): Rayleigh statistics, frozen to the surface, unbiased."""
 import numpy as np
 import pytest
 

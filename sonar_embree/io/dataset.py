@@ -14,60 +14,117 @@ from ..labels import KIND_NAMES, SIDES, Labels
 PING_CHUNK = 256
 
 
+#: CF conventions the datasets follow.
+CONVENTIONS = "CF-1.10"
+
+
+def _attr_value(v):
+    """A value NetCDF can store: bool → 0/1, lists of those, everything else as is (None is dropped)."""
+    if isinstance(v, (bool, np.bool_)):
+        return int(v)
+    if isinstance(v, (list, tuple)):
+        return [_attr_value(x) for x in v]
+    if isinstance(v, np.generic):
+        return v.item()
+    return v
+
+
 def _flat_attrs(record) -> dict:
+    """Global attributes: every sonar, pulse and simulation setting, typed; unset (None) settings left out."""
     from .. import __version__
 
-    attrs = {"package": "sonar_embree", "package_version": __version__,
-             "sample_order": "sample n at time n/fs from the start of transmission, both channels"}
+    attrs = {"Conventions": CONVENTIONS, "title": "simulated side-scan sonar record",
+             "source": f"sonar_embree {__version__} (ray-traced side-scan simulation)",
+             "package": "sonar_embree", "package_version": __version__,
+             "sample_order": "sample n at time n/fs from the start of transmission, both channels",
+             "intensity_reference": "unit source: on-axis intensity 1 at 1 m (docs/physics.md section 3)"}
     for group, obj in (("sonar", record.sonar), ("pulse", record.pulse)):
         for k, v in dataclasses.asdict(obj).items():
-            attrs[f"{group}.{k}"] = v
+            if v is not None:
+                attrs[f"{group}.{k}"] = _attr_value(v)
     for k, v in record.attrs.items():
-        attrs[f"simulation.{k}"] = v
+        if v is not None:
+            attrs[f"simulation.{k}"] = _attr_value(v)
     return attrs
 
 
+def _ping_coords(record) -> dict:
+    """Per-ping coordinates: navigation, attitude and time (CF standard names where they exist)."""
+    t = record.trajectory
+    coords = {}
+    for i, (axis, std) in enumerate((("x", "projection_x_coordinate"), ("y", "projection_y_coordinate"),
+                                     ("z", None))):
+        meta = {"units": "m", "long_name": f"sonar position, world {axis} ({'east' if axis == 'x' else 'north' if axis == 'y' else 'up'})"}
+        if std:
+            meta["standard_name"] = std
+        coords[f"{axis}_m"] = (("ping",), t.positions_m[:, i], meta)
+    for name, std, what in (("heading_deg", "platform_yaw", "clockwise from north"),
+                            ("pitch_deg", "platform_pitch", "positive nose up"),
+                            ("roll_deg", "platform_roll", "positive starboard down")):
+        coords[name] = (("ping",), getattr(t, name), {"units": "degree", "standard_name": std,
+                                                      "long_name": f"{name[:-4]}, {what}"})
+    coords["ping_time_s"] = (("ping",), t.times_s, {"units": "s", "long_name": "ping time from start_time"})
+    start = record.attrs.get("start_time")
+    if start is not None:
+        stamp = start.replace("+00:00", "")
+        coords["ping_time"] = (("ping",), t.times_s, {"units": f"seconds since {stamp}", "calendar": "standard",
+                                                      "standard_name": "time", "long_name": "ping time (UTC)"})
+    return coords
+
+
 def to_xarray(record):
-    """The record as an ``xarray.Dataset``.
+    """The record as a CF-style ``xarray.Dataset`` (writable as NetCDF with ``to_netcdf``).
 
     Variables: ``port``, ``starboard`` (ping, sample) linear intensity (and
-    ``port_complex``, ``starboard_complex`` when the record keeps them); ``x_m``,
-    ``y_m``, ``z_m``, ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``altitude_m``
-    (ping); with labels ``label_kind``, ``label_object_id``, ``label_shadow_of``,
+    ``port_complex``, ``starboard_complex`` when the record keeps them: NetCDF needs
+    ``to_netcdf(..., auto_complex=True)`` for those); ``altitude_m`` (ping); with
+    labels ``label_kind``, ``label_object_id``, ``label_shadow_of``,
     ``label_height_m``, ``label_ground_range_m`` (side, ping, sample). Coordinates
-    ``time_s`` and ``slant_range_m`` (sample), ``ping_time_s`` (ping), ``side``.
-    Attributes: every sonar, pulse and signal-chain setting (``sonar.*``,
-    ``pulse.*``, ``simulation.*`` including the seed) and the package version.
+    ``time_s`` and ``slant_range_m`` (sample); per ping ``x_m``, ``y_m``, ``z_m``,
+    ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``ping_time_s`` and ``ping_time``
+    (CF time, seconds since the record's start time); ``side``. Every variable has
+    ``units`` and ``long_name``, and a CF ``standard_name`` where one exists.
+    Attributes: ``Conventions``, every sonar, pulse and signal-chain setting that is
+    set (``sonar.*``, ``pulse.*``, ``simulation.*`` including the seed; booleans as
+    0/1) and the package version.
     """
     import xarray as xr
 
-    t = record.trajectory
-    data = {"port": (("ping", "sample"), record.port, {"units": "1", "long_name": "port intensity, unit source"}),
+    intensity = {"units": "1", "long_name": "{} intensity for a unit source (linear)"}
+    data = {"port": (("ping", "sample"), record.port, {**intensity, "long_name": intensity["long_name"].format("port")}),
             "starboard": (("ping", "sample"), record.starboard,
-                          {"units": "1", "long_name": "starboard intensity, unit source"}),
-            "altitude_m": (("ping",), record.altitude_m, {"units": "m"})}
+                          {**intensity, "long_name": intensity["long_name"].format("starboard")}),
+            "altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
+                                                          "long_name": "range to the first surface below the sonar"})}
     for side in ("port", "starboard"):
         z = getattr(record, f"{side}_complex")
         if z is not None:
-            data[f"{side}_complex"] = (("ping", "sample"), z, {"long_name": f"{side} complex baseband, |.|^2 = {side}"})
-    for i, axis in enumerate("xyz"):
-        data[f"{axis}_m"] = (("ping",), t.positions_m[:, i], {"units": "m"})
-    for name in ("heading_deg", "pitch_deg", "roll_deg"):
-        data[name] = (("ping",), getattr(t, name), {"units": "degree"})
-    coords = {"time_s": (("sample",), record.time_s, {"units": "s"}),
-              "slant_range_m": (("sample",), record.slant_range_m, {"units": "m"}),
-              "ping_time_s": (("ping",), t.times_s, {"units": "s"})}
+            data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1",
+                                                              "long_name": f"{side} complex baseband, |.|^2 = {side}"})
+    coords = {"time_s": (("sample",), record.time_s, {"units": "s", "long_name": "time from the start of transmission"}),
+              "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
+              **_ping_coords(record)}
     attrs = _flat_attrs(record)
     if record.labels is not None:
-        lab = record.labels
-        for k in Labels.ARRAYS:
-            data[f"label_{k}"] = (("side", "ping", "sample"), getattr(lab, k), {})
-        data["label_kind"][2].update(flag_values=list(range(len(KIND_NAMES))), flag_meanings=" ".join(KIND_NAMES))
-        data["label_height_m"][2]["units"] = data["label_ground_range_m"][2]["units"] = "m"
-        coords["side"] = (("side",), list(SIDES))
-        attrs["labels.names"] = list(lab.names)
-        attrs["labels.is_seafloor"] = [int(x) for x in lab.is_seafloor]
+        _label_variables(record.labels, data, coords, attrs)
     return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _label_variables(lab, data, coords, attrs) -> None:
+    meta = {"kind": {"units": "1", "long_name": "what the sample sees",
+                     "flag_values": np.arange(len(KIND_NAMES), dtype=lab.kind.dtype),
+                     "flag_meanings": " ".join(KIND_NAMES)},
+            "object_id": {"units": "1", "long_name": "index into labels.names of the echoing object, -1 none"},
+            "shadow_of": {"units": "1", "long_name": "index into labels.names of the shadow's caster, -1 none"},
+            "height_m": {"units": "m", "long_name": "world z of the surface point seen"},
+            "ground_range_m": {"units": "m", "long_name": "horizontal range to the surface point seen"},
+            "echo_object": {"units": "1", "long_name": "index into labels.names of the strongest object echo, -1 none"},
+            "echo_intensity": {"units": "1", "long_name": "expected intensity of that object echo, unit source"}}
+    for k in Labels.ARRAYS:
+        data[f"label_{k}"] = (("side", "ping", "sample"), getattr(lab, k), meta[k])
+    coords["side"] = (("side",), list(SIDES), {"long_name": "sonar channel"})
+    attrs["labels.names"] = list(lab.names)
+    attrs["labels.is_seafloor"] = [int(x) for x in lab.is_seafloor]
 
 
 def replace_dir(path, write_fn) -> None:

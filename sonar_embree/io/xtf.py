@@ -7,19 +7,28 @@ pyxtf reads the files (tested).
 
 Conventions of what is written:
 
-- Samples: 4-byte IEEE floats (SampleFormat 5), the record's linear intensity
-  (unit source) rounded to float32.
+- Samples: 4-byte IEEE floats (SampleFormat 5): the record's linear intensity
+  (unit source) times a scale factor, rounded to float32. ``scale="auto"``
+  (default) is the power of ten that puts the 99.5th percentile of the positive
+  samples between 100 and 1000 — raw unit-source intensities (~1e-12) show black
+  in viewers; a number sets the factor, 1 keeps the raw values. The factor is
+  written in the file header's note ("unit-source intensity x 1e+14").
 - **Sample order**: starboard runs from time 0 (nadir) outwards; port runs from far
   range to nadir (its last sample is time 0), the XTF convention readers such as
   pyxtf assume, so ``hstack([port, starboard])`` is the waterfall.
 - Navigation in metres (NavUnits 0): SensorXcoordinate = world x (east),
   SensorYcoordinate = world y (north) as float64, also in the Ship fields;
-  SensorDepth = −z (world z = 0 taken as the sea surface); SensorPrimaryAltitude =
-  the record's nadir altitude (0 where none); SensorHeading, SensorPitch,
-  SensorRoll in degrees (PHYSICS.md §1 is the XTF convention).
+  SensorDepth = surface_z_m − z, positive down from the sea surface at world height
+  ``surface_z_m``; without a surface (the default: scenes have none yet) the depth
+  is unknown and written as 0, as devices without a pressure sensor do;
+  SensorPrimaryAltitude = the record's nadir altitude (0 where none);
+  SensorSpeed and ShipSpeed in knots from the trajectory (distance over time
+  between pings); SensorHeading, SensorPitch, SensorRoll in degrees
+  (docs/physics.md §1 is the XTF convention).
 - SoundVelocity holds c/2 (the XTF convention); the channel header's SlantRange
   is the range window, TimeDuration its length, Frequency in kHz.
-- Ping times: ``start`` plus the trajectory's ``times_s``.
+- Ping times: ``start`` (default: the record's ``attrs["start_time"]``, set by
+  :func:`~sonar_embree.simulate`) plus the trajectory's ``times_s``.
 """
 from __future__ import annotations
 
@@ -87,10 +96,33 @@ assert (_CHAN_INFO.itemsize, _FILE_HEADER.itemsize, _PING_HEADER.itemsize, _CHAN
 
 PORT_CHANNEL, STARBOARD_CHANNEL = 1, 2  # XTF TypeOfChannel
 SAMPLE_FORMAT_FLOAT32 = 5
-DEFAULT_START = dt.datetime(2026, 1, 1, tzinfo=dt.timezone.utc)
+KNOT_M_S = 1852.0 / 3600.0
 
 
-def _file_header(record) -> np.ndarray:
+def sample_scale(record, scale="auto") -> float:
+    """The factor applied to the intensities written as XTF samples (see the module docstring)."""
+    if scale == "auto":
+        both = np.concatenate([np.ravel(record.port), np.ravel(record.starboard)])
+        pos = both[both > 0]
+        if not pos.size:
+            return 1.0
+        ref = float(np.percentile(pos, 99.5))
+        return float(10.0 ** (2 - math.floor(math.log10(ref))))
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale < math.inf:
+        raise ConfigError(f"to_xtf: scale must be 'auto' or a number > 0, got {scale!r}")
+    return float(scale)
+
+
+def speed_m_s(trajectory) -> np.ndarray:
+    """(n,) speed of each ping from the distance to its neighbours over the time between them, m/s."""
+    p, t = trajectory.positions_m, trajectory.times_s
+    if len(t) < 2:
+        return np.zeros(len(t))
+    v = np.linalg.norm(np.diff(p, axis=0), axis=1) / np.diff(t)
+    return np.concatenate([v[:1], 0.5 * (v[1:] + v[:-1]), v[-1:]])
+
+
+def _file_header(record, factor: float) -> np.ndarray:
     from .. import __version__
 
     h = np.zeros((), dtype=_FILE_HEADER)
@@ -98,7 +130,7 @@ def _file_header(record) -> np.ndarray:
     h["RecordingProgramName"] = b"sonar_em"
     h["RecordingProgramVersion"] = __version__.encode()[:8]
     h["SonarName"] = b"sonar_embree"
-    h["NoteString"] = b"simulated side-scan, linear intensity, unit source"
+    h["NoteString"] = f"simulated side-scan, unit-source intensity x {factor:.6g}".encode()[:64]
     h["NavUnits"] = 0
     h["NumberOfSonarChannels"] = 2
     s = record.sonar
@@ -115,20 +147,53 @@ def _file_header(record) -> np.ndarray:
     return h
 
 
-def to_xtf(record, path, start: dt.datetime | None = None) -> None:
+def _start(record, start) -> dt.datetime:
+    from ..record import iso_utc
+
+    if start is None:
+        start = record.attrs.get("start_time")
+    try:
+        return dt.datetime.fromisoformat(iso_utc(start))
+    except ConfigError as exc:
+        raise ConfigError(f"to_xtf: {exc}") from None
+
+
+def _ping_times(h, start: dt.datetime, times_s) -> None:
+    for i, ts in enumerate(times_s):
+        when = start + dt.timedelta(seconds=float(ts))
+        h[i]["Year"], h[i]["Month"], h[i]["Day"] = when.year, when.month, when.day
+        h[i]["Hour"], h[i]["Minute"], h[i]["Second"] = when.hour, when.minute, when.second
+        h[i]["HSeconds"] = when.microsecond // 10000
+        h[i]["JulianDay"] = when.timetuple().tm_yday
+        h[i]["NavFixMilliseconds"] = int(round(float(ts) * 1e3)) % 2**32
+
+
+def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto",
+           surface_z_m: float | None = None) -> None:
     """Write ``record`` as an XTF file (atomic); conventions in this module's docstring.
 
     Parameters
     ----------
     record : Record
     path : str or PathLike
-    start : datetime, optional
-        Time of ping time 0 (UTC); default 2026-01-01T00:00:00Z.
+    start : datetime or str, optional
+        Time of ping time 0 (naive: UTC); default the record's ``attrs["start_time"]``
+        (the time it was simulated), else now.
+    scale : "auto" or float
+        Factor on the intensities written (see :func:`sample_scale`).
+    surface_z_m : float, optional
+        World height of the sea surface, m, for SensorDepth = surface_z_m − z; every
+        pose must lie below it. Default: no surface known, depth written as 0.
     """
-    start = DEFAULT_START if start is None else start
-    if not isinstance(start, dt.datetime):
-        raise ConfigError(f"to_xtf: start must be a datetime, got {type(start).__name__}")
+    when = _start(record, start)
+    factor = sample_scale(record, scale)
     t = record.trajectory
+    if surface_z_m is not None:
+        if isinstance(surface_z_m, bool) or not isinstance(surface_z_m, (int, float)) or not math.isfinite(surface_z_m):
+            raise ConfigError(f"to_xtf: surface_z_m must be a number (m), got {surface_z_m!r}")
+        if np.any(t.positions_m[:, 2] > surface_z_m):
+            raise ConfigError(f"to_xtf: the sonar rises to z = {t.positions_m[:, 2].max():.2f} m, above the sea "
+                              f"surface at surface_z_m = {surface_z_m} m")
     n_p, n_s = record.port.shape
     s = record.sonar
     packet = np.zeros(n_p, dtype=np.dtype([("head", _PING_HEADER), ("port_head", _CHAN_HEADER),
@@ -137,20 +202,15 @@ def to_xtf(record, path, start: dt.datetime | None = None) -> None:
     h = packet["head"]
     h["MagicNumber"], h["HeaderType"], h["NumChansToFollow"] = 0xFACE, 0, 2
     h["NumBytesThisRecord"] = packet.dtype.itemsize
-    for i in range(n_p):
-        when = start + dt.timedelta(seconds=float(t.times_s[i]))
-        h[i]["Year"], h[i]["Month"], h[i]["Day"] = when.year, when.month, when.day
-        h[i]["Hour"], h[i]["Minute"], h[i]["Second"] = when.hour, when.minute, when.second
-        h[i]["HSeconds"] = when.microsecond // 10000
-        h[i]["JulianDay"] = when.timetuple().tm_yday
-        h[i]["NavFixMilliseconds"] = int(round(float(t.times_s[i]) * 1e3)) % 2**32
+    _ping_times(h, when, t.times_s)
     h["PingNumber"] = np.arange(n_p)
     h["EventNumber"] = np.arange(n_p)
     h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
     for prefix in ("Sensor", "Ship"):
         h[f"{prefix}Xcoordinate"] = t.positions_m[:, 0]
         h[f"{prefix}Ycoordinate"] = t.positions_m[:, 1]
-    h["SensorDepth"] = -t.positions_m[:, 2]
+        h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
+    h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
     h["SensorPrimaryAltitude"] = np.nan_to_num(record.altitude_m, nan=0.0)
     h["SensorHeading"], h["SensorPitch"], h["SensorRoll"] = t.heading_deg, t.pitch_deg, t.roll_deg
     h["ShipGyro"] = t.heading_deg
@@ -163,12 +223,12 @@ def to_xtf(record, path, start: dt.datetime | None = None) -> None:
         c["SecondsPerPing"] = per_ping
         c["Frequency"] = min(int(round(s.frequency_hz / 1e3)), 65535)
         c["NumSamples"] = n_s
-    packet["port"] = record.port[:, ::-1]
-    packet["stbd"] = record.starboard
+    packet["port"] = record.port[:, ::-1] * factor
+    packet["stbd"] = record.starboard * factor
 
     def write(tmp):
         with open(tmp, "wb") as fh:
-            fh.write(_file_header(record).tobytes())
+            fh.write(_file_header(record, factor).tobytes())
             fh.write(packet.tobytes())
 
     atomic_write(path, write, suffix=".xtf")

@@ -1,0 +1,153 @@
+"""Is the set-up physically meaningful? Checks made before any ping is simulated.
+
+Errors (:class:`~sonar_embree.errors.ConfigError`) where a run cannot mean anything:
+the sonar under the seafloor or inside a closed object, nothing of the scene within
+range of any ping. One-line warnings (logging, naming the key and the plausible
+range) where a value is legal but implausible: a frequency or range off by a unit,
+a tilt in radians, an altitude beyond the range window, a scene that stands on its
+side (a Y-up export), an object seen only from behind its faces (inverted normals).
+Each costs a few rays per ping, nothing next to the fan.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from .errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+#: (low, high) plausible values of side-scan sonar settings, for the warnings.
+PLAUSIBLE = {"frequency_hz": (20e3, 3e6), "max_range_m": (2.0, 1500.0), "tilt_deg": (2.0, 60.0)}
+#: Share of the scene's area that faces up or down below which the scene looks stood on its side.
+MIN_HORIZONTAL_AREA = 0.2
+#: Share of an object's first hits on back faces above which it looks inverted.
+MAX_BACK_FACE_SHARE = 0.5
+_warned: set = set()
+
+
+def warn_once(message: str) -> None:
+    """Log ``message`` as a warning once per process (tasks of one batch repeat their checks)."""
+    if message not in _warned:
+        _warned.add(message)
+        log.warning(message)
+
+
+def check_sonar(sonar) -> None:
+    """Warn about legal but implausible :class:`~sonar_embree.config.Sonar` values (unit slips)."""
+    f_lo, f_hi = PLAUSIBLE["frequency_hz"]
+    if not f_lo <= sonar.frequency_hz <= f_hi:
+        warn_once(f"Sonar.frequency_hz = {sonar.frequency_hz:g} Hz is outside the side-scan range "
+                  f"{f_lo / 1e3:g} kHz – {f_hi / 1e6:g} MHz (a value in kHz?)")
+    r_lo, r_hi = PLAUSIBLE["max_range_m"]
+    if not r_lo <= sonar.max_range_m <= r_hi:
+        warn_once(f"Sonar.max_range_m = {sonar.max_range_m:g} m is outside the plausible {r_lo:g}–{r_hi:g} m "
+                  "(a range in km?)")
+    t_lo, t_hi = PLAUSIBLE["tilt_deg"]
+    if 0.0 < sonar.tilt_deg < 1.6:
+        warn_once(f"Sonar.tilt_deg = {sonar.tilt_deg:g}° looks like radians ({np.degrees(sonar.tilt_deg):.1f}°); "
+                  f"side-scan tilts are {t_lo:g}–{t_hi:g}°")
+    elif sonar.tilt_deg > t_hi:
+        warn_once(f"Sonar.tilt_deg = {sonar.tilt_deg:g}° is steeper than the plausible {t_lo:g}–{t_hi:g}°")
+
+
+def check_scene(compiled) -> None:
+    """Warn when the scene stands on its side (almost no area faces up or down: a Y-up export)."""
+    flat = compiled.horizontal_area_share
+    if flat < MIN_HORIZONTAL_AREA:
+        warn_once(f"scene: only {100 * flat:.0f} % of its surface faces up or down, so it stands on its side; "
+                  "a Y-up export? load it with up_axis = \"y\" (z is up here)")
+
+
+def check_poses(caster, pos_local: np.ndarray) -> np.ndarray:
+    """Refuse poses under the seafloor or inside a closed object; return the nadir altitude (NaN: none).
+
+    A ray straight up from the sonar that first meets the back of a seafloor face
+    means the sonar is under the seafloor; rays up and down that both first meet the
+    back of one other object's faces mean the sonar is inside that closed object
+    (a single sheet above the sonar, seen from below, is neither).
+    """
+    c = caster.compiled
+    n = pos_local.shape[0]
+    up = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, 1.0], (n, 3)), 1e7)
+    down = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n, 3)), 1e7)
+    up_back = (up.tri >= 0) & (up.cos_inc < 0)
+    obj_up = np.maximum(up.object_id, 0)
+    inside = up_back & (c.is_seafloor[obj_up] | ((down.tri >= 0) & (down.cos_inc < 0)
+                                                 & (down.object_id == up.object_id)))
+    if inside.any():
+        k = int(np.flatnonzero(inside)[0])
+        obj = int(up.object_id[k])
+        where = "under the seafloor" if c.is_seafloor[obj] else "inside the closed object"
+        p = pos_local[k] + c.origin_m
+        raise ConfigError(f"trajectory: ping {k} at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m is {where} "
+                          f"{c.labels[obj]!r} (its surface is {up.range_m[k]:.2f} m above); check the "
+                          "trajectory's z and the scene's up axis")
+    return np.where(down.tri >= 0, down.range_m, np.nan)
+
+
+def check_in_range(compiled, pos_local: np.ndarray, max_range_m: float) -> None:
+    """Refuse a run where no ping has any of the scene's bounding box within ``max_range_m``."""
+    bounds_local, origin_m = compiled.bounds_local, compiled.origin_m
+    gap = np.maximum(np.maximum(bounds_local[0] - pos_local, pos_local - bounds_local[1]), 0.0)
+    dist = np.linalg.norm(gap, axis=1)
+    if dist.size and dist.min() > max_range_m:  # max_range_m: the reach of the record
+        k = int(np.argmin(dist))
+        p = pos_local[k] + origin_m
+        raise ConfigError(f"nothing of the scene lies within Sonar.max_range_m = {max_range_m:g} m of any ping "
+                          f"(nearest: {dist[k]:.1f} m from ping {k} at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) m); "
+                          "check the trajectory's coordinates and units")
+
+
+def check_altitude(altitude_m: np.ndarray, max_range_m: float) -> None:
+    """Warn when the floor below lies beyond most of the range window."""
+    h = altitude_m[np.isfinite(altitude_m)]
+    if h.size and np.median(h) > 0.8 * max_range_m:
+        warn_once(f"trajectory: the sonar flies {np.median(h):.0f} m above the scene (median), beyond 80 % of "
+                  f"Sonar.max_range_m = {max_range_m:g} m; side-scan sonars fly at 5–50 % of their range")
+
+
+def check_back_faces(caster, pos_local: np.ndarray, max_range_m: float, samples: int = 48) -> None:
+    """Warn about objects that a ray from the sonar meets mostly on the back of their faces.
+
+    Rays from the first, middle and last ping aim at up to ``samples`` face centres of
+    each object; those whose first hit is that object count as front or back. An
+    object seen mostly from behind (inverted normals) returns no echo, only a shadow.
+    """
+    c = caster.compiled
+    if c.two_sided.all():
+        return
+    picks = np.unique([0, pos_local.shape[0] // 2, pos_local.shape[0] - 1])
+    centres = c.vertices[c.faces].mean(axis=1)
+    for obj in range(len(c.labels)):
+        if c.two_sided[obj]:
+            continue
+        faces = np.flatnonzero(c.face_object == obj)
+        faces = faces[np.linspace(0, faces.size - 1, min(samples, faces.size)).astype(int)]
+        org = np.repeat(pos_local[picks], faces.size, axis=0)
+        d = np.tile(centres[faces], (picks.size, 1)) - org
+        dist = np.linalg.norm(d, axis=1)
+        ok = (dist > 1e-6) & (dist <= max_range_m)
+        if ok.sum() < 8:
+            continue
+        hit = caster.cast(org[ok], d[ok] / dist[ok, None], max_range_m)
+        mine = (hit.object_id == obj) & (np.abs(hit.cos_inc) > 1e-3)
+        if mine.sum() >= 8 and (hit.cos_inc[mine] < 0).mean() > MAX_BACK_FACE_SHARE:
+            warn_once(f"object {c.labels[obj]!r} is seen from behind its faces ({100 * (hit.cos_inc[mine] < 0).mean():.0f} % "
+                      "of the rays that reach it): inverted normals return no echo; fix its winding or give it "
+                      "Material(two_sided=True)")
+
+
+def check_setup(caster, sonar, pos_local: np.ndarray, reach_m: float | None = None) -> None:
+    """Every check of this module, in order: warnings on values, then errors on the geometry.
+
+    ``reach_m``: the farthest range whose echo can reach the record (the window plus
+    a compressed pulse's lead); default ``sonar.max_range_m``.
+    """
+    c = caster.compiled
+    check_sonar(sonar)
+    check_scene(c)
+    check_in_range(c, pos_local, sonar.max_range_m if reach_m is None else reach_m)
+    check_altitude(check_poses(caster, pos_local), sonar.max_range_m)
+    check_back_faces(caster, pos_local, sonar.max_range_m)

@@ -1,0 +1,360 @@
+"""A new user's first hour (issue 19): each defect a user met, as a behaviour that can fail."""
+import json
+import os
+import re
+import resource
+import socket
+import subprocess
+import sys
+import urllib.error
+import urllib.request
+
+import numpy as np
+import pytest
+import trimesh
+
+import sonar_embree as se
+from sonar_embree import batch, cli
+from sonar_embree.scene import write_obj
+from conftest import box
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def _multi_object_obj(path):
+    floor = trimesh.creation.box((40.0, 40.0, 0.2))
+    floor.apply_translation((0.0, 0.0, -0.1))
+    rock = trimesh.creation.icosphere(2, 0.8)
+    rock.apply_translation((0.0, -8.0, 0.5))
+    pipe = trimesh.creation.cylinder(0.3, 6.0)
+    pipe.apply_transform(trimesh.transformations.rotation_matrix(np.pi / 2, (1, 0, 0)))
+    pipe.apply_translation((0.0, 8.0, 0.3))
+    write_obj(path, [("seafloor", floor), ("rock", rock), ("pipe", pipe)])
+
+
+SWEEP = """\
+[sweep]
+seeds = 1
+outputs = ["png", "labels", "coco"]
+pings_per_task = 4
+[sonar]
+max_range_m = 16.0
+[[scenes]]
+  [[scenes.objects]]
+  path = "scene.obj"
+[[trajectories]]
+start = [-1.0, 0.0, 6.0]
+end = [1.0, 0.0, 6.0]
+n_pings = 6
+"""
+
+
+@pytest.fixture(scope="module")
+def multi_sweep(tmp_path_factory):
+    d = tmp_path_factory.mktemp("multi")
+    _multi_object_obj(d / "scene.obj")
+    (d / "sweep.toml").write_text(SWEEP)
+    return d / "sweep.toml"
+
+
+# --- 1: COCO categories from every labelled object; the whole sweep checked before work ---------------
+def test_multi_object_obj_sweep_without_instances_writes_coco(multi_sweep, tmp_path, capsys):
+    from pycocotools.coco import COCO
+
+    out = tmp_path / "out"
+    assert cli.main(["batch", str(multi_sweep), "-o", str(out), "--workers", "1", "--no-progress"]) == 0
+    coco = COCO(str(out / "coco.json"))
+    assert [c["name"] for c in coco.loadCats(coco.getCatIds())] == ["pipe", "rock"]
+    names = {a["object_label"] for a in coco.loadAnns(coco.getAnnIds())}
+    assert names == {"pipe", "rock"}
+
+
+def test_failed_batch_leaves_no_folder_that_refuses_a_rerun(multi_sweep, tmp_path, capsys):
+    """A sweep that fails mid-way (a later ping dives under the floor) leaves no sweep.json behind."""
+    bad = multi_sweep.parent / "dive.toml"
+    bad.write_text(SWEEP.replace("end = [1.0, 0.0, 6.0]", "end = [1.0, 0.0, -0.15]"))
+    out = tmp_path / "out"
+    assert cli.main(["batch", str(bad), "-o", str(out), "--workers", "1", "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "under" in err, err
+    assert not out.exists() or not os.listdir(out)
+
+
+# --- 4: quiet batches, no dashboard unless asked --------------------------------------------------------
+def test_batch_is_quiet_on_success(multi_sweep, tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "batch", str(multi_sweep), "-o",
+                           str(tmp_path / "out"), "--workers", "1", "--no-progress"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.strip() == "", proc.stderr  # no Dask internals
+    assert proc.stdout.split() == [str(tmp_path / "out" / "00000")]
+
+
+def test_local_cluster_serves_no_dashboard():
+    def listening(port):
+        with socket.socket() as s:
+            return s.connect_ex(("127.0.0.1", port)) == 0
+
+    assert not listening(8787)
+    with batch._cluster(None, None, 1, None) as client:
+        assert not listening(8787)
+        link = client.dashboard_link
+        with pytest.raises(urllib.error.HTTPError) as err:
+            urllib.request.urlopen(link, timeout=10)
+        assert err.value.code == 404  # nothing is served, not even the status page
+
+
+def test_back_pressure_bounds_the_tasks_in_flight(multi_sweep, tmp_path):
+    """40 tasks with at most 3 submitted at a time; the output equals the unbounded run."""
+    from distributed import Client, LocalCluster
+
+    text = SWEEP.replace("seeds = 1", "seeds = 5").replace("pings_per_task = 4", "pings_per_task = 1") \
+        .replace("n_pings = 6", "n_pings = 8").replace('["png", "labels", "coco"]', '["npz"]')
+    path = multi_sweep.parent / "many.toml"
+    path.write_text(text)
+    sweep = se.sweep.load_sweep(path)
+    stats = {}
+    os.makedirs(tmp_path / "a")
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc, \
+            Client(lc) as client:
+        batch._run_jobs(client, sweep, list(sweep.jobs), str(tmp_path / "a"), False, 3, stats)
+    assert stats["peak_in_flight"] == 3
+    assert len([n for n in os.listdir(tmp_path / "a") if n.isdigit()]) == 5
+    for job in sweep.jobs:
+        direct = se.simulate(sweep.scenes[0].build(job.seed), job.trajectory, job.sonar, job.pulse, fan=job.fan,
+                             chain=job.chain)
+        np.testing.assert_array_equal(se.Record.load(tmp_path / "a" / job.id / "record.npz").port, direct.port)
+
+
+# --- 7: memory estimated before any work ----------------------------------------------------------------
+def test_ten_million_pings_are_refused_at_once_with_the_estimate():
+    scene = se.Scene().add(se.seafloor.flat((50, 50)), label="seafloor")
+    traj = se.Trajectory.line((0, 0, 10), (1000, 0, 10), n_pings=10_000_000)
+    with pytest.raises(se.ConfigError) as err:
+        se.simulate(scene, traj, se.Sonar())
+    msg = str(err.value)
+    assert len(msg.splitlines()) == 1 and "GiB" in msg and "batch" in msg
+    est = float(re.search(r"about ([0-9.]+) GiB", msg).group(1))
+    # 2 channels x 2667 samples x 8 bytes x 4 record-sized arrays per ping
+    assert est == pytest.approx(1e7 * 2 * 2667 * 8 * 4 / 2**30, rel=0.01)
+
+
+# --- 8: wrong files, overwrites, Ctrl-C ------------------------------------------------------------------
+@pytest.mark.parametrize("ext, fmt", [(".obj", "OBJ"), (".stl", "STL"), (".ply", "PLY"), (".glb", "GLB")])
+def test_a_png_renamed_as_a_mesh_is_named_as_not_that_format(tmp_path, ext, fmt):
+    path = tmp_path / f"picture{ext}"
+    path.write_bytes(open(os.path.join(ROOT, "docs", "demo.png"), "rb").read())
+    with pytest.raises(se.SceneError, match=re.escape(f"{path}: not a valid {fmt} file")):
+        se.Scene.load(path)
+
+
+def test_latin1_bytes_in_an_obj_comment_load(tmp_path):
+    path = tmp_path / "caf.obj"
+    path.write_bytes(b"# caf\xe9 model\no rock\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert se.Scene.load(path).labels == ("caf",)  # one object: labelled by the file name
+
+
+def test_latin1_byte_in_a_trajectory_csv_is_one_line(tmp_path):
+    path = tmp_path / "nav.csv"
+    path.write_bytes(b"x_m,y_m,z_m\n0,0,10\n1,0,1\xb00\n")
+    with pytest.raises(se.ConfigError, match="not a UTF-8 text file"):
+        se.Trajectory.from_csv(path)
+
+
+RENDER = """\
+[sonar]
+max_range_m = 14.0
+[trajectory]
+start = [-1.0, 0.0, 6.0]
+end = [1.0, 0.0, 6.0]
+n_pings = 4
+[[objects]]
+seafloor = "flat"
+size_m = [40.0, 40.0]
+"""
+
+
+def test_render_refuses_a_non_empty_folder_without_overwrite(tmp_path, capsys):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER)
+    out = tmp_path / "out"
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress"]) == 0
+    before = (out / "record.npz").read_bytes()
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress", "--seed", "3"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
+    assert (out / "record.npz").read_bytes() == before
+    (out / ".tmp-killed.npz").write_bytes(b"x" * 1000)  # what a SIGKILL during a write leaves
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress", "--overwrite"]) == 0
+    assert sorted(os.listdir(out)) == ["record.npz", "waterfall.png"]
+
+
+def test_disk_full_leaves_the_old_outputs_and_names_the_path(tmp_path):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER)
+    out = tmp_path / "out"
+    # the same mode first, so that numba's kernel cache is written before the disk "fills"
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress", "--speckle"]) == 0
+    old = {n: (out / n).read_bytes() for n in os.listdir(out)}
+
+    def small_disk():  # writes beyond 20 kB fail with EFBIG, as on a full disk
+        import signal
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
+
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "render", str(cfg), "-o", str(out),
+                           "--no-progress", "--overwrite", "--seed", "5", "--speckle"], capture_output=True,
+                          text=True, timeout=300, preexec_fn=small_disk)
+    assert proc.returncode == 2
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and str(out) in err[0], proc.stderr
+    assert {n: (out / n).read_bytes() for n in os.listdir(out)} == old  # nothing new, nothing half-written
+
+
+def test_ctrl_c_prints_one_line_and_leaves_nothing(tmp_path):
+    import signal
+    import time
+
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER.replace("n_pings = 4", "n_pings = 4000"))
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "sonar_embree.cli", "render", str(cfg), "-o", str(out),
+                             "--no-progress"], stderr=subprocess.PIPE, text=True)
+    time.sleep(6.0)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["sonar-embree: interrupted; no output was left half-written"]
+    assert not out.exists() or not os.listdir(out)
+
+
+# --- 5: the repository is self-contained -----------------------------------------------------------------
+def test_nothing_refers_outside_the_repository():
+    hits = []
+    for top in ("README.md", "sonar_embree", "docs", "scripts", "tests", "assets"):
+        base = os.path.join(ROOT, top)
+        paths = [base] if os.path.isfile(base) else [os.path.join(d, f) for d, _, fs in os.walk(base) for f in fs]
+        for p in paths:
+            if p.endswith((".py", ".md", ".toml", ".txt")) and not p.endswith("test_first_hour.py"):
+                text = open(p, encoding="utf-8").read()
+                if "shared/" in text or "PHYSICS.md" in text:
+                    hits.append(p)
+    assert hits == []
+    physics = open(os.path.join(ROOT, "docs", "physics.md"), encoding="utf-8").read()
+    for needle in ("## 1. Frames", "## 3. Echo strength", "(1)", "(2)", "−101.35 dB", "L = x·H/(h − H)",
+                   "Francois", "## References"):
+        assert needle in physics
+
+
+# --- 2: physically wrong set-ups: an error where nothing can be meaningful, a warning where implausible ----
+@pytest.fixture
+def warnings_log(caplog):
+    from sonar_embree import checks
+
+    checks._warned.clear()
+    caplog.set_level("WARNING", logger="sonar_embree.checks")
+    yield caplog
+    checks._warned.clear()
+
+
+def _floor(size=60.0):
+    return se.Scene().add(se.seafloor.flat((size, size)), label="seafloor")
+
+
+def _line(z=10.0, x0=-1.0, x1=1.0, y=0.0, n=3):
+    return se.Trajectory.line((x0, y, z), (x1, y, z), n_pings=n)
+
+
+@pytest.mark.parametrize("scene, traj, sonar, message", [
+    (_floor(), _line(z=-2.0), se.Sonar(max_range_m=20), "under the seafloor 'seafloor'"),
+    (_floor().add(box((6, 6, 6), (0, 0, 4)), label="hull"), _line(z=2.0), se.Sonar(max_range_m=20),
+     "inside the closed object 'hull'"),
+    (_floor(), _line(x0=1000.0, x1=1002.0), se.Sonar(max_range_m=50), "nothing of the scene lies within"),
+    (_floor(), _line(z=500.0), se.Sonar(max_range_m=50), "nothing of the scene lies within"),
+    (_floor(), _line(), se.Sonar(max_range_m=0.04), "nothing of the scene lies within"),
+])
+def test_meaningless_set_ups_are_errors(scene, traj, sonar, message):
+    with pytest.raises(se.ConfigError, match=re.escape(message)) as err:
+        se.simulate(scene, traj, sonar)
+    assert len(str(err.value).splitlines()) == 1
+
+
+@pytest.mark.parametrize("sonar, traj, key", [
+    (se.Sonar(frequency_hz=400.0, max_range_m=20), _line(), "Sonar.frequency_hz = 400 Hz"),
+    (se.Sonar(tilt_deg=0.35, max_range_m=20), _line(), "Sonar.tilt_deg = 0.35° looks like radians (20.1°)"),
+    (se.Sonar(max_range_m=600.0, sample_rate_hz=2000.0), _line(z=500.0), "flies 500 m above the scene"),
+])
+def test_implausible_values_warn_naming_the_key(warnings_log, sonar, traj, key):
+    se.simulate(_floor(2000.0 if traj.positions_m[0, 2] > 100 else 60.0), traj, sonar)
+    msgs = [r.getMessage() for r in warnings_log.records]
+    assert any(key in m for m in msgs), msgs
+    assert all(len(m.splitlines()) == 1 for m in msgs)
+
+
+def test_a_unit_slip_in_range_warns_and_stops(warnings_log):
+    with pytest.raises(se.ConfigError, match="nothing of the scene"):
+        se.simulate(_floor(), _line(), se.Sonar(max_range_m=0.04))
+    assert any("max_range_m = 0.04 m" in r.getMessage() and "km" in r.getMessage() for r in warnings_log.records)
+
+
+def test_plausible_set_up_is_silent(warnings_log):
+    se.simulate(_floor(), _line(), se.Sonar(max_range_m=20))
+    assert warnings_log.records == []
+
+
+def _y_up_floor():
+    """A 40 m x 30 m floor exported with y up: it lies in the x-z plane, its normal along +y."""
+    m = trimesh.Trimesh([[-20, 0, -15], [20, 0, -15], [20, 0, 15], [-20, 0, 15]], [[0, 2, 1], [0, 3, 2]])
+    assert m.face_normals[0, 1] > 0.99
+    return m
+
+
+def test_y_up_obj_warns_and_loads_with_up_axis(tmp_path, warnings_log):
+    path = tmp_path / "floor.obj"
+    write_obj(path, [("seafloor", _y_up_floor())])
+    on_side = se.Scene.load(path)
+    assert np.ptp(on_side.bounds[:, 2]) == pytest.approx(30.0)  # read as is: a wall
+    se.simulate(on_side, _line(z=2.0, y=-3.0), se.Sonar(max_range_m=20))
+    assert any('up_axis = "y"' in r.getMessage() for r in warnings_log.records)
+    scene = se.Scene.load(path, up_axis="y")
+    np.testing.assert_allclose(scene.bounds, [[-20, -15, 0], [20, 15, 0]], atol=1e-9)
+    assert scene.compiled().face_normals[:, 2].min() > 0.99  # (x, y, z) -> (x, -z, y) keeps the winding
+    warnings_log.clear()
+    rec = se.simulate(scene, _line(z=5.0), se.Sonar(max_range_m=12))
+    assert rec.starboard.max() > 0 and not warnings_log.records
+
+
+def test_glb_is_read_y_up_as_its_specification_says(tmp_path):
+    path = tmp_path / "floor.glb"
+    _y_up_floor().export(path)
+    scene = se.Scene.load(path)
+    np.testing.assert_allclose(scene.bounds, [[-20, -15, 0], [20, 15, 0]], atol=1e-6)
+    assert np.ptp(se.Scene.load(path, up_axis="z").bounds[:, 2]) == pytest.approx(30.0)
+
+
+def test_up_axis_in_toml_and_bad_values(tmp_path):
+    write_obj(tmp_path / "floor.obj", [("seafloor", _y_up_floor())])
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER.replace('seafloor = "flat"\nsize_m = [40.0, 40.0]', 'path = "floor.obj"\nup_axis = "y"'))
+    assert np.ptp(se.runconfig.load_run_config(cfg).scene.bounds[:, 2]) < 1e-9
+    cfg.write_text(RENDER.replace('seafloor = "flat"\nsize_m = [40.0, 40.0]', 'path = "floor.obj"\nup_axis = "x"'))
+    with pytest.raises(se.SceneError, match="up_axis must be one of"):
+        se.runconfig.load_run_config(cfg)
+
+
+# --- 13: inverted normals warn, and two-sided materials echo -----------------------------------------------
+def test_inverted_box_warns_and_two_sided_echoes(warnings_log):
+    box = trimesh.creation.box((2.0, 2.0, 1.0))
+    box.apply_translation((0.0, -12.0, 0.5))
+    inverted = box.copy()
+    inverted.invert()
+    traj, sonar = _line(n=3), se.Sonar(max_range_m=20)
+    normal = se.simulate(se.Scene().add(box, label="box", material=se.Material(-10.0)), traj, sonar)
+    assert warnings_log.records == []
+    bad = se.simulate(se.Scene().add(inverted, label="box", material=se.Material(-10.0)), traj, sonar)
+    assert any("object 'box' is seen from behind its faces" in r.getMessage() and "two_sided" in r.getMessage()
+               for r in warnings_log.records)
+    two = se.simulate(se.Scene().add(inverted, label="box", material=se.Material(-10.0, two_sided=True)), traj,
+                      sonar)
+    assert normal.starboard.max() > 0
+    assert bad.starboard.max() < 1e-3 * normal.starboard.max()  # no echo from behind (only the far faces' rims)
+    np.testing.assert_allclose(two.starboard, normal.starboard, rtol=1e-9, atol=0)  # two-sided: the same echo
