@@ -387,7 +387,7 @@ class FanSettings:
     def __post_init__(self):
         if not isinstance(self.footprint, bool):
             raise ConfigError(f"FanSettings.footprint must be true or false, got {self.footprint!r}")
-        _check_number("FanSettings", "quality", self.quality, positive=True, hi=64)
+        _check_number("FanSettings", "quality", self.quality, positive=True, hi=32)  # 2·quality azimuth ≤ 64
         if self.quality < 1.0 / 64:
             raise ConfigError(f"FanSettings.quality must be >= {1 / 64}, got {self.quality!r}")
         for name, kw in (("rays_per_bin", dict(positive=True, hi=1000)),
@@ -406,6 +406,20 @@ class FanSettings:
         derived = dict(rays_per_bin=q, azimuth_oversample=max(1.0, 2.0 * q), azimuth_nulls=1 if q <= 1.0 else 2,
                        max_step_deg=min(0.5 / q, 10.0), probe_step_deg=min(0.2 / max(q, 1.0), 5.0))
         return dataclasses.replace(self, **{k: v for k, v in derived.items() if getattr(self, k) is None})
+
+
+#: Largest TVG gain, as a power of ten, that keeps a unit-source record finite in float64.
+MAX_TVG_DECADES = 250.0
+
+
+def _check_tvg(sonar: Sonar) -> None:
+    """Refuse a TVG R⁴·10^(2αR/10) that would overflow float64 within the range window."""
+    r = sonar.max_range_m
+    decades = 4.0 * math.log10(r) + 2.0 * sonar.alpha_db_per_m * r / 10.0
+    if decades > MAX_TVG_DECADES:
+        raise ConfigError(f"SignalChain.tvg: the gain R^4 10^(2 alpha R / 10) reaches 1e{decades:.0f} at "
+                          f"max_range_m = {r:g} m with {sonar.alpha_db_per_m:g} dB/m absorption, beyond float64; "
+                          "lower Sonar.absorption_db_per_m or max_range_m, or set tvg = false")
 
 
 @dataclass(frozen=True)
@@ -495,6 +509,8 @@ class SignalChain:
 
     def resolved(self, sonar: Sonar, pulse: Pulse) -> "SignalChain":
         """This chain with ``matched_filter`` decided for ``pulse``, checked against ``sonar``."""
+        if self.tvg:
+            _check_tvg(sonar)
         mf = self.matched_filter
         if mf is None:
             mf = pulse.is_fm and self.detection == "coherent"

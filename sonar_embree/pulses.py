@@ -202,7 +202,29 @@ def expected_kernel(pulse, carrier_hz: float, sample_rate_hz: float, matched_fil
         return intensity_kernel(pulse, sample_rate_hz, oversample), 0
     fs = float(sample_rate_hz)
     lead = int(math.ceil(pulse.duration_s * fs)) + 1
-    n_k = 2 * lead + 1
-    sub = (np.arange(n_k * oversample) + 0.5) / oversample - 0.5 - lead  # samples
-    q = compressed_envelope(pulse, carrier_hz, fs, sub / fs)
-    return (np.abs(q) ** 2).reshape(n_k, oversample).mean(axis=1), lead
+    q = compressed_grid(pulse, carrier_hz, fs, lead, oversample)  # (oversample, 2·lead + 1)
+    return (np.abs(q) ** 2).mean(axis=0), lead
+
+
+def compressed_grid(pulse, carrier_hz: float, sample_rate_hz: float, lead: int, oversample: int):
+    """:func:`compressed_envelope` on the sub-sample grid of :func:`expected_kernel`, by FFT.
+
+    The grid t = (i − lead + f_k)/fs, i = 0 … 2·lead, f_k = (k + ½)/oversample − ½, is
+    one correlation with the replica per sub-sample phase f_k: q[k, i] =
+    Σ_m p̃((i − lead + m + f_k)/fs)·p̃*(m/fs) / Σ|p̃|². FFT correlation makes the set-up
+    O(oversample·N log N) in the pulse's N = τ·fs samples, instead of O(oversample·N²).
+
+    Returns
+    -------
+    (oversample, 2·lead + 1) complex128
+    """
+    from scipy.signal import fftconvolve
+
+    fs = float(sample_rate_hz)
+    rep = replica(pulse, carrier_hz, fs)
+    m = rep.shape[0]
+    f = (np.arange(oversample) + 0.5) / oversample - 0.5
+    n = np.arange(2 * lead + m) - lead
+    a = complex_envelope(pulse, carrier_hz, ((n[None, :] + f[:, None]) / fs).ravel()).reshape(oversample, -1)
+    q = fftconvolve(a, np.conj(rep[::-1])[None, :], mode="valid", axes=1)
+    return q / np.sum(np.abs(rep) ** 2)

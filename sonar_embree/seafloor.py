@@ -22,6 +22,20 @@ def _size(size_m):
     return sx, sy
 
 
+def _center(center_m):
+    try:
+        cx, cy = (float(v) for v in center_m)
+    except (TypeError, ValueError):
+        raise ConfigError(f"seafloor center_m must be (x, y) in m, got {center_m!r}") from None
+    if not (math.isfinite(cx) and math.isfinite(cy)):
+        raise ConfigError(f"seafloor center_m must be finite, got {center_m!r}")
+    return cx, cy
+
+
+#: Most Perlin octaves accepted; octaves finer than the grid are not drawn (they add no detail).
+MAX_OCTAVES = 24
+
+
 def _grid_shape(sx, sy, resolution_m):
     if not (resolution_m > 0 and math.isfinite(resolution_m)):
         raise ConfigError(f"seafloor resolution_m must be > 0, got {resolution_m!r}")
@@ -35,8 +49,8 @@ def _grid_shape(sx, sy, resolution_m):
 def flat(size_m=(400.0, 200.0), z_m: float = 0.0, center_m=(0.0, 0.0)) -> trimesh.Trimesh:
     """A horizontal rectangle of ``size_m`` = (x, y) metres at height ``z_m``, two triangles."""
     sx, sy = _size(size_m)
-    return from_heights(np.full((2, 2), float(z_m)), spacing_m=(sx, sy),
-                        origin_m=(center_m[0] - sx / 2, center_m[1] - sy / 2))
+    cx, cy = _center(center_m)
+    return from_heights(np.full((2, 2), float(z_m)), spacing_m=(sx, sy), origin_m=(cx - sx / 2, cy - sy / 2))
 
 
 def from_heights(heights_m, spacing_m=1.0, origin_m=(0.0, 0.0)) -> trimesh.Trimesh:
@@ -124,7 +138,8 @@ def perlin(size_m=(200.0, 200.0), resolution_m: float = 0.5, relief_m: float = 0
     feature_m : float
         Lattice cell size of the first octave, in m.
     octaves : int
-        Number of octaves, each half the size and amplitude of the previous.
+        Number of octaves (1 … 24), each half the size and amplitude of the previous;
+        octaves finer than the grid (``resolution_m``) add nothing and are not drawn.
     seed : int
         Random seed (same seed, same floor).
     z_m : float
@@ -132,13 +147,18 @@ def perlin(size_m=(200.0, 200.0), resolution_m: float = 0.5, relief_m: float = 0
     """
     sx, sy = _size(size_m)
     nx, ny = _grid_shape(sx, sy, resolution_m)
-    if not (relief_m >= 0 and feature_m > 0 and int(octaves) >= 1):
-        raise ConfigError("perlin needs relief_m >= 0, feature_m > 0 and octaves >= 1")
+    if isinstance(octaves, bool) or not isinstance(octaves, (int, np.integer)) or not 1 <= octaves <= MAX_OCTAVES:
+        raise ConfigError(f"perlin octaves must be an integer in 1..{MAX_OCTAVES}, got {octaves!r}")
+    if not (relief_m >= 0 and feature_m > 0):
+        raise ConfigError("perlin needs relief_m >= 0 and feature_m > 0")
     cells = (max(1, int(round(sy / feature_m))), max(1, int(round(sx / feature_m))))
-    n = perlin_noise((ny, nx), cells, seed=seed, octaves=int(octaves))
+    # an octave whose lattice is finer than the grid adds no detail (and 2^octaves cells of memory)
+    useful = 1 + int(math.floor(math.log2(max(nx / cells[1], ny / cells[0], 1.0))))
+    n = perlin_noise((ny, nx), cells, seed=seed, octaves=min(int(octaves), useful))
     ptp = float(np.ptp(n))
     z = z_m + (n - n.mean()) * (relief_m / ptp if ptp > 0 else 0.0)
-    return from_heights(z, (sx / (nx - 1), sy / (ny - 1)), (center_m[0] - sx / 2, center_m[1] - sy / 2))
+    cx, cy = _center(center_m)
+    return from_heights(z, (sx / (nx - 1), sy / (ny - 1)), (cx - sx / 2, cy - sy / 2))
 
 
 def ripples(size_m=(200.0, 200.0), resolution_m: float = 0.1, wavelength_m: float = 0.8,
@@ -164,4 +184,5 @@ def ripples(size_m=(200.0, 200.0), resolution_m: float = 0.1, wavelength_m: floa
         cells = (max(1, int(round(sy / 20.0))), max(1, int(round(sx / 20.0))))
         n = perlin_noise((ny, nx), cells, seed=seed)
         z = z + (n - n.mean()) * relief_m / max(float(np.ptp(n)), 1e-300)
-    return from_heights(z, (sx / (nx - 1), sy / (ny - 1)), (center_m[0] - sx / 2, center_m[1] - sy / 2))
+    cx, cy = _center(center_m)
+    return from_heights(z, (sx / (nx - 1), sy / (ny - 1)), (cx - sx / 2, cy - sy / 2))

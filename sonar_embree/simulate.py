@@ -392,6 +392,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         if keep_complex:
             cplx = cplx * np.sqrt(gain)
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
+    if not np.isfinite(intensity).all():  # never reached by valid settings; never let NaN/inf into a record
+        raise ConfigError("simulate: the record would hold NaN or infinite values; check the absorption, "
+                          "noise and TVG settings")
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
     attrs = {"mode": mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
              "quality": fan.quality, "rays_per_ping": float(n_rays.mean()) if n_p else 0.0,

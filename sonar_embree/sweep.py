@@ -177,6 +177,13 @@ def _pair(value, name, src, where):
     return float(value[0]), float(value[1])
 
 
+def _height(obj, src, where) -> float:
+    z = obj.get("z_m", 0.0)
+    if isinstance(z, bool) or not isinstance(z, (int, float)) or not math.isfinite(z):
+        raise ConfigError(f"{src}: {where}: z_m must be a number (height above the floor, m), got {z!r}")
+    return float(z)
+
+
 def _poses(obj, rng, src, where):
     """(k, 4) x, y, yaw_deg, height above floor."""
     if "poses" in obj:
@@ -187,7 +194,7 @@ def _poses(obj, rng, src, where):
             a = None
         if not isinstance(poses, list) or a is None or any(len(p) not in (3, 4) for p in a):
             raise ConfigError(f"{src}: {where}: poses must be a list of [x, y, yaw_deg] or [x, y, yaw_deg, z_m]")
-        return [(p[0], p[1], p[2], p[3] if len(p) == 4 else float(obj.get("z_m", 0.0))) for p in a]
+        return [(p[0], p[1], p[2], p[3] if len(p) == 4 else _height(obj, src, where)) for p in a]
     count = obj["count"]
     if isinstance(count, bool) or not isinstance(count, int) or count < 0:
         raise ConfigError(f"{src}: {where}: count must be an integer >= 0, got {count!r}")
@@ -196,7 +203,7 @@ def _poses(obj, rng, src, where):
         raise ConfigError(f"{src}: {where}: random poses need region = [[x0, x1], [y0, y1]] (m)")
     (x0, x1), (y0, y1) = (_pair(r, "region", src, where) for r in region)
     yaw = _pair(obj.get("yaw_deg", [0.0, 360.0]), "yaw_deg", src, where)
-    z = float(obj.get("z_m", 0.0))
+    z = _height(obj, src, where)
     return [(rng.uniform(x0, x1), rng.uniform(y0, y1), rng.uniform(*yaw), z) for _ in range(count)]
 
 

@@ -127,7 +127,9 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, g
     r = record.slant_range_m
     sides = [np.asarray(record.port, dtype=np.float64), np.asarray(record.starboard, dtype=np.float64)]
     if tvg and not record.attrs.get("tvg", False):
-        gain = r ** 4 * 10.0 ** (2.0 * record.sonar.alpha_db_per_m * r / 10.0)
+        with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
+            decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0
+        gain = 10.0 ** (decades - decades[np.isfinite(decades)].max(initial=0.0))
         sides = [s * gain for s in sides]
     if ground_range:
         sides = [to_ground_range(s, r, record.altitude_m)[1] for s in sides]

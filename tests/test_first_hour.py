@@ -358,3 +358,101 @@ def test_inverted_box_warns_and_two_sided_echoes(warnings_log):
     assert normal.starboard.max() > 0
     assert bad.starboard.max() < 1e-3 * normal.starboard.max()  # no echo from behind (only the far faces' rims)
     np.testing.assert_allclose(two.starboard, normal.starboard, rtol=1e-9, atol=0)  # two-sided: the same echo
+
+
+# --- 13: no NaN or inf in a record; one-line errors instead of tracebacks ---------------------------------
+def test_tvg_that_would_overflow_is_refused_and_display_tvg_never_overflows(tmp_path):
+    sonar = se.Sonar(absorption_db_per_m=100.0, max_range_m=20.0)
+    with pytest.raises(se.ConfigError, match="SignalChain.tvg: the gain"):
+        se.simulate(_floor(), _line(), sonar, tvg=True)
+    rec = se.simulate(_floor(), _line(), sonar)  # legal without TVG (all echoes underflow to ~0)
+    assert np.isfinite(rec.starboard).all()
+    img = rec.waterfall()  # the display TVG works in decades: no inf * 0
+    assert img.dtype == np.uint8
+    strong = se.simulate(_floor(), _line(), se.Sonar(absorption_db_per_m=2.0, max_range_m=20.0))
+    assert np.isfinite(strong.starboard).all() and strong.waterfall().max() > 100  # the floor is seen
+
+
+@pytest.mark.parametrize("table, message", [
+    ('seafloor = "flat"\nsize_m = [40.0, 40.0]\ncenter_m = [1.0]', "center_m must be (x, y)"),
+    ('seafloor = "perlin"\nsize_m = [40.0, 40.0]\noctaves = 100', "octaves must be an integer in 1..24"),
+    ('seafloor = "perlin"\nsize_m = [40.0, 40.0]\noctaves = 2.5', "octaves must be an integer"),
+])
+def test_floor_arguments_are_one_line_errors(tmp_path, capsys, table, message):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER.replace('seafloor = "flat"\nsize_m = [40.0, 40.0]', table))
+    assert cli.main(["render", str(cfg), "-o", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert message in err and len(err.splitlines()) == 1, err
+
+
+def test_many_perlin_octaves_cost_nothing_beyond_the_grid():
+    few = se.seafloor.perlin((40, 40), resolution_m=1.0, octaves=6)
+    many = se.seafloor.perlin((40, 40), resolution_m=1.0, octaves=24)
+    np.testing.assert_array_equal(few.vertices, many.vertices)  # 2 cells -> 40 points: 5 octaves are useful
+
+
+def test_quality_above_its_limit_names_quality(capsys, tmp_path):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER)
+    assert cli.main(["render", str(cfg), "-o", str(tmp_path / "out"), "--quality", "40", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "FanSettings.quality must be <= 32" in err and "azimuth" not in err
+    se.FanSettings(quality=32).resolved()  # the largest accepted resolves
+
+
+def test_a_string_for_a_placed_height_is_one_line(multi_sweep, tmp_path, capsys):
+    bad = multi_sweep.parent / "height.toml"
+    bad.write_text(SWEEP + '  [[scenes.objects]]\n  path = "scene.obj"\n  label = "crate"\n'
+                   '  poses = [[0.0, 5.0, 0.0]]\n  z_m = "1"\n')
+    assert cli.main(["batch", str(bad), "-o", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "z_m must be a number" in err and str(bad) in err and len(err.splitlines()) == 1
+
+
+# --- 3: one robust display default ------------------------------------------------------------------------
+@pytest.mark.parametrize("speckle", [False, True])
+def test_display_defaults_show_the_floor_grey_and_highlights_white(tmp_path, speckle):
+    import imageio.v3 as iio
+
+    traj = se.Trajectory.line((-4.0, 0.0, 10.0), (4.0, 0.0, 10.0), n_pings=40)
+    sonar = se.Sonar(max_range_m=40)
+    floor = se.simulate(_floor(120.0), traj, sonar, speckle=speckle, seed=1)
+    floor.save_png(tmp_path / "floor.png")
+    img = iio.imread(tmp_path / "floor.png")
+    assert (img >= 250).mean() < 0.01  # not clipped white (27 % before)
+    seen = img[img > 0]
+    assert 60 < np.median(seen) < 220  # a grey floor
+    crate = box((1.5, 1.5, 1.0), (0.0, -20.0, 0.5))
+    rec = se.simulate(_floor(120.0).add(crate, label="crate", material=se.Material(-10.0)), traj, sonar,
+                      speckle=speckle, seed=1, labels=True)
+    img = rec.waterfall()
+    lab = rec.labels
+    hi = lab.mask(lab.echo_mask(1), 1024)
+    assert np.median(img[hi]) > np.median(img[~hi & (img > 0)]) + 40  # the highlight stands out
+    assert img[hi].max() >= 250
+    # a record with TVG applied already is not compensated twice
+    tvg = se.simulate(_floor(120.0), traj, sonar, speckle=speckle, seed=1, tvg=True)
+    np.testing.assert_array_equal(tvg.waterfall(), floor.waterfall())
+
+
+# --- 13: the FM expected-intensity kernel by FFT --------------------------------------------------------
+@pytest.mark.parametrize("pulse", [se.Pulse.lfm(20e3, 1e-3), se.Pulse.lfm(20e3, 3e-3, taper=0.0),
+                                   se.Pulse.exp_chirp(390e3, 410e3, 2e-3)])
+def test_fft_expected_kernel_equals_the_direct_correlation_sum(pulse):
+    """Cell averages of |q(t)|², q(t) = Σ_m p̃(t + m/fs) p̃*(m/fs) / Σ|p̃|², summed directly here."""
+    import math
+
+    from sonar_embree import pulses
+
+    f0, fs, ov = 400e3, 40e3, 16
+    kernel, lead = pulses.expected_kernel(pulse, f0, fs, True, oversample=ov)
+    rep = pulses.complex_envelope(pulse, f0, np.arange(int(math.ceil(pulse.duration_s * fs))) / fs)
+    rep = rep[: np.nonzero(rep)[0][-1] + 1]
+    n_k = 2 * lead + 1
+    t = ((np.arange(n_k * ov) + 0.5) / ov - 0.5 - lead) / fs
+    q = sum(pulses.complex_envelope(pulse, f0, t + m / fs) * np.conj(r) for m, r in enumerate(rep))
+    want = (np.abs(q / np.sum(np.abs(rep) ** 2)) ** 2).reshape(n_k, ov).mean(axis=1)
+    assert lead == int(math.ceil(pulse.duration_s * fs)) + 1
+    np.testing.assert_allclose(kernel, want, rtol=0, atol=1e-12 * want.max())
+    assert 0.85 < want.max() <= 1.0  # unit gain at the peak, less the averaging over a sample cell
