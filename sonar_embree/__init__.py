@@ -9,7 +9,7 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 __version__ = "0.1.0"
 
-from . import batch, seafloor, sweep
+from . import assets, batch, seafloor, sweep
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
@@ -18,6 +18,6 @@ from .scene import Scene
 from .simulate import simulate
 from .trajectory import Trajectory
 
-__all__ = ["ConfigError", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["ConfigError", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "seafloor", "simulate", "sweep",
            "__version__"]

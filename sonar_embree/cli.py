@@ -49,7 +49,9 @@ dataclasses (units in the key names):
                 (99.99: the level shown white), floor_headroom_db (12: white at least
                 this far above the median), max_columns (1024 per side)
 
-Relative paths are relative to CONFIG.toml. See assets/configs/ for examples.
+Relative paths are relative to CONFIG.toml; asset:NAME names a shipped file.
+Examples: sonar-embree examples (list), sonar-embree render asset:anchor_mine.toml -o OUT,
+sonar-embree examples --copy anchor_mine.toml my_scene.toml (to edit).
 """
 
 
@@ -74,7 +76,9 @@ SWEEP.toml holds [sonar], [pulse], [fan] and [simulation] as in render configs
 Jobs = scenes x trajectories x [vary] combinations x seeds. Outputs per job in
 OUT/<id>/: record.zarr, record.xtf, waterfall.png, labels.png, coco.json, record.npz,
 job.json; OUT/sweep.json and OUT/coco.json for the whole batch. Same sweep, same
-bits, whatever the number of workers. See assets/configs/ for an example.
+bits, whatever the number of workers. Examples: sonar-embree batch asset:detection.toml
+-o OUT (mines on ripples, COCO) and asset:reconstruction.toml (three overlapping lines
+with height truth); sonar-embree examples --copy detection.toml . to edit one.
 """
 
 
@@ -99,7 +103,7 @@ def _parser() -> argparse.ArgumentParser:
     r = sub.add_parser("render", help="render a scene + trajectory + sonar described in a TOML file",
                        description="Render the run described by CONFIG.toml.", epilog=RENDER_HELP + "\n" + EPILOG,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    r.add_argument("config", metavar="CONFIG.toml", help="run description (see below)")
+    r.add_argument("config", metavar="CONFIG.toml", help="run description (see below), or asset:NAME.toml")
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
     r.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in OUT")
     r.add_argument("--no-progress", action="store_true", help="hide the progress bar")
@@ -109,7 +113,7 @@ def _parser() -> argparse.ArgumentParser:
                        description="Expand SWEEP.toml into jobs and render them on Dask (a LocalCluster "
                                    "unless --scheduler is given). Each job is written whole into OUT/<job id>/.",
                        epilog=BATCH_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
-    b.add_argument("sweep", metavar="SWEEP.toml", help="sweep description (see below)")
+    b.add_argument("sweep", metavar="SWEEP.toml", help="sweep description (see below), or asset:NAME.toml")
     b.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new, empty, or --resume)")
     b.add_argument("--scheduler", metavar="ADDRESS", help="address of a running Dask scheduler (tcp://host:8786)")
     b.add_argument("--workers", type=int, metavar="N", help="worker processes of the local cluster "
@@ -118,7 +122,28 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--dashboard", nargs="?", const=":8787", metavar="ADDRESS",
                    help="serve the local cluster's Dask dashboard (default address :8787; off unless given)")
     b.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    x = sub.add_parser("examples", help="list the shipped scenes, configs and sweeps, or copy one out",
+                       description="The files shipped with the package. Configs and sweeps name their meshes "
+                                   "as asset:NAME, so a copy works from any folder; render or batch them as "
+                                   "asset:NAME.toml or as the copy.")
+    x.add_argument("--copy", nargs=2, metavar=("NAME", "DEST"), help="copy a shipped file to DEST (a file or folder)")
     return p
+
+
+def _examples(args) -> list:
+    import shutil
+
+    from . import assets
+
+    if args.copy is None:
+        return [f"{kind}/{name}\t{assets.path(name)}" for kind in assets.KINDS for name in assets.names(kind)]
+    name, dest = args.copy
+    src = assets.path(name)
+    target = os.path.join(dest, os.path.basename(src)) if os.path.isdir(dest) else dest
+    if os.path.exists(target):
+        raise SonarEmbreeError(f"{target}: exists; choose another destination")
+    shutil.copyfile(src, target)
+    return [target]
 
 
 def _add_chain_options(p):
@@ -206,6 +231,8 @@ def _write_outputs(rec, out_dir, png=True, npz=True, png_kwargs=None):
 def _run(args) -> list:
     from .simulate import simulate
 
+    if args.command == "examples":
+        return _examples(args)
     if args.command == "batch":
         from . import batch
 

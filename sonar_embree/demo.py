@@ -58,3 +58,15 @@ def write_anchor_mine_obj(path) -> None:
     write_obj(path, [(label, mesh) for label, mesh, _ in anchor_mine_objects()],
               "sonar_embree anchor-mine test scene (Woock & Beyerer 4.1), metres, z up\n"
               "written by scripts/make_assets.py (sonar_embree.demo.write_anchor_mine_obj)")
+
+
+def write_moored_mine_obj(path) -> None:
+    """Write the mine moved so its sinker stands on the origin (for placing instances: ``moored_mine.obj``)."""
+    shift = (-SINKER["center"][0], -SINKER["center"][1], 0.0)
+    parts = []
+    for label, mesh, _ in anchor_mine_objects():
+        m = mesh.copy()
+        m.apply_translation(shift)
+        parts.append((label, m))
+    write_obj(path, parts, "sonar_embree moored mine: the anchor-mine parts with the sinker on the origin, "
+              "metres, z up\nwritten by scripts/make_assets.py (sonar_embree.demo.write_moored_mine_obj)")

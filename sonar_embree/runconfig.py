@@ -22,7 +22,7 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-from . import seafloor
+from . import assets, seafloor
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .scene import Scene
@@ -106,14 +106,19 @@ def _dataclass_table(data, name, cls, source):
 
 
 def _resolve(base: str, path) -> str:
+    """A config's path: ``asset:NAME`` (a shipped file), absolute, or relative to the config's folder."""
     if not isinstance(path, str):
         raise ConfigError(f"path must be a string, got {path!r}")
+    if path.startswith(assets.PREFIX):
+        return assets.path(path)
     return path if os.path.isabs(path) else os.path.join(base, path)
 
 
 def load_run_config(path) -> RunConfig:
     """Read and validate a TOML run description; raises a one-line ``ConfigError``/``SceneError``."""
     source = os.fspath(path)
+    if source.startswith(assets.PREFIX):
+        source = assets.path(source)
     try:
         with open(source, "rb") as fh:
             data = tomllib.load(fh)

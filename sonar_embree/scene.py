@@ -1,9 +1,11 @@
 """Scenes: labelled meshes with materials, held in float64 around a local origin.
 
 trimesh is the only mesh reader. Geometry keeps its world coordinates in float64;
-:meth:`Scene.compiled` subtracts a local origin (the bounds centre rounded to 1 m)
-so UTM-sized coordinates keep full precision when they later reach Embree in
-float32 (docs/physics.md §8).
+:meth:`Scene.compiled` subtracts a local origin so UTM-sized coordinates keep full
+precision when they later reach Embree in float32 (docs/physics.md §8). A
+simulation puts that origin where its rays are (:func:`survey_origin`: the
+trajectory's centre on a 1 km grid), so geometry far from the survey (a stray box
+at 10⁸ m) cannot cost the survey precision.
 """
 from __future__ import annotations
 
@@ -21,6 +23,20 @@ from .errors import SceneError
 log = logging.getLogger(__name__)
 
 MESH_SUFFIXES = (".obj", ".ply", ".stl", ".glb", ".gltf", ".off")
+#: Grid of the survey-centred local origins, m: surveys within it share one compiled scene and BVH,
+#: and float32 keeps ~0.1 mm within a few km of the origin.
+ORIGIN_GRID_M = 1000.0
+#: Compiled scenes (each with its BVH) kept per scene, by origin.
+COMPILED_CACHE = 2
+
+
+def survey_origin(positions_m) -> np.ndarray:
+    """The local origin for rays from ``positions_m`` (n, 3): their bounding-box centre on the
+    :data:`ORIGIN_GRID_M` grid (z on a 1 m grid)."""
+    p = np.asarray(positions_m, dtype=np.float64)
+    c = 0.5 * (p.min(axis=0) + p.max(axis=0))
+    return np.array([np.round(c[0] / ORIGIN_GRID_M) * ORIGIN_GRID_M,
+                     np.round(c[1] / ORIGIN_GRID_M) * ORIGIN_GRID_M, np.round(c[2])])
 
 
 @dataclass(frozen=True)
@@ -254,7 +270,7 @@ class Scene:
 
     def __init__(self):
         self._objects: list[SceneObject] = []
-        self._compiled: CompiledScene | None = None
+        self._compiled: dict = {}  # origin (x, y, z) -> CompiledScene, the last COMPILED_CACHE
 
     @classmethod
     def load(cls, path, material: Material | None = None, materials: dict | None = None,
@@ -344,7 +360,7 @@ class Scene:
             floor = (lab == "seafloor" or lab.startswith("seafloor/")) if seafloor is None else bool(seafloor)
             new.append(SceneObject(lab, v, f, materials.get(lab, material), floor))
         self._objects.extend(new)
-        self._compiled = None
+        self._compiled = {}
         return self
 
     @property
@@ -368,25 +384,39 @@ class Scene:
         hi = np.max([o.vertices.max(axis=0) for o in self._objects], axis=0)
         return np.array([lo, hi])
 
-    def compiled(self) -> CompiledScene:
-        """Flat float64 local-frame arrays of the whole scene (cached until the next :meth:`add`)."""
-        if self._compiled is None:
-            b = self.bounds
-            origin = np.round(0.5 * (b[0] + b[1]))
-            verts, faces, obj = [], [], []
-            offset = 0
-            for i, o in enumerate(self._objects):
-                verts.append(o.vertices - origin)
-                faces.append(o.faces + offset)
-                obj.append(np.full(o.faces.shape[0], i, dtype=np.int32))
-                offset += o.vertices.shape[0]
-            v = np.concatenate(verts)
-            f = np.concatenate(faces).astype(np.int32)
-            tri = v[f]
-            n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-            n /= np.linalg.norm(n, axis=1)[:, None]
-            self._compiled = CompiledScene(origin, v, f, n, np.concatenate(obj), self.labels,
-                                           np.array([o.material.mu for o in self._objects]),
-                                           np.array([o.seafloor for o in self._objects], dtype=bool),
-                                           np.array([o.material.two_sided for o in self._objects], dtype=bool))
-        return self._compiled
+    def compiled(self, origin_m=None) -> CompiledScene:
+        """Flat float64 arrays of the whole scene relative to ``origin_m`` (cached until the next :meth:`add`).
+
+        Parameters
+        ----------
+        origin_m : (3,) float, optional
+            World position of the local origin; default the bounds centre rounded to
+            1 m. :func:`~sonar_embree.simulate` passes :func:`survey_origin` of its
+            trajectory.
+        """
+        origin = np.round(0.5 * (self.bounds[0] + self.bounds[1])) if origin_m is None else \
+            np.asarray(origin_m, dtype=np.float64).reshape(3)
+        key = tuple(float(x) for x in origin)
+        if key not in self._compiled:
+            while len(self._compiled) >= COMPILED_CACHE:
+                self._compiled.pop(next(iter(self._compiled)))
+            self._compiled[key] = self._compile(origin)
+        return self._compiled[key]
+
+    def _compile(self, origin: np.ndarray) -> CompiledScene:
+        verts, faces, obj = [], [], []
+        offset = 0
+        for i, o in enumerate(self._objects):
+            verts.append(o.vertices - origin)
+            faces.append(o.faces + offset)
+            obj.append(np.full(o.faces.shape[0], i, dtype=np.int32))
+            offset += o.vertices.shape[0]
+        v = np.concatenate(verts)
+        f = np.concatenate(faces).astype(np.int32)
+        tri = v[f]
+        n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        n /= np.linalg.norm(n, axis=1)[:, None]
+        return CompiledScene(origin, v, f, n, np.concatenate(obj), self.labels,
+                             np.array([o.material.mu for o in self._objects]),
+                             np.array([o.seafloor for o in self._objects], dtype=bool),
+                             np.array([o.material.two_sided for o in self._objects], dtype=bool))

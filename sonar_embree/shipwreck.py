@@ -22,7 +22,7 @@ HULL_LENGTH_M = 56.0
 HULL_BEAM_M = 10.5
 #: Default placement: centre (x, y) in m, heading of the bow (deg, clockwise from north), roll (deg), sunk depth (m).
 WRECK_POSE = {"center_m": (0.0, 30.0), "heading_deg": 60.0, "roll_deg": 18.0, "pitch_deg": 2.0, "sink_m": 1.2}
-#: The survey of the paper's Fig. 8 and 9 (scripts/paper_shipwreck.py, assets/configs/shipwreck_*.toml):
+#: The survey of the paper's Fig. 8 and 9 (scripts/paper_shipwreck.py, sonar_embree/assets/configs/shipwreck_*.toml):
 #: 800 pings 0.1 m apart (1 m/s at 10 Hz) over 80 m, 15 m above the floor; the deckhouse rises
 #: to about 8 m and the mast to 12 m, so most shadows run past the 60 m range.
 PAPER_PASS = {"n_pings": 800, "altitude_m": 15.0, "ping_rate_hz": 10.0, "speed_m_s": 1.0}

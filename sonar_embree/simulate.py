@@ -34,7 +34,7 @@ from .labels import Labels
 from .processing import absorption_np_per_m, convolve_time
 from .raycast import RayCaster
 from .record import Record, iso_utc
-from .scene import Scene
+from .scene import Scene, survey_origin
 from .trajectory import Trajectory
 
 log = logging.getLogger(__name__)
@@ -301,7 +301,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
                           "(the complex signal exists only there)")
 
-    compiled = scene.compiled()
+    compiled = scene.compiled(survey_origin(trajectory.positions_m))  # the frame where the rays are
     caster = RayCaster.for_scene(compiled)  # the BVH is built once per scene
     plan = FanPlan.build(sonar, fan)
     n_p, n_out = len(trajectory), sonar.n_samples

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import runconfig
+from . import assets, runconfig
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from .errors import ConfigError, SonarEmbreeError
 from .scene import Scene, load_mesh
@@ -320,6 +320,8 @@ def _seeds(value, src):
 def load_sweep(path) -> Sweep:
     """Read and check a sweep file; every error is one line naming the file and key."""
     src = os.fspath(path)
+    if src.startswith(assets.PREFIX):
+        src = assets.path(src)
     try:
         with open(src, "rb") as fh:
             data = runconfig.tomllib.load(fh)

@@ -230,7 +230,7 @@ def test_ctrl_c_prints_one_line_and_leaves_nothing(tmp_path):
 # --- 5: the repository is self-contained -----------------------------------------------------------------
 def test_nothing_refers_outside_the_repository():
     hits = []
-    for top in ("README.md", "sonar_embree", "docs", "scripts", "tests", "assets"):
+    for top in ("README.md", "sonar_embree", "docs", "scripts", "tests"):
         base = os.path.join(ROOT, top)
         paths = [base] if os.path.isfile(base) else [os.path.join(d, f) for d, _, fs in os.walk(base) for f in fs]
         for p in paths:
@@ -456,3 +456,152 @@ def test_fft_expected_kernel_equals_the_direct_correlation_sum(pulse):
     assert lead == int(math.ceil(pulse.duration_s * fs)) + 1
     np.testing.assert_allclose(kernel, want, rtol=0, atol=1e-12 * want.max())
     assert 0.85 < want.max() <= 1.0  # unit gain at the peak, less the averaging over a sample cell
+
+
+# --- 6: the README works from any folder; examples ship with the package --------------------------------
+def _readme_api_snippet():
+    text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
+    section = text.split("## The API in ten lines", 1)[1]
+    return section.split("```python", 1)[1].split("```", 1)[0]
+
+
+def test_readme_api_snippet_runs_from_a_temporary_folder(tmp_path):
+    code = _readme_api_snippet()
+    assert "se.assets.path(" in code and "assets/" not in code
+    proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["run.npz", "run.png"]
+    rec = se.Record.load(tmp_path / "run.npz")
+    assert rec.n_pings == 100 and rec.starboard.max() > 0
+
+
+def test_examples_list_and_copy_and_render_anywhere(tmp_path, capsys):
+    assert cli.main(["examples"]) == 0
+    listed = capsys.readouterr().out
+    for name in ("anchor_mine.obj", "moored_mine.obj", "wreck.obj", "anchor_mine.toml", "detection.toml",
+                 "reconstruction.toml"):
+        assert name in listed
+        assert os.path.isfile(se.assets.path(name))
+    assert cli.main(["examples", "--copy", "anchor_mine.toml", str(tmp_path)]) == 0
+    copy = tmp_path / "anchor_mine.toml"
+    cfg = se.runconfig.load_run_config(copy)  # its meshes are asset:NAME: found from the copy too
+    assert "mine" in cfg.scene.labels
+    with pytest.raises(se.ConfigError, match="no shipped asset 'nope.obj'"):
+        se.assets.path("nope.obj")
+
+
+def test_anchor_mine_config_is_a_useful_image(tmp_path):
+    """The config the README says to copy: 240 pings past the mine, which shows with its shadow."""
+    cfg = se.runconfig.load_run_config("asset:anchor_mine.toml")
+    assert len(cfg.trajectory) >= 200
+    step = np.linalg.norm(np.diff(cfg.trajectory.positions_m, axis=0), axis=1).max()
+    assert step < 0.01 * 26.0  # pings closer than the ~1° beam's footprint at the mine's range
+
+
+def test_example_sweeps_check_and_cover_their_purpose():
+    from sonar_embree.io.coco import category_of
+
+    det = se.sweep.load_sweep("asset:detection.toml")
+    assert det.categories == ("mine",) and {"coco", "labels"} <= set(det.outputs) and len(det.jobs) >= 4
+    batch.preflight(det)  # one ping of the scene rendered and every output written
+    scene = det.scenes[0].build(det.jobs[0].seed)
+    mines = [o for o in scene.objects if category_of(o.label) == "mine"]
+    assert len(mines) == 3
+    rec = se.sweep.load_sweep("asset:reconstruction.toml")
+    assert "labels" in rec.outputs and len(rec.trajectory_names) >= 3
+    ys = sorted({float(j.trajectory.positions_m[0, 1]) for j in rec.jobs})
+    sonar = rec.jobs[0].sonar
+    h = rec.jobs[0].trajectory.positions_m[0, 2]
+    swath = np.sqrt(sonar.max_range_m ** 2 - h ** 2)  # ground range reached on each side of a line
+    assert all(0 < b - a < 2 * swath - 10.0 for a, b in zip(ys, ys[1:]))  # neighbours overlap by > 10 m
+    batch.preflight(rec)
+
+
+# --- 11: detection boxes follow the echo the waterfall shows --------------------------------------------
+def test_echo_box_spans_the_pings_the_two_way_beam_gives():
+    """A 0.3 m post 15 m to starboard, pings 2 cm apart: its echo spans the pings where the two-way azimuth
+    pattern, integrated over the post's lit half (Lambert: σ dA ∝ cos²φ · a dφ at the point a·sin φ along
+    track), is within 10 dB of its peak (quadrature here), far more than the centre line's geometric box."""
+    from scipy import integrate
+
+    a, h, y = 0.15, 10.0, -15.0
+    post = trimesh.creation.cylinder(radius=a, height=1.0, sections=48)
+    post.apply_translation((0.0, y, 0.5))
+    spacing = 0.02
+    traj = se.Trajectory.line((-1.0, 0.0, h), (1.0, 0.0, h), n_pings=101)
+    sonar = se.Sonar(max_range_m=22.0)
+    rec = se.simulate(_floor().add(post, label="post", material=se.Material(-10.0)), traj, sonar, labels=True)
+    lab = rec.labels
+    (echo,) = lab.boxes(None)
+    (centre,) = lab.boxes(None, source="centre")
+    rows_echo, rows_centre = echo["bbox"][3], centre["bbox"][3]
+
+    # independent reference: I(x) = ∫ Γ⁴((x + a sin φ)/R) cos²φ dφ over the lit half, Γ the azimuth sinc
+    k = 2 * np.pi * sonar.frequency_hz / sonar.sound_speed_m_s
+    R = np.hypot(abs(y) - a, h - 1.0)
+    g4 = lambda u: np.sinc(k * sonar.length_m / 2 * u / R / np.pi) ** 4  # noqa: E731
+
+    def intensity(x):
+        return integrate.quad(lambda p: g4(x + a * np.sin(p)) * np.cos(p) ** 2, -np.pi / 2, np.pi / 2)[0]
+
+    x = traj.positions_m[:, 0]
+    expected = int((np.array([intensity(v) for v in x]) >= 0.1 * intensity(0.0)).sum())
+    assert abs(rows_echo - expected) <= 2, (rows_echo, expected)  # 23 against 25 at quality 1, 25 at 2
+    assert rows_echo > 1.5 * rows_centre, (rows_echo, rows_centre)
+    assert expected * spacing > 2 * a + 0.15  # the beam, not the post, sets the span
+
+
+# --- 13: resume refuses a folder rendered from other inputs ---------------------------------------------
+def test_resume_refuses_changed_mesh_contents_and_attitude(tmp_path, capsys):
+    _multi_object_obj(tmp_path / "scene.obj")
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP)
+    out = tmp_path / "out"
+    assert cli.main(["batch", str(sweep), "-o", str(out), "--workers", "1", "--no-progress"]) == 0
+    assert cli.main(["batch", str(sweep), "-o", str(out), "--resume", "--no-progress"]) == 0  # unchanged: fine
+    capsys.readouterr()
+    original = (tmp_path / "scene.obj").read_bytes()
+    (tmp_path / "scene.obj").write_bytes(original.replace(b"o rock", b"o rock\n# edited"))
+    assert cli.main(["batch", str(sweep), "-o", str(out), "--resume", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "different sweep" in err and "input_files" in err, err
+    (tmp_path / "scene.obj").write_bytes(original)
+    sweep.write_text(SWEEP.replace("n_pings = 6", "n_pings = 6\nroll_deg = 2.0"))
+    assert cli.main(["batch", str(sweep), "-o", str(out), "--resume", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "different sweep" in err and "trajectories" in err, err
+
+
+# --- 13: far, unrelated geometry costs the survey no precision -------------------------------------------
+@pytest.mark.parametrize("far_m", [1e4, 1e6, 1e8])
+def test_a_stray_box_far_away_leaves_the_record_unchanged(far_m):
+    """Before, the local origin followed the scene's bounds: a 1 m box at 10⁸ m moved it 5·10⁷ m away and
+    the record changed by 71 %; now the frame sits where the rays are."""
+    traj = se.Trajectory.line((-1.0, 0.0, 10.0), (1.0, 0.0, 10.0), n_pings=4)
+
+    def scene(stray):
+        s = _floor().add(box((2, 2, 1), (1, -12, 0.5)), label="crate", material=se.Material(-10.0))
+        return s.add(box((1, 1, 1), (far_m, 0, 0)), label="stray") if stray else s
+
+    ref = se.simulate(scene(False), traj, se.Sonar(max_range_m=25), speckle=True, seed=1, labels=True)
+    rec = se.simulate(scene(True), traj, se.Sonar(max_range_m=25), speckle=True, seed=1, labels=True)
+    np.testing.assert_array_equal(rec.starboard, ref.starboard)
+    np.testing.assert_array_equal(rec.port, ref.port)
+    np.testing.assert_array_equal(rec.labels.kind, ref.labels.kind)
+
+
+def test_a_million_row_trajectory_csv_is_refused_in_one_line(tmp_path, capsys):
+    n = 1_000_000
+    t = np.arange(n) * 0.1
+    rows = np.column_stack([t, 0.2 * t, np.zeros(n), np.full(n, 10.0)])
+    path = tmp_path / "nav.csv"
+    with open(path, "w") as fh:
+        fh.write("time_s,x_m,y_m,z_m\n")
+        np.savetxt(fh, rows, fmt="%.3f", delimiter=",")
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER.replace('start = [-1.0, 0.0, 6.0]\nend = [1.0, 0.0, 6.0]\nn_pings = 4',
+                                  'kind = "csv"\npath = "nav.csv"'))
+    assert cli.main(["render", str(cfg), "-o", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "1000000 pings" in err and "GiB" in err, err
+    assert not (tmp_path / "out").exists()

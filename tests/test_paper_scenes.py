@@ -14,7 +14,7 @@ from sonar_embree.runconfig import load_run_config
 from sonar_embree.scene import load_mesh
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-CONFIGS = sorted(glob.glob(os.path.join(ROOT, "assets", "configs", "*.toml")))
+CONFIGS = sorted(glob.glob(os.path.join(ROOT, "sonar_embree", "assets", "configs", "*.toml")))
 
 
 def _triangles(mesh):
@@ -23,13 +23,17 @@ def _triangles(mesh):
 
 def test_shipped_meshes_equal_their_generators():
     """scripts/make_assets.py wrote them; a changed generator without a re-run fails here."""
-    wreck = load_mesh(os.path.join(ROOT, "assets", "scenes", "wreck.obj"))
+    wreck = load_mesh(os.path.join(ROOT, "sonar_embree", "assets", "scenes", "wreck.obj"))
     np.testing.assert_allclose(_triangles(wreck), _triangles(shipwreck.wreck()), atol=6e-6)  # %.5f in the OBJ
-    mine = se.Scene.load(os.path.join(ROOT, "assets", "scenes", "anchor_mine.obj"))
+    mine = se.Scene.load(os.path.join(ROOT, "sonar_embree", "assets", "scenes", "anchor_mine.obj"))
     parts = {label: mesh for label, mesh, _ in demo.anchor_mine_objects()}
     assert set(mine.labels) == set(parts)
     for obj in mine.objects:
         np.testing.assert_allclose(obj.vertices[obj.faces], _triangles(parts[obj.label]), atol=6e-6)
+    moored = se.Scene.load(se.assets.path("moored_mine.obj"))
+    for obj in moored.objects:
+        want = _triangles(parts[obj.label]) + np.array([0.0, demo.MINE_GROUND_RANGE_M, 0.0])
+        np.testing.assert_allclose(obj.vertices[obj.faces], want, atol=6e-6)
 
 
 def test_every_scene_has_a_straight_and_a_curved_example():

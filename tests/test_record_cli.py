@@ -49,10 +49,9 @@ def test_waterfall_layout(object_record, tmp_path):
 
 
 def test_cli_render_example_config(tmp_path):
-    cfg = os.path.join(ROOT, "assets", "configs", "anchor_mine.toml")
-    assert main(["render", cfg, "-o", str(tmp_path), "--no-progress"]) == 0
+    assert main(["render", "asset:anchor_mine.toml", "-o", str(tmp_path), "--no-progress"]) == 0
     rec = se.Record.load(tmp_path / "record.npz")
-    assert rec.n_pings == 12 and rec.starboard.max() > 0
+    assert rec.n_pings == 240 and rec.starboard.max() > 0
     assert iio.imread(tmp_path / "waterfall.png").ndim == 2
 
 
