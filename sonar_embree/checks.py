@@ -133,9 +133,10 @@ def check_back_faces(caster, pos_local: np.ndarray, max_range_m: float, samples:
             continue
         hit = caster.cast(org[ok], d[ok] / dist[ok, None], max_range_m)
         mine = (hit.object_id == obj) & (np.abs(hit.cos_inc) > 1e-3)
-        if mine.sum() >= 8 and (hit.cos_inc[mine] < 0).mean() > MAX_BACK_FACE_SHARE:
-            warn_once(f"object {c.labels[obj]!r} is seen from behind its faces ({100 * (hit.cos_inc[mine] < 0).mean():.0f} % "
-                      "of the rays that reach it): inverted normals return no echo; fix its winding or give it "
+        back = (hit.cos_inc[mine] < 0).mean() if mine.sum() >= 8 else 0.0
+        if back > MAX_BACK_FACE_SHARE:
+            warn_once(f"object {c.labels[obj]!r} is seen from behind its faces ({100 * back:.0f} % of the rays "
+                      "that reach it): inverted normals return no echo; fix its winding or give it "
                       "Material(two_sided=True)")
 
 

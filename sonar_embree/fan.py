@@ -179,8 +179,8 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     pts = np.empty((n, 3) if want_points else (0, 3))
     c = caster.compiled
     kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
-                       c.face_normals, face_mu, c.two_sided[c.face_object], plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
-                       plan.slope_cap_m_rad, rng, ext, w, pts)
+                       c.face_normals, face_mu, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
+                       max_range_m, plan.slope_cap_m_rad, rng, ext, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe

@@ -87,6 +87,11 @@ class CompiledScene:
     two_sided: np.ndarray
 
     @cached_property
+    def face_two_sided(self) -> np.ndarray:
+        """(f,) bool: triangles of two-sided objects (made once per compiled scene)."""
+        return self.two_sided[self.face_object]
+
+    @cached_property
     def bounds_local(self) -> np.ndarray:
         """(2, 3) min and max corner of the vertices in the local frame, m."""
         return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])

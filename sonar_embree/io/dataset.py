@@ -52,9 +52,9 @@ def _ping_coords(record) -> dict:
     """Per-ping coordinates: navigation, attitude and time (CF standard names where they exist)."""
     t = record.trajectory
     coords = {}
-    for i, (axis, std) in enumerate((("x", "projection_x_coordinate"), ("y", "projection_y_coordinate"),
-                                     ("z", None))):
-        meta = {"units": "m", "long_name": f"sonar position, world {axis} ({'east' if axis == 'x' else 'north' if axis == 'y' else 'up'})"}
+    for i, (axis, std, way) in enumerate((("x", "projection_x_coordinate", "east"),
+                                          ("y", "projection_y_coordinate", "north"), ("z", None, "up"))):
+        meta = {"units": "m", "long_name": f"sonar position, world {axis} ({way})"}
         if std:
             meta["standard_name"] = std
         coords[f"{axis}_m"] = (("ping",), t.positions_m[:, i], meta)
@@ -90,10 +90,11 @@ def to_xarray(record):
     """
     import xarray as xr
 
-    intensity = {"units": "1", "long_name": "{} intensity for a unit source (linear)"}
-    data = {"port": (("ping", "sample"), record.port, {**intensity, "long_name": intensity["long_name"].format("port")}),
-            "starboard": (("ping", "sample"), record.starboard,
-                          {**intensity, "long_name": intensity["long_name"].format("starboard")}),
+    def intensity(side):
+        return {"units": "1", "long_name": f"{side} intensity for a unit source (linear)"}
+
+    data = {"port": (("ping", "sample"), record.port, intensity("port")),
+            "starboard": (("ping", "sample"), record.starboard, intensity("starboard")),
             "altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
                                                           "long_name": "range to the first surface below the sonar"})}
     for side in ("port", "starboard"):
@@ -101,7 +102,8 @@ def to_xarray(record):
         if z is not None:
             data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1",
                                                               "long_name": f"{side} complex baseband, |.|^2 = {side}"})
-    coords = {"time_s": (("sample",), record.time_s, {"units": "s", "long_name": "time from the start of transmission"}),
+    coords = {"time_s": (("sample",), record.time_s,
+                         {"units": "s", "long_name": "time from the start of transmission"}),
               "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
               **_ping_coords(record)}
     attrs = _flat_attrs(record)
