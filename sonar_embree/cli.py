@@ -158,6 +158,8 @@ def _add_chain_options(p):
     g.add_argument("--noise-db-per-hz", type=float, metavar="DB", help="receiver noise spectral density")
     g.add_argument("--lowpass-hz", type=float, metavar="HZ", help="low-pass FIR cut-off after detection")
     g.add_argument("--seed", type=int, help="seed of the speckle and noise")
+    p.add_argument("--start-time", metavar="ISO8601",
+                   help="time of the first ping, e.g. 2026-05-01T09:30:00Z (default: now); in the record, XTF and Zarr")
     p.add_argument("--quality", type=float, metavar="Q",
                    help="ray density, trading error for speed (overrides [fan] quality; default 1)")
 
@@ -246,15 +248,15 @@ def _run(args) -> list:
             raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
         _check_output_folder(args.output, args.overwrite)
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
-        rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress)
+        rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress,
+                       start_time=args.start_time)
         return _write_outputs(rec, args.output, png_kwargs=DEMO_PNG)
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
     _check_output_folder(args.output, args.overwrite)
     rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
-                   fan=_fan(args, cfg.fan),
-                   progress=not args.no_progress)
+                   fan=_fan(args, cfg.fan), progress=not args.no_progress, start_time=args.start_time)
     o = cfg.output
     if not (o.png or o.npz):
         raise SonarEmbreeError(f"{args.config}: [output] png and npz are both false; nothing to write")

@@ -605,3 +605,13 @@ def test_a_million_row_trajectory_csv_is_refused_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "1000000 pings" in err and "GiB" in err, err
     assert not (tmp_path / "out").exists()
+
+
+def test_render_start_time_is_recorded(tmp_path, capsys):
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER)
+    out = tmp_path / "out"
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress", "--start-time", "2026-05-01T09:30:00Z"]) == 0
+    assert se.Record.load(out / "record.npz").attrs["start_time"] == "2026-05-01T09:30:00+00:00"
+    assert cli.main(["render", str(cfg), "-o", str(tmp_path / "o2"), "--no-progress", "--start-time", "May 1st"]) == 2
+    assert "not an ISO 8601 date-time" in capsys.readouterr().err
