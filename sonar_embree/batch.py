@@ -108,7 +108,7 @@ def preflight(sweep: Sweep) -> None:
             with tempfile.TemporaryDirectory(prefix="sonar-embree-check-") as tmp:
                 _write_outputs(rec, job, sweep, tmp)
     except SonarEmbreeError as exc:
-        raise type(exc)(f"{sweep.source}: outputs of job {job.id}: {exc}") from None
+        raise type(exc)(f"{sweep.source}: job {job.id} (one ping checked before the batch): {exc}") from None
     finally:
         _SCENE_CACHE.clear()
 
