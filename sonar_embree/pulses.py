@@ -168,29 +168,15 @@ def passband_analytic(pulse, carrier_hz: float, rate_hz: float):
     return complex_envelope(pulse, carrier_hz, t) * np.exp(2j * np.pi * ((carrier_hz * t) % 1.0))
 
 
-def compressed_envelope(pulse, carrier_hz: float, sample_rate_hz: float, t_s):
-    """Matched-filter output q(t) for a unit echo arriving at t = 0.
-
-    q(t) = Σ_m p̃(t + m/fs)·p̃*(m/fs) / Σ_m |p̃(m/fs)|²: the record-rate correlator of
-    :func:`sonar_embree.processing.matched_filter` applied to the continuous echo;
-    q(0) = 1 (unit gain at the peak).
-    """
-    rep = replica(pulse, carrier_hz, sample_rate_hz)
-    t = np.asarray(t_s, dtype=np.float64)
-    tm = np.arange(rep.shape[0]) / sample_rate_hz
-    q = np.zeros(t.shape, dtype=complex)
-    for m in range(rep.shape[0]):
-        q += complex_envelope(pulse, carrier_hz, t + tm[m]) * np.conj(rep[m])
-    return q / np.sum(np.abs(rep) ** 2)
-
-
 def expected_kernel(pulse, carrier_hz: float, sample_rate_hz: float, matched_filter: bool,
                     oversample: int = 64):
     """Sample-cell averages of the detected intensity of a unit echo, for speckle-free mode.
 
     Without matched filtering this is :func:`intensity_kernel` (|p|², causal).
-    With it, |q(t)|² of :func:`compressed_envelope`, which extends one pulse length
-    before and after the echo time.
+    With it, |q(t)|² of the matched-filter output q(t) = Σ_m p̃(t + m/fs)·p̃*(m/fs) / Σ|p̃|²
+    (the record-rate correlator of :func:`sonar_embree.processing.matched_filter` applied
+    to a continuous unit echo at t = 0; q(0) = 1), which extends one pulse length before
+    and after the echo time; see :func:`compressed_grid`.
 
     Returns
     -------
@@ -207,7 +193,7 @@ def expected_kernel(pulse, carrier_hz: float, sample_rate_hz: float, matched_fil
 
 
 def compressed_grid(pulse, carrier_hz: float, sample_rate_hz: float, lead: int, oversample: int):
-    """:func:`compressed_envelope` on the sub-sample grid of :func:`expected_kernel`, by FFT.
+    """The matched-filter output q(t) of :func:`expected_kernel` on its sub-sample grid, by FFT.
 
     The grid t = (i − lead + f_k)/fs, i = 0 … 2·lead, f_k = (k + ½)/oversample − ½, is
     one correlation with the replica per sub-sample phase f_k: q[k, i] =
