@@ -327,7 +327,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     n_rays = np.zeros(n_p, dtype=np.int64)
     if labels:
         truth = tuple(np.zeros((n_p, 2, n_out), dtype=Labels.DTYPES[k]) for k in Labels.ARRAYS)
-        echo_kernel = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
+    # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
+    echo_kernel = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter) if labels or not chain.speckle \
+        else None
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -365,7 +367,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
 
     t = time.perf_counter()
     if not chain.speckle:
-        kernel, lead = pulses.expected_kernel(pulse, f0, fs, chain.matched_filter)
+        kernel, lead = echo_kernel
         intensity = convolve_time(out, kernel, lead)
         if n0 is not None:  # mean intensity of the noise after the matched filter
             gain = 1.0 / np.sum(np.abs(pulses.replica(pulse, f0, fs)) ** 2) if chain.matched_filter else 1.0
