@@ -11,6 +11,7 @@ __version__ = "0.1.0"
 
 from . import assets, batch, seafloor, sweep
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
+from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
 from .record import Record
@@ -18,6 +19,6 @@ from .scene import Scene
 from .simulate import simulate
 from .trajectory import Trajectory
 
-__all__ = ["ConfigError", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["ConfigError", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "seafloor", "simulate", "sweep",
            "__version__"]

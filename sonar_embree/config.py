@@ -11,32 +11,9 @@ import math
 import dataclasses
 from dataclasses import dataclass, fields
 
+from .environment import Environment
 from .errors import ConfigError
-
-
-def _check_number(owner: str, name: str, value, *, positive=False, nonneg=False,
-                  lo=None, hi=None, integer=False) -> None:
-    """Raise :class:`ConfigError` unless ``value`` is a finite number within bounds."""
-    label = f"{owner}.{name}"
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f"{label} must be a number, got {value!r}")
-    if integer and int(value) != value:
-        raise ConfigError(f"{label} must be an integer, got {value!r}")
-    if not math.isfinite(value):
-        raise ConfigError(f"{label} must be finite, got {value!r}")
-    if positive and not value > 0:
-        raise ConfigError(f"{label} must be > 0, got {value!r}")
-    if nonneg and value < 0:
-        raise ConfigError(f"{label} must be >= 0, got {value!r}")
-    if lo is not None and value < lo:
-        raise ConfigError(f"{label} must be >= {lo}, got {value!r}")
-    if hi is not None and value > hi:
-        raise ConfigError(f"{label} must be <= {hi}, got {value!r}")
-
-
-def field_names(cls) -> tuple[str, ...]:
-    """Names of the constructor fields of a config dataclass (for TOML key checking)."""
-    return tuple(f.name for f in fields(cls) if f.init)
+from .validation import check_number as _check_number, field_names
 
 
 @dataclass(frozen=True)
@@ -60,21 +37,11 @@ class Sonar:
         (default) derives it from the pulse when simulating (:meth:`for_pulse`):
         max(4/τ, 4·the sweep's largest offset from f0), i.e. 40 kHz for the
         default 100 µs CW pulse and 2·B for an LFM of bandwidth B centred on f0.
-    sound_speed_m_s : float
-        Speed of sound c in m/s, constant over the water column.
-    absorption_db_per_m : float or None
-        One-way absorption α in dB/m (the two-way loss is 2αR dB), an explicit
-        override. ``None`` (default) computes it with Francois–Garrison from
-        ``frequency_hz`` and the water below: 0.0961 dB/m at 400 kHz, 10 °C,
-        35 ppt, pH 8 (docs/physics.md §3). Read the value in use from :attr:`alpha_db_per_m`.
-    temperature_c : float
-        Water temperature in °C, for Francois–Garrison.
-    salinity_ppt : float
-        Salinity in ppt (PSU), for Francois–Garrison.
-    depth_m : float
-        Water depth in m for the pressure terms of Francois–Garrison.
-    ph : float
-        Acidity, for the boric-acid term of Francois–Garrison.
+    environment : Environment
+        The medium (sound speed, water, absorption); default :class:`Environment` ().
+        The medium's keywords ``sound_speed_m_s``, ``absorption_db_per_m``,
+        ``temperature_c``, ``salinity_ppt``, ``depth_m`` and ``ph`` are still accepted
+        here and go into ``environment``; read them as properties of the same name.
     """
 
     frequency_hz: float = 400e3
@@ -83,23 +50,16 @@ class Sonar:
     tilt_deg: float = 20.0
     max_range_m: float = 50.0
     sample_rate_hz: float | None = None
-    sound_speed_m_s: float = 1500.0
-    absorption_db_per_m: float | None = None
-    temperature_c: float = 10.0
-    salinity_ppt: float = 35.0
-    depth_m: float = 0.0
-    ph: float = 8.0
+    environment: Environment = Environment()
 
     def __post_init__(self):
-        for name in ("frequency_hz", "length_m", "height_m", "max_range_m", "sound_speed_m_s"):
+        if isinstance(self.environment, dict):  # from a saved record's metadata
+            object.__setattr__(self, "environment", Environment(**self.environment))
+        if not isinstance(self.environment, Environment):
+            raise ConfigError(f"Sonar.environment must be a sonar_embree.Environment, got {self.environment!r}")
+        for name in ("frequency_hz", "length_m", "height_m", "max_range_m"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)
-        if self.absorption_db_per_m is not None:
-            _check_number("Sonar", "absorption_db_per_m", self.absorption_db_per_m, nonneg=True, hi=100.0)
-        _check_number("Sonar", "temperature_c", self.temperature_c, lo=-2.0, hi=40.0)
-        _check_number("Sonar", "salinity_ppt", self.salinity_ppt, lo=0.0, hi=45.0)
-        _check_number("Sonar", "depth_m", self.depth_m, lo=0.0, hi=12000.0)
-        _check_number("Sonar", "ph", self.ph, lo=6.0, hi=9.5)
         if self.sample_rate_hz is None:
             return
         _check_number("Sonar", "sample_rate_hz", self.sample_rate_hz, positive=True)
@@ -115,14 +75,14 @@ class Sonar:
         return self.sound_speed_m_s / self.frequency_hz
 
     @property
-    def alpha_db_per_m(self) -> float:
-        """One-way absorption in use, dB/m: the explicit override or Francois–Garrison."""
-        if self.absorption_db_per_m is not None:
-            return float(self.absorption_db_per_m)
-        from .absorption import francois_garrison_db_per_m
+    def sound_speed_m_s(self) -> float:
+        """Speed of sound of the environment, m/s."""
+        return self.environment.sound_speed_m_s
 
-        return francois_garrison_db_per_m(self.frequency_hz, self.temperature_c, self.salinity_ppt,
-                                          self.depth_m, self.ph)
+    @property
+    def alpha_db_per_m(self) -> float:
+        """One-way absorption in use at f0, dB/m (:meth:`Environment.alpha_db_per_m`)."""
+        return self.environment.alpha_db_per_m(self.frequency_hz)
 
     @property
     def wavenumber_rad_m(self) -> float:
@@ -188,7 +148,8 @@ class Sonar:
         if rule not in ("exact", "small-angle"):
             raise ConfigError(f"Sonar.from_beamwidths rule must be 'exact' or 'small-angle', got {rule!r}")
         f0 = kwargs.get("frequency_hz", cls.frequency_hz)
-        c = kwargs.get("sound_speed_m_s", cls.sound_speed_m_s)
+        env = kwargs.get("environment", Environment())
+        c = kwargs.get("sound_speed_m_s", env.sound_speed_m_s if isinstance(env, Environment) else 1500.0)
         _check_number("Sonar", "frequency_hz", f0, positive=True)
         _check_number("Sonar", "sound_speed_m_s", c, positive=True)
         lam = c / f0
@@ -196,6 +157,29 @@ class Sonar:
         ly = membrane_size_for_beamwidth(math.radians(elevation_deg), lam, rule)
         return cls(length_m=lx, height_m=ly, **kwargs)
 
+
+
+#: The medium's keywords that ``Sonar`` still accepts and maps into its :class:`Environment`
+#: (and the ``[sonar]`` TOML table, for configs written before ``[environment]``).
+LEGACY_MEDIUM_KEYS = ("sound_speed_m_s", "absorption_db_per_m", "temperature_c", "salinity_ppt", "depth_m", "ph")
+_sonar_init = Sonar.__init__
+
+
+def _sonar_init_with_medium(self, *args, **kwargs):
+    legacy = {k: kwargs.pop(k) for k in LEGACY_MEDIUM_KEYS if k in kwargs}
+    if legacy:
+        env = kwargs.get("environment", Environment())
+        env = Environment(**env) if isinstance(env, dict) else env
+        try:
+            kwargs["environment"] = dataclasses.replace(env, **legacy)
+        except ConfigError as exc:  # name the key as it was given
+            raise ConfigError(str(exc).replace("Environment.", "Sonar.", 1)) from None
+    _sonar_init(self, *args, **kwargs)
+
+
+_sonar_init_with_medium.__doc__ = _sonar_init.__doc__
+_sonar_init_with_medium.__signature__ = __import__("inspect").signature(_sonar_init)
+Sonar.__init__ = _sonar_init_with_medium
 
 @dataclass(frozen=True)
 class Pulse:

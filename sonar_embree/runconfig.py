@@ -1,6 +1,7 @@
 """TOML run descriptions mapped 1:1 onto the dataclasses.
 
-Tables: ``[sonar]`` (fields of :class:`Sonar`), ``[pulse]`` (:class:`Pulse`),
+Tables: ``[sonar]`` (fields of :class:`Sonar`), ``[environment]`` (:class:`Environment`;
+the medium's keys are still accepted in ``[sonar]``), ``[pulse]`` (:class:`Pulse`),
 ``[fan]`` (:class:`FanSettings`), ``[simulation]`` (:class:`SignalChain`: speckle,
 band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_m, seed),
 ``[trajectory]`` (``kind`` = "line" | "waypoints" | "csv" and that constructor's
@@ -23,7 +24,8 @@ except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
 from . import assets, seafloor
-from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from .config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .scene import Scene
 from .trajectory import Trajectory
@@ -35,7 +37,7 @@ TRAJECTORY_KINDS = {
     "waypoints": ("waypoints", "n_pings", "speed_m_s", "pitch_deg", "roll_deg"),
     "csv": ("path",),
 }
-TOP_KEYS = ("sonar", "pulse", "fan", "simulation", "trajectory", "objects", "output")
+TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
 OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
                "floor_headroom_db", "max_columns")
 
@@ -99,10 +101,26 @@ def _build(source: str, where: str, fn, kwargs):
         raise ConfigError(f"{source}: {where}: {exc}") from None
 
 
+def table_keys(cls) -> tuple:
+    """The keys a TOML table of ``cls`` may hold: its fields (``[sonar]``: also the medium's old keys)."""
+    if cls is Sonar:
+        return tuple(k for k in field_names(Sonar) if k != "environment") + LEGACY_MEDIUM_KEYS
+    return field_names(cls)
+
+
 def _dataclass_table(data, name, cls, source):
     table = data.get(name, {})
-    _check_keys(f"[{name}]", table, field_names(cls), source)
+    _check_keys(f"[{name}]", table, table_keys(cls), source)
     return _build(source, f"[{name}]", cls, table)
+
+
+def build_sonar(source: str, where: str, sonar_table: dict, environment: Environment) -> Sonar:
+    """``Sonar`` from a ``[sonar]`` table in ``environment``; the medium's old ``[sonar]`` keys are mapped into it."""
+    both = [k for k in LEGACY_MEDIUM_KEYS if k in sonar_table and getattr(environment, k) != getattr(Environment(), k)]
+    if both:
+        raise ConfigError(f"{source}: {where}: {both[0]!r} is given in both [sonar] and [environment]; "
+                          "keep it in [environment]")
+    return _build(source, where, Sonar, {**sonar_table, "environment": environment})
 
 
 def _resolve(base: str, path) -> str:
@@ -129,7 +147,10 @@ def load_run_config(path) -> RunConfig:
     base = os.path.dirname(os.path.abspath(source))
     _check_keys("the top level", data, TOP_KEYS, source)
 
-    sonar = _dataclass_table(data, "sonar", Sonar, source)
+    environment = _dataclass_table(data, "environment", Environment, source)
+    sonar_table = data.get("sonar", {})
+    _check_keys("[sonar]", sonar_table, table_keys(Sonar), source)
+    sonar = build_sonar(source, "[sonar]", sonar_table, environment)
     pulse = _dataclass_table(data, "pulse", Pulse, source)
     fan = _dataclass_table(data, "fan", FanSettings, source)
 

@@ -28,6 +28,7 @@ import numpy as np
 
 from . import checks, kernels, processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
+from .environment import Environment
 from .errors import ConfigError
 from .fan import BlockEchoes, FanPlan, cast_block, label_block, object_echo_block
 from .labels import Labels
@@ -210,7 +211,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
              fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
              labels: bool = False, keep_complex: bool = False, ping_offset: int = 0, progress: bool = False,
-             timings: dict | None = None, start_time=None) -> Record:
+             timings: dict | None = None, start_time=None, environment: Environment | None = None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
     Parameters
@@ -220,7 +221,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     trajectory : Trajectory
         One pose per ping.
     sonar : Sonar, optional
-        Transducer, range window and medium; default :class:`Sonar` ().
+        Transducer and range window (and its medium); default :class:`Sonar` ().
+    environment : Environment, optional
+        The medium (sound speed, water, absorption model); replaces ``sonar.environment``.
     pulse : Pulse, optional
         Transmitted pulse; default 100 µs rectangular CW.
     speckle, band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_m, seed
@@ -282,6 +285,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             raise ConfigError("simulate: give either quality or fan, not both (FanSettings has a quality field)")
         fan = FanSettings(quality=quality)
     fan = FanSettings() if fan is None else fan
+    if environment is not None:
+        if not isinstance(environment, Environment):
+            raise ConfigError(f"simulate: environment must be a sonar_embree.Environment, got {environment!r}")
+        sonar = dataclasses.replace(sonar, environment=environment)
     _check_inputs(scene, trajectory, sonar, pulse, fan)
     if isinstance(ping_offset, bool) or not isinstance(ping_offset, (int, np.integer)) or ping_offset < 0:
         raise ConfigError(f"simulate: ping_offset must be an integer >= 0, got {ping_offset!r}")

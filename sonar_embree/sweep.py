@@ -45,11 +45,12 @@ import numpy as np
 
 from . import assets, runconfig
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from .environment import Environment
 from .errors import ConfigError, SonarEmbreeError
 from .scene import Scene, load_mesh
 from .trajectory import Trajectory
 
-TOP_KEYS = ("sweep", "sonar", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
+TOP_KEYS = ("sweep", "sonar", "environment", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
 SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex", "start_time")
 #: Start time of a sweep's records unless ``[sweep] start_time`` says otherwise: fixed, so that the
 #: same sweep gives the same bytes whenever it runs.
@@ -58,7 +59,7 @@ OUTPUTS = ("zarr", "xtf", "png", "labels", "coco", "npz")
 DEFAULT_OUTPUTS = ("zarr", "xtf", "png", "coco")
 PNG_KEYS = ("scale", "dynamic_range_db", "gamma", "tvg", "reference_percentile", "floor_headroom_db", "max_columns")
 PLACED_KEYS = ("path", "label", "material", "count", "region", "yaw_deg", "z_m", "poses", "up_axis")
-TABLES = {"sonar": Sonar, "pulse": Pulse, "fan": FanSettings, "simulation": SignalChain}
+TABLES = {"environment": Environment, "sonar": Sonar, "pulse": Pulse, "fan": FanSettings, "simulation": SignalChain}
 DEFAULT_PINGS_PER_TASK = 32
 
 
@@ -352,7 +353,7 @@ def load_sweep(path) -> Sweep:
     base_tables = {}
     for t, cls in TABLES.items():
         table = data.get(t, {})
-        runconfig._check_keys(f"[{t}]", table, field_names(cls), src)
+        runconfig._check_keys(f"[{t}]", table, runconfig.table_keys(cls), src)
         base_tables[t] = dict(table)
     if "seed" in base_tables["simulation"]:
         raise ConfigError(f"{src}: [simulation] seed is set per job by [sweep] seeds; remove it")
@@ -362,7 +363,7 @@ def load_sweep(path) -> Sweep:
         raise ConfigError(f"{src}: [vary] must be a table")
     for key, values in vary.items():
         table, _, fld = key.partition(".")
-        if table not in TABLES or fld not in field_names(TABLES[table]) or (table, fld) == ("simulation", "seed"):
+        if table not in TABLES or fld not in runconfig.table_keys(TABLES[table]) or (table, fld) == ("simulation", "seed"):
             raise ConfigError(f"{src}: [vary] key {key!r} must be 'table.field' with table one of "
                               f"{list(TABLES)} and a field of it (seed comes from [sweep] seeds)")
         if not isinstance(values, list) or not values:
@@ -378,7 +379,10 @@ def load_sweep(path) -> Sweep:
         where = "[vary] " + ", ".join(f"{k} = {v!r}" for k, v in combo) if combo else "base settings"
         built = {}
         for t, cls in TABLES.items():
-            built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
+            if t == "sonar":
+                built[t] = runconfig.build_sonar(src, f"[sonar] ({where})", tables[t], built["environment"])
+            else:
+                built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
         try:
             chain = built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
         except SonarEmbreeError as exc:

@@ -30,7 +30,7 @@ def _attr_value(v):
 
 
 def _flat_attrs(record) -> dict:
-    """Global attributes: every sonar, pulse and simulation setting, typed; unset (None) settings left out."""
+    """Global attributes: every sonar, environment, pulse and simulation setting, typed; unset (None) settings left out."""
     from .. import __version__
 
     attrs = {"Conventions": CONVENTIONS, "title": "simulated side-scan sonar record",
@@ -38,9 +38,9 @@ def _flat_attrs(record) -> dict:
              "package": "sonar_embree", "package_version": __version__,
              "sample_order": "sample n at time n/fs from the start of transmission, both channels",
              "intensity_reference": "unit source: on-axis intensity 1 at 1 m (docs/physics.md section 3)"}
-    for group, obj in (("sonar", record.sonar), ("pulse", record.pulse)):
+    for group, obj in (("sonar", record.sonar), ("environment", record.sonar.environment), ("pulse", record.pulse)):
         for k, v in dataclasses.asdict(obj).items():
-            if v is not None:
+            if v is not None and not isinstance(v, dict):
                 attrs[f"{group}.{k}"] = _attr_value(v)
     for k, v in record.attrs.items():
         if v is not None:

@@ -1,0 +1,73 @@
+"""The medium the sound travels in: sound speed, water properties and absorption.
+
+The sea surface and a sound-speed profile join it later; :class:`Environment` is
+their one home (docs/physics.md §3).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+from ..validation import check_number
+from .ainslie_mccolm import ainslie_mccolm_db_per_m
+from .francois_garrison import francois_garrison_db_per_m
+
+#: Absorption models by name: f(frequency_hz, temperature_c, salinity_ppt, depth_m, ph) → dB/m.
+#: A new model is one module with such a function and one line here.
+ABSORPTION_MODELS = {
+    "francois-garrison": francois_garrison_db_per_m,
+    "ainslie-mccolm": ainslie_mccolm_db_per_m,
+}
+
+
+@dataclass(frozen=True)
+class Environment:
+    """The water: constant sound speed, temperature, salinity, depth, pH and absorption.
+
+    Parameters
+    ----------
+    sound_speed_m_s : float
+        Speed of sound c in m/s, constant over the water column.
+    temperature_c : float
+        Water temperature, °C (absorption model).
+    salinity_ppt : float
+        Salinity, ppt (PSU) (absorption model).
+    depth_m : float
+        Water depth, m, for the pressure terms of the absorption model.
+    ph : float
+        Acidity, for the boric-acid term of the absorption model.
+    absorption_model : str
+        ``"francois-garrison"`` (default; Francois & Garrison 1982) or
+        ``"ainslie-mccolm"`` (Ainslie & McColm 1998), see :data:`ABSORPTION_MODELS`.
+    absorption_db_per_m : float or None
+        One-way absorption α in dB/m (two-way loss 2αR dB), an explicit override of
+        the model. ``None`` (default): the model at the sonar's frequency, 0.0961 dB/m
+        for Francois–Garrison at 400 kHz, 10 °C, 35 ppt, pH 8.
+    """
+
+    sound_speed_m_s: float = 1500.0
+    temperature_c: float = 10.0
+    salinity_ppt: float = 35.0
+    depth_m: float = 0.0
+    ph: float = 8.0
+    absorption_model: str = "francois-garrison"
+    absorption_db_per_m: float | None = None
+
+    def __post_init__(self):
+        check_number("Environment", "sound_speed_m_s", self.sound_speed_m_s, positive=True)
+        check_number("Environment", "temperature_c", self.temperature_c, lo=-2.0, hi=40.0)
+        check_number("Environment", "salinity_ppt", self.salinity_ppt, lo=0.0, hi=45.0)
+        check_number("Environment", "depth_m", self.depth_m, lo=0.0, hi=12000.0)
+        check_number("Environment", "ph", self.ph, lo=6.0, hi=9.5)
+        if self.absorption_model not in ABSORPTION_MODELS:
+            raise ConfigError(f"Environment.absorption_model must be one of {', '.join(ABSORPTION_MODELS)}, "
+                              f"got {self.absorption_model!r}")
+        if self.absorption_db_per_m is not None:
+            check_number("Environment", "absorption_db_per_m", self.absorption_db_per_m, nonneg=True, hi=100.0)
+
+    def alpha_db_per_m(self, frequency_hz: float) -> float:
+        """One-way absorption at ``frequency_hz`` (Hz) in dB/m: the override or the model."""
+        if self.absorption_db_per_m is not None:
+            return float(self.absorption_db_per_m)
+        return ABSORPTION_MODELS[self.absorption_model](frequency_hz, self.temperature_c, self.salinity_ppt,
+                                                        self.depth_m, self.ph)

@@ -1,0 +1,97 @@
+"""The medium's seam: Environment, its absorption models and the TOML [environment] table (docs/physics.md §3)."""
+import dataclasses
+
+import numpy as np
+import pytest
+
+import sonar_embree as se
+from sonar_embree import runconfig
+from sonar_embree.environment import ABSORPTION_MODELS
+from sonar_embree.environment.ainslie_mccolm import ainslie_mccolm_db_per_m
+from sonar_embree.environment.francois_garrison import francois_garrison_db_per_m
+
+import analytic
+from conftest import flat_scene
+
+
+@pytest.mark.parametrize("t_c", [-2.0, 4.0, 10.0, 15.0, 22.0])
+@pytest.mark.parametrize("f_hz", [1e3, 10e3, 100e3, 400e3, 900e3])
+@pytest.mark.parametrize("depth_m", [0.0, 500.0])
+def test_ainslie_mccolm_within_10_percent_of_francois_garrison(t_c, f_hz, depth_m):
+    """The second absorption model against the first, over its published validity (docs/physics.md §3)."""
+    am = ainslie_mccolm_db_per_m(f_hz, t_c, 35.0, depth_m, 8.0)
+    fg = francois_garrison_db_per_m(f_hz, t_c, 35.0, depth_m, 8.0)
+    assert abs(am / fg - 1.0) < 0.10, (am, fg)
+
+
+def test_ainslie_mccolm_matches_its_independent_twin():
+    for f, t, s, d, ph in [(400e3, 10, 35, 0, 8), (50e3, 4, 30, 2000, 7.7), (900e3, 20, 34, 100, 8.2)]:
+        assert ainslie_mccolm_db_per_m(f, t, s, d, ph) * 1e3 == pytest.approx(
+            analytic.ainslie_mccolm_db_per_km(f, t, s, d, ph), rel=1e-12)
+    assert ainslie_mccolm_db_per_m(400e3) == pytest.approx(0.1011, abs=1e-4)
+
+
+def test_environment_chooses_the_model_and_the_override_wins():
+    fg, am = se.Environment(), se.Environment(absorption_model="ainslie-mccolm")
+    assert fg.alpha_db_per_m(400e3) == francois_garrison_db_per_m(400e3)
+    assert am.alpha_db_per_m(400e3) == ainslie_mccolm_db_per_m(400e3)
+    assert se.Environment(absorption_model="ainslie-mccolm", absorption_db_per_m=0.05).alpha_db_per_m(400e3) == 0.05
+    assert set(ABSORPTION_MODELS) == {"francois-garrison", "ainslie-mccolm"}
+    with pytest.raises(se.ConfigError, match="Environment.absorption_model.*'thorp'"):
+        se.Environment(absorption_model="thorp")
+    with pytest.raises(se.ConfigError, match="Environment.sound_speed_m_s"):
+        se.Environment(sound_speed_m_s=-1.0)
+
+
+def test_sonar_reads_its_environment_and_maps_the_old_keywords():
+    env = se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
+    sonar = se.Sonar(environment=env)
+    assert sonar.sound_speed_m_s == 1480.0 and sonar.wavelength_m == pytest.approx(1480.0 / 400e3)
+    assert sonar.alpha_db_per_m == env.alpha_db_per_m(400e3)
+    old = se.Sonar(sound_speed_m_s=1480.0, temperature_c=4.0)
+    assert old == sonar and old.environment == env
+    assert dataclasses.replace(old, sound_speed_m_s=1500.0).environment.sound_speed_m_s == 1500.0
+    with pytest.raises(se.ConfigError, match="Sonar.environment"):
+        se.Sonar(environment="sea")
+
+
+def test_simulate_uses_the_environment_given():
+    traj = se.Trajectory.line((0, 0, 10), (0.2, 0, 10), 2)
+    sonar = se.Sonar(max_range_m=20.0)
+    warm = se.Environment(temperature_c=20.0)
+    scene = flat_scene()
+    a = se.simulate(scene, traj, sonar, environment=warm, start_time="2000-01-01")
+    b = se.simulate(scene, traj, se.Sonar(max_range_m=20.0, temperature_c=20.0), start_time="2000-01-01")
+    c = se.simulate(scene, traj, sonar, start_time="2000-01-01")
+    assert a.sonar.environment == warm and a.attrs["alpha_db_per_m"] == warm.alpha_db_per_m(400e3)
+    assert np.array_equal(a.port, b.port)
+    # warmer water absorbs more at 400 kHz: 2·Δα·R dB less at slant range R (docs/physics.md eq. 1)
+    r = a.slant_range_m
+    k = np.argmin(np.abs(r - 18.0))
+    d_alpha = warm.alpha_db_per_m(400e3) - se.Environment().alpha_db_per_m(400e3)
+    ratio_db = 10 * np.log10(a.port[:, k] / c.port[:, k])
+    assert ratio_db == pytest.approx(-2 * d_alpha * r[k], abs=0.02)
+    with pytest.raises(se.ConfigError, match="simulate: environment"):
+        se.simulate(scene, traj, sonar, environment={"temperature_c": 4})
+
+
+def _write(tmp_path, sonar_extra="", env=""):
+    with open(se.assets.path("anchor_mine.toml"), encoding="utf-8") as fh:
+        text = fh.read()
+    text = text.replace("path = \"asset:anchor_mine.obj\"", f"path = \"{se.assets.path('anchor_mine.obj')}\"")
+    text = text.replace("[environment]", "[environment]\n" + env, 1).replace("[sonar]", "[sonar]\n" + sonar_extra, 1)
+    p = tmp_path / "run.toml"
+    p.write_text(text)
+    return p
+
+
+def test_toml_environment_table_and_old_sonar_keys(tmp_path):
+    cfg = runconfig.load_run_config(_write(tmp_path, env="temperature_c = 4.0\nabsorption_model = \"ainslie-mccolm\"\n"))
+    assert cfg.sonar.environment.temperature_c == 4.0
+    assert cfg.sonar.environment.absorption_model == "ainslie-mccolm"
+    old = runconfig.load_run_config(_write(tmp_path, sonar_extra="temperature_c = 4.0\n"))
+    assert old.sonar.environment.temperature_c == 4.0
+    with pytest.raises(se.ConfigError, match="'temperature_c' is given in both"):
+        runconfig.load_run_config(_write(tmp_path, sonar_extra="temperature_c = 4.0\n", env="temperature_c = 5.0\n"))
+    with pytest.raises(se.ConfigError, match="unknown key 'salinity' in \\[environment\\]"):
+        runconfig.load_run_config(_write(tmp_path, env="salinity = 35.0\n"))
