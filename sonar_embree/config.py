@@ -13,6 +13,7 @@ from dataclasses import dataclass, fields
 
 from .environment import Environment
 from .errors import ConfigError
+from .laws import Lambert
 from .validation import check_number as _check_number, field_names
 
 
@@ -293,15 +294,20 @@ class Material:
     ----------
     backscatter_db : float
         Lambert backscatter strength μ in dB (σ = μ·cos²θi per unit area per
-        steradian). −27 dB is Mackenzie's value for sand/mud.
+        steradian). −27 dB is Mackenzie's value for sand/mud. Shorthand for
+        ``law=Lambert(backscatter_db)``.
     two_sided : bool
         Scatter from both sides of every face (default False: faces seen from behind
         return nothing, as closed meshes need). For open surfaces of unknown
         winding: sheets, plates, meshes with inverted normals.
+    law : scattering law, optional
+        Any law of :mod:`sonar_embree.laws` (``Lambert``, ``Kirchhoff``); default
+        Lambert with ``backscatter_db``. Give one or the other.
     """
 
     backscatter_db: float = -27.0
     two_sided: bool = False
+    law: object = None
 
     def __post_init__(self):
         if not isinstance(self.two_sided, bool):
@@ -309,11 +315,19 @@ class Material:
         _check_number("Material", "backscatter_db", self.backscatter_db, hi=30.0)
         if self.backscatter_db < -300:
             raise ConfigError(f"Material.backscatter_db must be >= -300 dB, got {self.backscatter_db!r}")
+        if self.law is None:
+            object.__setattr__(self, "law", Lambert(self.backscatter_db))
+        elif not all(hasattr(self.law, a) for a in ("kernel", "params", "sigma")):
+            raise ConfigError(f"Material.law must be a scattering law of sonar_embree.laws, got {self.law!r}")
+        elif self.backscatter_db != -27.0 and self.law != Lambert(self.backscatter_db):
+            raise ConfigError("Material: give backscatter_db or law, not both")
+        elif isinstance(self.law, Lambert):
+            object.__setattr__(self, "backscatter_db", self.law.backscatter_db)
 
     @property
     def mu(self) -> float:
-        """Linear Lambert coefficient μ = 10^(backscatter_db/10)."""
-        return 10.0 ** (self.backscatter_db / 10.0)
+        """Linear Lambert coefficient μ = 10^(backscatter_db/10) (NaN for another law)."""
+        return self.law.mu if isinstance(self.law, Lambert) else math.nan
 
 
 @dataclass(frozen=True)

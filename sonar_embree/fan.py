@@ -121,7 +121,24 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     return el_start, beta, dbeta
 
 
-def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray, face_mu: np.ndarray,
+def apply_laws(compiled, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray) -> None:
+    """Multiply each echo weight by its surface's σ(θi)/cos θi: one kernel per law the scene uses.
+
+    Parameters
+    ----------
+    compiled : CompiledScene
+    prim : (n,) int32
+        Triangle hit by each ray, −1 for none.
+    cos_i : (n,) float64
+        cos θi of each hit.
+    weight : (n,) float64
+        Weights without the law (:func:`kernels.fan_echoes`), multiplied in place.
+    """
+    for k, law in enumerate(compiled.law_kinds):
+        law.kernel(prim, cos_i, compiled.face_object, compiled.object_law, k, compiled.law_params, weight)
+
+
+def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, want_points: bool = False,
                timings: dict | None = None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
@@ -134,8 +151,6 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
         Body-to-world rotations.
     pos_local : (pings, 3) float64
         Sonar positions in the scene's local frame, m.
-    face_mu : (faces,) float64
-        Lambert coefficient per triangle.
     two_way_np_per_m : float
         Two-way absorption, Np/m.
     max_range_m : float
@@ -175,12 +190,13 @@ def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     t_embree += time.perf_counter() - t
 
-    rng, ext, w = np.empty(n), np.empty(n), np.empty(n)
+    rng, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     pts = np.empty((n, 3) if want_points else (0, 3))
     c = caster.compiled
     kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
-                       c.face_normals, face_mu, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
-                       max_range_m, plan.slope_cap_m_rad, rng, ext, w, pts)
+                       c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
+                       max_range_m, plan.slope_cap_m_rad, rng, ext, w, cos_i, pts)
+    apply_laws(c, prim, cos_i, w)
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe
@@ -294,7 +310,8 @@ def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarra
         v0 = c.vertices[c.faces[hid_prim[hid], 0]]
         den = np.einsum("ij,ij->i", u[hid], nrm)
         r64 = np.einsum("ij,ij->i", v0 - origin[hid], nrm) / den
-        good = np.abs(r64 - hid_r[hid]) <= 1e-3 * (1.0 + hid_r[hid])
+        good = ((np.abs(den) > kernels.REFIT_MIN_COS)
+                & (np.abs(r64 - hid_r[hid]) <= kernels.REFIT_REL_TOL * (1.0 + hid_r[hid])))
         hid_r[hid] = np.where(good, r64, hid_r[hid])
         hid_pt[hid] = origin[hid] + hid_r[hid][:, None] * u[hid]
         hid_dir[hid], hid_ext[hid] = _footprint_lines(u[hid], f[hid], nrm, hid_r[hid], e.dbeta[hid],

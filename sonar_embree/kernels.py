@@ -1,6 +1,7 @@
 """Numba kernels: array in, array out, into buffers the caller allocated.
 
-The only module that imports numba. Kernels read no globals, allocate nothing,
+The only module that imports numba (the scattering laws' kernels take ``njit`` and
+``prange`` from here). Kernels read no global state (named constants only), allocate nothing,
 draw no random numbers and skip (never wrap) indices outside the buffer. Each has
 a naive NumPy twin in ``tests/naive.py``. Compiled code is cached on disk.
 """
@@ -16,6 +17,13 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import numpy as np  # noqa: E402
 import numba  # noqa: E402
 from numba import njit, prange  # noqa: E402
+
+
+#: The float64 refit of a hit: the range from the hit triangle's plane replaces Embree's float32
+#: distance unless the ray is within this cosine of the plane or the two differ by more than
+#: REFIT_REL_TOL·(1 m + distance) (then the plane is not the one hit: keep Embree's).
+REFIT_MIN_COS = 1e-6
+REFIT_REL_TOL = 1e-3
 
 
 def num_threads() -> int:
@@ -361,16 +369,19 @@ def _sinc(x):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals, face_mu,
+def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals,
                face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, range_out, extent_out,
-               weight_out, points_out):
-    """Expected echo of every ray of a block: range, range extent and intensity (docs/physics.md §2–3).
+               weight_out, cos_out, points_out):
+    """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
+
+    (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
+    (:mod:`sonar_embree.laws`).
 
     The hit range is the float64 intersection with the hit triangle's plane (Embree's
     float32 distance where that is ill-conditioned). A ray of cell ds × dβ on a
     surface of normal n̂ returns
 
-        w = Γ⁴ · μ · cos θi · exp(−2α'R) · ds·dβ / max(R, R_min)²
+        w = Γ⁴ · exp(−2α'R) · ds·dβ / max(R, R_min)²     (× σ(θi)/cos θi by the law)
 
     spread over the slant-range interval R ± ΔR/2 its cell covers on the plane,
     ΔR = R·|n̂·∂u/∂β| / cos θi · dβ (at most ``slope_cap_m_rad``·dβ). Misses, back
@@ -388,8 +399,6 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
         Embree's hit distance, m.
     vertices : (v, 3) float64; faces : (f, 3) int32; face_normals : (f, 3) float64
         The scene in its local frame.
-    face_mu : (f,) float64
-        Linear Lambert coefficient of each triangle.
     face_two_sided : (f,) bool
         Triangles that scatter from both sides (two-sided materials).
     beam : (4,) float64
@@ -397,8 +406,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
     two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad : float
         Two-way absorption (Np/m), near-field range bound, range window and bound
         on |dR/dβ| (m/rad).
-    range_out, extent_out, weight_out : (n,) float64
-        Written with R (m), ΔR (m) and w.
+    range_out, extent_out, weight_out, cos_out : (n,) float64
+        Written with R (m), ΔR (m), w and cos θi (0 where w = 0).
     points_out : (n, 3) or (0, 3) float64
         Written with the hit points (local frame, m) when it has n rows.
     """
@@ -420,6 +429,7 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
                 range_out[i] = math.inf
                 extent_out[i] = 0.0
                 weight_out[i] = 0.0
+                cos_out[i] = 0.0
                 if want_points:
                     points_out[i, 0] = 0.0
                     points_out[i, 1] = 0.0
@@ -445,9 +455,9 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
                     fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
                 t_emb = np.float64(tfar[i])
                 rr = t_emb
-                if abs(dn) > 1e-6:
+                if abs(dn) > REFIT_MIN_COS:
                     t64 = num / dn
-                    if abs(t64 - t_emb) <= 1e-3 * (1.0 + t_emb):
+                    if abs(t64 - t_emb) <= REFIT_REL_TOL * (1.0 + t_emb):
                         rr = t64
                 cos_i = -dn
                 if cos_i < 0.0 and face_two_sided[t]:
@@ -460,8 +470,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
                 g2 = g * g
                 rb = rr if rr > min_range_m else min_range_m
                 range_out[i] = rr
-                weight_out[i] = (g2 * g2 * face_mu[t] * cos_i * math.exp(-two_way_np_per_m * rr)
-                                 * ds * dbeta[el_start[r] + j] / (rb * rb))
+                weight_out[i] = g2 * g2 * math.exp(-two_way_np_per_m * rr) * ds * dbeta[el_start[r] + j] / (rb * rb)
+                cos_out[i] = cos_i
                 slope = rr * abs(fn) / cos_i
                 if slope > slope_cap_m_rad:
                     slope = slope_cap_m_rad

@@ -16,6 +16,7 @@ import numpy as np
 from embreex import rtcore_scene as rtcs
 from embreex.mesh_construction import TriangleMesh
 
+from .kernels import REFIT_MIN_COS, REFIT_REL_TOL
 from .scene import CompiledScene
 
 #: Hits whose |cos θi| is below this count as grazing: they occlude but return nothing.
@@ -153,7 +154,7 @@ class RayCaster:
             with np.errstate(divide="ignore", invalid="ignore"):
                 t64 = num / dn
             # float64 plane intersection where well conditioned; Embree's distance otherwise
-            good = np.isfinite(t64) & (np.abs(dn) > 1e-6) & (np.abs(t64 - t_emb) <= 1e-3 * (1.0 + t_emb))
+            good = np.isfinite(t64) & (np.abs(dn) > REFIT_MIN_COS) & (np.abs(t64 - t_emb) <= REFIT_REL_TOL * (1.0 + t_emb))
             range_m[idx] = np.where(good, t64, t_emb)
             cos_inc[idx] = -dn
             echo[idx] = (-dn > GRAZING_COS) & (range_m[idx] <= max_range_m)

@@ -19,6 +19,7 @@ import trimesh
 
 from .config import Material
 from .errors import SceneError
+from .laws import law_table
 
 log = logging.getLogger(__name__)
 
@@ -69,7 +70,13 @@ class CompiledScene:
     labels : tuple of str
         Label per object.
     mu : (n_objects,) float64
-        Linear Lambert coefficient per object.
+        Linear Lambert coefficient per object (NaN for objects of another law).
+    law_kinds : tuple of type
+        The scattering-law classes the scene uses (:func:`sonar_embree.laws.law_table`).
+    object_law : (n_objects,) int32
+        Index into ``law_kinds`` per object.
+    law_params : (n_objects, MAX_PARAMS) float64
+        Each object's law parameters, as its kernel reads them.
     is_seafloor : (n_objects,) bool
         Which objects are seafloor (ground truth: their hidden parts are shadow).
     two_sided : (n_objects,) bool
@@ -85,6 +92,9 @@ class CompiledScene:
     mu: np.ndarray
     is_seafloor: np.ndarray
     two_sided: np.ndarray
+    law_kinds: tuple = ()
+    object_law: np.ndarray | None = None
+    law_params: np.ndarray | None = None
 
     @cached_property
     def face_two_sided(self) -> np.ndarray:
@@ -424,4 +434,5 @@ class Scene:
         return CompiledScene(origin, v, f, n, np.concatenate(obj), self.labels,
                              np.array([o.material.mu for o in self._objects]),
                              np.array([o.seafloor for o in self._objects], dtype=bool),
-                             np.array([o.material.two_sided for o in self._objects], dtype=bool))
+                             np.array([o.material.two_sided for o in self._objects], dtype=bool),
+                             *law_table([o.material.law for o in self._objects]))

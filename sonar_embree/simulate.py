@@ -323,7 +323,6 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     two_way = absorption_np_per_m(sonar.alpha_db_per_m)
     n0 = None if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
 
-    face_mu = compiled.mu[compiled.face_object]
     coherent = chain.detection == "coherent"
     if not chain.speckle:
         out = np.zeros((n_p, 2, n_s))
@@ -347,7 +346,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     a, block = 0, 4
     while a < n_p:
         b = min(a + block, n_p)
-        e = cast_block(caster, plan, rots[a:b], pos_local[a:b], face_mu, two_way, max_r, want_points=chain.speckle,
+        e = cast_block(caster, plan, rots[a:b], pos_local[a:b], two_way, max_r, want_points=chain.speckle,
                        timings=clock)
         altitude[a:b], n_rays[a:b] = e.altitude_m, e.n_rays
         if labels:

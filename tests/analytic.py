@@ -31,8 +31,8 @@ def _phi_grid():
     return np.unique(np.concatenate([dense, coarse]))
 
 
-def flat_floor_g(r_m, h=10.0, mu_db=-27.0, alpha_db_m=0.096, **beam):
-    """g(R) of eq. (2) on the slant ranges ``r_m`` (all ≥ h)."""
+def flat_floor_g(r_m, h=10.0, mu_db=-27.0, alpha_db_m=0.096, sigma=None, **beam):
+    """g(R) of eq. (2) on the slant ranges ``r_m`` (all ≥ h); ``sigma(cos θi)``: another law than Lambert μ."""
     r_m = np.asarray(r_m, dtype=float)
     phi = _phi_grid()
     out = np.empty_like(r_m)
@@ -46,7 +46,8 @@ def flat_floor_g(r_m, h=10.0, mu_db=-27.0, alpha_db_m=0.096, **beam):
         az = np.trapezoid(gamma_membrane(u_f, u_s, u_d, **beam) ** 4, phi, axis=1)
         rr = r[:, 0]
         cos_i = h / rr
-        out[a:a + 256] = mu * cos_i ** 2 * 10 ** (-2 * alpha_db_m * rr / 10) * rr ** -3 * az
+        sig = mu * cos_i ** 2 if sigma is None else sigma(cos_i)
+        out[a:a + 256] = sig * 10 ** (-2 * alpha_db_m * rr / 10) * rr ** -3 * az
     return out
 
 
@@ -100,3 +101,10 @@ def ainslie_mccolm_db_per_km(f_hz, t_c=10.0, s_ppt=35.0, depth_m=0.0, ph=8.0):
     return (0.106 * f1 * f * f / (f1 * f1 + f * f) * np.exp((ph - 8) / 0.56)
             + 0.52 * (1 + t_c / 43) * (s_ppt / 35) * f2 * f * f / (f2 * f2 + f * f) * np.exp(-z / 6)
             + 0.00049 * f * f * np.exp(-(t_c / 27 + z / 17)))
+
+
+def kirchhoff_monostatic(theta_rad, r0, slope_rms):
+    """Gaussian-facet Kirchhoff backscatter, docs/physics.md §10 (Jackson & Richardson 2007, §13.2):
+    σ(θ) = R0²/(8π s²) · sec⁴θ · exp(−tan²θ / (2 s²))."""
+    t = np.asarray(theta_rad, dtype=float)
+    return r0 ** 2 / (8 * np.pi * slope_rms ** 2) / np.cos(t) ** 4 * np.exp(-np.tan(t) ** 2 / (2 * slope_rms ** 2))

@@ -252,3 +252,26 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
             height[r, n] = p[2] + origin_z
             ground[r, n] = np.hypot(p[0] - o[0], p[1] - o[1])
     return kind, obj, shadow_of, height, ground
+
+
+def law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind):
+    """Twin of the laws' kernels: weight × σ(θi)/cos θi on the hits of objects of law index ``law``.
+
+    ``kind`` "lambert": σ = μ cos²θ (params[:, 0] = μ); "kirchhoff": σ = R0²/(8π s²)·sec⁴θ·exp(−tan²θ/(2s²))
+    (params[:, 0] = R0², params[:, 1] = s²).
+    """
+    out = weight.copy()
+    for i in range(prim.shape[0]):
+        if prim[i] < 0 or weight[i] == 0:
+            continue
+        o = face_object[prim[i]]
+        if object_law[o] != law:
+            continue
+        theta = np.arccos(cos_i[i])
+        if kind == "lambert":
+            sigma = params[o, 0] * np.cos(theta) ** 2
+        else:
+            s2 = params[o, 1]
+            sigma = params[o, 0] / (8 * np.pi * s2) / np.cos(theta) ** 4 * np.exp(-np.tan(theta) ** 2 / (2 * s2))
+        out[i] = weight[i] * sigma / np.cos(theta)
+    return out

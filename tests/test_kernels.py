@@ -157,6 +157,7 @@ def test_fan_rays_match_naive(rng):
 def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight.
     Inverted: the same mesh with its faces turned away, in a two-sided material, gives the same echoes."""
+    from sonar_embree.fan import apply_laws
     from sonar_embree.raycast import RayCaster
 
     heights = rng.uniform(-0.3, 0.3, (21, 21)) + np.linspace(0, 4, 21)[None, :]
@@ -176,11 +177,11 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     assert (prim >= 0).sum() > 100
     mu_face = c.mu[c.face_object]
     k, lx, ly, tilt = 2 * np.pi / 0.00375, 0.19, 0.0038, np.radians(20)
-    rng_k, ext_k, w_k, pts = np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
+    rng_k, ext_k, w_k, cos_k, pts = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty((n, 3))
     kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, prim, tfar, c.vertices,
-                       c.faces, c.face_normals, mu_face, two_sided, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02,
-                       0.004,
-                       60.0, 500.0, rng_k, ext_k, w_k, pts)
+                       c.faces, c.face_normals, two_sided, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02,
+                       0.004, 60.0, 500.0, rng_k, ext_k, w_k, cos_k, pts)
+    apply_laws(c, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
     rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,
                                          mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0, two_sided)
     hit = w_n > 0

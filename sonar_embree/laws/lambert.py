@@ -1,0 +1,73 @@
+"""Lambert's law: σ = μ·cos θi·cos θs (docs/physics.md §3, §10).
+
+Lambert's rule for diffuse seafloor backscatter, monostatic σ = μ·cos²θi; μ = −27 dB
+is Mackenzie's average for sand and mud (K. V. Mackenzie, "Bottom reverberation for
+530- and 1030-cps sound in deep water", J. Acoust. Soc. Am. 33, 1498–1504, 1961).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from ..kernels import njit, prange
+from ..validation import check_number
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def lambert_weights(prim, cos_i, face_object, object_law, law, params, weight):
+    """weight[i] *= μ·cos θi for the hits on objects of law index ``law`` (σ/cos θi of Lambert).
+
+    Parameters
+    ----------
+    prim : (n,) int32
+        Triangle hit by each ray, −1 for none.
+    cos_i : (n,) float64
+        cos θi of each hit.
+    face_object : (f,) int32; object_law : (n_objects,) int32
+        Object of each triangle and law index of each object.
+    law : int
+        This law's index.
+    params : (n_objects, k) float64
+        Column 0: linear μ.
+    weight : (n,) float64
+        Echo weights without the law, multiplied in place.
+    """
+    for i in prange(prim.shape[0]):
+        t = prim[i]
+        if t < 0 or weight[i] == 0.0:
+            continue
+        o = face_object[t]
+        if object_law[o] == law:
+            weight[i] *= params[o, 0] * cos_i[i]
+
+
+@dataclass(frozen=True)
+class Lambert:
+    """Lambert's law σ = μ·cos θi·cos θs per unit area per steradian.
+
+    Parameters
+    ----------
+    backscatter_db : float
+        μ in dB (−27 dB: Mackenzie 1961; published μ spans about −10 dB for rock to
+        −40 dB for mud).
+    """
+
+    backscatter_db: float = -27.0
+
+    kernel = staticmethod(lambert_weights)
+
+    def __post_init__(self):
+        check_number("Lambert", "backscatter_db", self.backscatter_db, lo=-300.0, hi=30.0)
+
+    @property
+    def mu(self) -> float:
+        """Linear μ = 10^(backscatter_db/10)."""
+        return 10.0 ** (self.backscatter_db / 10.0)
+
+    def params(self) -> tuple:
+        return (self.mu,)
+
+    def sigma(self, cos_i, cos_s, phi_rad=0.0):
+        """σ(θi, θs, φ) = μ·cos θi·cos θs (independent of φ); zero below the surface."""
+        cos_i, cos_s = np.asarray(cos_i, dtype=float), np.asarray(cos_s, dtype=float)
+        return self.mu * np.clip(cos_i, 0.0, None) * np.clip(cos_s, 0.0, None) + 0.0 * np.asarray(phi_rad)

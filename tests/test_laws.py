@@ -1,0 +1,76 @@
+"""The scattering-law seam (docs/physics.md §10): Lambert and Kirchhoff against closed forms and twins."""
+import numpy as np
+import pytest
+
+import analytic
+import naive
+import sonar_embree as se
+from conftest import flat_scene, line_along_x
+from sonar_embree.laws import Kirchhoff, Lambert, law_table
+
+
+@pytest.mark.parametrize("kind", ["lambert", "kirchhoff"])
+def test_law_kernels_match_their_naive_twins(rng, kind):
+    """Two objects of each law; each kernel touches only the hits on its own objects."""
+    laws = [Lambert(-20.0), Kirchhoff(0.6, 0.2), Lambert(-30.0), Kirchhoff(-0.3, 0.05)]
+    kinds, object_law, params = law_table(laws)
+    assert kinds == (Lambert, Kirchhoff) and list(object_law) == [0, 1, 0, 1]
+    n, n_faces = 5000, 40
+    face_object = rng.integers(0, 4, n_faces).astype(np.int32)
+    prim = rng.integers(-1, n_faces, n).astype(np.int32)
+    cos_i = rng.uniform(1e-9, 1.0, n)
+    weight = rng.uniform(0.0, 1.0, n) * (rng.uniform(size=n) > 0.1)
+    law = 0 if kind == "lambert" else 1
+    got = weight.copy()
+    kinds[law].kernel(prim, cos_i, face_object, object_law, law, params, got)
+    want = naive.law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind)
+    np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-300)  # subnormals aside
+    other = (prim < 0) | (object_law[face_object[np.maximum(prim, 0)]] != law)
+    np.testing.assert_array_equal(got[other], weight[other])
+    assert not np.array_equal(got, weight)
+
+
+def test_kirchhoff_closed_forms():
+    law = Kirchhoff(0.5, 0.15)
+    theta = np.radians(np.linspace(0, 85, 30))
+    c = np.cos(theta)
+    np.testing.assert_allclose(law.sigma(c, c, 0.0), analytic.kirchhoff_monostatic(theta, 0.5, 0.15), rtol=1e-12)
+    assert law.sigma(1.0, 1.0) == pytest.approx(0.25 / (8 * np.pi * 0.15 ** 2), rel=1e-12)  # σ_K(0) = R0²/(8π s²)
+    # the specular direction (φ = π, θs = θi): the facets facing the bisector are level, σ = σ_K(0) at every θi
+    np.testing.assert_allclose(law.sigma(c[:-1], c[:-1], np.pi), 0.25 / (8 * np.pi * 0.15 ** 2), rtol=1e-9)
+    # reciprocity σ(θi, θs, φ) = σ(θs, θi, φ)
+    a, b, phi = np.cos(0.3), np.cos(0.9), 0.7
+    assert law.sigma(a, b, phi) == pytest.approx(law.sigma(b, a, phi), rel=1e-12)
+    assert law.sigma(-0.2, 0.5) == 0.0 and Kirchhoff(0.5, 0.15).sigma(np.cos(np.radians(89.99)), 1e-4) >= 0
+    assert Kirchhoff.from_impedances(1.9, 1.1).reflection_coefficient == pytest.approx((2.09 - 1) / (2.09 + 1))
+    with pytest.raises(se.ConfigError, match="Kirchhoff.slope_rms"):
+        Kirchhoff(0.5, 0.0)
+
+
+def test_lambert_law_is_the_default_and_bistatic():
+    assert se.Material().law == Lambert(-27.0) and se.Material(backscatter_db=-15.0).law == Lambert(-15.0)
+    assert se.Material(law=Lambert(-12.0)).backscatter_db == -12.0
+    law = Lambert(-20.0)
+    assert law.sigma(0.5, 0.8, 1.0) == pytest.approx(0.01 * 0.5 * 0.8)
+    with pytest.raises(se.ConfigError, match="backscatter_db or law"):
+        se.Material(backscatter_db=-15.0, law=Kirchhoff())
+    with pytest.raises(se.ConfigError, match="Material.law"):
+        se.Material(law="sand")
+
+
+def test_kirchhoff_flat_floor_against_quadrature():
+    """A Kirchhoff floor simulated speckle-free against eq. (2) with σ_K (docs/physics.md §3, §10)."""
+    r0, s = 0.5, 0.5
+    rec = se.simulate(flat_scene(law=Kirchhoff(r0, s)), line_along_x(), se.Sonar(),
+                      se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01")
+    r = rec.slant_range_m
+    band = (r >= 11.0) & (r <= 40.0)  # beyond, σ_K < −200 dB and the reference's cumulative sum cancels to 0
+    want = analytic.flat_floor_expected_intensity(r[band], sigma=lambda c: analytic.kirchhoff_monostatic(
+        np.arccos(c), r0, s))
+    for channel in (rec.starboard, rec.port):
+        err_db = 10 * np.log10(channel.mean(axis=0)[band] / want)
+        assert np.max(np.abs(err_db)) < 0.2, np.max(np.abs(err_db))
+    lam = 10 * np.log10(analytic.flat_floor_expected_intensity(np.array([11.0, 40.0])))
+    kir = 10 * np.log10(analytic.flat_floor_expected_intensity(np.array([11.0, 40.0]), sigma=lambda c: (
+        analytic.kirchhoff_monostatic(np.arccos(c), r0, s))))
+    assert kir[0] - lam[0] > 10 and kir[1] < lam[1]  # the specular lobe near nadir, darker far out
