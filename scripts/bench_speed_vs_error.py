@@ -31,7 +31,7 @@ import analytic  # noqa: E402
 import sonar_embree as se  # noqa: E402
 from sonar_embree import kernels, shipwreck  # noqa: E402
 from sonar_embree.fan import FanPlan  # noqa: E402
-from sonar_embree.raycast import RayCaster  # noqa: E402
+from sonar_embree.raycast import RayCaster  # noqa: E402  (the Embree caster)
 
 QUALITIES = (0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0)
 STAGES = ("embree", "rays", "synthesis", "processing")

@@ -19,7 +19,7 @@ import numpy as np
 from . import beam, kernels
 from .config import FanSettings, Sonar
 from .processing import convolve_time
-from .raycast import RayCaster
+from .raycast import Caster
 
 #: A probe cell with nothing within range on both ends and both neighbours gets this
 #: many times the largest step: next to no rays, yet no blind spot.
@@ -138,14 +138,14 @@ def apply_laws(compiled, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray
         law.kernel(prim, cos_i, compiled.face_object, compiled.object_law, k, compiled.law_params, weight)
 
 
-def cast_block(caster: RayCaster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
+def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, want_points: bool = False,
                timings: dict | None = None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
     Parameters
     ----------
-    caster : RayCaster
+    caster : Caster
     plan : FanPlan
     rot : (pings, 3, 3) float64
         Body-to-world rotations.
@@ -227,7 +227,7 @@ def _footprint_lines(u, f, normals, range_m, dbeta, slope_cap):
     return np.nan_to_num(d), extent
 
 
-def label_block(caster: RayCaster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
+def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
                 is_seafloor: np.ndarray, max_range_m: float, dr_m: float, origin_z_m: float, out) -> None:
     """Ground truth of a block of pings along each ping's centre line (along-track angle 0).
 

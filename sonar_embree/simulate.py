@@ -33,7 +33,7 @@ from .errors import ConfigError
 from .fan import BlockEchoes, FanPlan, cast_block, label_block, object_echo_block
 from .labels import Labels
 from .processing import absorption_np_per_m, convolve_time
-from .raycast import RayCaster
+from .raycast import Caster, RayCaster
 from .record import Record, iso_utc
 from .scene import Scene, survey_origin
 from .trajectory import Trajectory
@@ -211,7 +211,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              lowpass_hz: float | None = None, speckle_cell_m: float | None = None, seed: int = 0,
              fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
              labels: bool = False, keep_complex: bool = False, ping_offset: int = 0, progress: bool = False,
-             timings: dict | None = None, start_time=None, environment: Environment | None = None) -> Record:
+             timings: dict | None = None, start_time=None, environment: Environment | None = None,
+             caster: type | None = None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
     Parameters
@@ -249,6 +250,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         Index of the first ping of ``trajectory`` within a longer survey. Per-ping
         random streams (receiver noise) are keyed by the survey's ping index, so a
         survey simulated in pieces gives the same bits as in one call.
+    caster : type, optional
+        The ray caster, a subclass of :class:`sonar_embree.raycast.Caster`; default
+        :class:`~sonar_embree.raycast.EmbreeCaster` (``NumpyCaster``: the brute-force
+        reference, for small scenes and tests).
     progress : bool
         Show a progress bar over pings (tqdm, on stderr).
     start_time : datetime or str, optional
@@ -290,6 +295,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             raise ConfigError(f"simulate: environment must be a sonar_embree.Environment, got {environment!r}")
         sonar = dataclasses.replace(sonar, environment=environment)
     _check_inputs(scene, trajectory, sonar, pulse, fan)
+    if caster is not None and not (isinstance(caster, type) and issubclass(caster, Caster)):
+        raise ConfigError(f"simulate: caster must be a subclass of sonar_embree.raycast.Caster, got {caster!r}")
     if isinstance(ping_offset, bool) or not isinstance(ping_offset, (int, np.integer)) or ping_offset < 0:
         raise ConfigError(f"simulate: ping_offset must be an integer >= 0, got {ping_offset!r}")
     start_iso = iso_utc(start_time)
@@ -309,7 +316,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
                           "(the complex signal exists only there)")
 
     compiled = scene.compiled(survey_origin(trajectory.positions_m))  # the frame where the rays are
-    caster = RayCaster.for_scene(compiled)  # the BVH is built once per scene
+    caster = (RayCaster if caster is None else caster).for_scene(compiled)  # built once per scene
     plan = FanPlan.build(sonar, fan)
     n_p, n_out = len(trajectory), sonar.n_samples
     # The compressed sample at t needs echoes up to t + τ: synthesise a pulse length past the window.

@@ -1,30 +1,23 @@
-"""Batched ray casting with Embree (embreex). The only module that imports embreex.
+"""The ray-casting interface: every caster returns first hits the same way (docs/physics.md §8).
 
-Geometry enters Embree in float32 relative to the scene's local origin; every hit is
-then re-intersected with its triangle's plane in float64, so ranges, normals and
-incidence are float64 (docs/physics.md §8). Grazing hits (|cos θi| below
+A caster takes float32 rays in the scene's local frame and returns, per ray, the
+triangle hit and the float32 distance (:meth:`Caster.cast_raw`, the hot path).
+:meth:`Caster.cast` refits every hit in float64 against its triangle's plane, so ranges,
+normals and incidence are float64 whatever the caster. Grazing hits (|cos θi| below
 :data:`GRAZING_COS`) and hits on the back of a face are flagged: they occlude the ray
 but return no echo.
 """
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from embreex import rtcore_scene as rtcs
-from embreex.mesh_construction import TriangleMesh
 
-from .kernels import REFIT_MIN_COS, REFIT_REL_TOL
-from .scene import CompiledScene
+from ..kernels import REFIT_MIN_COS, REFIT_REL_TOL
+from ..scene import CompiledScene
 
 #: Hits whose |cos θi| is below this count as grazing: they occlude but return nothing.
 GRAZING_COS = 1e-9
-
-#: Batches of at least this many rays are split over threads (Embree releases the GIL).
-THREADED_MIN_RAYS = 16384
-
 
 @dataclass(frozen=True, eq=False)
 class Hits:
@@ -54,45 +47,24 @@ class Hits:
     object_id: np.ndarray
 
 
-class RayCaster:
-    """An Embree BVH of a :class:`CompiledScene`, built once and cast many times."""
+class Caster:
+    """A ray caster over one :class:`CompiledScene` (implementations: Embree, a NumPy reference).
 
-    def __init__(self, compiled: CompiledScene, threads: int | None = None):
-        """Build the BVH. ``threads``: Embree calls in parallel per batch (default: the CPU count)."""
-        self.compiled = compiled
-        self._scene = rtcs.EmbreeScene()
-        TriangleMesh(self._scene, compiled.vertices.astype(np.float32),
-                     compiled.faces.astype(np.int32))
-        self.threads = max(int(threads if threads is not None else (os.cpu_count() or 1)), 1)
-        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
-        one = np.zeros((1, 3), dtype=np.float32)
-        self._scene.run(one, one + np.float32([0, 0, 1]), dists=np.ones(1, np.float32), output=0)  # build the BVH now
+    Subclasses set ``self.compiled`` and implement :meth:`cast_raw`.
+    """
+
+    compiled: CompiledScene
 
     @classmethod
-    def for_scene(cls, compiled: CompiledScene) -> "RayCaster":
-        """The caster of ``compiled``, built on first use and kept with it (freed with it)."""
-        caster = compiled.__dict__.get("_caster")
-        if caster is None:
-            caster = cls(compiled)
-            object.__setattr__(compiled, "_caster", caster)  # a cache, not state: CompiledScene stays immutable
-        return caster
-
-    def _run(self, origins_f32, directions_f32, max_range_m: float, output: int):
-        n = directions_f32.shape[0]
-        if self._pool is None or n < THREADED_MIN_RAYS:
-            return self._scene.run(origins_f32, directions_f32, dists=np.full(n, max_range_m, dtype=np.float32),
-                                   output=output)
-        cuts = np.linspace(0, n, self.threads + 1).astype(int)  # each ray is independent: same bits for any split
-        parts = list(self._pool.map(
-            lambda ab: self._scene.run(origins_f32[ab[0]:ab[1]], directions_f32[ab[0]:ab[1]],
-                                       dists=np.full(ab[1] - ab[0], max_range_m, dtype=np.float32), output=output),
-            zip(cuts[:-1], cuts[1:])))
-        if output == 0:
-            return np.concatenate(parts)
-        return {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in ("primID", "tfar")}
+    def for_scene(cls, compiled: CompiledScene) -> "Caster":
+        """The caster of this class for ``compiled``, built on first use and kept with it (freed with it)."""
+        cache = compiled.__dict__.setdefault("_casters", {})  # a cache, not state: CompiledScene stays immutable
+        if cls not in cache:
+            cache[cls] = cls(compiled)
+        return cache[cls]
 
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
-        """Embree's first hits, unrefined: the hot path of :mod:`sonar_embree.fan`.
+        """First hits, unrefined: the hot path of :mod:`sonar_embree.fan`.
 
         Parameters
         ----------
@@ -108,12 +80,7 @@ class RayCaster:
         tfar : (n,) float32
             Hit distance in m (float32 accuracy; refine in float64).
         """
-        n = directions_f32.shape[0]
-        if n == 0:
-            return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
-        res = self._run(origins_f32, directions_f32, max_range_m, 1)
-        return (np.ascontiguousarray(res["primID"], dtype=np.int32),
-                np.ascontiguousarray(res["tfar"], dtype=np.float32))
+        raise NotImplementedError
 
     def cast(self, origins_local, directions, max_range_m: float) -> Hits:
         """First hit of each ray within ``max_range_m``.
@@ -134,8 +101,8 @@ class RayCaster:
         d = np.ascontiguousarray(directions, dtype=np.float64)
         n = d.shape[0]
         o = np.broadcast_to(np.asarray(origins_local, dtype=np.float64), (n, 3))
-        res = self._run(np.ascontiguousarray(o, dtype=np.float32), d.astype(np.float32), max_range_m, 1)
-        tri = np.asarray(res["primID"]).astype(np.int64)
+        prim, tfar = self.cast_raw(np.ascontiguousarray(o, dtype=np.float32), d.astype(np.float32), max_range_m)
+        tri = prim.astype(np.int64)
         hit = tri >= 0
         range_m = np.full(n, np.inf)
         cos_inc = np.zeros(n)
@@ -150,7 +117,7 @@ class RayCaster:
             dn = np.einsum("ij,ij->i", dd, nrm)
             v0 = self.compiled.vertices[self.compiled.faces[t, 0]]
             num = np.einsum("ij,ij->i", v0 - o[idx], nrm)
-            t_emb = np.asarray(res["tfar"], dtype=np.float64)[idx]
+            t_emb = tfar.astype(np.float64)[idx]
             with np.errstate(divide="ignore", invalid="ignore"):
                 t64 = num / dn
             # float64 plane intersection where well conditioned; Embree's distance otherwise
