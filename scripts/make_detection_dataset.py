@@ -101,7 +101,7 @@ def write_example(job_dir: str, path: str) -> None:
     import imageio.v3 as iio
     import numpy as np
 
-    from sonar_embree.record import atomic_write
+    from sonar_embree.io.files import atomic_write
 
     wf = iio.imread(os.path.join(job_dir, "waterfall.png"))
     lab = iio.imread(os.path.join(job_dir, "labels_preview.png"))[..., :3]

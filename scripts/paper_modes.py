@@ -62,7 +62,7 @@ def main(argv=None) -> int:
     import sonar_embree as se
     from sonar_embree.demo import anchor_mine_scene
     from sonar_embree.plotting import brightness_histogram_png, mosaic_png
-    from sonar_embree.record import atomic_write
+    from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)
     scene = anchor_mine_scene()

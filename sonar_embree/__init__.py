@@ -7,7 +7,7 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 >>> scene = se.Scene().add(se.seafloor.flat(size_m=(400, 200)), label="seafloor")
 >>> rec = se.simulate(scene, se.Trajectory.line((0, 0, 10), (20, 0, 10), 5), se.Sonar(), se.Pulse.cw())
 """
-__version__ = "0.1.0"
+from ._version import __version__
 
 from . import assets, batch, seafloor, sweep
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar

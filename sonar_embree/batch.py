@@ -25,12 +25,13 @@ import dataclasses
 import json
 import logging
 import os
-import shutil
 import tempfile
 
 from .errors import ConfigError
-from .io.coco import coco_dict, merge, write_json
-from .record import Record, clean_stale
+from .io import registry
+from .io.coco import merge, write_json
+from .io.files import atomic_job_folder, clean_stale
+from .record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
@@ -61,32 +62,13 @@ def _write_outputs(rec: Record, job: Job, sweep: Sweep, folder: str) -> None:
     rec = dataclasses.replace(rec, attrs={**rec.attrs, "job": info["id"], "scene": info["scene"],
                                           "trajectory": info["trajectory"], "sweep": sweep.name,
                                           **{f"vary.{k}": v for k, v in info["vary"].items()}})
-    png = dict(sweep.png)
-    cols = png.pop("max_columns", 1024)
-    if "zarr" in sweep.outputs:
-        rec.to_zarr(os.path.join(folder, "record.zarr"))
-    if "xtf" in sweep.outputs:
-        rec.to_xtf(os.path.join(folder, "record.xtf"))
-    if "png" in sweep.outputs:
-        rec.save_png(os.path.join(folder, "waterfall.png"), max_columns=cols, **png)
-    if "labels" in sweep.outputs:
-        rec.labels.save_png(os.path.join(folder, "labels.png"), cols)
-    if "coco" in sweep.outputs:
-        write_json(coco_dict(rec, "waterfall.png", categories=sweep.categories, image_id=job.index,
-                             max_columns=cols), os.path.join(folder, "coco.json"))
-    if "npz" in sweep.outputs:
-        rec.save(os.path.join(folder, "record.npz"))
+    registry.write_each(rec, folder, sweep.outputs,
+                        registry.WriteOptions(dict(sweep.png), tuple(sweep.categories), job.index))
     write_json(info, os.path.join(folder, "job.json"))
 
 
 def _write_job(rec: Record, job: Job, sweep: Sweep, out_dir: str) -> None:
-    tmp = tempfile.mkdtemp(dir=out_dir, prefix=".tmp-")
-    try:
-        _write_outputs(rec, job, sweep, tmp)
-        os.replace(tmp, os.path.join(out_dir, job.id))  # the job appears whole or not at all
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    atomic_job_folder(os.path.join(out_dir, job.id), lambda tmp: _write_outputs(rec, job, sweep, tmp))
 
 
 def preflight(sweep: Sweep) -> None:

@@ -11,7 +11,8 @@ import os
 import sys
 
 from .errors import SonarEmbreeError
-from .record import STALE_PREFIXES, clean_stale
+from .io import registry
+from .io.files import STALE_PREFIXES
 
 EPILOG = """\
 Outputs (in OUT/): waterfall.png (port mirrored on the left, starboard on the right,
@@ -204,32 +205,6 @@ def _check_output_folder(out_dir: str, overwrite: bool) -> None:
                                    "add --overwrite")
 
 
-def _write_outputs(rec, out_dir, png=True, npz=True, png_kwargs=None):
-    """Write the outputs into a temporary folder, then move them into ``out_dir`` together."""
-    import shutil
-    import tempfile
-
-    os.makedirs(out_dir, exist_ok=True)
-    clean_stale(out_dir)
-    tmp = tempfile.mkdtemp(dir=out_dir, prefix=".tmp-")
-    try:
-        names = []
-        for want, name, write in ((npz, "record.npz", lambda p: rec.save(p)),
-                                  (png, "waterfall.png", lambda p: rec.save_png(p, **(png_kwargs or {})))):
-            if want:
-                path = os.path.join(out_dir, name)
-                try:
-                    write(os.path.join(tmp, name))
-                except OSError as exc:
-                    raise OSError(exc.errno, exc.strerror or str(exc), path) from None
-                names.append(name)
-        for name in names:  # renames only: the new set lands together, the old stays until then
-            os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return [os.path.join(out_dir, n) for n in names]
-
-
 def _run(args) -> list:
     from .simulate import simulate
 
@@ -250,17 +225,18 @@ def _run(args) -> list:
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
         rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress,
                        start_time=args.start_time)
-        return _write_outputs(rec, args.output, png_kwargs=DEMO_PNG)
+        return registry.write_set(rec, args.output, ("npz", "png"), registry.WriteOptions(DEMO_PNG))
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
     _check_output_folder(args.output, args.overwrite)
-    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
-                   fan=_fan(args, cfg.fan), progress=not args.no_progress, start_time=args.start_time)
     o = cfg.output
-    if not (o.png or o.npz):
-        raise SonarEmbreeError(f"{args.config}: [output] png and npz are both false; nothing to write")
-    return _write_outputs(rec, args.output, png=o.png, npz=o.npz, png_kwargs=o.png_kwargs())
+    if not o.formats():
+        raise SonarEmbreeError(f"{args.config}: [output] every format is false; nothing to write")
+    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
+                   fan=_fan(args, cfg.fan), progress=not args.no_progress, start_time=args.start_time,
+                   labels=o.needs_labels())
+    return registry.write_set(rec, args.output, o.formats(), registry.WriteOptions(o.png_kwargs()))
 
 
 def _configure_logging(verbose: bool) -> None:

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import math
 import dataclasses
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from .environment import Environment
 from .errors import ConfigError
 from .laws import Lambert
-from .validation import check_number as _check_number, field_names
+from .validation import check_number as _check_number, field_names  # noqa: F401 (field_names re-exported)
 
 
 @dataclass(frozen=True)

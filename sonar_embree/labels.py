@@ -175,7 +175,7 @@ class Labels:
 
         import imageio.v3 as iio
 
-        from .record import atomic_write
+        from .io.files import atomic_write
 
         kind = self.waterfall("kind", max_columns).astype(np.uint8)
         atomic_write(path, lambda tmp: iio.imwrite(tmp, kind, extension=".png"), suffix=".png")

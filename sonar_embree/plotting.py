@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ConfigError
-from .record import atomic_write
+from .io.files import atomic_write
 
 
 def _pyplot():

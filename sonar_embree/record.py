@@ -2,82 +2,19 @@
 from __future__ import annotations
 
 import dataclasses
-import contextlib
 import json
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .config import Pulse, Sonar
 from .errors import ConfigError
+from .io.files import atomic_write
 from .labels import Labels
 from .trajectory import Trajectory
 
 FORMAT_VERSION = 2
-
-
-#: Prefixes of the temporaries that atomic writers leave only when killed (SIGKILL, power loss).
-STALE_PREFIXES = (".tmp-", ".old-")
-
-
-def clean_stale(folder) -> int:
-    """Remove the temporaries a killed writer left in ``folder`` (files and folders); return how many."""
-    n = 0
-    for name in os.listdir(folder):
-        if name.startswith(STALE_PREFIXES):
-            path = os.path.join(folder, name)
-            if os.path.isdir(path) and not os.path.islink(path):
-                shutil.rmtree(path, ignore_errors=True)
-            else:
-                with contextlib.suppress(FileNotFoundError):
-                    os.unlink(path)
-            n += 1
-    return n
-
-
-def iso_utc(value=None) -> str:
-    """A time as an ISO 8601 UTC string: ``None`` is now; a naive datetime is taken as UTC.
-
-    Accepts a ``datetime.datetime``, a ``datetime.date`` (midnight) or an ISO 8601 string.
-    """
-    import datetime as dt
-
-    if value is None:
-        value = dt.datetime.now(dt.timezone.utc)
-    elif isinstance(value, str):
-        try:
-            value = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-        except ValueError:
-            raise ConfigError(f"start time {value!r} is not an ISO 8601 date-time "
-                              "(e.g. 2026-05-01T12:00:00Z)") from None
-    elif isinstance(value, dt.date) and not isinstance(value, dt.datetime):
-        value = dt.datetime(value.year, value.month, value.day)
-    if not isinstance(value, dt.datetime):
-        raise ConfigError(f"start time must be a datetime or an ISO 8601 string, got {value!r}")
-    if value.tzinfo is None:
-        value = value.replace(tzinfo=dt.timezone.utc)
-    return value.astimezone(dt.timezone.utc).isoformat()
-
-
-def atomic_write(path, write_fn, suffix=""):
-    """Call ``write_fn(tmp_path)`` then rename onto ``path``: no half-written file is ever left."""
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix or os.path.splitext(path)[1])
-    os.close(fd)
-    try:
-        write_fn(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the usual permissions
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,7 +87,7 @@ class Record:
     # ------------------------------------------------------------------ files
     def save(self, path) -> None:
         """Write the record to ``path`` (.npz); written atomically."""
-        from . import __version__
+        from ._version import __version__
 
         meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
                 "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),

@@ -27,6 +27,7 @@ from . import assets, seafloor
 from .config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
+from .io import registry
 from .scene import Scene
 from .trajectory import Trajectory
 from .waterfall import DISPLAY_DEFAULTS, check_display
@@ -38,17 +39,22 @@ TRAJECTORY_KINDS = {
     "csv": ("path",),
 }
 TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
-OUTPUT_KEYS = ("png", "npz", "scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
+OUTPUT_KEYS = tuple(registry.FORMATS) + ("scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
                "floor_headroom_db", "max_columns")
 
 
 @dataclass(frozen=True)
 class OutputOptions:
-    """What ``render`` writes: waterfall PNG and/or the record (.npz), and how the PNG looks
+    """What ``render`` writes (any format of :mod:`sonar_embree.io.registry`; default the waterfall PNG
+    and the record .npz), and how the PNG looks
     (the display keywords of :func:`~sonar_embree.waterfall.waterfall_image`, checked here)."""
 
     png: bool = True
     npz: bool = True
+    zarr: bool = False
+    xtf: bool = False
+    labels: bool = False
+    coco: bool = False
     scale: str = DISPLAY_DEFAULTS["scale"]
     dynamic_range_db: float = DISPLAY_DEFAULTS["dynamic_range_db"]
     gamma: float = DISPLAY_DEFAULTS["gamma"]
@@ -59,11 +65,18 @@ class OutputOptions:
     max_columns: int | None = DISPLAY_DEFAULTS["max_columns"]
 
     def __post_init__(self):
-        for name in ("png", "npz", "ground_range", "tvg"):
+        for name in (*registry.FORMATS, "ground_range", "tvg"):
             if not isinstance(getattr(self, name), bool):
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
         check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns,
                       self.floor_headroom_db)
+
+    def formats(self) -> tuple:
+        """The output formats switched on (names of :data:`sonar_embree.io.registry.FORMATS`)."""
+        return tuple(n for n in registry.FORMATS if getattr(self, n))
+
+    def needs_labels(self) -> bool:
+        return any(registry.FORMATS[n].needs_labels for n in self.formats())
 
     def png_kwargs(self) -> dict:
         return {k: getattr(self, k) for k in DISPLAY_DEFAULTS}

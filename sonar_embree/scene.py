@@ -177,7 +177,7 @@ def write_obj(path, named_meshes, comment: str = "") -> None:
     Coordinates in metres with 10 µm resolution (``%.5f``); :meth:`Scene.load` reads
     the objects back as separately labelled parts.
     """
-    from .record import atomic_write
+    from .io.files import atomic_write
 
     def write(tmp):
         lines, base = [f"# {line}" for line in comment.splitlines()], 1

@@ -34,7 +34,8 @@ from .fan import BlockEchoes, FanPlan, cast_block, label_block, object_echo_bloc
 from .labels import Labels
 from .processing import absorption_np_per_m, convolve_time
 from .raycast import Caster, RayCaster
-from .record import Record, iso_utc
+from .record import Record
+from .trajectory import iso_utc
 from .scene import Scene, survey_origin
 from .trajectory import Trajectory
 

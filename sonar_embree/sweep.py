@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import assets, runconfig
+from .io import registry
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from .environment import Environment
 from .errors import ConfigError, SonarEmbreeError
@@ -55,7 +56,7 @@ SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex", "start_ti
 #: Start time of a sweep's records unless ``[sweep] start_time`` says otherwise: fixed, so that the
 #: same sweep gives the same bytes whenever it runs.
 DEFAULT_SWEEP_START = "2000-01-01T00:00:00+00:00"
-OUTPUTS = ("zarr", "xtf", "png", "labels", "coco", "npz")
+OUTPUTS = tuple(registry.FORMATS)
 DEFAULT_OUTPUTS = ("zarr", "xtf", "png", "coco")
 PNG_KEYS = ("scale", "dynamic_range_db", "gamma", "tvg", "reference_percentile", "floor_headroom_db", "max_columns")
 PLACED_KEYS = ("path", "label", "material", "count", "region", "yaw_deg", "z_m", "poses", "up_axis")
@@ -234,7 +235,7 @@ class Sweep:
 
     def manifest(self) -> dict:
         """What identifies the sweep's outputs (written as OUT/sweep.json, compared on resume)."""
-        from . import __version__
+        from ._version import __version__
 
         jobs = [j.describe(self) for j in self.jobs]
         body = {"name": self.name, "outputs": list(self.outputs),
@@ -293,7 +294,7 @@ def _input_files(base: str, data: dict) -> list:
 
 def _start_time(value, src) -> str:
     """``[sweep] start_time`` (TOML datetime or ISO 8601 string) as an ISO 8601 UTC string."""
-    from .record import iso_utc
+    from .trajectory import iso_utc
 
     try:
         return iso_utc(value)

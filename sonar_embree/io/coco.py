@@ -11,7 +11,7 @@ import json
 
 import numpy as np
 
-from ..record import atomic_write
+from .files import atomic_write
 
 
 def category_of(label: str) -> str:
@@ -61,7 +61,7 @@ def pieces(mask: np.ndarray) -> list:
 
 def info_block(record) -> dict:
     """COCO ``info``: what made the images and when (the record's start time)."""
-    from .. import __version__
+    from .._version import __version__
 
     start = str(record.attrs.get("start_time", ""))
     return {"description": "simulated side-scan sonar waterfalls (sonar_embree)", "version": __version__,

@@ -31,7 +31,7 @@ def _attr_value(v):
 
 def _flat_attrs(record) -> dict:
     """Global attributes: every sonar, environment, pulse and simulation setting, typed; unset (None) settings left out."""
-    from .. import __version__
+    from .._version import __version__
 
     attrs = {"Conventions": CONVENTIONS, "title": "simulated side-scan sonar record",
              "source": f"sonar_embree {__version__} (ray-traced side-scan simulation)",

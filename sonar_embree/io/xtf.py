@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
-from ..record import atomic_write
+from .files import atomic_write
 
 _CHAN_INFO = np.dtype([
     ("TypeOfChannel", "u1"), ("SubChannelNumber", "u1"), ("CorrectionFlags", "<u2"), ("UniPolar", "<u2"),
@@ -123,7 +123,7 @@ def speed_m_s(trajectory) -> np.ndarray:
 
 
 def _file_header(record, factor: float) -> np.ndarray:
-    from .. import __version__
+    from .._version import __version__
 
     h = np.zeros((), dtype=_FILE_HEADER)
     h["FileFormat"], h["SystemType"] = 0x7B, 1
@@ -148,7 +148,7 @@ def _file_header(record, factor: float) -> np.ndarray:
 
 
 def _start(record, start) -> dt.datetime:
-    from ..record import iso_utc
+    from ..trajectory import iso_utc
 
     if start is None:
         start = record.attrs.get("start_time")

@@ -1,0 +1,123 @@
+"""Every output format in one registry: the API, ``render`` and ``batch`` all write through it.
+
+A format is a file name and a ``write(record, path, options)``; each writer is
+atomic on its own (:mod:`sonar_embree.io.files`). A new format is one writer function
+and one :class:`OutputFormat` line in :data:`FORMATS`.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from typing import Callable
+
+from ..errors import ConfigError
+from .files import atomic_folder
+
+
+@dataclass(frozen=True)
+class WriteOptions:
+    """What the writers need beyond the record.
+
+    Attributes
+    ----------
+    display : dict
+        Waterfall display keywords (:func:`sonar_embree.waterfall.waterfall_image`,
+        ``max_columns`` included): the PNG, and the columns of the label PNG and COCO boxes.
+    categories : sequence of str, optional
+        COCO categories (default: the record's objects).
+    image_id : int
+        COCO image id.
+    """
+
+    display: dict = field(default_factory=dict)
+    categories: tuple | None = None
+    image_id: int = 0
+
+    @property
+    def max_columns(self):
+        return self.display.get("max_columns", 1024)
+
+
+def _npz(rec, path, o):
+    rec.save(path)
+
+
+def _png(rec, path, o):
+    rec.save_png(path, **o.display)
+
+
+def _labels(rec, path, o):
+    rec.labels.save_png(path, o.max_columns)
+
+
+def _coco(rec, path, o):
+    from .coco import coco_dict, write_json
+
+    write_json(coco_dict(rec, "waterfall.png", categories=o.categories, image_id=o.image_id,
+                         max_columns=o.max_columns), path)
+
+
+def _zarr(rec, path, o):
+    from .dataset import to_zarr
+
+    to_zarr(rec, path)
+
+
+def _xtf(rec, path, o):
+    from .xtf import to_xtf
+
+    to_xtf(rec, path)
+
+
+@dataclass(frozen=True)
+class OutputFormat:
+    """One output format: its name (the key in configs), its file name and its writer."""
+
+    name: str
+    file_name: str
+    write: Callable
+    needs_labels: bool = False
+    description: str = ""
+
+
+#: The formats, in the order they are written.
+FORMATS = {f.name: f for f in (
+    OutputFormat("zarr", "record.zarr", _zarr, description="CF-style Zarr store (xarray, NetCDF-writable)"),
+    OutputFormat("xtf", "record.xtf", _xtf, description="eXtended Triton Format, pyxtf-readable"),
+    OutputFormat("png", "waterfall.png", _png, description="8-bit waterfall image"),
+    OutputFormat("labels", "labels.png", _labels, needs_labels=True, description="per-pixel class image"),
+    OutputFormat("coco", "coco.json", _coco, needs_labels=True, description="COCO boxes and masks"),
+    OutputFormat("npz", "record.npz", _npz, description="the whole record (Record.load)"),
+)}
+
+
+def check(names, where: str = "outputs") -> tuple:
+    """The format names, validated (one-line error naming an unknown one)."""
+    names = tuple(names)
+    for n in names:
+        if n not in FORMATS:
+            raise ConfigError(f"{where}: unknown output format {n!r} (known: {', '.join(FORMATS)})")
+    return names
+
+
+def write_each(rec, folder: str, names, options: WriteOptions | None = None) -> list:
+    """Write the formats ``names`` of ``rec`` into ``folder``, each file atomically; return the paths."""
+    options = WriteOptions() if options is None else options
+    paths = []
+    for f in (FORMATS[n] for n in FORMATS if n in check(names)):
+        if f.needs_labels and rec.labels is None:
+            raise ConfigError(f"output {f.name!r} needs labels: simulate with labels=True")
+        path = os.path.join(folder, f.file_name)
+        f.write(rec, path, options)
+        paths.append(path)
+    return paths
+
+
+def write_set(rec, folder: str, names, options: WriteOptions | None = None) -> list:
+    """Write the formats into ``folder`` so that the new set lands together (:func:`files.atomic_folder`)."""
+    options = WriteOptions() if options is None else options
+    wanted = [FORMATS[n] for n in FORMATS if n in check(names)]
+    for f in wanted:
+        if f.needs_labels and rec.labels is None:
+            raise ConfigError(f"output {f.name!r} needs labels: simulate with labels=True")
+    return atomic_folder(folder, [(f.file_name, (lambda p, f=f: f.write(rec, p, options))) for f in wanted])
