@@ -17,8 +17,70 @@ from .laws import Lambert
 from .validation import check_number as _check_number, field_names  # noqa: F401 (field_names re-exported)
 
 
+class Transducer:
+    """What every sonar type shares: carrier, sample rate, range window and medium (SI, derived).
+
+    A sonar type's dataclass has the fields ``frequency_hz``, ``max_range_m``,
+    ``sample_rate_hz`` and ``environment``; this mixin derives the rest.
+    """
+
+    #: The record's channels, in order (a sonar type's own names).
+    channels = ("port", "starboard")
+
+    @property
+    def wavelength_m(self) -> float:
+        """Acoustic wavelength λ = c / f0 in m."""
+        return self.sound_speed_m_s / self.frequency_hz
+
+    @property
+    def sound_speed_m_s(self) -> float:
+        """Speed of sound of the environment, m/s."""
+        return self.environment.sound_speed_m_s
+
+    @property
+    def alpha_db_per_m(self) -> float:
+        """One-way absorption in use at f0, dB/m (:meth:`Environment.alpha_db_per_m`)."""
+        return self.environment.alpha_db_per_m(self.frequency_hz)
+
+    @property
+    def wavenumber_rad_m(self) -> float:
+        """Wavenumber k = 2π f0 / c in rad/m."""
+        return 2.0 * math.pi * self.frequency_hz / self.sound_speed_m_s
+
+    def for_pulse(self, pulse: "Pulse") -> "Sonar":
+        """This sonar with ``sample_rate_hz`` filled in for ``pulse`` when it is ``None``.
+
+        fs = max(4/τ, 4·max|f − f0|) over the pulse's sweep, rounded up to 1 Hz: four
+        samples per CW pulse length, twice the bandwidth of an FM sweep centred on
+        f0 (the detected intensity's bandwidth), so matched filtering always works.
+        """
+        if self.sample_rate_hz is not None:
+            return self
+        f_lo, f_hi = pulse.frequency_span_hz(self.frequency_hz)
+        off = max(abs(f_lo - self.frequency_hz), abs(f_hi - self.frequency_hz))
+        fs = max(4.0 / pulse.duration_s, 4.0 * off)
+        return dataclasses.replace(self, sample_rate_hz=float(math.ceil(fs * (1.0 - 1e-12))))
+
+    def _rate(self) -> float:
+        if self.sample_rate_hz is None:
+            raise ConfigError("Sonar.sample_rate_hz is None (derived from the pulse): use Sonar.for_pulse(pulse) "
+                              "or give sample_rate_hz")
+        return self.sample_rate_hz
+
+    @property
+    def n_samples(self) -> int:
+        """Samples per ping and side: t = 0 … 2·max_range/c inclusive."""
+        return int(math.floor(2.0 * self.max_range_m / self.sound_speed_m_s * self._rate())) + 1
+
+    @property
+    def range_bin_m(self) -> float:
+        """Slant-range spacing of the samples, c / (2 fs), in m."""
+        return self.sound_speed_m_s / (2.0 * self._rate())
+
+
+
 @dataclass(frozen=True)
-class Sonar:
+class Sonar(Transducer):
     """A side-scan sonar with one rectangular membrane per side (docs/physics.md §1–2).
 
     Parameters
@@ -69,61 +131,10 @@ class Sonar:
                 f"Sonar.max_range_m={self.max_range_m} with sample_rate_hz={self.sample_rate_hz} "
                 f"gives {self.n_samples} samples per ping; reduce one of them")
 
-    # --- derived quantities (SI) ---
-    @property
-    def wavelength_m(self) -> float:
-        """Acoustic wavelength λ = c / f0 in m."""
-        return self.sound_speed_m_s / self.frequency_hz
-
-    @property
-    def sound_speed_m_s(self) -> float:
-        """Speed of sound of the environment, m/s."""
-        return self.environment.sound_speed_m_s
-
-    @property
-    def alpha_db_per_m(self) -> float:
-        """One-way absorption in use at f0, dB/m (:meth:`Environment.alpha_db_per_m`)."""
-        return self.environment.alpha_db_per_m(self.frequency_hz)
-
-    @property
-    def wavenumber_rad_m(self) -> float:
-        """Wavenumber k = 2π f0 / c in rad/m."""
-        return 2.0 * math.pi * self.frequency_hz / self.sound_speed_m_s
-
     @property
     def tilt_rad(self) -> float:
         """Boresight depression δ in rad."""
         return math.radians(self.tilt_deg)
-
-    def for_pulse(self, pulse: "Pulse") -> "Sonar":
-        """This sonar with ``sample_rate_hz`` filled in for ``pulse`` when it is ``None``.
-
-        fs = max(4/τ, 4·max|f − f0|) over the pulse's sweep, rounded up to 1 Hz: four
-        samples per CW pulse length, twice the bandwidth of an FM sweep centred on
-        f0 (the detected intensity's bandwidth), so matched filtering always works.
-        """
-        if self.sample_rate_hz is not None:
-            return self
-        f_lo, f_hi = pulse.frequency_span_hz(self.frequency_hz)
-        off = max(abs(f_lo - self.frequency_hz), abs(f_hi - self.frequency_hz))
-        fs = max(4.0 / pulse.duration_s, 4.0 * off)
-        return dataclasses.replace(self, sample_rate_hz=float(math.ceil(fs * (1.0 - 1e-12))))
-
-    def _rate(self) -> float:
-        if self.sample_rate_hz is None:
-            raise ConfigError("Sonar.sample_rate_hz is None (derived from the pulse): use Sonar.for_pulse(pulse) "
-                              "or give sample_rate_hz")
-        return self.sample_rate_hz
-
-    @property
-    def n_samples(self) -> int:
-        """Samples per ping and side: t = 0 … 2·max_range/c inclusive."""
-        return int(math.floor(2.0 * self.max_range_m / self.sound_speed_m_s * self._rate())) + 1
-
-    @property
-    def range_bin_m(self) -> float:
-        """Slant-range spacing of the samples, c / (2 fs), in m."""
-        return self.sound_speed_m_s / (2.0 * self._rate())
 
     @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,

@@ -546,37 +546,37 @@ def splat_rows(ray_start, delay_samples, width_samples, weights, out):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def speckle_block(ray_start, points, origin, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
-                  delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, slot_key, slot_epoch,
+def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, seed, cell_m, wavelength_m,
+                  rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slot_key, slot_epoch,
                   epochs, slot_w, slot_wr, slot_wr2, slot_rmin, slot_rmax, order, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
 
-    For each ping: :func:`gather_nodes` on the ping's rays (port then starboard),
+    For each ping: :func:`gather_nodes` on the ping's echoes (channel by channel),
     then every node's ``n_sub`` scatterers, with the reflectivity g and stratified
-    position v of :func:`frozen_scatterers`, at envelope range
+    position v of :func:`frozen_scatterers`, at envelope travel time
 
-        R = clip(R̄ + √3·σ·(2v − 1), R_min, R_max),  σ² = M2/W,
+        t = clip(t̄ + √3·σ·(2v − 1), t_min, t_max),  σ² = M2/W,
 
-    with amplitude √(W/n_sub)·g·e^(−j2π·(2R_node/λ mod 1))·e^(j2π·(φ·R mod 1)), R_node
-    the node's distance from the sonar and φ = ``phase_cycles_per_m``; each adds
-    a·h(k − R·delay_per_m) to its channel's row. Pings are split into one contiguous
+    with amplitude √(W/n_sub)·g·e^(−j2π·(2R_node/λ mod 1))·e^(j2π·(φ·t mod 1)), R_node
+    the node's distance from the sonar and φ = ``phase_cycles_per_s``; each adds
+    a·h(k − t·rate_hz) to its channel's row. Pings are split into one contiguous
     chunk per hash table; a ping's result depends only on its own rays, so the
     output does not depend on the number of tables or threads.
 
     Parameters
     ----------
-    ray_start : (2·pings + 1,) int64
-        Row offsets of the block (row 2b port, 2b + 1 starboard of ping b).
+    ray_start : (channels·pings + 1,) int64
+        Row offsets of the block (row channels·b + ch: channel ch of ping b).
     points : (n, 3) float64
         Hit points in the scene's local frame, m; ``origin`` (3,) float64 makes them world.
-    weights, ranges, extents : (n,) float64
-        Expected intensity, slant range (m) and range extent (m) of every ray.
+    weights, times, extents : (n,) float64
+        Expected intensity, two-way travel time (s) and its extent (s) of every echo.
     pos_world : (pings, 3) float64
         Sonar position per ping, world m.
     seed : int; cell_m, wavelength_m : float
         Speckle seed, lattice spacing (m) and acoustic wavelength (m).
-    delay_per_m, phase_cycles_per_m : float
-        Output samples per metre of slant range; extra carrier cycles per metre.
+    rate_hz, phase_cycles_per_s : float
+        Output samples per second of travel time; extra carrier cycles per second.
     n_sub : int
         Scatterers per node.
     table, table_start, table_rate
@@ -587,10 +587,11 @@ def speckle_block(ray_start, points, origin, weights, ranges, extents, pos_world
     status : (pings,) int64
         0: to do (set to 1 when done, −1 when its table was too small: grow the
         tables, reset to 0 and call again; nothing was written for that ping).
-    out : (pings, 2, n_samples) complex128
+    out : (pings, channels, n_samples) complex128
         Accumulator.
     """
     n_p = pos_world.shape[0]
+    n_ch = out.shape[1]
     n_t = slot_key.shape[0]
     max_count = slot_epoch.shape[1] // 2
     root3 = math.sqrt(3.0)
@@ -601,12 +602,15 @@ def speckle_block(ray_start, points, origin, weights, ranges, extents, pos_world
             epochs[t] += 1
             ep = epochs[t]
             count = 0
-            mid = ray_start[2 * b + 1]
-            for i in range(ray_start[2 * b], ray_start[2 * b + 2]):
-                count = _insert_ray(0 if i < mid else 1, points[i, 0] + origin[0], points[i, 1] + origin[1],
-                                    points[i, 2] + origin[2], weights[i], ranges[i], extents[i], cell_m, slot_key[t],
-                                    slot_epoch[t], ep, slot_w[t], slot_wr[t], slot_wr2[t], slot_rmin[t],
-                                    slot_rmax[t], order[t], count, max_count)
+            for ch in range(n_ch):
+                r = n_ch * b + ch
+                for i in range(ray_start[r], ray_start[r + 1]):
+                    count = _insert_ray(ch, points[i, 0] + origin[0], points[i, 1] + origin[1],
+                                        points[i, 2] + origin[2], weights[i], times[i], extents[i], cell_m,
+                                        slot_key[t], slot_epoch[t], ep, slot_w[t], slot_wr[t], slot_wr2[t],
+                                        slot_rmin[t], slot_rmax[t], order[t], count, max_count)
+                    if count < 0:
+                        break
                 if count < 0:
                     break
             if count < 0:
@@ -632,10 +636,10 @@ def speckle_block(ray_start, points, origin, weights, ranges, extents, pos_world
                     g, v = _frozen(h, sub, n_sub)
                     r_env = min(max(r_mean + root3 * sigma * (2.0 * v - 1.0), slot_rmin[t, si]), slot_rmax[t, si])
                     a = base * g
-                    if phase_cycles_per_m != 0.0:
-                        ph = 2.0 * math.pi * ((phase_cycles_per_m * r_env) % 1.0)
+                    if phase_cycles_per_s != 0.0:
+                        ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
                         a = a * complex(math.cos(ph), math.sin(ph))
-                    _splat_one(row, r_env * delay_per_m, a, table, table_start, table_rate)
+                    _splat_one(row, r_env * rate_hz, a, table, table_start, table_rate)
             status[b] = 1
 
 

@@ -1,5 +1,9 @@
 """Ground truth aligned sample for sample with a record: what each sample sees.
 
+This module is the one home of ground truth: how it is made (:class:`GroundTruth`,
+:func:`label_block`, :func:`object_echo_block`; the kernel :func:`sonar_embree.kernels.label_rows`)
+and what it holds (:class:`Labels`).
+
 Labels come from each ping's centre line (along-track angle 0), the geometric
 truth of the waterfall row: the first surface at each sample's slant range that
 faces the sonar, or the seafloor an object hides (shadow). See
@@ -11,7 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import kernels
+from .echoes import Echoes
 from .errors import ConfigError
+from .fan import BlockEchoes, FanPlan
+from .processing import convolve_time
+from .raycast import Caster
 from .waterfall import waterfall_block
 
 #: ``Labels.kind`` values.
@@ -217,3 +226,192 @@ def _bbox(mask) -> list:
     rows = np.nonzero(mask.any(axis=1))[0]
     cols = np.nonzero(mask.any(axis=0))[0]
     return [int(cols[0]), int(rows[0]), int(cols[-1] - cols[0] + 1), int(rows[-1] - rows[0] + 1)]
+
+
+#: Surfaces a label ray may pass (objects, back faces) looking for the seafloor behind its first hit.
+MAX_HIDDEN_LAYERS = 8
+#: The continued ray starts this far (m) past the previous hit, well above float32 round-off.
+CONTINUE_EPS_M = 1e-3
+
+
+def _footprint_lines(u, f, normals, range_m, dbeta, slope_cap):
+    """Unit direction of each footprint's line on its facet, and its slant-range extent ΔR (m).
+
+    The point P(β) = O + R(β)·u(β) moves along dP/dβ = R'·u + R·∂u/∂β on the plane,
+    R' = R·(n̂·∂u/∂β)/cos θi.
+    """
+    cos_i = -np.einsum("ij,ij->i", u, normals)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r_prime = range_m * np.einsum("ij,ij->i", f, normals) / cos_i
+        d = r_prime[:, None] * u + range_m[:, None] * f
+        d /= np.linalg.norm(d, axis=1)[:, None]
+    extent = np.minimum(np.abs(r_prime), slope_cap) * dbeta
+    return np.nan_to_num(d), extent
+
+
+def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
+                is_seafloor: np.ndarray, max_range_m: float, dr_m: float, origin_z_m: float, out) -> None:
+    """Ground truth of a block of pings along each ping's centre line (along-track angle 0).
+
+    The centre line is the block fan's boresight azimuth line (its rays and echoes are
+    reused; weights carry the fan's azimuth factor, which scales every score alike).
+    Each is followed past its first hit, through objects and back faces, to the
+    first seafloor surface facing the sonar: where only such hidden footprints
+    reach a sample, the sample is in shadow. See :func:`kernels.label_rows`.
+
+    Parameters
+    ----------
+    e : BlockEchoes
+        The block's echoes (its elevation rows are reused).
+    is_seafloor : (n_objects,) bool
+    max_range_m : float
+        Range window, m (hidden surfaces beyond it are not searched for).
+    dr_m : float
+        Slant range per sample, m.
+    origin_z_m : float
+        World z of the scene's local origin, m.
+    out : tuple of 5 arrays (pings, 2, n_s)
+        kind (int8), object_id, shadow_of (int32), height_m, ground_range_m (float32), written.
+    """
+    max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
+    c = caster.compiled
+    el_start, n = e.el_start, int(e.el_start[-1])
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
+    pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
+    cos_b, sin_b = np.cos(e.beta), np.sin(e.beta)
+    # the fan's boresight azimuth line (s = 0) is the centre line: its rays were cast already
+    a0 = int(np.flatnonzero(plan.s == 0.0)[0])
+    row = np.repeat(np.arange(el_start.shape[0] - 1), np.diff(el_start))
+    n_el = np.diff(el_start)[row]
+    centre = plan.s.shape[0] * el_start[row] + a0 * n_el + (np.arange(n) - el_start[row])
+    prim, tfar = e.prim[centre], e.tfar[centre]
+    rng, w = e.range_m[centre], e.weight[centre]
+
+    # float64 directions u and ∂u/∂β of every centre-line ray, in the world frame
+    b, side = row // 2, np.where(row % 2, 1.0, -1.0)
+    zero = np.zeros(n)
+    u = np.einsum("nij,nj->ni", rot[b], np.stack([zero, side * cos_b, sin_b], axis=1))
+    f = np.einsum("nij,nj->ni", rot[b], np.stack([zero, -side * sin_b, cos_b], axis=1))
+    origin = pos_local[b]
+
+    lit = w > 0.0
+    pts = origin + np.where(lit, rng, 0.0)[:, None] * u
+    lit_obj = np.where(prim >= 0, c.face_object[np.maximum(prim, 0)], -1).astype(np.int32)
+    lit_dir, ext = np.zeros((n, 3)), np.zeros(n)  # footprints even where the fan splats point echoes
+    if lit.any():
+        lit_dir[lit], ext[lit] = _footprint_lines(u[lit], f[lit], c.face_normals[prim[lit]], rng[lit], e.dbeta[lit],
+                                                  plan.slope_cap_m_rad)
+    score = np.where(lit, w / np.maximum(ext, dr_m), 0.0)
+
+    # follow every hit to the first seafloor surface behind it that faces the sonar
+    hid_r = np.full(n, np.nan)
+    hid_prim = np.full(n, -1, dtype=np.int64)
+    active = np.nonzero(prim >= 0)[0]
+    t_cur = tfar[active].astype(np.float64)
+    for _ in range(MAX_HIDDEN_LAYERS):
+        if active.size == 0:
+            break
+        o = origin[active] + (t_cur + CONTINUE_EPS_M)[:, None] * u[active]
+        p2, t2 = caster.cast_raw(o.astype(np.float32), u[active].astype(np.float32), max_range_m)
+        total = t_cur + CONTINUE_EPS_M + t2
+        ok = (p2 >= 0) & (total <= max_range_m)
+        p2c = np.maximum(p2, 0)
+        facing = np.einsum("ij,ij->i", u[active], c.face_normals[p2c]) < 0.0
+        found = ok & facing & is_seafloor[c.face_object[p2c]]
+        hid_prim[active[found]] = p2[found]
+        hid_r[active[found]] = total[found]
+        keep = ok & ~found
+        active, t_cur = active[keep], total[keep]
+    hid = np.nonzero(hid_prim >= 0)[0]
+    hid_pt = np.zeros((n, 3))
+    hid_dir = np.zeros((n, 3))
+    hid_ext = np.zeros(n)
+    if hid.size:
+        nrm = c.face_normals[hid_prim[hid]]
+        # float64 range from the hit triangle's plane (the float32 distance is only a guide)
+        v0 = c.vertices[c.faces[hid_prim[hid], 0]]
+        den = np.einsum("ij,ij->i", u[hid], nrm)
+        r64 = np.einsum("ij,ij->i", v0 - origin[hid], nrm) / den
+        good = ((np.abs(den) > kernels.REFIT_MIN_COS)
+                & (np.abs(r64 - hid_r[hid]) <= kernels.REFIT_REL_TOL * (1.0 + hid_r[hid])))
+        hid_r[hid] = np.where(good, r64, hid_r[hid])
+        hid_pt[hid] = origin[hid] + hid_r[hid][:, None] * u[hid]
+        hid_dir[hid], hid_ext[hid] = _footprint_lines(u[hid], f[hid], nrm, hid_r[hid], e.dbeta[hid],
+                                                      plan.slope_cap_m_rad)
+    rows, n_s = 2 * rot.shape[0], out[0].shape[-1]
+    flat = [a.reshape(rows, n_s) for a in out]
+    kernels.label_rows(el_start, float(dr_m), rng, ext, score, lit_obj, pts, lit_dir, hid_r, hid_ext, lit_obj,
+                       hid_pt, hid_dir, pos_local, np.ascontiguousarray(is_seafloor, dtype=np.bool_),
+                       float(origin_z_m), np.empty((rows, n_s)), *flat)
+
+
+def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel: np.ndarray, lead: int,
+                      out_id: np.ndarray, out_value: np.ndarray) -> None:
+    """The strongest object echo at every sample of a block, from every echo of the block.
+
+    Each object (not seafloor) echoing in the block has its echoes splatted and
+    convolved with the pulse intensity on their own, exactly as the record is made;
+    per sample the strongest object wins. This is what the waterfall shows of each
+    object, so detection boxes and masks follow it (docs/physics.md §9).
+
+    Parameters
+    ----------
+    e : Echoes
+        The block's echoes, with ``object_id``.
+    is_seafloor : (n_objects,) bool
+    rate_hz : float
+        Samples per second of travel time.
+    kernel : (n_k,) float64
+        Expected intensity of a unit echo (:func:`sonar_embree.pulses.expected_kernel`).
+    lead : int
+        Kernel taps before the echo time.
+    out_id : (pings, channels, n_out) int32
+        Written: object index of the strongest object echo, −1 where none.
+    out_value : (pings, channels, n_out) float32
+        Written: its expected intensity (unit source, no TVG).
+    """
+    n_p, n_ch, n_out = out_id.shape
+    obj = np.where((e.object_id >= 0) & ~is_seafloor[np.maximum(e.object_id, 0)], e.object_id, -1)
+    best = np.zeros((n_ch * n_p, n_out))
+    best_id = np.full((n_ch * n_p, n_out), -1, dtype=np.int32)
+    n_s = n_out + lead
+    for k in np.unique(obj[obj >= 0]):
+        buf = np.zeros((n_ch * n_p, n_s))
+        kernels.splat_rows(e.ray_start, e.travel_time_s * rate_hz, e.extent_s * rate_hz,
+                           np.where(obj == k, e.weight, 0.0), buf)
+        img = convolve_time(buf, kernel, lead)[:, :n_out]
+        better = img > best
+        best[better], best_id[better] = img[better], k
+    out_id[...] = best_id.reshape(n_p, n_ch, n_out)
+    out_value[...] = best.reshape(n_p, n_ch, n_out)
+
+
+class GroundTruth:
+    """Per-sample ground truth of a record, block by block (side-scan centre lines and object echoes).
+
+    Parameters
+    ----------
+    shape : (pings, channels, n_out)
+    compiled : CompiledScene
+    echo_kernel : (kernel, lead)
+        The unit echo's expected intensity (shared with the speckle-free record).
+    """
+
+    def __init__(self, shape: tuple, compiled, echo_kernel):
+        self.arrays = tuple(np.zeros(shape, dtype=Labels.DTYPES[k]) for k in Labels.ARRAYS)
+        self.compiled = compiled
+        self.kernel, self.lead = echo_kernel
+
+    def add_block(self, front, caster, blk, e: Echoes, a: int, rot, pos_local, max_range_m: float) -> None:
+        """Labels of pings a … a + e.n_pings − 1 from the side-scan block ``blk`` and its echoes ``e``."""
+        b, c, s = a + e.n_pings, self.compiled, front.sonar
+        label_block(caster, front.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
+                    s.sound_speed_m_s / (2.0 * s.sample_rate_hz), float(c.origin_m[2]),
+                    tuple(x[a:b] for x in self.arrays[:5]))
+        object_echo_block(e, c.is_seafloor, s.sample_rate_hz, self.kernel, self.lead, self.arrays[5][a:b],
+                          self.arrays[6][a:b])
+
+    def labels(self) -> "Labels":
+        """The :class:`Labels`, arrays (channels, pings, samples)."""
+        return Labels(*(np.ascontiguousarray(x.transpose(1, 0, 2)) for x in self.arrays), names=self.compiled.labels,
+                      is_seafloor=tuple(bool(x) for x in self.compiled.is_seafloor))

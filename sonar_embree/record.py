@@ -8,10 +8,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .config import Pulse, Sonar
+from .config import Pulse
 from .errors import ConfigError
 from .io.files import atomic_write
 from .labels import Labels
+from .sonars import SONAR_TYPES
 from .trajectory import Trajectory
 
 FORMAT_VERSION = 2
@@ -19,40 +20,71 @@ FORMAT_VERSION = 2
 
 @dataclass(frozen=True, eq=False)
 class Record:
-    """Port and starboard time series of every ping, with their axes and poses.
+    """The time series of every ping and channel, with their axes and poses.
 
     Attributes
     ----------
-    port, starboard : (n_pings, n_samples) float64
+    data : (n_pings, n_channels, n_samples) float64
         Linear intensity (unit source: on-axis intensity 1 at 1 m).
     time_s : (n_samples,) float64
         Time from the start of transmission, s.
     trajectory : Trajectory
         The pose of every ping.
-    sonar : Sonar
+    sonar : Sonar or EchoSounder
+        The sonar type and its settings (with its medium).
     pulse : Pulse
     altitude_m : (n_pings,) float64
         Distance to the first surface straight below the sonar (NaN if none in range).
     attrs : dict
         Mode, seed and other settings.
     labels : Labels or None
-        Per-sample ground truth (``simulate(labels=True)``), aligned with ``port`` and
-        ``starboard``.
-    port_complex, starboard_complex : (n_pings, n_samples) complex128 or None
+        Per-sample ground truth (``simulate(labels=True)``), aligned with the channels.
+    complex_data : (n_pings, n_channels, n_samples) complex128 or None
         Detected complex baseband (``simulate(keep_complex=True)``); intensity = |·|².
+    channels : tuple of str
+        The channel names (side-scan: ``("port", "starboard")``); ``port``,
+        ``starboard`` (and ``port_complex``, ``starboard_complex``) read them, shape
+        (n_pings, n_samples).
     """
 
-    port: np.ndarray
-    starboard: np.ndarray
+    data: np.ndarray
     time_s: np.ndarray
     trajectory: Trajectory
-    sonar: Sonar
+    sonar: object
     pulse: Pulse
     altitude_m: np.ndarray
     attrs: dict = field(default_factory=dict)
     labels: Labels | None = None
-    port_complex: np.ndarray | None = None
-    starboard_complex: np.ndarray | None = None
+    complex_data: np.ndarray | None = None
+    channels: tuple = ("port", "starboard")
+
+    def __post_init__(self):
+        if self.data.ndim != 3 or self.data.shape[1] != len(self.channels):
+            raise ConfigError(f"Record.data must have shape (pings, {len(self.channels)} channels, samples), "
+                              f"got {self.data.shape}")
+
+    def channel(self, name: str, complex_: bool = False) -> np.ndarray:
+        """The (n_pings, n_samples) series of channel ``name`` (the complex signal with ``complex_``)."""
+        if name not in self.channels:
+            raise ConfigError(f"this record has no channel {name!r} (it has {', '.join(self.channels)})")
+        src = self.complex_data if complex_ else self.data
+        return None if src is None else src[:, self.channels.index(name)]
+
+    @property
+    def port(self) -> np.ndarray:
+        return self.channel("port")
+
+    @property
+    def starboard(self) -> np.ndarray:
+        return self.channel("starboard")
+
+    @property
+    def port_complex(self):
+        return self.channel("port", complex_=True)
+
+    @property
+    def starboard_complex(self):
+        return self.channel("starboard", complex_=True)
 
     @property
     def slant_range_m(self) -> np.ndarray:
@@ -61,7 +93,7 @@ class Record:
 
     @property
     def n_pings(self) -> int:
-        return self.port.shape[0]
+        return self.data.shape[0]
 
     @classmethod
     def concatenate(cls, parts) -> "Record":
@@ -71,18 +103,18 @@ class Record:
             raise ConfigError("Record.concatenate needs at least one record")
         first = parts[0]
         for p in parts[1:]:
-            if p.sonar != first.sonar or p.pulse != first.pulse or not np.array_equal(p.time_s, first.time_s):
-                raise ConfigError("Record.concatenate: the records differ in sonar, pulse or time axis")
+            if (p.sonar != first.sonar or p.pulse != first.pulse or p.channels != first.channels
+                    or not np.array_equal(p.time_s, first.time_s)):
+                raise ConfigError("Record.concatenate: the records differ in sonar, pulse, channels or time axis")
         attrs = dict(first.attrs)
         if "rays_per_ping" in attrs:
             n = np.array([p.n_pings for p in parts], dtype=float)
             attrs["rays_per_ping"] = float(np.dot(n, [p.attrs["rays_per_ping"] for p in parts]) / n.sum())
         labels = None if first.labels is None else Labels.concatenate([p.labels for p in parts])
-        cplx = {k: (None if getattr(first, k) is None else np.concatenate([getattr(p, k) for p in parts]))
-                for k in ("port_complex", "starboard_complex")}
-        return cls(np.concatenate([p.port for p in parts]), np.concatenate([p.starboard for p in parts]),
-                   first.time_s, Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
-                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, **cplx)
+        cplx = None if first.complex_data is None else np.concatenate([p.complex_data for p in parts])
+        return cls(np.concatenate([p.data for p in parts]), first.time_s,
+                   Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
+                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels)
 
     # ------------------------------------------------------------------ files
     def save(self, path) -> None:
@@ -92,18 +124,20 @@ class Record:
         meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
                 "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),
                 "attrs": self.attrs}
+        if type(self.sonar).__name__ != "Sonar" or self.channels != ("port", "starboard"):
+            meta["sonar_type"], meta["channels"] = type(self.sonar).__name__, list(self.channels)
         t = self.trajectory
         extra = {}
         if self.labels is not None:
             meta["labels"] = {"names": list(self.labels.names), "is_seafloor": list(self.labels.is_seafloor)}
             extra = {f"labels_{k}": getattr(self.labels, k) for k in Labels.ARRAYS}
-        for k in ("port_complex", "starboard_complex"):
-            if getattr(self, k) is not None:
-                extra[k] = getattr(self, k)
+        if self.complex_data is not None:
+            extra.update({f"{ch}_complex": self.channel(ch, complex_=True) for ch in self.channels})
+        series = {ch: self.channel(ch) for ch in self.channels}
 
         def write(tmp):
             with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, port=self.port, starboard=self.starboard, time_s=self.time_s,
+                np.savez_compressed(fh, **series, time_s=self.time_s,
                                     altitude_m=self.altitude_m, positions_m=t.positions_m,
                                     heading_deg=t.heading_deg, pitch_deg=t.pitch_deg, roll_deg=t.roll_deg,
                                     times_s=t.times_s, meta=np.array(json.dumps(meta)), **extra)
@@ -129,9 +163,13 @@ class Record:
             labels = Labels(**{k: arrays.get(f"labels_{k}", fill.get(k)) for k in Labels.ARRAYS},
                             names=tuple(meta["labels"]["names"]),
                             is_seafloor=tuple(meta["labels"]["is_seafloor"]))
-        return cls(arrays["port"], arrays["starboard"], arrays["time_s"], traj, Sonar(**meta["sonar"]),
-                   Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}), labels,
-                   arrays.get("port_complex"), arrays.get("starboard_complex"))
+        channels = tuple(meta.get("channels", ("port", "starboard")))
+        sonar_cls = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")]
+        cplx = (np.stack([arrays[f"{ch}_complex"] for ch in channels], axis=1) if f"{channels[0]}_complex" in arrays
+                else None)
+        return cls(np.stack([arrays[ch] for ch in channels], axis=1), arrays["time_s"], traj,
+                   sonar_cls(**meta["sonar"]), Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}),
+                   labels, cplx, channels)
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""

@@ -124,7 +124,7 @@ def _cf_checks(ds):
 
 def test_zarr_to_netcdf_round_trip(record, tmp_path):
     """xarray opens the Zarr, writes NetCDF with netCDF4, and reads back the same dataset (CF-style)."""
-    plain = dataclasses.replace(record, port_complex=None, starboard_complex=None)
+    plain = dataclasses.replace(record, complex_data=None)
     plain.to_zarr(tmp_path / "plain.zarr")
     ds = xr.open_zarr(tmp_path / "plain.zarr").load()
     _cf_checks(ds)

@@ -1,0 +1,50 @@
+"""The echo contract between the front end and the back end (docs/physics.md §3, §4).
+
+The front end (a sonar type's ray fan, the caster, the scattering laws) turns poses
+into :class:`Echoes`; the back end (splatting, speckle synthesis, processing, the
+Record) reads nothing else. Times, not ranges: with refraction or multipath the
+travel time is not 2R/c, and the back end never needs R.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Echoes:
+    """Every echo of a block of pings, flat arrays in rows of (ping, channel).
+
+    Row ``r = n_channels·b + ch`` (b the ping in the block, ch the channel) owns
+    echoes ``ray_start[r] … ray_start[r + 1] − 1``. Echoes of weight 0 return nothing.
+
+    Attributes
+    ----------
+    n_channels : int
+        Channels per ping (side-scan: 2, port then starboard).
+    ray_start : (rows + 1,) int64
+        Row offsets.
+    travel_time_s : (n,) float64
+        Two-way travel time of each echo, s (inf: none).
+    extent_s : (n,) float64
+        Spread in travel time of the surface the echo stands for (its footprint), s.
+    weight : (n,) float64
+        Expected received intensity (unit source), docs/physics.md eq. (1).
+    point_m : (n, 3) float64 or (0, 3)
+        Scattering points in the scene's local frame, m (when the back end needs them: speckle).
+    object_id : (n,) int32 or (0,)
+        Scene object of each echo, −1 for none (when ground truth needs it).
+    """
+
+    n_channels: int
+    ray_start: np.ndarray
+    travel_time_s: np.ndarray
+    extent_s: np.ndarray
+    weight: np.ndarray
+    point_m: np.ndarray
+    object_id: np.ndarray
+
+    @property
+    def n_pings(self) -> int:
+        return (self.ray_start.shape[0] - 1) // self.n_channels

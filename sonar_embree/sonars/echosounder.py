@@ -1,0 +1,137 @@
+"""A down-looking single-beam echo sounder: one channel, a circular piston (docs/physics.md §11).
+
+The transducer is a baffled circular piston of radius a; its one-way directivity
+is b(θ) = 2·J1(ka·sin θ)/(ka·sin θ) (Kinsler et al., *Fundamentals of Acoustics*,
+4th ed., §8.8), θ from the body's down axis. The −3 dB full width θ3 gives
+ka·sin(θ3/2) = 1.6163. The beam is sampled in rings of θ (uniform step) and azimuth
+φ (dΩ = sin θ dθ dφ) out to :data:`SPAN_NULLS` times the first null; each ray's echo
+is w = b⁴·σ(θi)·e^(−2α'R)·dΩ/(R²·cos θi) (eq. 1), spread over the travel-time
+extent of its ring's footprint. Over a flat floor at altitude h the first echo
+arrives at 2h/c.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.special import j1
+
+from ..config import FanSettings, Transducer
+from ..echoes import Echoes
+from ..environment import Environment
+from ..errors import ConfigError
+from ..processing import absorption_np_per_m
+from ..validation import check_number
+
+#: ka·sin(θ3/2) of a circular piston at its one-way −3 dB point, 2·J1(x)/x = 1/√2.
+HALF_POWER_X = 1.6163
+#: ka·sin θ of the first null, the first zero of J1.
+FIRST_NULL_X = 3.8317
+#: The fan reaches this many times the first null's angle (the first side lobe and beyond).
+SPAN_NULLS = 2.0
+
+
+@dataclass(frozen=True)
+class EchoSounder(Transducer):
+    """A down-looking single-beam echo sounder.
+
+    Parameters
+    ----------
+    frequency_hz : float
+        Carrier frequency, Hz.
+    beamwidth_deg : float
+        Full one-way −3 dB beamwidth of the circular piston, degrees, in (0, 60].
+    max_range_m : float
+        Slant range of the last sample, m.
+    sample_rate_hz : float or None
+        Record sample rate, Hz (``None``: from the pulse, as for :class:`~sonar_embree.Sonar`).
+    environment : Environment
+        The medium.
+    """
+
+    frequency_hz: float = 200e3
+    beamwidth_deg: float = 10.0
+    max_range_m: float = 50.0
+    sample_rate_hz: float | None = None
+    environment: Environment = Environment()
+
+    channels = ("down",)
+
+    def __post_init__(self):
+        check_number("EchoSounder", "frequency_hz", self.frequency_hz, positive=True)
+        check_number("EchoSounder", "beamwidth_deg", self.beamwidth_deg, positive=True, hi=60.0)
+        check_number("EchoSounder", "max_range_m", self.max_range_m, positive=True)
+        if self.sample_rate_hz is not None:
+            check_number("EchoSounder", "sample_rate_hz", self.sample_rate_hz, positive=True)
+        if not isinstance(self.environment, Environment):
+            raise ConfigError(f"EchoSounder.environment must be a sonar_embree.Environment, got {self.environment!r}")
+
+    @property
+    def ka(self) -> float:
+        """k·a of the piston that has this beamwidth."""
+        return HALF_POWER_X / math.sin(math.radians(self.beamwidth_deg) / 2.0)
+
+    def directivity(self, theta_rad):
+        """One-way directivity b(θ) = 2·J1(ka sin θ)/(ka sin θ), θ from the down axis (0 above the horizon)."""
+        x = self.ka * np.sin(np.asarray(theta_rad, dtype=float))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            b = np.where(np.abs(x) < 1e-8, 1.0, 2.0 * j1(x) / x)
+        return np.where(np.cos(theta_rad) > 0, b, 0.0)
+
+
+class EchoSounderFrontEnd:
+    """Poses → echoes for an :class:`EchoSounder`: a cone of rays around the body's down axis."""
+
+    channels = EchoSounder.channels
+    supports_labels = False
+
+    def __init__(self, sonar: EchoSounder, fan: FanSettings):
+        fan = fan.resolved()
+        span = min(SPAN_NULLS * math.asin(min(FIRST_NULL_X / sonar.ka, 1.0)), math.radians(89.0))
+        n_theta = int(math.ceil(400 * fan.quality))
+        d_theta = span / n_theta
+        theta = (np.arange(n_theta) + 0.5) * d_theta
+        n_phi = np.maximum(np.ceil(8 + 2 * np.pi * np.arange(n_theta) * fan.quality), 8).astype(int)
+        self.theta = np.repeat(theta, n_phi)
+        phi = np.concatenate([(np.arange(k) + 0.5) * 2 * np.pi / k for k in n_phi])
+        self.d_omega = np.sin(self.theta) * d_theta * np.repeat(2 * np.pi / n_phi, n_phi)
+        st, ct = np.sin(self.theta), np.cos(self.theta)
+        self.body = np.stack([st * np.cos(phi), st * np.sin(phi), ct], axis=1)          # body z is down
+        self.body_dtheta = np.stack([ct * np.cos(phi), ct * np.sin(phi), -st], axis=1)  # ∂u/∂θ
+        self.d_theta = d_theta
+        self.gain4 = sonar.directivity(self.theta) ** 4
+        self.sonar = sonar
+        self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
+
+    def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock):
+        """Echoes of a block of pings (one channel each); arguments as for the side-scan front end."""
+        from ..fan import apply_laws
+
+        n_p, n = rot.shape[0], self.body.shape[0]
+        u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
+        f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)
+        hits = caster.cast(np.repeat(pos_local, n, axis=0), u, max_range_m)
+        ok = hits.echo
+        r = np.where(ok, hits.range_m, np.inf)
+        cos_i = np.where(ok, hits.cos_inc, 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            w = np.where(ok, np.tile(self.gain4 * self.d_omega, n_p) * np.exp(-self.two_way_np_per_m * r)
+                         / np.maximum(r, self.sonar.wavelength_m) ** 2, 0.0)
+            slope = np.abs(np.einsum("ij,ij->i", hits.normal, f)) * r / cos_i
+        apply_laws(caster.compiled, hits.tri.astype(np.int32), cos_i, w)
+        per_m = 2.0 / self.sonar.sound_speed_m_s
+        ext = np.where(ok, np.minimum(slope, 10.0 * self.sonar.max_range_m) * self.d_theta, 0.0)
+        pts = (np.repeat(pos_local, n, axis=0) + np.where(ok, r, 0.0)[:, None] * u) if want_points \
+            else np.zeros((0, 3))
+        ids = np.where(ok & (w > 0), hits.object_id, -1).astype(np.int32) if want_ids else np.zeros(0, np.int32)
+        nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
+        info = _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
+        return Echoes(1, np.arange(n_p + 1, dtype=np.int64) * n, r * per_m, ext * per_m, w,
+                      np.ascontiguousarray(pts), ids), info
+
+
+@dataclass(frozen=True, eq=False)
+class _Block:
+    altitude_m: np.ndarray
+    n_rays: np.ndarray

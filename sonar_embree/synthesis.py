@@ -1,0 +1,193 @@
+"""The back end: echoes → received signal per (ping, channel), then detected intensity.
+
+Reads only :class:`~sonar_embree.echoes.Echoes` (docs/physics.md §3–5):
+
+- :class:`ExpectedSynthesis` (speckle-free): every echo's weight spread over the
+  travel-time interval of its footprint, then one convolution with the pulse
+  intensity (or the compressed pulse's |q|²): eq. (1) sampled at t_n;
+- :class:`SpeckleSynthesis`: the echoes gathered onto scatterers frozen to the
+  surface (:class:`ScattererLattice`), synthesised in complex baseband or as the
+  real carrier signal, then detected coherently or incoherently.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import kernels, processing, pulses
+from .config import Pulse, SignalChain
+from .echoes import Echoes
+from .processing import convolve_time
+
+
+def _tick(clock: dict, key: str, since: float) -> None:
+    clock[key] = clock.get(key, 0.0) + time.perf_counter() - since
+
+
+class ScattererLattice:
+    """Scatterers frozen to the surface: a world-fixed cubic lattice (see :func:`kernels.speckle_block`).
+
+    Every node holds :data:`SUB_SCATTERERS` point scatterers with independent frozen
+    complex Gaussian reflectivities, sharing the node's echo W equally and placed in
+    travel time at t̄ + √3·σ·(2v − 1), where t̄ and σ² are the W-weighted mean and
+    variance of the times its echoes' footprints cover and v a frozen
+    stratified-uniform position in [0, 1), clipped to the least and greatest of those
+    times (nothing arrives before the first surface). The echo energy keeps its place
+    and spread in time, and neighbouring nodes' scatterers interleave, so the expected
+    intensity has no comb at the lattice spacing. One hash table per worker thread; a
+    table grows (and stays grown) when a ping's nodes would fill more than half of it.
+    """
+
+    SUB_SCATTERERS = 4
+
+    def __init__(self, cell_m: float, seed: int, n_tables: int):
+        self.cell_m = float(cell_m)
+        self.seed = int(seed)
+        self._alloc(max(int(n_tables), 1), 1 << 16)
+
+    def _alloc(self, n_t, cap):
+        self.key = np.zeros((n_t, cap, 4), dtype=np.int64)
+        self.stamp = np.full((n_t, cap), -1, dtype=np.int64)
+        self.epochs = np.zeros(n_t, dtype=np.int64)
+        self.vals = [np.zeros((n_t, cap)) for _ in range(5)]  # W, Wt, Wt2, t_min, t_max
+        self.order = np.zeros((n_t, cap), dtype=np.int64)
+
+    def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
+                   phase_cycles_per_s: float, synth: "WaveformTables", out):
+        """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table."""
+        status = np.zeros(pos_world.shape[0], dtype=np.int64)
+        while True:
+            kernels.speckle_block(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
+                                  np.ascontiguousarray(pos_world), self.seed, self.cell_m, wavelength_m, rate_hz,
+                                  phase_cycles_per_s, self.SUB_SCATTERERS, synth.table, synth.table_start,
+                                  synth.table_rate, self.key, self.stamp, self.epochs, *self.vals, self.order,
+                                  status, out)
+            if np.all(status > 0):
+                return
+            self._alloc(self.key.shape[0], 2 * self.key.shape[1])
+            status[status < 0] = 0
+
+
+@dataclass(frozen=True, eq=False)
+class WaveformTables:
+    """Tables for synthesising one ping's signal."""
+
+    table: np.ndarray
+    table_start: float
+    table_rate: float
+    carrier_factor: int = 1               # carrier rate / record rate
+    carrier_pulse: np.ndarray | None = None
+
+    @classmethod
+    def build(cls, sonar, pulse: Pulse, chain: SignalChain) -> "WaveformTables":
+        f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
+        if chain.band == "baseband":
+            table, rate = pulses.envelope_table(pulse, f0, fs)
+            return cls(table, 0.0, float(rate))
+        f_hi = pulse.frequency_span_hz(f0)[1]
+        factor = max(int(math.ceil(4.0 * f_hi / fs)), 2)
+        table, start, rate = processing.sinc_interpolator()
+        return cls(table, start, float(rate), factor, pulses.passband_analytic(pulse, f0, factor * fs))
+
+
+def _carrier_ping(synth: WaveformTables, sonar, chain: SignalChain, buf, noise_bb, n_s):
+    """Detect one ping synthesised on the carrier.
+
+    ``buf`` (channels, n_c) holds impulses C·e^(j2πf0τ) at the carrier rate (band-limited
+    fractional delays); convolved with p̃(t)·e^(j2πf0 t) its real part is
+    Re{C·p̃(t − τ)·e^(j2πf0 t)}. Returns complex baseband (coherent) or intensity
+    (incoherent), shape (channels, n_s), at the record rate.
+    """
+    f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
+    m = synth.carrier_factor
+    fc = m * fs
+    n_c = (n_s - 1) * m + 1
+    x = convolve_time(buf, synth.carrier_pulse).real
+    t_c = np.arange(n_c) / fc
+    if noise_bb is not None:  # the receiver band's noise, interpolated to the carrier rate and modulated
+        from scipy.signal import resample_poly
+
+        up = resample_poly(noise_bb, m, 1, axis=-1)[:, :n_c]
+        x += (up * np.exp(2j * np.pi * ((f0 * t_c) % 1.0))).real
+    if chain.detection == "coherent":
+        return processing.analytic_baseband(x, f0, fc, step=m)
+    return processing.square_law(x, f0, fc)[:, ::m]
+
+
+class ExpectedSynthesis:
+    """Speckle-free: footprint splatting, then one convolution with the unit echo's intensity."""
+
+    mode = "expected_intensity"
+
+    def __init__(self, sonar, pulse: Pulse, chain: SignalChain, shape: tuple, n0, echo_kernel):
+        self.sonar, self.pulse, self.chain, self.n0 = sonar, pulse, chain, n0
+        self.out = np.zeros(shape)
+        self.kernel, self.lead = echo_kernel
+
+    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict) -> None:
+        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey)."""
+        fs = self.sonar.sample_rate_hz
+        b = a + e.n_pings
+        kernels.splat_rows(e.ray_start, e.travel_time_s * fs, e.extent_s * fs, e.weight,
+                           self.out[a:b].reshape(e.ray_start.shape[0] - 1, self.out.shape[-1]))
+
+    def finish(self):
+        """Detected intensity (pings, channels, n_s) and no complex signal."""
+        intensity = convolve_time(self.out, self.kernel, self.lead)
+        if self.n0 is not None:  # mean intensity of the noise after the matched filter
+            f0, fs = self.sonar.frequency_hz, self.sonar.sample_rate_hz
+            gain = (1.0 / np.sum(np.abs(pulses.replica(self.pulse, f0, fs)) ** 2) if self.chain.matched_filter
+                    else 1.0)
+            intensity += self.n0 * fs * gain
+        return intensity, None
+
+
+class SpeckleSynthesis:
+    """Frozen scatterers synthesised in baseband or on the carrier, then detected (docs/physics.md §4)."""
+
+    mode = "speckle"
+
+    def __init__(self, sonar, pulse: Pulse, chain: SignalChain, shape: tuple, n0):
+        self.sonar, self.pulse, self.chain, self.n0 = sonar, pulse, chain, n0
+        self.lattice = ScattererLattice(chain.speckle_cell_m, chain.seed, kernels.num_threads())
+        self.tables = WaveformTables.build(sonar, pulse, chain)
+        coherent = chain.detection == "coherent"
+        self.out = np.zeros(shape, dtype=np.complex128) if coherent else np.zeros(shape)
+
+    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict) -> None:
+        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise)."""
+        s, chain, out = self.sonar, self.chain, self.out[a:a + e.n_pings]
+        fs, f0 = s.sample_rate_hz, s.frequency_hz
+        n_b, n_ch, n_s = out.shape
+        if chain.band == "baseband":
+            self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, fs, 0.0, self.tables, out)  # coherent
+        else:
+            m = self.tables.carrier_factor
+            buf = np.zeros((n_b, n_ch, (n_s - 1) * m + 1), dtype=np.complex128)
+            self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, m * fs, f0, self.tables, buf)
+        t = time.perf_counter()
+        for b in range(n_b):
+            noise = None
+            if self.n0 is not None:  # per-ping stream: the same bits for any ping order, block or worker count
+                rng = np.random.default_rng([chain.seed, 0x5EED_0015E, survey_a + b])
+                noise = processing.complex_noise(rng, (n_ch, n_s), self.n0 * fs)
+            if chain.band == "baseband":
+                if noise is not None:
+                    out[b] += noise
+            else:
+                out[b] = _carrier_ping(self.tables, s, chain, buf[b], noise, n_s)
+        _tick(clock, "processing", t)  # per-ping detection on the carrier is processing, not synthesis
+        clock["synthesis"] = clock.get("synthesis", 0.0) - (time.perf_counter() - t)
+
+    def finish(self):
+        """Detected intensity (pings, channels, n_s) and the complex signal (coherent) or None."""
+        if self.chain.detection != "coherent":
+            return self.out, None
+        out = self.out
+        if self.chain.matched_filter:
+            f0, fs = self.sonar.frequency_hz, self.sonar.sample_rate_hz
+            out = processing.matched_filter(out, pulses.replica(self.pulse, f0, fs))
+        return out.real ** 2 + out.imag ** 2, out
