@@ -17,8 +17,9 @@ from .labels import Labels
 from .record import Record
 from .scene import Scene
 from .simulate import simulate
+from .sonars import EchoSounder
 from .trajectory import Trajectory
 
-__all__ = ["ConfigError", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["ConfigError", "EchoSounder", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "seafloor", "simulate", "sweep",
            "__version__"]

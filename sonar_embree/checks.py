@@ -44,6 +44,8 @@ def check_sonar(sonar) -> None:
     if not r_lo <= sonar.max_range_m <= r_hi:
         warn_once(f"Sonar.max_range_m = {sonar.max_range_m:g} m is outside the plausible {r_lo:g}–{r_hi:g} m "
                   "(a range in km?)")
+    if not hasattr(sonar, "tilt_deg"):  # a sonar type without a tilt (an echo sounder looks down)
+        return
     t_lo, t_hi = PLAUSIBLE["tilt_deg"]
     if 0.0 < sonar.tilt_deg < 1.6:
         warn_once(f"Sonar.tilt_deg = {sonar.tilt_deg:g}° looks like radians ({np.degrees(sonar.tilt_deg):.1f}°); "

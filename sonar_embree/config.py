@@ -132,6 +132,11 @@ class Sonar(Transducer):
                 f"gives {self.n_samples} samples per ping; reduce one of them")
 
     @property
+    def default_speckle_cell_m(self) -> float:
+        """Speckle lattice spacing by default, lx/2: the along-track resolution (docs/physics.md §4)."""
+        return 0.5 * self.length_m
+
+    @property
     def tilt_rad(self) -> float:
         """Boresight depression δ in rad."""
         return math.radians(self.tilt_deg)
@@ -539,5 +544,5 @@ class SignalChain:
                               f"({0.5 * fs:g} Hz)")
         if self.band == "carrier" and f_lo <= 0:
             raise ConfigError(f"Pulse sweeps down to {f_lo:g} Hz; a carrier signal needs positive frequencies")
-        cell = 0.5 * sonar.length_m if self.speckle_cell_m is None else self.speckle_cell_m
+        cell = sonar.default_speckle_cell_m if self.speckle_cell_m is None else self.speckle_cell_m
         return dataclasses.replace(self, matched_filter=bool(mf), speckle_cell_m=float(cell))

@@ -334,6 +334,25 @@ def load_sweep(path) -> Sweep:
     base = os.path.dirname(os.path.abspath(src))
     runconfig._check_keys("the top level", data, TOP_KEYS, src)
 
+    name, seeds, outputs, ppt, keep_complex, png = _sweep_table(data, src)
+    combos, settings = _settings(data, src, keep_complex)
+    trajectories, traj_names = _trajectories(data, src, base)
+    scenes, categories = _scenes(data, src, base, seeds)
+    start = _start_time(data.get("sweep", {}).get("start_time", DEFAULT_SWEEP_START), src)
+    labels = any(registry.FORMATS[o].needs_labels for o in outputs)
+    jobs = []
+    for si, ti, ci, seed in itertools.product(range(len(scenes)), range(len(trajectories)), range(len(combos)),
+                                              seeds):
+        s = settings[ci]
+        chain = dataclasses.replace(s["simulation"], seed=int(seed))
+        jobs.append(Job(len(jobs), si, ti, combos[ci], int(seed), trajectories[ti], s["sonar"], s["pulse"],
+                        s["fan"], chain, labels, keep_complex, start))
+    return Sweep(src, name, tuple(scenes), tuple(traj_names), tuple(jobs), tuple(outputs), ppt, dict(png),
+                 tuple(sorted(categories)), start, _files_digest(_input_files(base, data)))
+
+
+def _sweep_table(data, src):
+    """The [sweep] and [png] tables: name, seeds, outputs, pings per task, complex, png options."""
     sw = data.get("sweep", {})
     runconfig._check_keys("[sweep]", sw, SWEEP_KEYS, src)
     name = str(sw.get("name", os.path.splitext(os.path.basename(src))[0]))
@@ -350,7 +369,11 @@ def load_sweep(path) -> Sweep:
     png = data.get("png", {})
     runconfig._check_keys("[png]", png, PNG_KEYS, src)
     runconfig._build(src, "[png]", runconfig.OutputOptions, png)  # the render [output] checks, one place
+    return name, seeds, outputs, ppt, keep_complex, png
 
+
+def _settings(data, src, keep_complex):
+    """Every combination of [vary] over the setting tables: (combos, the built settings of each)."""
     base_tables = {}
     for t, cls in TABLES.items():
         table = data.get(t, {})
@@ -364,34 +387,38 @@ def load_sweep(path) -> Sweep:
         raise ConfigError(f"{src}: [vary] must be a table")
     for key, values in vary.items():
         table, _, fld = key.partition(".")
-        if table not in TABLES or fld not in runconfig.table_keys(TABLES[table]) or (table, fld) == ("simulation", "seed"):
+        if (table not in TABLES or fld not in runconfig.table_keys(TABLES[table])
+                or (table, fld) == ("simulation", "seed")):
             raise ConfigError(f"{src}: [vary] key {key!r} must be 'table.field' with table one of "
                               f"{list(TABLES)} and a field of it (seed comes from [sweep] seeds)")
         if not isinstance(values, list) or not values:
             raise ConfigError(f"{src}: [vary] {key!r} must be a non-empty list of values")
     combos = [tuple(zip(vary, c)) for c in itertools.product(*vary.values())] if vary else [()]
+    return combos, [_build_combo(base_tables, combo, src, keep_complex) for combo in combos]
 
-    settings = []
-    for combo in combos:
-        tables = {t: dict(v) for t, v in base_tables.items()}
-        for key, value in combo:
-            t, _, fld = key.partition(".")
-            tables[t][fld] = value
-        where = "[vary] " + ", ".join(f"{k} = {v!r}" for k, v in combo) if combo else "base settings"
-        built = {}
-        for t, cls in TABLES.items():
-            if t == "sonar":
-                built[t] = runconfig.build_sonar(src, f"[sonar] ({where})", tables[t], built["environment"])
-            else:
-                built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
-        try:
-            chain = built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
-        except SonarEmbreeError as exc:
-            raise ConfigError(f"{src}: {where}: {exc}") from None
-        if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
-            raise ConfigError(f"{src}: [sweep] complex needs coherent speckle without lowpass_hz ({where})")
-        settings.append(built)
 
+def _build_combo(base_tables, combo, src, keep_complex) -> dict:
+    tables = {t: dict(v) for t, v in base_tables.items()}
+    for key, value in combo:
+        t, _, fld = key.partition(".")
+        tables[t][fld] = value
+    where = "[vary] " + ", ".join(f"{k} = {v!r}" for k, v in combo) if combo else "base settings"
+    built = {}
+    for t, cls in TABLES.items():
+        if t == "sonar":
+            built[t] = runconfig.build_sonar(src, f"[sonar] ({where})", tables[t], built["environment"])
+        else:
+            built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
+    try:
+        chain = built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
+    except SonarEmbreeError as exc:
+        raise ConfigError(f"{src}: {where}: {exc}") from None
+    if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
+        raise ConfigError(f"{src}: [sweep] complex needs coherent speckle without lowpass_hz ({where})")
+    return built
+
+
+def _trajectories(data, src, base):
     trajs = data.get("trajectories", [])
     if not isinstance(trajs, list) or not trajs:
         raise ConfigError(f"{src}: needs at least one [[trajectories]] entry")
@@ -402,7 +429,12 @@ def load_sweep(path) -> Sweep:
         t = dict(t)
         traj_names.append(str(t.pop("name", f"trajectory{i}")))
         trajectories.append(runconfig.parse_trajectory(t, src, base, f"[[trajectories]] #{i + 1}"))
+    return trajectories, traj_names
 
+
+def _scenes(data, src, base, seeds):
+    """The [[scenes]] (each built once with the first seed: every key, file and value checked) and the COCO
+    categories (labels of every object that is not seafloor)."""
     scenes_t = data.get("scenes", [])
     if not isinstance(scenes_t, list) or not scenes_t:
         raise ConfigError(f"{src}: needs at least one [[scenes]] entry")
@@ -433,14 +465,4 @@ def load_sweep(path) -> Sweep:
         built = spec.build(seeds[0])  # every key, file and value checked before any job runs
         categories |= {o.label.split("#", 1)[0] for o in built.objects if not o.seafloor}
         scenes.append(spec)
-
-    start = _start_time(sw.get("start_time", DEFAULT_SWEEP_START), src)
-    jobs = []
-    for si, ti, ci, seed in itertools.product(range(len(scenes)), range(len(trajectories)), range(len(combos)),
-                                              seeds):
-        s = settings[ci]
-        chain = dataclasses.replace(s["simulation"], seed=int(seed))
-        jobs.append(Job(len(jobs), si, ti, combos[ci], int(seed), trajectories[ti], s["sonar"], s["pulse"],
-                        s["fan"], chain, "labels" in outputs or "coco" in outputs, keep_complex, start))
-    return Sweep(src, name, tuple(scenes), tuple(traj_names), tuple(jobs), tuple(outputs), ppt, dict(png),
-                 tuple(sorted(categories)), start, _files_digest(_input_files(base, data)))
+    return scenes, categories

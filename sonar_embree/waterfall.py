@@ -125,7 +125,7 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, g
     """
     check_display(scale, dynamic_range_db, gamma, reference_percentile, max_columns)
     r = record.slant_range_m
-    sides = [np.asarray(record.port, dtype=np.float64), np.asarray(record.starboard, dtype=np.float64)]
+    sides = [np.asarray(record.channel(ch), dtype=np.float64) for ch in record.channels]
     if tvg and not record.attrs.get("tvg", False):
         with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
             decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0
@@ -147,4 +147,6 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, g
         v = np.clip(np.maximum(both, 0.0) / ref, 0.0, 1.0) ** gamma
     img = np.round(255.0 * v).astype(np.uint8)
     n = sides[0].shape[1]
+    if tuple(record.channels) != ("port", "starboard"):
+        return img  # other sonar types: the channels side by side, near range on the left
     return np.concatenate([img[:, :n][:, ::-1], img[:, n:]], axis=1)

@@ -38,11 +38,16 @@ def _imports(name, tree, is_package, known=frozenset()):
 
 
 def test_no_function_is_longer_than_a_screen():
+    """Code lines of every function (its docstring aside) fit one screen."""
     long = []
     for name, path, tree in _modules():
         for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 n = node.end_lineno - node.lineno + 1
+                doc = node.body[0]
+                if isinstance(doc, ast.Expr) and isinstance(getattr(doc, "value", None), ast.Constant) \
+                        and isinstance(doc.value.value, str):
+                    n -= doc.end_lineno - doc.lineno + 1  # the docstring is documentation, not code
                 if n > MAX_FUNCTION_LINES:
                     long.append(f"{name}.{node.name}: {n} lines")
     assert not long, long

@@ -75,8 +75,8 @@ def _ping_coords(record) -> dict:
 def to_xarray(record):
     """The record as a CF-style ``xarray.Dataset`` (writable as NetCDF with ``to_netcdf``).
 
-    Variables: ``port``, ``starboard`` (ping, sample) linear intensity (and
-    ``port_complex``, ``starboard_complex`` when the record keeps them: NetCDF needs
+    Variables: one per channel, ``port``, ``starboard`` for a side-scan (ping,
+    sample), linear intensity (and ``port_complex``, ``starboard_complex`` when the record keeps them: NetCDF needs
     ``to_netcdf(..., auto_complex=True)`` for those); ``altitude_m`` (ping); with
     labels ``label_kind``, ``label_object_id``, ``label_shadow_of``,
     ``label_height_m``, ``label_ground_range_m`` (side, ping, sample). Coordinates
@@ -93,12 +93,11 @@ def to_xarray(record):
     def intensity(side):
         return {"units": "1", "long_name": f"{side} intensity for a unit source (linear)"}
 
-    data = {"port": (("ping", "sample"), record.port, intensity("port")),
-            "starboard": (("ping", "sample"), record.starboard, intensity("starboard")),
-            "altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
+    data = {ch: (("ping", "sample"), record.channel(ch), intensity(ch)) for ch in record.channels}
+    data |= {"altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
                                                           "long_name": "range to the first surface below the sonar"})}
-    for side in ("port", "starboard"):
-        z = getattr(record, f"{side}_complex")
+    for side in record.channels:
+        z = record.channel(side, complex_=True)
         if z is not None:
             data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1",
                                                               "long_name": f"{side} complex baseband, |.|^2 = {side}"})
@@ -107,6 +106,7 @@ def to_xarray(record):
               "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
               **_ping_coords(record)}
     attrs = _flat_attrs(record)
+    attrs["channels"] = " ".join(record.channels)
     if record.labels is not None:
         _label_variables(record.labels, data, coords, attrs)
     return xr.Dataset(data, coords=coords, attrs=attrs)

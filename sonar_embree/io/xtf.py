@@ -185,6 +185,9 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         World height of the sea surface, m, for SensorDepth = surface_z_m − z; every
         pose must lie below it. Default: no surface known, depth written as 0.
     """
+    if tuple(record.channels) != ("port", "starboard"):
+        raise ConfigError(f"to_xtf: XTF holds side-scan records (port and starboard); this record's channels are "
+                          f"{', '.join(record.channels)}")
     when = _start(record, start)
     factor = sample_scale(record, scale)
     t = record.trajectory

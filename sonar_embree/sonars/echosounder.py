@@ -28,8 +28,10 @@ from ..validation import check_number
 HALF_POWER_X = 1.6163
 #: ka·sin θ of the first null, the first zero of J1.
 FIRST_NULL_X = 3.8317
-#: The fan reaches this many times the first null's angle (the first side lobe and beyond).
-SPAN_NULLS = 2.0
+#: The fan reaches this many times the first null's angle (the first side lobes; b⁴ < −70 dB beyond).
+SPAN_NULLS = 4.0
+#: Rings of θ and rays per ring at quality 1.
+RINGS, RAYS_PER_RING = 400, 32
 
 
 @dataclass(frozen=True)
@@ -59,6 +61,8 @@ class EchoSounder(Transducer):
     channels = ("down",)
 
     def __post_init__(self):
+        if isinstance(self.environment, dict):  # from a saved record's metadata
+            object.__setattr__(self, "environment", Environment(**self.environment))
         check_number("EchoSounder", "frequency_hz", self.frequency_hz, positive=True)
         check_number("EchoSounder", "beamwidth_deg", self.beamwidth_deg, positive=True, hi=60.0)
         check_number("EchoSounder", "max_range_m", self.max_range_m, positive=True)
@@ -71,6 +75,11 @@ class EchoSounder(Transducer):
     def ka(self) -> float:
         """k·a of the piston that has this beamwidth."""
         return HALF_POWER_X / math.sin(math.radians(self.beamwidth_deg) / 2.0)
+
+    @property
+    def default_speckle_cell_m(self) -> float:
+        """Speckle lattice spacing by default: the piston's radius a (its near-field resolution)."""
+        return self.ka / self.wavenumber_rad_m
 
     def directivity(self, theta_rad):
         """One-way directivity b(θ) = 2·J1(ka sin θ)/(ka sin θ), θ from the down axis (0 above the horizon)."""
@@ -89,10 +98,10 @@ class EchoSounderFrontEnd:
     def __init__(self, sonar: EchoSounder, fan: FanSettings):
         fan = fan.resolved()
         span = min(SPAN_NULLS * math.asin(min(FIRST_NULL_X / sonar.ka, 1.0)), math.radians(89.0))
-        n_theta = int(math.ceil(400 * fan.quality))
+        n_theta = int(math.ceil(RINGS * fan.quality))
         d_theta = span / n_theta
         theta = (np.arange(n_theta) + 0.5) * d_theta
-        n_phi = np.maximum(np.ceil(8 + 2 * np.pi * np.arange(n_theta) * fan.quality), 8).astype(int)
+        n_phi = np.full(n_theta, max(int(math.ceil(RAYS_PER_RING * fan.quality)), 8))
         self.theta = np.repeat(theta, n_phi)
         phi = np.concatenate([(np.arange(k) + 0.5) * 2 * np.pi / k for k in n_phi])
         self.d_omega = np.sin(self.theta) * d_theta * np.repeat(2 * np.pi / n_phi, n_phi)

@@ -1,0 +1,89 @@
+"""The sonar-type seam: a one-channel down-looking echo sounder over a flat floor (docs/physics.md §3, §11)."""
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.special import j1
+
+import sonar_embree as se
+from conftest import flat_scene
+from sonar_embree.sonars import EchoSounder
+
+H = 20.0
+
+
+def _piston(theta, beamwidth_deg):
+    """2·J1(x)/x with ka chosen so that the one-way −3 dB full width is ``beamwidth_deg`` (solved here)."""
+    x3 = brentq(lambda x: 2 * j1(x) / x - 2 ** -0.5, 0.5, 3.0)
+    ka = x3 / np.sin(np.radians(beamwidth_deg) / 2)
+    x = ka * np.sin(theta)
+    return np.where(x < 1e-9, 1.0, 2 * j1(np.maximum(x, 1e-9)) / np.maximum(x, 1e-9))
+
+
+@pytest.fixture(scope="module")
+def sounding():
+    sonar = EchoSounder(frequency_hz=200e3, beamwidth_deg=10.0, max_range_m=30.0)
+    traj = se.Trajectory.line((0, 0, H), (1, 0, H), 2)
+    return se.simulate(flat_scene(), traj, sonar, se.Pulse.cw(duration_s=100e-6, taper=0.0),
+                       start_time="2000-01-01")
+
+
+def test_one_channel_and_first_return_at_2h_over_c(sounding):
+    rec = sounding
+    assert rec.channels == ("down",) and rec.data.shape[1] == 1
+    with pytest.raises(se.ConfigError, match="no channel 'port'"):
+        rec.port
+    down = rec.channel("down")
+    t0 = 2 * H / rec.sonar.sound_speed_m_s
+    dt = 1 / rec.sonar.sample_rate_hz
+    first = rec.time_s[np.argmax(down[0] > 0)]
+    assert abs(first - t0) <= dt
+    assert np.all(down[:, rec.time_s < t0 - dt] == 0)
+    np.testing.assert_allclose(rec.altitude_m, H, rtol=1e-9)
+
+
+def _quadrature(rec):
+    s = rec.sonar
+    grid = np.linspace(H, 30.0, 400001)
+    theta = np.arccos(H / grid)
+    g = 2 * np.pi * _piston(theta, 10.0) ** 4 * 10 ** (-2.7) * (H / grid) ** 2 \
+        * 10 ** (-2 * s.alpha_db_per_m * grid / 10) / grid ** 3
+    cum = np.concatenate([[0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(grid))])
+    r, ext = rec.slant_range_m, s.sound_speed_m_s * 100e-6 / 2
+    return np.interp(r, grid, cum) - np.interp(r - ext, grid, cum)
+
+
+def test_level_against_quadrature(sounding):
+    """E[I](t) = ∫ g(R)|p|² dR, g(R) = 2π·b⁴(θ)·σ(h/R)·10^(−2αR/10)/R³, cos θ = h/R (flat floor, ring about nadir).
+
+    The energy of the main lobe and the side lobes at the default rate; sample by sample
+    at 10 samples per pulse length, where the lobe's steep edge is resolved in time.
+    """
+    rec = sounding
+    band = (rec.slant_range_m > H) & (rec.slant_range_m < 25.0)
+    want = _quadrature(rec)
+    got = rec.channel("down").mean(axis=0)
+    assert abs(10 * np.log10(got[band].sum() / want[band].sum())) < 0.05
+    fine = se.simulate(flat_scene(), se.Trajectory.line((0, 0, H), (1, 0, H), 2),
+                       EchoSounder(frequency_hz=200e3, beamwidth_deg=10.0, max_range_m=30.0, sample_rate_hz=400e3),
+                       se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01")
+    want = _quadrature(fine)
+    lobe = want > 0.1 * want.max()
+    assert lobe.sum() > 50
+    err_db = 10 * np.log10(fine.channel("down").mean(axis=0)[lobe] / want[lobe])
+    assert np.max(np.abs(err_db)) < 0.1, np.max(np.abs(err_db))
+
+
+def test_echo_sounder_outputs_and_limits(sounding, tmp_path):
+    rec = sounding
+    rec.save(tmp_path / "r.npz")
+    back = se.Record.load(tmp_path / "r.npz")
+    assert back.channels == ("down",) and isinstance(back.sonar, EchoSounder)
+    np.testing.assert_array_equal(back.data, rec.data)
+    assert list(rec.to_xarray().data_vars)[0] == "down"
+    assert rec.waterfall(max_columns=None).shape == (2, rec.data.shape[2])
+    with pytest.raises(se.ConfigError, match="XTF holds side-scan records"):
+        rec.to_xtf(tmp_path / "r.xtf")
+    with pytest.raises(se.ConfigError, match="labels are made for side-scan"):
+        se.simulate(flat_scene(), se.Trajectory.line((0, 0, H), (1, 0, H), 2), EchoSounder(), labels=True)
+    with pytest.raises(se.ConfigError, match="EchoSounder.beamwidth_deg"):
+        EchoSounder(beamwidth_deg=0.0)
