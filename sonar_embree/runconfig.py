@@ -7,7 +7,7 @@ band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_
 ``[trajectory]`` (``kind`` = "line" | "waypoints" | "csv" and that constructor's
 arguments), ``[[objects]]`` (``path`` to a mesh file *or* ``seafloor`` =
 "flat" | "perlin" | "ripples" with that function's arguments; optional ``label``,
-``material = {backscatter_db = …}`` and, for mesh files, ``is_seafloor`` and ``materials``, a table of
+``material = {backscatter_db = …}`` or ``{law = {kind = "kirchhoff", …}}`` and, for mesh files, ``is_seafloor`` and ``materials``, a table of
 per-object materials by object name) and ``[output]``. Relative paths are taken
 from the config file's folder. Any unknown key is an error naming it.
 """
@@ -28,6 +28,7 @@ from .config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChai
 from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .io import registry
+from .laws import LAWS
 from .scene import Scene
 from .trajectory import Trajectory
 from .waterfall import DISPLAY_DEFAULTS, check_display
@@ -212,7 +213,18 @@ def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:
 
 
 def parse_material(table, source: str, where: str) -> Material:
+    """A ``material`` table: ``backscatter_db``, ``two_sided`` and ``law = { kind = "kirchhoff", … }``."""
     _check_keys(f"{where} material", table, field_names(Material), source)
+    table = dict(table)
+    if "law" in table:
+        law = table["law"]
+        if not isinstance(law, dict) or law.get("kind") not in LAWS:
+            raise ConfigError(f"{source}: {where} material law must be a table with kind one of "
+                              f"{list(LAWS)}, got {law!r}")
+        law = dict(law)
+        cls = LAWS[law.pop("kind")]
+        _check_keys(f"{where} material law", law, field_names(cls), source)
+        table["law"] = _build(source, f"{where} material law", cls, law)
     return _build(source, f"{where} material", Material, table)
 
 

@@ -74,3 +74,15 @@ def test_kirchhoff_flat_floor_against_quadrature():
     kir = 10 * np.log10(analytic.flat_floor_expected_intensity(np.array([11.0, 40.0]), sigma=lambda c: (
         analytic.kirchhoff_monostatic(np.arccos(c), r0, s))))
     assert kir[0] - lam[0] > 10 and kir[1] < lam[1]  # the specular lobe near nadir, darker far out
+
+
+def test_toml_material_law(tmp_path):
+    from sonar_embree import runconfig
+
+    mat = runconfig.parse_material({"law": {"kind": "kirchhoff", "reflection_coefficient": 0.6, "slope_rms": 0.2}},
+                                   "x.toml", "object #1")
+    assert mat.law == Kirchhoff(0.6, 0.2)
+    with pytest.raises(se.ConfigError, match="x.toml: object #1 material law must be a table with kind"):
+        runconfig.parse_material({"law": {"kind": "phong"}}, "x.toml", "object #1")
+    with pytest.raises(se.ConfigError, match="unknown key 'slope' in object #1 material law"):
+        runconfig.parse_material({"law": {"kind": "kirchhoff", "slope": 0.2}}, "x.toml", "object #1")

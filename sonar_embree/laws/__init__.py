@@ -23,6 +23,8 @@ from .lambert import Lambert
 
 #: The most numbers a law reads per object.
 MAX_PARAMS = 4
+#: The laws by the name a TOML ``law = { kind = "…", … }`` table gives.
+LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff}
 
 
 def law_table(laws) -> tuple:
@@ -53,4 +55,4 @@ def law_table(laws) -> tuple:
     return tuple(kinds), object_law, params
 
 
-__all__ = ["Kirchhoff", "Lambert", "MAX_PARAMS", "law_table"]
+__all__ = ["Kirchhoff", "LAWS", "Lambert", "MAX_PARAMS", "law_table"]
