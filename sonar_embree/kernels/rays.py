@@ -1,0 +1,208 @@
+"""Front-end kernels of the side-scan fan: ray placement, directions, propagation per hit (docs/physics.md §2, §3, §7)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
+
+
+@njit(cache=True, nogil=True)
+def place_rows(edges, density, el_start, beta, dbeta):
+    """Elevation rays of every row with the wanted density per cell; their cells tile the span.
+
+    Parameters
+    ----------
+    edges : (m,) float64
+        Cell edges in rad (increasing), shared by all rows.
+    density : (rows, m − 1) float64
+        Wanted rays per radian in each cell.
+    el_start : (rows + 1,) int64
+        Row r gets n = el_start[r + 1] − el_start[r] ≥ 1 rays (fewer than the density
+        asks for scales it down uniformly).
+    beta, dbeta : (el_start[-1],) float64
+        Written with each ray's depression (the middle of its cell) and cell width, rad.
+    """
+    m = edges.shape[0]
+    cum = np.empty(m)
+    for r in range(density.shape[0]):
+        cum[0] = 0.0
+        for c in range(m - 1):
+            cum[c + 1] = cum[c] + density[r, c] * (edges[c + 1] - edges[c])
+        n = el_start[r + 1] - el_start[r]
+        total = cum[m - 1]
+        c = 0
+        lo = edges[0]
+        for j in range(n):
+            if j == n - 1:
+                hi = edges[m - 1]
+            else:
+                target = total * (j + 1) / n
+                while c < m - 2 and cum[c + 1] < target:
+                    c += 1
+                span = cum[c + 1] - cum[c]
+                f = (target - cum[c]) / span if span > 0.0 else 0.0
+                hi = edges[c] + f * (edges[c + 1] - edges[c])
+            beta[el_start[r] + j] = 0.5 * (lo + hi)
+            dbeta[el_start[r] + j] = hi - lo
+            lo = hi
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def fan_rays(s, cos_beta, sin_beta, el_start, rot, pos, dirs, origins):
+    """Float32 origins and world directions of every ray of a block of pings, for Embree.
+
+    Parameters
+    ----------
+    s : (n_az,) float64
+        Along-track direction cosines.
+    cos_beta, sin_beta : (el_start[-1],) float64
+        cos β and sin β of the depression β of each row's elevation rays.
+    el_start : (rows + 1,) int64
+        Row offsets into ``cos_beta`` (rows = 2 × pings).
+    rot : (pings, 3, 3) float64
+        Body-to-world rotation per ping (columns forward, starboard, down).
+    pos : (pings, 3) float64
+        Sonar position per ping in the scene's local frame, m.
+    dirs, origins : (n_az·el_start[-1], 3) float32
+        Written with unit directions and origins.
+    """
+    n_az = s.shape[0]
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        n_el = el_start[r + 1] - el_start[r]
+        base = n_az * el_start[r]
+        for a in range(n_az):
+            sa = s[a]
+            cpsi = math.sqrt(1.0 - sa * sa)
+            for j in range(n_el):
+                d0 = sa
+                d1 = side * cpsi * cos_beta[el_start[r] + j]
+                d2 = cpsi * sin_beta[el_start[r] + j]
+                i = base + a * n_el + j
+                for q in range(3):
+                    dirs[i, q] = rot[b, q, 0] * d0 + rot[b, q, 1] * d1 + rot[b, q, 2] * d2
+                    origins[i, q] = pos[b, q]
+
+
+@njit(cache=True, nogil=True)
+def _sinc(x):
+    if abs(x) < 1e-8:
+        return 1.0 - x * x / 6.0
+    return math.sin(x) / x
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals,
+               face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, range_out, extent_out,
+               weight_out, cos_out, points_out):
+    """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
+
+    (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
+    (:mod:`sonar_embree.laws`).
+
+    The hit range is the float64 intersection with the hit triangle's plane (Embree's
+    float32 distance where that is ill-conditioned). A ray of cell ds × dβ on a
+    surface of normal n̂ returns
+
+        w = Γ⁴ · exp(−2α'R) · ds·dβ / max(R, R_min)²     (× σ(θi)/cos θi by the law)
+
+    spread over the slant-range interval R ± ΔR/2 its cell covers on the plane,
+    ΔR = R·|n̂·∂u/∂β| / cos θi · dβ (at most ``slope_cap_m_rad``·dβ). Misses, back
+    faces (unless two-sided: then cos θi = |n̂·u|), grazing hits (cos θi ≤ 1e-9) and
+    hits beyond ``max_range_m`` get w = 0.
+
+    Parameters
+    ----------
+    s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos
+        The block's fan, as for :func:`fan_rays`; ``dbeta`` the cell width of each
+        elevation ray, ``ds`` the azimuth spacing.
+    prim : (n,) int32
+        Triangle hit by each ray, −1 for a miss.
+    tfar : (n,) float32
+        Embree's hit distance, m.
+    vertices : (v, 3) float64; faces : (f, 3) int32; face_normals : (f, 3) float64
+        The scene in its local frame.
+    face_two_sided : (f,) bool
+        Triangles that scatter from both sides (two-sided materials).
+    beam : (4,) float64
+        k·lx/2, k·ly/2, tilt δ (rad) and 0 (reserved).
+    two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad : float
+        Two-way absorption (Np/m), near-field range bound, range window and bound
+        on |dR/dβ| (m/rad).
+    range_out, extent_out, weight_out, cos_out : (n,) float64
+        Written with R (m), ΔR (m), w and cos θi (0 where w = 0).
+    points_out : (n, 3) or (0, 3) float64
+        Written with the hit points (local frame, m) when it has n rows.
+    """
+    n_az = s.shape[0]
+    want_points = points_out.shape[0] == range_out.shape[0]
+    cos_t = math.cos(beam[2])
+    sin_t = math.sin(beam[2])
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        n_el = el_start[r + 1] - el_start[r]
+        base = n_az * el_start[r]
+        for a in range(n_az):
+            sa = s[a]
+            cpsi = math.sqrt(1.0 - sa * sa)
+            g_az = _sinc(beam[0] * sa)
+            for j in range(n_el):
+                i = base + a * n_el + j
+                range_out[i] = math.inf
+                extent_out[i] = 0.0
+                weight_out[i] = 0.0
+                cos_out[i] = 0.0
+                if want_points:
+                    points_out[i, 0] = 0.0
+                    points_out[i, 1] = 0.0
+                    points_out[i, 2] = 0.0
+                t = prim[i]
+                if t < 0:
+                    continue
+                cb = cos_beta[el_start[r] + j]
+                sb = sin_beta[el_start[r] + j]
+                e0 = sa
+                e1 = side * cpsi * cb
+                e2 = cpsi * sb
+                f1 = -side * cpsi * sb  # ∂u/∂β in body axes (0, f1, f2)
+                f2 = cpsi * cb
+                dn = 0.0
+                num = 0.0
+                fn = 0.0
+                for q in range(3):
+                    dq = rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2
+                    nq = face_normals[t, q]
+                    dn += dq * nq
+                    num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
+                    fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
+                t_emb = np.float64(tfar[i])
+                rr = t_emb
+                if abs(dn) > REFIT_MIN_COS:
+                    t64 = num / dn
+                    if abs(t64 - t_emb) <= REFIT_REL_TOL * (1.0 + t_emb):
+                        rr = t64
+                cos_i = -dn
+                if cos_i < 0.0 and face_two_sided[t]:
+                    cos_i = dn
+                if not (cos_i > 1e-9) or not (rr <= max_range_m):
+                    continue
+                if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle
+                    continue
+                g = g_az * _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))  # sin(β − δ)
+                g2 = g * g
+                rb = rr if rr > min_range_m else min_range_m
+                range_out[i] = rr
+                weight_out[i] = g2 * g2 * math.exp(-two_way_np_per_m * rr) * ds * dbeta[el_start[r] + j] / (rb * rb)
+                cos_out[i] = cos_i
+                slope = rr * abs(fn) / cos_i
+                if slope > slope_cap_m_rad:
+                    slope = slope_cap_m_rad
+                extent_out[i] = slope * dbeta[el_start[r] + j]
+                if want_points:
+                    points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
+                    points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
+                    points_out[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)

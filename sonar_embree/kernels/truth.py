@@ -1,0 +1,138 @@
+"""Ground-truth kernels: each centre-line sample labelled from the footprints that cover it (docs/physics.md §9)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._numba import njit, prange
+
+
+@njit(cache=True, nogil=True)
+def _along_line(px, py, pz, dx, dy, dz, ox, oy, oz, r_target, half_len):
+    """Offset t along the footprint line P + t·d (unit d) where |P + t·d − O| = r_target, |t| ≤ half_len."""
+    qx = px - ox
+    qy = py - oy
+    qz = pz - oz
+    b = qx * dx + qy * dy + qz * dz
+    c = qx * qx + qy * qy + qz * qz - r_target * r_target
+    disc = b * b - c
+    if disc <= 0.0:  # the line never reaches that range: its closest point
+        t = -b
+    else:  # the root nearest t = 0, in the form that does not cancel
+        root = math.sqrt(disc)
+        if b >= 0.0:
+            t = -c / (b + root)
+        else:
+            t = c / (root - b)
+    if t > half_len:
+        t = half_len
+    elif t < -half_len:
+        t = -half_len
+    return t
+
+
+@njit(cache=True, nogil=True)
+def _label_ray(dr, px, py, pz, dx, dy, dz, ox, oy, oz, half_len, origin_z, height_row, ground_row, n):
+    t = _along_line(px, py, pz, dx, dy, dz, ox, oy, oz, n * dr, half_len)
+    x = px + t * dx - ox
+    y = py + t * dy - oy
+    height_row[n] = pz + t * dz + origin_z
+    ground_row[n] = math.sqrt(x * x + y * y)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_point, lit_dir, hid_range, hid_extent,
+               hid_object, hid_point, hid_dir, pos, is_seafloor, origin_z, best, kind, object_id, shadow_of,
+               height, ground):
+    """Per-sample ground truth of a block of pings from its centre-line rays.
+
+    A sample n (slant range n·dr) belongs to a ray when its range cell
+    [(n − ½)·dr, (n + ½)·dr) overlaps the ray's footprint [R − ΔR/2, R + ΔR/2].
+    Among the lit rays (score > 0) that claim it, the highest score
+    (echo intensity per metre of range) wins: kind 1 (seafloor) or 2 (object),
+    with that ray's object. Samples no lit ray claims but a hidden footprint
+    does (the first seafloor surface behind a ray's first hit) become kind 3
+    (shadow), with the occluding object in ``shadow_of``. The rest stay kind 0
+    (water column: no surface at that range). Height and ground range are those
+    of the point at range n·dr on the footprint's line (exact on planar facets).
+
+    Parameters
+    ----------
+    el_start : (rows + 1,) int64
+        Ray offsets of each row (row = 2·ping + side).
+    dr : float
+        Slant-range spacing of the samples, m.
+    lit_range, lit_extent, lit_score : (n,) float64
+        First-hit range R (m), footprint ΔR (m) and score (0: not lit).
+    lit_object : (n,) int32
+        Object of the first hit.
+    lit_point, lit_dir : (n, 3) float64
+        First-hit point (local frame, m) and unit direction of its footprint line.
+    hid_range, hid_extent, hid_object, hid_point, hid_dir
+        The same for the hidden seafloor hit (range NaN: none); ``hid_object`` is
+        the occluder (the first hit's object).
+    pos : (pings, 3) float64
+        Sonar positions, local frame, m.
+    is_seafloor : (n_objects,) bool
+    origin_z : float
+        World z of the local origin, m.
+    best : (rows, n_s) float64
+        Scratch.
+    kind : (rows, n_s) int8; object_id, shadow_of : (rows, n_s) int32; height, ground : (rows, n_s) float32
+        Written.
+    """
+    n_s = kind.shape[1]
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        ox = pos[b, 0]
+        oy = pos[b, 1]
+        oz = pos[b, 2]
+        for n in range(n_s):
+            best[r, n] = 0.0
+            kind[r, n] = 0
+            object_id[r, n] = -1
+            shadow_of[r, n] = -1
+            height[r, n] = np.nan
+            ground[r, n] = np.nan
+        for layer in range(2):
+            for j in range(el_start[r], el_start[r + 1]):
+                if layer == 0:
+                    if not (lit_score[j] > 0.0):
+                        continue
+                    rr = lit_range[j]
+                    ext = lit_extent[j]
+                    pt = lit_point[j]
+                    dv = lit_dir[j]
+                else:
+                    rr = hid_range[j]
+                    if not (rr == rr):
+                        continue
+                    ext = hid_extent[j]
+                    pt = hid_point[j]
+                    dv = hid_dir[j]
+                lo = math.floor((rr - 0.5 * ext) / dr - 0.5) + 1.0
+                hi = math.ceil((rr + 0.5 * ext) / dr + 0.5) - 1.0
+                if hi < 0.0 or lo > n_s - 1.0:
+                    continue
+                n_lo = int(max(lo, 0.0))
+                n_hi = int(min(hi, n_s - 1.0))
+                # |dR/dt| = |d·(P − O)|/R: half the footprint (plus half a cell) in t
+                slope = abs(dv[0] * (pt[0] - ox) + dv[1] * (pt[1] - oy) + dv[2] * (pt[2] - oz)) / rr
+                half_len = (0.5 * ext + dr) / max(slope, 1e-6)
+                for n in range(n_lo, n_hi + 1):
+                    if layer == 0:
+                        score = lit_score[j]
+                        if score <= best[r, n]:
+                            continue
+                        best[r, n] = score
+                        obj = lit_object[j]
+                        kind[r, n] = 1 if is_seafloor[obj] else 2
+                        object_id[r, n] = obj
+                    else:
+                        if kind[r, n] != 0:
+                            continue
+                        kind[r, n] = 3
+                        shadow_of[r, n] = hid_object[j]
+                    _label_ray(dr, pt[0], pt[1], pt[2], dv[0], dv[1], dv[2], ox, oy, oz, half_len,
+                               origin_z, height[r], ground[r], n)
