@@ -79,7 +79,8 @@ class BlockEchoes:
 
     ray_start: np.ndarray   # (rows + 1,) int64
     range_m: np.ndarray     # (n,) float64 slant range (inf: no echo)
-    extent_m: np.ndarray    # (n,) float64 slant-range interval the ray's cell covers
+    time_s: np.ndarray      # (n,) float64 two-way travel time 2R/c (inf: no echo)
+    extent_s: np.ndarray    # (n,) float64 travel-time interval the ray's cell covers, 2ΔR/c
     weight: np.ndarray      # (n,) float64 expected intensity (docs/physics.md §3)
     point_m: np.ndarray     # (n, 3) float64 hit points in the local frame, or (0, 3)
     altitude_m: np.ndarray  # (pings,) nadir range, NaN if none
@@ -138,7 +139,7 @@ def apply_laws(compiled, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray
 
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
-               two_way_np_per_m: float, max_range_m: float, want_points: bool = False,
+               two_way_np_per_m: float, max_range_m: float, time_per_m: float, want_points: bool = False,
                timings: dict | None = None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
@@ -154,6 +155,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
         Two-way absorption, Np/m.
     max_range_m : float
         Echoes beyond this slant range are dropped (and not searched for).
+    time_per_m : float
+        Two-way travel time per metre of slant range, 2/c (s/m).
     want_points : bool
         Also return the hit points (the speckle lattice needs them).
     timings : dict, optional
@@ -189,12 +192,12 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     t_embree += time.perf_counter() - t
 
-    rng, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     pts = np.empty((n, 3) if want_points else (0, 3))
     c = caster.compiled
     kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
                        c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
-                       max_range_m, plan.slope_cap_m_rad, rng, ext, w, cos_i, pts)
+                       max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts)
     apply_laws(c, prim, cos_i, w)
     if not plan.footprint:
         ext[:] = 0.0
@@ -202,4 +205,4 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     if timings is not None:
         timings["embree"] = timings.get("embree", 0.0) + t_embree
         timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree
-    return BlockEchoes(n_az * el_start, rng, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, prim, tfar)
+    return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, prim, tfar)

@@ -96,8 +96,8 @@ def _sinc(x):
 
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals,
-               face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, range_out, extent_out,
-               weight_out, cos_out, points_out):
+               face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,
+               time_out, extent_out, weight_out, cos_out, points_out):
     """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
 
     (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
@@ -132,8 +132,11 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
     two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad : float
         Two-way absorption (Np/m), near-field range bound, range window and bound
         on |dR/dβ| (m/rad).
-    range_out, extent_out, weight_out, cos_out : (n,) float64
-        Written with R (m), ΔR (m), w and cos θi (0 where w = 0).
+    time_per_m : float
+        Two-way travel time per metre of slant range, 2/c (s/m).
+    range_out, time_out, extent_out, weight_out, cos_out : (n,) float64
+        Written with R (m), the travel time 2R/c (s, inf: no echo), the travel-time
+        extent ΔR·2/c (s), w and cos θi (0 where w = 0).
     points_out : (n, 3) or (0, 3) float64
         Written with the hit points (local frame, m) when it has n rows.
     """
@@ -153,6 +156,7 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
             for j in range(n_el):
                 i = base + a * n_el + j
                 range_out[i] = math.inf
+                time_out[i] = math.inf
                 extent_out[i] = 0.0
                 weight_out[i] = 0.0
                 cos_out[i] = 0.0
@@ -196,12 +200,13 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
                 g2 = g * g
                 rb = rr if rr > min_range_m else min_range_m
                 range_out[i] = rr
+                time_out[i] = rr * time_per_m
                 weight_out[i] = g2 * g2 * math.exp(-two_way_np_per_m * rr) * ds * dbeta[el_start[r] + j] / (rb * rb)
                 cos_out[i] = cos_i
                 slope = rr * abs(fn) / cos_i
                 if slope > slope_cap_m_rad:
                     slope = slope_cap_m_rad
-                extent_out[i] = slope * dbeta[el_start[r] + j]
+                extent_out[i] = slope * dbeta[el_start[r] + j] * time_per_m
                 if want_points:
                     points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
                     points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)

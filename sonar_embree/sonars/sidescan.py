@@ -45,14 +45,13 @@ class SideScanFrontEnd:
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
         """
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
-                         want_points=want_points, timings=clock)
-        return echoes_of(blk, self.sonar.sound_speed_m_s, caster.compiled.face_object if want_ids else None), blk
+                         2.0 / self.sonar.sound_speed_m_s, want_points=want_points, timings=clock)
+        return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
 
 
-def echoes_of(blk: BlockEchoes, sound_speed_m_s: float, face_object: np.ndarray | None = None) -> Echoes:
-    """The echo contract of a side-scan block: slant ranges → two-way travel times 2R/c (straight rays)."""
-    per_m = 2.0 / sound_speed_m_s
+def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:
+    """The echo contract of a side-scan block (travel times 2R/c of straight rays, made by the fan's kernel)."""
     ids = np.zeros(0, dtype=np.int32)
     if face_object is not None:
         ids = np.where((blk.prim >= 0) & (blk.weight > 0), face_object[np.maximum(blk.prim, 0)], -1).astype(np.int32)
-    return Echoes(2, blk.ray_start, blk.range_m * per_m, blk.extent_m * per_m, blk.weight, blk.point_m, ids)
+    return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, blk.weight, blk.point_m, ids)
