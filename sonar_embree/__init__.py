@@ -9,7 +9,7 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 from ._version import __version__
 
-from . import assets, batch, laws, seafloor, sweep
+from . import assets, batch, laws, raycast, seafloor, sweep
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
@@ -21,5 +21,5 @@ from .sonars import EchoSounder
 from .trajectory import Trajectory
 
 __all__ = ["ConfigError", "EchoSounder", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
-           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "laws", "seafloor", "simulate", "sweep",
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "laws", "raycast", "seafloor", "simulate", "sweep",
            "__version__"]
