@@ -6,7 +6,7 @@
 - sonar_embree/assets/scenes/moored_mine.obj   the same mine with its sinker on the origin (placed by the
                                   detection sweep, sonar_embree/assets/sweeps/detection.toml)
 - sonar_embree/assets/scenes/wreck.obj         the procedural patrol-boat wreck of Fig. 1, posed and sunk as in
-                                  sonar_embree.shipwreck.WRECK_POSE (its floors are procedural and
+                                  sonar_embree.scene.shipwreck.WRECK_POSE (its floors are procedural and
                                   built on first use by the configs in sonar_embree/assets/configs/)
 - docs/demo.png                   the waterfall of ``sonar-embree demo``
 
@@ -19,9 +19,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def main() -> int:
-    from sonar_embree.cli import main as cli_main
-    from sonar_embree.demo import write_anchor_mine_obj, write_moored_mine_obj
-    from sonar_embree.shipwreck import write_wreck_obj
+    from sonar_embree.runs.cli import main as cli_main
+    from sonar_embree.runs.demo import write_anchor_mine_obj, write_moored_mine_obj
+    from sonar_embree.scene.shipwreck import write_wreck_obj
 
     scenes = os.path.join(ROOT, "sonar_embree", "assets", "scenes")
     write_anchor_mine_obj(os.path.join(scenes, "anchor_mine.obj"))

@@ -60,7 +60,7 @@ def main(argv=None) -> int:
     import imageio.v3 as iio
 
     import sonar_embree as se
-    from sonar_embree.demo import anchor_mine_scene
+    from sonar_embree.runs.demo import anchor_mine_scene
     from sonar_embree.plotting import brightness_histogram_png, mosaic_png
     from sonar_embree.io.files import atomic_write
 

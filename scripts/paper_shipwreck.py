@@ -4,7 +4,7 @@
     python scripts/paper_shipwreck.py --figure 9 -o docs/shipwreck
     python scripts/paper_shipwreck.py -o docs/shipwreck            (both)
 
-The wreck of sonar_embree.shipwreck (56 m × 10.5 m, rolled 18°, sunk 1.2 m) on a
+The wreck of sonar_embree.scene.shipwreck (56 m × 10.5 m, rolled 18°, sunk 1.2 m) on a
 203 m floor, slightly rippled as in the paper's Fig. 8–9 (``--floor perlin`` for
 the Fig. 1 floor), about 2.1 M triangles. 800 pings 0.1 m apart, 15 m above the
 floor, 60 m range, 400 kHz (shipwreck.PAPER_PASS). Waterfalls: port mirrored on

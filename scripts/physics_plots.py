@@ -48,7 +48,7 @@ def beam_panels(se):
 
 
 def ping_panels(se, pings):
-    from sonar_embree.demo import anchor_mine_setup
+    from sonar_embree.runs.demo import anchor_mine_setup
 
     scene, traj, sonar, pulse = anchor_mine_setup(n_pings=pings)
     i = pings // 2

@@ -9,17 +9,18 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 from ._version import __version__
 
-from . import assets, batch, laws, raycast, seafloor, sweep
+from . import assets, laws, raycast
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
 from .record import Record
-from .scene import Scene
+from .runs import batch, demo, runconfig, sweep  # not cli: python -m sonar_embree.runs.cli runs it
+from .scene import Scene, seafloor, shipwreck
 from .simulate import simulate
 from .sonars import EchoSounder
 from .trajectory import Trajectory
 
 __all__ = ["ConfigError", "EchoSounder", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
-           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "laws", "raycast", "seafloor", "simulate", "sweep",
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "laws", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -13,9 +13,9 @@ import pytest
 import trimesh
 
 import sonar_embree as se
-from sonar_embree import cli
+from sonar_embree.runs import cli
 from sonar_embree.labels import OBJECT
-from sonar_embree.sweep import load_sweep
+from sonar_embree.runs.sweep import load_sweep
 
 SWEEP = """\
 [sweep]
@@ -132,7 +132,7 @@ def test_two_workers_on_a_scheduler_give_identical_files(sweep_file, reference, 
 
 def test_killed_batch_resumes_to_the_same_files(sweep_file, reference, tmp_path):
     out = tmp_path / "out"
-    cmd = [sys.executable, "-m", "sonar_embree.cli", "batch", str(sweep_file), "-o", str(out), "--workers", "1",
+    cmd = [sys.executable, "-m", "sonar_embree.runs.cli", "batch", str(sweep_file), "-o", str(out), "--workers", "1",
            "--no-progress"]
     proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:

@@ -8,7 +8,7 @@ import pytest
 import trimesh
 
 import sonar_embree as se
-from sonar_embree.cli import main
+from sonar_embree.runs.cli import main
 
 GOOD_TOML = """
 [sonar]
@@ -145,7 +145,7 @@ def test_missing_config_and_bad_toml(tmp_path, capsys):
 
 def test_console_script_prints_one_line_without_traceback(tmp_path):
     cfg = _write(tmp_path / "run.toml", GOOD_TOML.replace("max_range_m = 30.0", "max_range_m = -5"))
-    proc = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "render", cfg, "-o", str(tmp_path / "o")],
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "render", cfg, "-o", str(tmp_path / "o")],
                           capture_output=True, text=True)
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "Traceback" not in proc.stderr

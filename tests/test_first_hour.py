@@ -14,7 +14,8 @@ import pytest
 import trimesh
 
 import sonar_embree as se
-from sonar_embree import batch, cli
+from sonar_embree import batch
+from sonar_embree.runs import cli
 from sonar_embree.scene import write_obj
 from conftest import box
 
@@ -82,7 +83,7 @@ def test_failed_batch_leaves_no_folder_that_refuses_a_rerun(multi_sweep, tmp_pat
 
 # --- 4: quiet batches, no dashboard unless asked --------------------------------------------------------
 def test_batch_is_quiet_on_success(multi_sweep, tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "batch", str(multi_sweep), "-o",
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "batch", str(multi_sweep), "-o",
                            str(tmp_path / "out"), "--workers", "1", "--no-progress"],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
@@ -201,7 +202,7 @@ def test_disk_full_leaves_the_old_outputs_and_names_the_path(tmp_path):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (20_000, 20_000))
 
-    proc = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "render", str(cfg), "-o", str(out),
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "render", str(cfg), "-o", str(out),
                            "--no-progress", "--overwrite", "--seed", "5", "--speckle"], capture_output=True,
                           text=True, timeout=300, preexec_fn=small_disk)
     assert proc.returncode == 2
@@ -217,7 +218,7 @@ def test_ctrl_c_prints_one_line_and_leaves_nothing(tmp_path):
     cfg = tmp_path / "run.toml"
     cfg.write_text(RENDER.replace("n_pings = 4", "n_pings = 4000"))
     out = tmp_path / "out"
-    proc = subprocess.Popen([sys.executable, "-m", "sonar_embree.cli", "render", str(cfg), "-o", str(out),
+    proc = subprocess.Popen([sys.executable, "-m", "sonar_embree.runs.cli", "render", str(cfg), "-o", str(out),
                              "--no-progress"], stderr=subprocess.PIPE, text=True)
     time.sleep(6.0)
     proc.send_signal(signal.SIGINT)

@@ -10,7 +10,7 @@ import sonar_embree as se
 from conftest import box, flat_scene
 from sonar_embree import demo, shipwreck
 from sonar_embree.labels import OBJECT
-from sonar_embree.runconfig import load_run_config
+from sonar_embree.runs.runconfig import load_run_config
 from sonar_embree.scene import load_mesh
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -170,7 +170,7 @@ npz = false
     cfg = load_run_config(tmp_path / "run.toml")
     got = {o.label: (o.faces.shape[0], o.material.backscatter_db, o.seafloor) for o in cfg.scene.objects}
     assert got == {"seafloor": (2, -30.0, True), "Crate": (12, -12.0, False)}
-    from sonar_embree.cli import main
+    from sonar_embree.runs.cli import main
     assert main(["render", str(tmp_path / "run.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
     assert sorted(os.listdir(tmp_path / "out")) == ["waterfall.png"]
     (tmp_path / "bad.toml").write_text((tmp_path / "run.toml").read_text().replace("Crate =", "Crates ="))

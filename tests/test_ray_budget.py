@@ -81,7 +81,7 @@ def test_an_object_shows_at_its_range():
 
 
 def test_cli_quality_flag(tmp_path):
-    from sonar_embree.cli import main
+    from sonar_embree.runs.cli import main
 
     assert main(["demo", "-o", str(tmp_path), "--pings", "2", "--quality", "0.5", "--no-progress"]) == 0
     rec = se.Record.load(tmp_path / "record.npz")

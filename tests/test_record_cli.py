@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree.cli import main
+from sonar_embree.runs.cli import main
 from conftest import box, flat_scene, line_along_x
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -57,9 +57,9 @@ def test_cli_render_example_config(tmp_path):
 
 def test_cli_help_explains_options():
     for argv in (["--help"], ["render", "--help"], ["demo", "--help"]):
-        out = subprocess.run([sys.executable, "-m", "sonar_embree.cli", *argv], capture_output=True, text=True)
+        out = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", *argv], capture_output=True, text=True)
         assert out.returncode == 0
-    render = subprocess.run([sys.executable, "-m", "sonar_embree.cli", "render", "--help"],
+    render = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "render", "--help"],
                             capture_output=True, text=True).stdout
     for key in ("[sonar]", "[trajectory]", "[[objects]]", "backscatter_db", "--no-progress"):
         assert key in render
@@ -68,7 +68,7 @@ def test_cli_help_explains_options():
 def test_demo_command_writes_png(tmp_path):
     """The README's demo command, through the installed console script."""
     exe = os.path.join(os.path.dirname(sys.executable), "sonar-embree")
-    cmd = [exe] if os.path.exists(exe) else [sys.executable, "-m", "sonar_embree.cli"]
+    cmd = [exe] if os.path.exists(exe) else [sys.executable, "-m", "sonar_embree.runs.cli"]
     proc = subprocess.run(cmd + ["demo", "-o", str(tmp_path / "demo"), "--pings", "40", "--no-progress"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr

@@ -4,7 +4,7 @@ import pytest
 import trimesh
 
 import sonar_embree as se
-from sonar_embree.demo import write_anchor_mine_obj
+from sonar_embree.runs.demo import write_anchor_mine_obj
 
 
 def test_multi_object_obj_keeps_one_label_per_object(tmp_path):

@@ -201,8 +201,8 @@ def test_fm_checks_against_the_sonar():
 
 
 def test_run_config_and_cli_flags_set_the_chain(tmp_path, capsys):
-    from sonar_embree.cli import main
-    from sonar_embree.runconfig import load_run_config
+    from sonar_embree.runs.cli import main
+    from sonar_embree.runs.runconfig import load_run_config
 
     cfg = tmp_path / "run.toml"
     cfg.write_text("""

@@ -1,6 +1,6 @@
 """Batch rendering of sweeps on Dask (the only module that imports dask/distributed).
 
-:func:`run` expands a sweep (:mod:`sonar_embree.sweep`) into jobs, splits each
+:func:`run` expands a sweep (:mod:`sonar_embree.runs.sweep`) into jobs, splits each
 job's trajectory into tasks of ``pings_per_task`` pings (``simulate`` with
 ``ping_offset``: the pieces join into the same bits as one call), runs them on a
 Dask cluster (a ``LocalCluster`` it starts and stops, or the caller's client /
@@ -27,11 +27,11 @@ import logging
 import os
 import tempfile
 
-from .errors import ConfigError
-from .io import registry
-from .io.coco import merge, write_json
-from .io.files import atomic_job_folder, clean_stale
-from .record import Record
+from ..errors import ConfigError
+from ..io import registry
+from ..io.coco import merge, write_json
+from ..io.files import atomic_job_folder, clean_stale
+from ..record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
@@ -49,7 +49,7 @@ def _scene(spec: SceneSpec, seed: int):
 
 def render_part(spec: SceneSpec, job: Job, start: int, stop: int) -> Record:
     """Simulate pings ``start … stop − 1`` of a job (a Dask task)."""
-    from .simulate import simulate
+    from ..simulate import simulate
 
     return simulate(_scene(spec, job.seed), job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan,
                     chain=job.chain, labels=job.labels, keep_complex=job.keep_complex, ping_offset=start,
@@ -78,7 +78,7 @@ def preflight(sweep: Sweep) -> None:
     cannot be made (a COCO category, a label, a format) stops in seconds with one line
     instead of after the jobs have rendered.
     """
-    from .errors import SonarEmbreeError
+    from ..errors import SonarEmbreeError
 
     seen = set()
     try:
@@ -157,7 +157,7 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
     Parameters
     ----------
     sweep : Sweep or str or PathLike
-        A loaded sweep or its TOML file (:func:`sonar_embree.sweep.load_sweep`).
+        A loaded sweep or its TOML file (:func:`sonar_embree.runs.sweep.load_sweep`).
     out_dir : str or PathLike
         Output folder: new or empty, or (with ``resume``) one this sweep wrote before.
     client : distributed.Client, optional

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import trimesh
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 
 def _size(size_m):

@@ -10,9 +10,9 @@ import logging
 import os
 import sys
 
-from .errors import SonarEmbreeError
-from .io import registry
-from .io.files import STALE_PREFIXES
+from ..errors import SonarEmbreeError
+from ..io import registry
+from ..io.files import STALE_PREFIXES
 
 EPILOG = """\
 Outputs (in OUT/): waterfall.png (port mirrored on the left, starboard on the right,
@@ -134,7 +134,7 @@ def _parser() -> argparse.ArgumentParser:
 def _examples(args) -> list:
     import shutil
 
-    from . import assets
+    from .. import assets
 
     if args.copy is None:
         return [f"{kind}/{name}\t{assets.path(name)}" for kind in assets.KINDS for name in assets.names(kind)]
@@ -172,7 +172,7 @@ def _chain(args, base=None):
     """The signal chain of ``base`` (default: SignalChain()) with the command-line overrides."""
     import dataclasses
 
-    from .config import SignalChain
+    from ..config import SignalChain
 
     base = SignalChain() if base is None else base
     overrides = {k: getattr(args, k) for k in _CHAIN_FLAGS if getattr(args, k) is not None}
@@ -185,7 +185,7 @@ def _fan(args, base=None):
     """The fan settings of ``base`` (default: FanSettings()) with ``--quality`` applied."""
     import dataclasses
 
-    from .config import FanSettings
+    from ..config import FanSettings
 
     base = FanSettings() if base is None else base
     return base if args.quality is None else dataclasses.replace(base, quality=args.quality)
@@ -206,7 +206,7 @@ def _check_output_folder(out_dir: str, overwrite: bool) -> None:
 
 
 def _run(args) -> list:
-    from .simulate import simulate
+    from ..simulate import simulate
 
     if args.command == "examples":
         return _examples(args)

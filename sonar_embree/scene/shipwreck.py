@@ -13,10 +13,10 @@ import numpy as np
 import trimesh
 
 from . import seafloor
-from .config import Material
-from .errors import ConfigError
-from .scene import Scene, write_obj
-from .trajectory import Trajectory
+from ..config import Material
+from ..errors import ConfigError
+from .meshes import Scene, write_obj
+from ..trajectory import Trajectory
 
 HULL_LENGTH_M = 56.0
 HULL_BEAM_M = 10.5

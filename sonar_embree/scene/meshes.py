@@ -17,9 +17,9 @@ from functools import cached_property
 import numpy as np
 import trimesh
 
-from .config import Material
-from .errors import SceneError
-from .laws import law_table
+from ..config import Material
+from ..errors import SceneError
+from ..laws import law_table
 
 log = logging.getLogger(__name__)
 
@@ -177,7 +177,7 @@ def write_obj(path, named_meshes, comment: str = "") -> None:
     Coordinates in metres with 10 µm resolution (``%.5f``); :meth:`Scene.load` reads
     the objects back as separately labelled parts.
     """
-    from .io.files import atomic_write
+    from ..io.files import atomic_write
 
     def write(tmp):
         lines, base = [f"# {line}" for line in comment.splitlines()], 1

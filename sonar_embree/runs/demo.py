@@ -8,10 +8,10 @@ from __future__ import annotations
 
 import trimesh
 
-from . import seafloor
-from .config import Material, Pulse, Sonar
-from .scene import Scene, write_obj
-from .trajectory import Trajectory
+from ..scene import seafloor
+from ..config import Material, Pulse, Sonar
+from ..scene import Scene, write_obj
+from ..trajectory import Trajectory
 
 #: Waterfall display of the demo: display-only TVG, 35 dB below the brightest 0.01 % (the objects),
 #: so the floor is grey and the shadows show.
@@ -57,7 +57,7 @@ def write_anchor_mine_obj(path) -> None:
     """Write the mine (without seafloor) as a multi-object OBJ, one named object per part."""
     write_obj(path, [(label, mesh) for label, mesh, _ in anchor_mine_objects()],
               "sonar_embree anchor-mine test scene (Woock & Beyerer 4.1), metres, z up\n"
-              "written by scripts/make_assets.py (sonar_embree.demo.write_anchor_mine_obj)")
+              "written by scripts/make_assets.py (sonar_embree.runs.demo.write_anchor_mine_obj)")
 
 
 def write_moored_mine_obj(path) -> None:
@@ -69,4 +69,4 @@ def write_moored_mine_obj(path) -> None:
         m.apply_translation(shift)
         parts.append((label, m))
     write_obj(path, parts, "sonar_embree moored mine: the anchor-mine parts with the sinker on the origin, "
-              "metres, z up\nwritten by scripts/make_assets.py (sonar_embree.demo.write_moored_mine_obj)")
+              "metres, z up\nwritten by scripts/make_assets.py (sonar_embree.runs.demo.write_moored_mine_obj)")

@@ -1,4 +1,4 @@
-"""Sweeps: a TOML description of many simulations, expanded into jobs (for :mod:`sonar_embree.batch`).
+"""Sweeps: a TOML description of many simulations, expanded into jobs (for :mod:`sonar_embree.runs.batch`).
 
 A sweep file holds the tables of a render config (``[sonar]``, ``[pulse]``,
 ``[fan]``, ``[simulation]`` without ``seed``) as the base settings, plus:
@@ -43,13 +43,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import assets, runconfig
-from .io import registry
-from .config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
-from .environment import Environment
-from .errors import ConfigError, SonarEmbreeError
-from .scene import Scene, load_mesh
-from .trajectory import Trajectory
+from . import runconfig
+
+from .. import assets
+from ..io import registry
+from ..config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from ..environment import Environment
+from ..errors import ConfigError, SonarEmbreeError
+from ..scene import Scene, load_mesh
+from ..trajectory import Trajectory
 
 TOP_KEYS = ("sweep", "sonar", "environment", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
 SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex", "start_time")
@@ -121,7 +123,7 @@ class SceneSpec:
                 runconfig.add_object(scene, obj, self.source, self.base, where)
         caster = None
         if placed and scene.objects:  # instances rest on what lies below them (floors and fixed meshes)
-            from .raycast import RayCaster
+            from ..raycast import RayCaster
             caster = RayCaster.for_scene(scene.compiled())
         support = scene.compiled() if caster is not None else None
         top = scene.bounds[1, 2] + 1.0 if caster is not None else 0.0
@@ -235,7 +237,7 @@ class Sweep:
 
     def manifest(self) -> dict:
         """What identifies the sweep's outputs (written as OUT/sweep.json, compared on resume)."""
-        from ._version import __version__
+        from .._version import __version__
 
         jobs = [j.describe(self) for j in self.jobs]
         body = {"name": self.name, "outputs": list(self.outputs),
@@ -294,7 +296,7 @@ def _input_files(base: str, data: dict) -> list:
 
 def _start_time(value, src) -> str:
     """``[sweep] start_time`` (TOML datetime or ISO 8601 string) as an ISO 8601 UTC string."""
-    from .trajectory import iso_utc
+    from ..trajectory import iso_utc
 
     try:
         return iso_utc(value)

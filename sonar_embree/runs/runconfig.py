@@ -23,15 +23,17 @@ try:
 except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
-from . import assets, seafloor
-from .config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
-from .environment import Environment
-from .errors import ConfigError, SceneError, SonarEmbreeError
-from .io import registry
-from .laws import LAWS
-from .scene import Scene
-from .trajectory import Trajectory
-from .waterfall import DISPLAY_DEFAULTS, check_display
+from .. import assets
+
+from ..scene import seafloor
+from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from ..environment import Environment
+from ..errors import ConfigError, SceneError, SonarEmbreeError
+from ..io import registry
+from ..laws import LAWS
+from ..scene import Scene
+from ..trajectory import Trajectory
+from ..waterfall import DISPLAY_DEFAULTS, check_display
 
 SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
 TRAJECTORY_KINDS = {
