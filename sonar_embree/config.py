@@ -7,8 +7,9 @@ SI units inside; degrees and dB only in field names that say so (``tilt_deg``,
 """
 from __future__ import annotations
 
-import math
 import dataclasses
+import inspect
+import math
 from dataclasses import dataclass
 
 from .environment import Environment
@@ -195,7 +196,7 @@ def _sonar_init_with_medium(self, *args, **kwargs):
 
 
 _sonar_init_with_medium.__doc__ = _sonar_init.__doc__
-_sonar_init_with_medium.__signature__ = __import__("inspect").signature(_sonar_init)
+_sonar_init_with_medium.__signature__ = inspect.signature(_sonar_init)
 Sonar.__init__ = _sonar_init_with_medium
 
 @dataclass(frozen=True)

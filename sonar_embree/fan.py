@@ -18,6 +18,7 @@ import numpy as np
 
 from . import beam, kernels
 from .config import FanSettings, Sonar
+from .laws import apply_laws
 from .raycast import Caster
 
 #: A probe cell with nothing within range on both ends and both neighbours gets this
@@ -119,23 +120,6 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     beta, dbeta = np.empty(el_start[-1]), np.empty(el_start[-1])
     kernels.place_rows(plan.probe_beta, np.ascontiguousarray(dens), el_start, beta, dbeta)
     return el_start, beta, dbeta
-
-
-def apply_laws(compiled, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray) -> None:
-    """Multiply each echo weight by its surface's σ(θi)/cos θi: one kernel per law the scene uses.
-
-    Parameters
-    ----------
-    compiled : CompiledScene
-    prim : (n,) int32
-        Triangle hit by each ray, −1 for none.
-    cos_i : (n,) float64
-        cos θi of each hit.
-    weight : (n,) float64
-        Weights without the law (:func:`kernels.fan_echoes`), multiplied in place.
-    """
-    for k, law in enumerate(compiled.law_kinds):
-        law.kernel(prim, cos_i, compiled.face_object, compiled.object_law, k, compiled.law_params, weight)
 
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,

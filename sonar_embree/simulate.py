@@ -13,7 +13,6 @@ ground truth in :mod:`sonar_embree.labels`, the tail in :mod:`sonar_embree.proce
 from __future__ import annotations
 
 import dataclasses
-import logging
 import math
 import os
 import time
@@ -31,8 +30,6 @@ from .record import Record
 from .scene import Scene, survey_origin
 from .synthesis import ExpectedSynthesis, SpeckleSynthesis
 from .trajectory import Trajectory, iso_utc
-
-log = logging.getLogger(__name__)
 
 #: Rays per block of pings (about): results do not depend on the block size.
 BLOCK_RAYS = 2 ** 18

@@ -23,10 +23,6 @@ from .echoes import Echoes
 from .processing import convolve_time
 
 
-def _tick(clock: dict, key: str, since: float) -> None:
-    clock[key] = clock.get(key, 0.0) + time.perf_counter() - since
-
-
 class ScattererLattice:
     """Scatterers frozen to the surface: a world-fixed cubic lattice (see :func:`kernels.speckle_block`).
 
@@ -179,8 +175,9 @@ class SpeckleSynthesis:
                     out[b] += noise
             else:
                 out[b] = _carrier_ping(self.tables, s, chain, buf[b], noise, n_s)
-        _tick(clock, "processing", t)  # per-ping detection on the carrier is processing, not synthesis
-        clock["synthesis"] = clock.get("synthesis", 0.0) - (time.perf_counter() - t)
+        dt = time.perf_counter() - t  # per-ping detection on the carrier is processing, not synthesis
+        clock["processing"] = clock.get("processing", 0.0) + dt
+        clock["synthesis"] = clock.get("synthesis", 0.0) - dt
 
     def finish(self):
         """Detected intensity (pings, channels, n_s) and the complex signal (coherent) or None."""

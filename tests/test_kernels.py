@@ -157,7 +157,7 @@ def test_fan_rays_match_naive(rng):
 def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight.
     Inverted: the same mesh with its faces turned away, in a two-sided material, gives the same echoes."""
-    from sonar_embree.fan import apply_laws
+    from sonar_embree.laws import apply_laws
     from sonar_embree.raycast import RayCaster
 
     heights = rng.uniform(-0.3, 0.3, (21, 21)) + np.linspace(0, 4, 21)[None, :]

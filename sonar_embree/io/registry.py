@@ -100,13 +100,20 @@ def check(names, where: str = "outputs") -> tuple:
     return names
 
 
+def _wanted(rec, names) -> list:
+    """The formats ``names`` in writing order; each that needs labels finds them in ``rec``."""
+    wanted = [FORMATS[n] for n in FORMATS if n in check(names)]
+    for f in wanted:
+        if f.needs_labels and rec.labels is None:
+            raise ConfigError(f"output {f.name!r} needs labels: simulate with labels=True")
+    return wanted
+
+
 def write_each(rec, folder: str, names, options: WriteOptions | None = None) -> list:
     """Write the formats ``names`` of ``rec`` into ``folder``, each file atomically; return the paths."""
     options = WriteOptions() if options is None else options
     paths = []
-    for f in (FORMATS[n] for n in FORMATS if n in check(names)):
-        if f.needs_labels and rec.labels is None:
-            raise ConfigError(f"output {f.name!r} needs labels: simulate with labels=True")
+    for f in _wanted(rec, names):
         path = os.path.join(folder, f.file_name)
         f.write(rec, path, options)
         paths.append(path)
@@ -116,8 +123,5 @@ def write_each(rec, folder: str, names, options: WriteOptions | None = None) -> 
 def write_set(rec, folder: str, names, options: WriteOptions | None = None) -> list:
     """Write the formats into ``folder`` so that the new set lands together (:func:`files.atomic_folder`)."""
     options = WriteOptions() if options is None else options
-    wanted = [FORMATS[n] for n in FORMATS if n in check(names)]
-    for f in wanted:
-        if f.needs_labels and rec.labels is None:
-            raise ConfigError(f"output {f.name!r} needs labels: simulate with labels=True")
-    return atomic_folder(folder, [(f.file_name, (lambda p, f=f: f.write(rec, p, options))) for f in wanted])
+    return atomic_folder(folder, [(f.file_name, (lambda p, f=f: f.write(rec, p, options)))
+                                  for f in _wanted(rec, names)])

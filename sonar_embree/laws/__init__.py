@@ -10,8 +10,8 @@ A law is a frozen dataclass with
   σ(θi, θi, 0)/cos θi for the hits on objects of this law (the ray's footprint
   dA = R²dΩ/cos θi is folded in analytically, so it never diverges at grazing).
 
-The echo stage (:mod:`sonar_embree.fan`) calls each law's kernel once per block for
-the laws the scene uses; a scene of one law pays for one pass. A new law is one
+:func:`apply_laws` (called by each sonar type's front end) runs each law's kernel once
+per block for the laws the scene uses; a scene of one law pays for one pass. A new law is one
 module here with such a class, plus its test.
 """
 from __future__ import annotations
@@ -55,4 +55,21 @@ def law_table(laws) -> tuple:
     return tuple(kinds), object_law, params
 
 
-__all__ = ["Kirchhoff", "LAWS", "Lambert", "MAX_PARAMS", "law_table"]
+def apply_laws(compiled, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray) -> None:
+    """Multiply each echo weight by its surface's σ(θi)/cos θi: one kernel per law the scene uses.
+
+    Parameters
+    ----------
+    compiled : CompiledScene
+    prim : (n,) int32
+        Triangle hit by each ray, −1 for none.
+    cos_i : (n,) float64
+        cos θi of each hit.
+    weight : (n,) float64
+        Weights without the law (e.g. :func:`sonar_embree.kernels.fan_echoes`), multiplied in place.
+    """
+    for k, law in enumerate(compiled.law_kinds):
+        law.kernel(prim, cos_i, compiled.face_object, compiled.object_law, k, compiled.law_params, weight)
+
+
+__all__ = ["Kirchhoff", "LAWS", "Lambert", "MAX_PARAMS", "apply_laws", "law_table"]

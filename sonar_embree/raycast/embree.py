@@ -48,22 +48,7 @@ class EmbreeCaster(Caster):
         return {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in ("primID", "tfar")}
 
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
-        """Embree's first hits, unrefined: the hot path of :mod:`sonar_embree.fan`.
-
-        Parameters
-        ----------
-        origins_f32, directions_f32 : (n, 3) float32, C-contiguous
-            Ray origins (local frame, m) and unit directions.
-        max_range_m : float
-            Longest distance searched, m.
-
-        Returns
-        -------
-        prim : (n,) int32
-            Triangle index, −1 for a miss.
-        tfar : (n,) float32
-            Hit distance in m (float32 accuracy; refine in float64).
-        """
+        """Embree's first hits, unrefined; as :meth:`Caster.cast_raw`."""
         n = directions_f32.shape[0]
         if n == 0:
             return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)

@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import trimesh
 
-from ..scene import seafloor
 from ..config import Material, Pulse, Sonar
-from ..scene import Scene, write_obj
+from ..scene import Scene, seafloor, write_obj
 from ..trajectory import Trajectory
 
 #: Waterfall display of the demo: display-only TVG, 35 dB below the brightest 0.01 % (the objects),

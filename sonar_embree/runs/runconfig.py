@@ -24,14 +24,12 @@ except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
 from .. import assets
-
-from ..scene import seafloor
 from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..io import registry
 from ..laws import LAWS
-from ..scene import Scene
+from ..scene import Scene, seafloor
 from ..trajectory import Trajectory
 from ..waterfall import DISPLAY_DEFAULTS, check_display
 
@@ -148,18 +146,23 @@ def _resolve(base: str, path) -> str:
     return path if os.path.isabs(path) else os.path.join(base, path)
 
 
-def load_run_config(path) -> RunConfig:
-    """Read and validate a TOML run description; raises a one-line ``ConfigError``/``SceneError``."""
+def read_toml(path, what: str):
+    """(the file's path, its TOML tables): ``asset:NAME`` resolved; one-line errors naming the file."""
     source = os.fspath(path)
     if source.startswith(assets.PREFIX):
         source = assets.path(source)
     try:
         with open(source, "rb") as fh:
-            data = tomllib.load(fh)
+            return source, tomllib.load(fh)
     except OSError as exc:
-        raise ConfigError(f"{source}: cannot read config ({exc.strerror or exc})") from None
+        raise ConfigError(f"{source}: cannot read {what} ({exc.strerror or exc})") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"{source}: invalid TOML ({exc})") from None
+
+
+def load_run_config(path) -> RunConfig:
+    """Read and validate a TOML run description; raises a one-line ``ConfigError``/``SceneError``."""
+    source, data = read_toml(path, "config")
     base = os.path.dirname(os.path.abspath(source))
     _check_keys("the top level", data, TOP_KEYS, source)
 

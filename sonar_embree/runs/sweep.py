@@ -43,15 +43,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import runconfig
-
-from .. import assets
-from ..io import registry
 from ..config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from ..environment import Environment
 from ..errors import ConfigError, SonarEmbreeError
+from ..io import registry
 from ..scene import Scene, load_mesh
 from ..trajectory import Trajectory
+from . import runconfig
 
 TOP_KEYS = ("sweep", "sonar", "environment", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
 SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex", "start_time")
@@ -323,16 +321,7 @@ def _seeds(value, src):
 
 def load_sweep(path) -> Sweep:
     """Read and check a sweep file; every error is one line naming the file and key."""
-    src = os.fspath(path)
-    if src.startswith(assets.PREFIX):
-        src = assets.path(src)
-    try:
-        with open(src, "rb") as fh:
-            data = runconfig.tomllib.load(fh)
-    except OSError as exc:
-        raise ConfigError(f"{src}: cannot read sweep ({exc.strerror or exc})") from None
-    except runconfig.tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"{src}: invalid TOML ({exc})") from None
+    src, data = runconfig.read_toml(path, "sweep")
     base = os.path.dirname(os.path.abspath(src))
     runconfig._check_keys("the top level", data, TOP_KEYS, src)
 

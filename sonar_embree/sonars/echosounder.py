@@ -21,6 +21,7 @@ from ..config import FanSettings, Transducer
 from ..echoes import Echoes
 from ..environment import Environment
 from ..errors import ConfigError
+from ..laws import apply_laws
 from ..processing import absorption_np_per_m
 from ..validation import check_number
 
@@ -115,8 +116,6 @@ class EchoSounderFrontEnd:
 
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock):
         """Echoes of a block of pings (one channel each); arguments as for the side-scan front end."""
-        from ..fan import apply_laws
-
         n_p, n = rot.shape[0], self.body.shape[0]
         u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
         f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)
