@@ -9,11 +9,13 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 from ._version import __version__
 
-from . import assets, laws, raycast
+from . import assets, laws, raycast, sediments
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
+from .laws.maps import BackscatterMap
+from .laws.texture import KTexture
 from .record import Record
 from .runs import batch, demo, runconfig, sweep  # not cli: python -m sonar_embree.runs.cli runs it
 from .scene import Scene, seafloor, shipwreck
@@ -21,6 +23,6 @@ from .simulate import simulate
 from .sonars import EchoSounder
 from .trajectory import Trajectory
 
-__all__ = ["ConfigError", "EchoSounder", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["BackscatterMap", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "laws", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 
 from .environment import Environment
 from .errors import ConfigError
-from .laws import Lambert
+from .laws import Lambert, Summable
+from .laws.texture import KTexture
 from .validation import check_number as _check_number, field_names  # noqa: F401 (field_names re-exported)
 
 
@@ -312,19 +313,25 @@ class Material:
     backscatter_db : float
         Lambert backscatter strength μ in dB (σ = μ·cos²θi per unit area per
         steradian). −27 dB is Mackenzie's value for sand/mud. Shorthand for
-        ``law=Lambert(backscatter_db)``.
+        ``scattering=Lambert(backscatter_db)``.
     two_sided : bool
         Scatter from both sides of every face (default False: faces seen from behind
         return nothing, as closed meshes need). For open surfaces of unknown
         winding: sheets, plates, meshes with inverted normals.
-    law : scattering law, optional
-        Any law of :mod:`sonar_embree.laws` (``Lambert``, ``Kirchhoff``); default
-        Lambert with ``backscatter_db``. Give one or the other.
+    scattering : scattering law, optional
+        Any law of :mod:`sonar_embree.laws` (``Lambert``, ``Kirchhoff``,
+        ``Tabulated``, their sums) or a sediment preset of :mod:`sonar_embree.sediments`;
+        default Lambert with ``backscatter_db``. Give one or the other. ``law=`` is
+        accepted for it.
+    texture : KTexture, optional
+        Non-Rayleigh (K-distributed) texture frozen to the surface; default none
+        (Rayleigh speckle).
     """
 
     backscatter_db: float = -27.0
     two_sided: bool = False
-    law: object = None
+    scattering: object = None
+    texture: object = None
 
     def __post_init__(self):
         if not isinstance(self.two_sided, bool):
@@ -332,19 +339,43 @@ class Material:
         _check_number("Material", "backscatter_db", self.backscatter_db, hi=30.0)
         if self.backscatter_db < -300:
             raise ConfigError(f"Material.backscatter_db must be >= -300 dB, got {self.backscatter_db!r}")
-        if self.law is None:
-            object.__setattr__(self, "law", Lambert(self.backscatter_db))
-        elif not all(hasattr(self.law, a) for a in ("kernel", "params", "sigma")):
-            raise ConfigError(f"Material.law must be a scattering law of sonar_embree.laws, got {self.law!r}")
-        elif self.backscatter_db != -27.0 and self.law != Lambert(self.backscatter_db):
-            raise ConfigError("Material: give backscatter_db or law, not both")
-        elif isinstance(self.law, Lambert):
-            object.__setattr__(self, "backscatter_db", self.law.backscatter_db)
+        law = self.scattering
+        if law is None:
+            object.__setattr__(self, "scattering", Lambert(self.backscatter_db))
+        elif not isinstance(law, Summable):
+            raise ConfigError(f"Material.scattering must be a scattering law of sonar_embree.laws, got {law!r}")
+        elif self.backscatter_db != -27.0 and law != Lambert(self.backscatter_db):
+            raise ConfigError("Material: give backscatter_db or scattering, not both")
+        elif isinstance(law, Lambert):
+            object.__setattr__(self, "backscatter_db", law.backscatter_db)
+        if self.texture is not None and not isinstance(self.texture, KTexture):
+            raise ConfigError(f"Material.texture must be a sonar_embree.KTexture, got {self.texture!r}")
+
+    @property
+    def law(self):
+        """The scattering law (``scattering``)."""
+        return self.scattering
 
     @property
     def mu(self) -> float:
         """Linear Lambert coefficient μ = 10^(backscatter_db/10) (NaN for another law)."""
-        return self.law.mu if isinstance(self.law, Lambert) else math.nan
+        return self.scattering.mu if isinstance(self.scattering, Lambert) else math.nan
+
+
+_material_init = Material.__init__
+
+
+def _material_init_with_law(self, *args, law=None, **kwargs):
+    if law is not None:
+        if kwargs.get("scattering") is not None:
+            raise ConfigError("Material: give scattering or law (the same thing), not both")
+        kwargs["scattering"] = law
+    _material_init(self, *args, **kwargs)
+
+
+_material_init_with_law.__doc__ = _material_init.__doc__
+_material_init_with_law.__signature__ = inspect.signature(_material_init)
+Material.__init__ = _material_init_with_law
 
 
 @dataclass(frozen=True)
@@ -437,6 +468,22 @@ def _check_tvg(sonar: Sonar) -> None:
                           "lower Sonar.absorption_db_per_m or max_range_m, or set tvg = false")
 
 
+def speckle_cell_for(sonar: Sonar, pulse: Pulse, compressed: bool) -> float:
+    """The default speckle lattice spacing: the finest resolution cell (docs/physics.md §10), m.
+
+    min(lx/2, δr) with δr = c/(2B) for a matched-filtered FM pulse of bandwidth B and
+    cτ/2 otherwise: a lattice coarser than either leaves too few independent scatterers
+    per resolution cell and the speckle contrast rises above 1 (1.04 at lx/2 = 9.5 cm
+    for a 20 kHz LFM compressed to 3.75 cm; 1.00 at 3.75 cm; docs/benchmarks.md).
+    """
+    f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
+    if compressed and pulse.is_fm:
+        dr = sonar.sound_speed_m_s / (2.0 * (f_hi - f_lo))
+    else:
+        dr = pulse.range_extent_m(sonar.sound_speed_m_s)
+    return min(sonar.default_speckle_cell_m, dr)
+
+
 @dataclass(frozen=True)
 class SignalChain:
     """How echoes become the record: speckle, band, detection and processing (docs/physics.md §4–5).
@@ -470,9 +517,11 @@ class SignalChain:
         Cut-off of a linear-phase low-pass FIR applied to the detected intensity at
         the record rate (below fs/2); ``None``: none.
     speckle_cell_m : float or None
-        Spacing of the world-fixed lattice of scatterers, m; ``None``: half the
-        membrane length, lx/2, the distance over which a real aperture's speckle
-        decorrelates as it moves along track. Each ray's echo is shared trilinearly
+        Spacing of the world-fixed lattice of scatterers, m; ``None``: the finest
+        resolution cell (:func:`speckle_cell_for`): half the membrane length, lx/2,
+        the distance over which a real aperture's speckle decorrelates as it moves
+        along track, or the range resolution if finer (c/2B after pulse
+        compression, cτ/2 otherwise). Each ray's echo is shared trilinearly
         among its 8 surrounding nodes, so speckle stays correlated for moves much
         smaller than a cell and is independent beyond it; the node's scatterers keep
         the mean and spread in range of the rays they stand for.
@@ -545,5 +594,5 @@ class SignalChain:
                               f"({0.5 * fs:g} Hz)")
         if self.band == "carrier" and f_lo <= 0:
             raise ConfigError(f"Pulse sweeps down to {f_lo:g} Hz; a carrier signal needs positive frequencies")
-        cell = sonar.default_speckle_cell_m if self.speckle_cell_m is None else self.speckle_cell_m
+        cell = speckle_cell_for(sonar, pulse, bool(mf)) if self.speckle_cell_m is None else self.speckle_cell_m
         return dataclasses.replace(self, matched_filter=bool(mf), speckle_cell_m=float(cell))

@@ -124,7 +124,7 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, time_per_m: float, want_points: bool = False,
-               timings: dict | None = None) -> BlockEchoes:
+               timings: dict | None = None, frequency_hz: float = 0.0) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
     Parameters
@@ -146,6 +146,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     timings : dict, optional
         Seconds spent are added under ``"embree"`` (ray casting) and ``"rays"``
         (placing rays and weighting echoes).
+    frequency_hz : float
+        The carrier, for scattering laws tabulated against frequency.
     """
     t0 = time.perf_counter()
     t_embree = 0.0
@@ -177,12 +179,12 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     t_embree += time.perf_counter() - t
 
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-    pts = np.empty((n, 3) if want_points else (0, 3))
     c = caster.compiled
+    pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
                        c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
                        max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts)
-    apply_laws(c, prim, cos_i, w)
+    apply_laws(c, frequency_hz, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe

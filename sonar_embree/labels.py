@@ -99,6 +99,11 @@ class Labels:
         """(2, n_pings, n_samples) bool: seafloor hidden from the sonar by something nearer."""
         return self.kind == SHADOW
 
+    def seafloor_class(self) -> np.ndarray:
+        """(2, n_pings, n_samples) int32: the seafloor object (e.g. sediment class of
+        :meth:`Scene.add_sediments`) under each seafloor sample, −1 elsewhere."""
+        return np.where(self.kind == SEAFLOOR, self.object_id, -1).astype(np.int32)
+
     @property
     def objects(self) -> tuple:
         """Indices of the objects that are not seafloor."""

@@ -254,13 +254,14 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
     return kind, obj, shadow_of, height, ground
 
 
-def law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind):
-    """Twin of the laws' kernels: weight × σ(θi)/cos θi on the hits of objects of law index ``law``.
+def law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind, data=None):
+    """Twin of the laws' kernels: σ(θi)/cos θi on the hits of objects of law index ``law``, as a factor.
 
     ``kind`` "lambert": σ = μ cos²θ (params[:, 0] = μ); "kirchhoff": σ = R0²/(8π s²)·sec⁴θ·exp(−tan²θ/(2s²))
-    (params[:, 0] = R0², params[:, 1] = s²).
+    (params[:, 0] = R0², params[:, 1] = s²); "tabulated": 10^(dB(θg)/10) with dB interpolated in the
+    table at ``data[off:off + 2n]`` (params[:, 0] = off, params[:, 1] = n). Returns the factor (1 elsewhere).
     """
-    out = weight.copy()
+    out = np.ones_like(weight)
     for i in range(prim.shape[0]):
         if prim[i] < 0 or weight[i] == 0:
             continue
@@ -270,8 +271,11 @@ def law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind)
         theta = np.arccos(cos_i[i])
         if kind == "lambert":
             sigma = params[o, 0] * np.cos(theta) ** 2
-        else:
+        elif kind == "kirchhoff":
             s2 = params[o, 1]
             sigma = params[o, 0] / (8 * np.pi * s2) / np.cos(theta) ** 4 * np.exp(-np.tan(theta) ** 2 / (2 * s2))
-        out[i] = weight[i] * sigma / np.cos(theta)
+        else:
+            off, n = int(params[o, 0]), int(params[o, 1])
+            sigma = 10 ** (np.interp(np.pi / 2 - theta, data[off:off + n], data[off + n:off + 2 * n]) / 10)
+        out[i] = sigma / np.cos(theta)
     return out

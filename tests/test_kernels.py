@@ -185,7 +185,7 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
                        0.004, 60.0, 500.0, per_m, rng_k, t_k, ext_k, w_k, cos_k, pts)
     ext_k = ext_k / per_m
     np.testing.assert_array_equal(t_k, rng_k * per_m)
-    apply_laws(c, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
+    apply_laws(c, 100e3, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
     rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,
                                          mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0, two_sided)
     hit = w_n > 0

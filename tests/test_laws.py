@@ -6,28 +6,32 @@ import analytic
 import naive
 import sonar_embree as se
 from conftest import flat_scene, line_along_x
-from sonar_embree.laws import Kirchhoff, Lambert, law_table
+from sonar_embree.laws import Kirchhoff, Lambert, Tabulated, law_table
 
 
-@pytest.mark.parametrize("kind", ["lambert", "kirchhoff"])
+@pytest.mark.parametrize("kind", ["lambert", "kirchhoff", "tabulated"])
 def test_law_kernels_match_their_naive_twins(rng, kind):
-    """Two objects of each law; each kernel touches only the hits on its own objects."""
-    laws = [Lambert(-20.0), Kirchhoff(0.6, 0.2), Lambert(-30.0), Kirchhoff(-0.3, 0.05)]
-    kinds, object_law, params = law_table(laws)
-    assert kinds == (Lambert, Kirchhoff) and list(object_law) == [0, 1, 0, 1]
+    """Two objects of each law; each kernel touches only the hits on its own objects, multiplying or adding."""
+    laws = [Lambert(-20.0), Kirchhoff(0.6, 0.2), Tabulated((5, 30, 60, 85), (-40, -30, -22, -5)), Lambert(-30.0),
+            Kirchhoff(-0.3, 0.05), Tabulated((10, 80), (-35, -15))]
+    t = law_table(laws)
+    assert t.kinds == (Lambert, Kirchhoff, Tabulated) and list(t.term_law[0]) == [0, 1, 2, 0, 1, 2]
     n, n_faces = 5000, 40
-    face_object = rng.integers(0, 4, n_faces).astype(np.int32)
+    face_object = rng.integers(0, 6, n_faces).astype(np.int32)
     prim = rng.integers(-1, n_faces, n).astype(np.int32)
     cos_i = rng.uniform(1e-9, 1.0, n)
     weight = rng.uniform(0.0, 1.0, n) * (rng.uniform(size=n) > 0.1)
-    law = 0 if kind == "lambert" else 1
+    law = ["lambert", "kirchhoff", "tabulated"].index(kind)
     got = weight.copy()
-    kinds[law].kernel(prim, cos_i, face_object, object_law, law, params, got)
-    want = naive.law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind)
-    np.testing.assert_allclose(got, want, rtol=1e-11, atol=1e-300)  # subnormals aside
-    other = (prim < 0) | (object_law[face_object[np.maximum(prim, 0)]] != law)
+    t.kinds[law].kernel(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], t.data, got, got, False)
+    factor = naive.law_weights(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], weight, kind, t.data)
+    np.testing.assert_allclose(got, weight * factor, rtol=1e-11, atol=1e-300)  # subnormals aside
+    other = (prim < 0) | (t.term_law[0][face_object[np.maximum(prim, 0)]] != law) | (weight == 0)
     np.testing.assert_array_equal(got[other], weight[other])
     assert not np.array_equal(got, weight)
+    added = np.full(n, 0.5)
+    t.kinds[law].kernel(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], t.data, weight, added, True)
+    np.testing.assert_allclose(added, np.where(other, 0.5, 0.5 + factor), rtol=1e-11, atol=1e-300)
 
 
 def test_kirchhoff_closed_forms():
@@ -52,9 +56,9 @@ def test_lambert_law_is_the_default_and_bistatic():
     assert se.Material(law=Lambert(-12.0)).backscatter_db == -12.0
     law = Lambert(-20.0)
     assert law.sigma(0.5, 0.8, 1.0) == pytest.approx(0.01 * 0.5 * 0.8)
-    with pytest.raises(se.ConfigError, match="backscatter_db or law"):
+    with pytest.raises(se.ConfigError, match="backscatter_db or scattering"):
         se.Material(backscatter_db=-15.0, law=Kirchhoff())
-    with pytest.raises(se.ConfigError, match="Material.law"):
+    with pytest.raises(se.ConfigError, match="Material.scattering"):
         se.Material(law="sand")
 
 
@@ -82,7 +86,7 @@ def test_toml_material_law(tmp_path):
     mat = runconfig.parse_material({"law": {"kind": "kirchhoff", "reflection_coefficient": 0.6, "slope_rms": 0.2}},
                                    "x.toml", "object #1")
     assert mat.law == Kirchhoff(0.6, 0.2)
-    with pytest.raises(se.ConfigError, match="x.toml: object #1 material law must be a table with kind"):
+    with pytest.raises(se.ConfigError, match="x.toml: object #1 material law must be a sediment name or a table"):
         runconfig.parse_material({"law": {"kind": "phong"}}, "x.toml", "object #1")
     with pytest.raises(se.ConfigError, match="unknown key 'slope' in object #1 material law"):
         runconfig.parse_material({"law": {"kind": "kirchhoff", "slope": 0.2}}, "x.toml", "object #1")

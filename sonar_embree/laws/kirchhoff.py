@@ -21,11 +21,12 @@ import numpy as np
 from ..errors import ConfigError
 from ..kernels import njit, prange
 from ..validation import check_number
+from .composite import Summable
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def kirchhoff_weights(prim, cos_i, face_object, object_law, law, params, weight):
-    """weight[i] *= σ_K(θi)/cos θi for the hits on objects of law index ``law``.
+def kirchhoff_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
+    """out[i] *= (or += with ``add``) σ_K(θi)/cos θi for the hits on objects of law index ``law``.
 
     σ_K/cos θ = |R0|²/(8π s²)·sec⁵θ·exp(−tan²θ/(2 s²)); the exponential wins at grazing
     (the factor is 0, never inf·0). ``params[o]``: |R0|², s². Other arguments as for
@@ -36,16 +37,20 @@ def kirchhoff_weights(prim, cos_i, face_object, object_law, law, params, weight)
         if t < 0 or weight[i] == 0.0:
             continue
         o = face_object[t]
-        if object_law[o] != law:
+        if term_law[o] != law:
             continue
         c = cos_i[i]
         tan2 = (1.0 - c * c) / (c * c)
         s2 = params[o, 1]
-        weight[i] *= params[o, 0] / (8.0 * math.pi * s2) * math.exp(-tan2 / (2.0 * s2)) / (c * c * c * c * c)
+        v = params[o, 0] / (8.0 * math.pi * s2) * math.exp(-tan2 / (2.0 * s2)) / (c * c * c * c * c)
+        if add:
+            out[i] += v
+        else:
+            out[i] *= v
 
 
 @dataclass(frozen=True)
-class Kirchhoff:
+class Kirchhoff(Summable):
     """Gaussian-facet Kirchhoff (geometric-optics) scattering.
 
     Parameters
@@ -76,7 +81,8 @@ class Kirchhoff:
         z = density_ratio * sound_speed_ratio
         return cls((z - 1.0) / (z + 1.0), slope_rms)
 
-    def params(self) -> tuple:
+    def params(self, data: list | None = None) -> tuple:
+        """Kernel parameters: (|R0|², s²)."""
         return (self.reflection_coefficient ** 2, self.slope_rms ** 2)
 
     def sigma(self, cos_i, cos_s, phi_rad=0.0):

@@ -11,11 +11,12 @@ from dataclasses import dataclass
 import numpy as np
 from ..kernels import njit, prange
 from ..validation import check_number
+from .composite import Summable
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def lambert_weights(prim, cos_i, face_object, object_law, law, params, weight):
-    """weight[i] *= μ·cos θi for the hits on objects of law index ``law`` (σ/cos θi of Lambert).
+def lambert_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
+    """out[i] *= (or += with ``add``) μ·cos θi for the hits on objects of law index ``law`` (σ/cos θi of Lambert).
 
     Parameters
     ----------
@@ -23,26 +24,36 @@ def lambert_weights(prim, cos_i, face_object, object_law, law, params, weight):
         Triangle hit by each ray, −1 for none.
     cos_i : (n,) float64
         cos θi of each hit.
-    face_object : (f,) int32; object_law : (n_objects,) int32
-        Object of each triangle and law index of each object.
+    face_object : (f,) int32; term_law : (n_objects,) int32
+        Object of each triangle and law index of each object's term (−1: none).
     law : int
         This law's index.
     params : (n_objects, k) float64
-        Column 0: linear μ.
+        The term's parameters per object; column 0: linear μ.
+    data : (m,) float64
+        Shared table data (unused by Lambert).
     weight : (n,) float64
-        Echo weights without the law, multiplied in place.
+        Echo weights without the law: hits of weight 0 are skipped.
+    out : (n,) float64
+        ``weight`` itself (multiplied in place) or a factor array (``add``: summed into).
+    add : bool
+        Add σ/cos θi to ``out`` (composite laws) instead of multiplying it.
     """
     for i in prange(prim.shape[0]):
         t = prim[i]
         if t < 0 or weight[i] == 0.0:
             continue
         o = face_object[t]
-        if object_law[o] == law:
-            weight[i] *= params[o, 0] * cos_i[i]
+        if term_law[o] == law:
+            v = params[o, 0] * cos_i[i]
+            if add:
+                out[i] += v
+            else:
+                out[i] *= v
 
 
 @dataclass(frozen=True)
-class Lambert:
+class Lambert(Summable):
     """Lambert's law σ = μ·cos θi·cos θs per unit area per steradian.
 
     Parameters
@@ -64,7 +75,8 @@ class Lambert:
         """Linear μ = 10^(backscatter_db/10)."""
         return 10.0 ** (self.backscatter_db / 10.0)
 
-    def params(self) -> tuple:
+    def params(self, data: list | None = None) -> tuple:
+        """Kernel parameters: (μ,)."""
         return (self.mu,)
 
     def sigma(self, cos_i, cos_s, phi_rad=0.0):

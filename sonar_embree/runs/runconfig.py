@@ -18,6 +18,8 @@ import inspect
 import os
 from dataclasses import dataclass
 
+import numpy as np
+
 try:
     import tomllib
 except ModuleNotFoundError:  # Python < 3.11
@@ -28,7 +30,9 @@ from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalCha
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..io import registry
-from ..laws import LAWS
+from .. import sediments
+from ..laws import LAWS, Composite, KTexture, Tabulated
+from ..laws.maps import BackscatterMap
 from ..scene import Scene, seafloor
 from ..trajectory import Trajectory
 from ..waterfall import DISPLAY_DEFAULTS, check_display
@@ -217,19 +221,43 @@ def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:
         raise ConfigError(f"{source}: {where}: {exc}") from None
 
 
-def parse_material(table, source: str, where: str) -> Material:
-    """A ``material`` table: ``backscatter_db``, ``two_sided`` and ``law = { kind = "kirchhoff", … }``."""
-    _check_keys(f"{where} material", table, field_names(Material), source)
+def parse_law(law, source: str, where: str, base: str = ""):
+    """A scattering law: a sediment name (``"fine sand"``), ``{ kind = "kirchhoff", … }``,
+    ``{ kind = "tabulated", csv = "curve.csv" }`` (or its angles and dB) or ``{ kind = "composite", terms = [ … ] }``."""
+    if isinstance(law, str):
+        return _build(source, where, sediments.preset, {"name": law})
+    kinds = list(LAWS) + ["composite"]
+    if not isinstance(law, dict) or law.get("kind") not in kinds:
+        raise ConfigError(f"{source}: {where} must be a sediment name or a table with kind one of {kinds}, "
+                          f"got {law!r}")
+    law = dict(law)
+    kind = law.pop("kind")
+    if kind == "composite":
+        _check_keys(where, law, ("terms",), source)
+        terms = law.get("terms")
+        if not isinstance(terms, list):
+            raise ConfigError(f"{source}: {where} terms must be a list of laws")
+        return _build(source, where, Composite,
+                      {"terms": [parse_law(t, source, f"{where} term #{i + 1}", base) for i, t in enumerate(terms)]})
+    if kind == "tabulated" and "csv" in law:
+        _check_keys(where, law, ("csv",), source)
+        return _build(source, where, Tabulated.from_csv, {"path": _resolve(base, law["csv"])})
+    _check_keys(where, law, field_names(LAWS[kind]), source)
+    return _build(source, where, LAWS[kind], law)
+
+
+def parse_material(table, source: str, where: str, base: str = "") -> Material:
+    """A ``material`` table: ``backscatter_db``, ``two_sided``, ``scattering`` (or ``law``, see
+    :func:`parse_law`) and ``texture = { shape = …, correlation_m = …, seed = … }``."""
+    _check_keys(f"{where} material", table, field_names(Material) + ("law",), source)
     table = dict(table)
-    if "law" in table:
-        law = table["law"]
-        if not isinstance(law, dict) or law.get("kind") not in LAWS:
-            raise ConfigError(f"{source}: {where} material law must be a table with kind one of "
-                              f"{list(LAWS)}, got {law!r}")
-        law = dict(law)
-        cls = LAWS[law.pop("kind")]
-        _check_keys(f"{where} material law", law, field_names(cls), source)
-        table["law"] = _build(source, f"{where} material law", cls, law)
+    for key in ("scattering", "law"):
+        if key in table:
+            table[key] = parse_law(table[key], source, f"{where} material {key}", base)
+    if "texture" in table:
+        tex = table["texture"]
+        _check_keys(f"{where} material texture", tex, field_names(KTexture), source)
+        table["texture"] = _build(source, f"{where} material texture", KTexture, tex)
     return _build(source, f"{where} material", Material, table)
 
 
@@ -250,7 +278,8 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
         raise ConfigError(f"{source}: {where} must be a table")
     obj = dict(obj)
     label = obj.pop("label", None)
-    material = parse_material(obj.pop("material", {}), source, where)
+    material = parse_material(obj.pop("material", {}), source, where, base)
+    bmap = parse_map(obj.pop("backscatter_map", None), source, where, base)
     if ("path" in obj) == ("seafloor" in obj):
         raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
     if "path" in obj:
@@ -261,11 +290,49 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
         per_object = obj.get("materials", {})
         if not isinstance(per_object, dict):
             raise ConfigError(f"{source}: {where} materials must be a table of object name = {{ backscatter_db = … }}")
-        per_object = {name: parse_material(t, source, f"{where} materials.{name}") for name, t in per_object.items()}
+        per_object = {name: parse_material(t, source, f"{where} materials.{name}", base) for name, t in per_object.items()}
         try:
             scene.add(_resolve(base, obj["path"]), material=material, label=label, seafloor=is_floor,
-                      materials=per_object, up_axis=obj.get("up_axis"))
+                      materials=per_object, up_axis=obj.get("up_axis"), backscatter_map=bmap)
         except SceneError as exc:
             raise SceneError(f"{source}: {where}: {exc}") from None
     else:
-        scene.add(seafloor_mesh(obj, source, where), material=material, label=label or "seafloor", seafloor=True)
+        patches = {k: obj.pop(k) for k in ("sediments", "patch_m", "sediment_seed") if k in obj}
+        mesh = seafloor_mesh(obj, source, where)
+        if "sediments" in patches:
+            _add_sediments(scene, mesh, patches, label or "seafloor", source, where)
+        else:
+            scene.add(mesh, material=material, label=label or "seafloor", seafloor=True, backscatter_map=bmap)
+
+
+def _add_sediments(scene: Scene, mesh, patches: dict, label: str, source: str, where: str) -> None:
+    """``sediments = { "fine sand" = 0.5, mud = 0.5 }``: preset name → share of the floor."""
+    table = patches["sediments"]
+    if not isinstance(table, dict) or not all(isinstance(v, (int, float)) for v in table.values()):
+        raise ConfigError(f"{source}: {where} sediments must be a table of sediment name = share of the floor")
+    sed = {name: (_build(source, f"{where} sediments", sediments.preset, {"name": name}), share)
+           for name, share in table.items()}
+    _build(source, where, scene.add_sediments, {"mesh": mesh, "sediments": sed, "label": label,
+                                                "patch_m": patches.get("patch_m", 20.0),
+                                                "seed": patches.get("sediment_seed", 0)})
+
+
+def parse_map(table, source: str, where: str, base: str):
+    """``backscatter_map = { image = "floor.png", db_range = [-6, 6] }`` or ``{ per_face = "db.npy" }`` /
+    ``{ per_vertex = "db.npy" }`` (a NumPy file of dB values)."""
+    if table is None:
+        return None
+    kinds = ("image", "per_face", "per_vertex")
+    if not isinstance(table, dict) or sum(k in table for k in kinds) != 1:
+        raise ConfigError(f"{source}: {where} backscatter_map needs exactly one of {list(kinds)}")
+    _check_keys(f"{where} backscatter_map", table, kinds + ("db_range",), source)
+    kind = next(k for k in kinds if k in table)
+    path = _resolve(base, table[kind])
+    if kind == "image":
+        return _build(source, f"{where} backscatter_map", BackscatterMap.image,
+                      {"image": path, "db_range": table.get("db_range")})
+    try:
+        values = np.load(path)
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"{source}: {where} backscatter_map: {path}: cannot read ({exc})") from None
+    return _build(source, f"{where} backscatter_map", getattr(BackscatterMap, kind), {"values_db": values})

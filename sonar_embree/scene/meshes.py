@@ -19,7 +19,8 @@ import trimesh
 
 from ..config import Material
 from ..errors import SceneError
-from ..laws import law_table
+from ..laws.maps import BackscatterMap, MapTable
+from ..laws.texture import TextureTable
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +50,8 @@ class SceneObject:
     faces: np.ndarray
     material: Material
     seafloor: bool = False
+    backscatter_map: BackscatterMap | None = None
+    uv: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,12 +74,12 @@ class CompiledScene:
         Label per object.
     mu : (n_objects,) float64
         Linear Lambert coefficient per object (NaN for objects of another law).
-    law_kinds : tuple of type
-        The scattering-law classes the scene uses (:func:`sonar_embree.laws.law_table`).
-    object_law : (n_objects,) int32
-        Index into ``law_kinds`` per object.
-    law_params : (n_objects, MAX_PARAMS) float64
-        Each object's law parameters, as its kernel reads them.
+    laws : tuple
+        The scattering law of each object (:func:`sonar_embree.laws.apply_laws` tables them per frequency).
+    maps : MapTable or None
+        The objects' backscatter maps (:mod:`sonar_embree.laws.maps`), None without any.
+    textures : TextureTable or None
+        The materials' K textures (:mod:`sonar_embree.laws.texture`), None without any.
     is_seafloor : (n_objects,) bool
         Which objects are seafloor (ground truth: their hidden parts are shadow).
     two_sided : (n_objects,) bool
@@ -92,9 +95,14 @@ class CompiledScene:
     mu: np.ndarray
     is_seafloor: np.ndarray
     two_sided: np.ndarray
-    law_kinds: tuple = ()
-    object_law: np.ndarray | None = None
-    law_params: np.ndarray | None = None
+    laws: tuple = ()
+    maps: object = None
+    textures: object = None
+
+    @property
+    def needs_points(self) -> bool:
+        """Whether the surface pass needs the hit points (maps or texture)."""
+        return self.maps is not None or self.textures is not None
 
     @cached_property
     def face_two_sided(self) -> np.ndarray:
@@ -115,7 +123,8 @@ class CompiledScene:
 
 
 def _validate(vertices, faces, source: str):
-    """Check and clean one mesh; return float64 vertices and int faces without degenerate triangles."""
+    """Check and clean one mesh; return float64 vertices, int faces without degenerate triangles, and which
+    of the given faces were kept."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces)
     if f.size == 0 or v.size == 0:
@@ -137,7 +146,7 @@ def _validate(vertices, faces, source: str):
         raise SceneError(f"{source}: mesh has only degenerate (zero-area) triangles")
     if not np.all(good):
         log.info("%s: dropped %d degenerate triangles", source, int((~good).sum()))
-    return v, f[good].astype(np.int64)
+    return v, f[good].astype(np.int64), good
 
 
 #: File formats whose axes are fixed by their specification: glTF 2.0 is y up (§3.4 of the spec).
@@ -167,7 +176,7 @@ def load_mesh(path, up_axis: str | None = None) -> trimesh.Trimesh:
     path = os.fspath(path)
     parts = _meshes_from_file(path, up_axis)
     mesh = parts[0][1] if len(parts) == 1 else trimesh.util.concatenate([m for _, m in parts])
-    v, f = _validate(mesh.vertices, mesh.faces, path)
+    v, f, _ = _validate(mesh.vertices, mesh.faces, path)
     return trimesh.Trimesh(v, f, process=False)
 
 
@@ -277,6 +286,27 @@ def _read_meshes(path: str):
     raise SceneError(f"{path}: mesh has no faces (got {type(loaded).__name__})")
 
 
+def _object_map(bmap, mesh, kept: np.ndarray, source: str):
+    """The map of one mesh, per-face values following the faces kept, and its UVs for an image map."""
+    if bmap is None:
+        return None, None
+    if not isinstance(bmap, BackscatterMap):
+        raise SceneError(f"{source}: backscatter_map must be a sonar_embree.BackscatterMap, got {type(bmap).__name__}")
+    if bmap.kind == "face":
+        if bmap.values_db.shape[0] != kept.size:
+            raise SceneError(f"{source}: a per-face map needs {kept.size} values, got {bmap.values_db.shape[0]}")
+        return BackscatterMap.per_face(bmap.values_db[kept]), None
+    if bmap.kind == "vertex" and bmap.values_db.shape[0] != len(mesh.vertices):
+        raise SceneError(f"{source}: a per-vertex map needs {len(mesh.vertices)} values, got {bmap.values_db.shape[0]}")
+    if bmap.kind != "image":
+        return bmap, None
+    uv = bmap.uv if bmap.uv is not None else getattr(mesh.visual, "uv", None)
+    if uv is None or len(uv) != len(mesh.vertices):
+        raise SceneError(f"{source}: an image map needs UV coordinates per vertex (export the mesh with UVs, "
+                         "or give BackscatterMap.image(..., uv=...))")
+    return bmap, np.asarray(uv, dtype=np.float64)
+
+
 class Scene:
     """A set of labelled meshes with one :class:`Material` each.
 
@@ -309,7 +339,8 @@ class Scene:
         return scene
 
     def add(self, mesh_or_path, material: Material | None = None, label: str | None = None,
-            materials: dict | None = None, seafloor: bool | None = None, up_axis: str | None = None) -> "Scene":
+            materials: dict | None = None, seafloor: bool | None = None, up_axis: str | None = None,
+            backscatter_map: BackscatterMap | None = None) -> "Scene":
         """Add a mesh (a ``trimesh.Trimesh``) or every object of a mesh file.
 
         Parameters
@@ -333,6 +364,10 @@ class Scene:
             their specification), "z" for OBJ, PLY, STL and OFF, which carry no axis
             convention; "y" turns an export with y up (Blender's default OBJ axes)
             to z up: (x, y, z) → (x, −z, y). Meshes passed as objects are z up.
+        backscatter_map : BackscatterMap, optional
+            A dB offset on the material's law per face, per vertex or from an image
+            through the mesh's UV coordinates (:mod:`sonar_embree.laws.maps`); for
+            every object added.
 
         Returns
         -------
@@ -371,11 +406,47 @@ class Scene:
             if lab in taken:
                 raise SceneError(f"{source}: label {lab!r} is already in the scene")
             taken.add(lab)
-            v, f = _validate(mesh.vertices, mesh.faces, source)
+            v, f, kept = _validate(mesh.vertices, mesh.faces, source)
             floor = (lab == "seafloor" or lab.startswith("seafloor/")) if seafloor is None else bool(seafloor)
-            new.append(SceneObject(lab, v, f, materials.get(lab, material), floor))
+            bmap, uv = _object_map(backscatter_map, mesh, kept, source)
+            new.append(SceneObject(lab, v, f, materials.get(lab, material), floor, bmap, uv))
         self._objects.extend(new)
         self._compiled = {}
+        return self
+
+    def add_sediments(self, mesh: trimesh.Trimesh, sediments: dict, patch_m: float = 20.0, seed: int = 0,
+                      label: str = "seafloor") -> "Scene":
+        """Add a seafloor as patches of sediment classes, one object ``label/<class>`` per class.
+
+        Each class is a separate seafloor object, so the ground truth's ``object_id``
+        names the sediment under every seafloor sample (a segmentation mask; see
+        :meth:`sonar_embree.Labels.seafloor_class`).
+
+        Parameters
+        ----------
+        mesh : trimesh.Trimesh
+            The floor (e.g. :func:`sonar_embree.seafloor.flat`).
+        sediments : dict of str to (Material, law or (that, fraction))
+            Class name → its material or law (a preset of :mod:`sonar_embree.sediments`),
+            optionally with its share of the floor (default equal shares).
+        patch_m, seed
+            See :func:`sonar_embree.seafloor.sediment_classes`.
+        """
+        from .seafloor import sediment_classes
+
+        if not isinstance(sediments, dict) or not sediments:
+            raise SceneError("add_sediments needs a dict of class name -> material or sediment")
+        names, mats, shares = [], [], []
+        for name, spec in sediments.items():
+            spec, share = spec if isinstance(spec, tuple) else (spec, 1.0)
+            names.append(str(name).replace(" ", "_"))
+            mats.append(spec if isinstance(spec, Material) else Material(scattering=spec))
+            shares.append(share)
+        cls = sediment_classes(mesh, shares, patch_m, seed)
+        for k, (name, mat) in enumerate(zip(names, mats)):
+            faces = np.flatnonzero(cls == k)
+            if faces.size:
+                self.add(mesh.submesh([faces], append=True), material=mat, label=f"{label}/{name}", seafloor=True)
         return self
 
     @property
@@ -435,4 +506,5 @@ class Scene:
                              np.array([o.material.mu for o in self._objects]),
                              np.array([o.seafloor for o in self._objects], dtype=bool),
                              np.array([o.material.two_sided for o in self._objects], dtype=bool),
-                             *law_table([o.material.law for o in self._objects]))
+                             tuple(o.material.scattering for o in self._objects), MapTable.build(self._objects),
+                             TextureTable.build([o.material.texture for o in self._objects]))

@@ -186,3 +186,40 @@ def ripples(size_m=(200.0, 200.0), resolution_m: float = 0.1, wavelength_m: floa
         z = z + (n - n.mean()) * relief_m / max(float(np.ptp(n)), 1e-300)
     cx, cy = _center(center_m)
     return from_heights(z, (sx / (nx - 1), sy / (ny - 1)), (cx - sx / 2, cy - sy / 2))
+
+
+def sediment_classes(mesh: trimesh.Trimesh, fractions, patch_m: float = 20.0, seed: int = 0) -> np.ndarray:
+    """A class per face from a smooth random field: patches of sediment classes.
+
+    The field is the unit-variance Gaussian field of :mod:`sonar_embree.laws.texture`
+    (lattice spacing ``patch_m``, frozen in world coordinates by ``seed``) at each face's
+    centroid; class k takes the faces whose value falls between the normal quantiles
+    Φ⁻¹(F_k−1) and Φ⁻¹(F_k) of the cumulative fractions, so class k covers about
+    ``fractions[k]`` of a floor much larger than ``patch_m``.
+
+    Parameters
+    ----------
+    mesh : trimesh.Trimesh
+    fractions : sequence of float
+        Share of the floor per class (normalised to sum 1), each > 0.
+    patch_m : float
+        Patch size (the field's correlation length), m.
+    seed : int
+
+    Returns
+    -------
+    (n_faces,) int
+    """
+    from scipy.special import ndtri
+
+    from ..laws.texture import gaussian_field_at
+
+    f = np.asarray(fractions, dtype=float)
+    if f.ndim != 1 or f.size == 0 or np.any(~(f > 0)):
+        raise ConfigError(f"sediment fractions must be positive numbers, got {fractions!r}")
+    if not (isinstance(patch_m, (int, float)) and patch_m > 0):
+        raise ConfigError(f"sediment patch_m must be > 0 m, got {patch_m!r}")
+    field = np.empty(len(mesh.faces))
+    gaussian_field_at(np.ascontiguousarray(mesh.triangles_center, dtype=np.float64), 1.0 / patch_m, int(seed), field)
+    edges = ndtri(np.cumsum(f / f.sum())[:-1])
+    return np.searchsorted(edges, field)

@@ -127,11 +127,12 @@ class EchoSounderFrontEnd:
             w = np.where(ok, np.tile(self.gain4 * self.d_omega, n_p) * np.exp(-self.two_way_np_per_m * r)
                          / np.maximum(r, self.sonar.wavelength_m) ** 2, 0.0)
             slope = np.abs(np.einsum("ij,ij->i", hits.normal, f)) * r / cos_i
-        apply_laws(caster.compiled, hits.tri.astype(np.int32), cos_i, w)
+        c = caster.compiled
+        pts = (np.repeat(pos_local, n, axis=0) + np.where(ok, r, 0.0)[:, None] * u) \
+            if want_points or c.needs_points else np.zeros((0, 3))
+        apply_laws(c, self.sonar.frequency_hz, hits.tri.astype(np.int32), cos_i, w, pts)
         per_m = 2.0 / self.sonar.sound_speed_m_s
         ext = np.where(ok, np.minimum(slope, 10.0 * self.sonar.max_range_m) * self.d_theta, 0.0)
-        pts = (np.repeat(pos_local, n, axis=0) + np.where(ok, r, 0.0)[:, None] * u) if want_points \
-            else np.zeros((0, 3))
         ids = np.where(ok & (w > 0), hits.object_id, -1).astype(np.int32) if want_ids else np.zeros(0, np.int32)
         nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
         info = _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))

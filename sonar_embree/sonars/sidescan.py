@@ -45,7 +45,8 @@ class SideScanFrontEnd:
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
         """
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
-                         2.0 / self.sonar.sound_speed_m_s, want_points=want_points, timings=clock)
+                         2.0 / self.sonar.sound_speed_m_s, want_points=want_points, timings=clock,
+                         frequency_hz=self.sonar.frequency_hz)
         return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
 
 
