@@ -55,7 +55,7 @@ def test_tabulated_sigma_recovered(tmp_path):
     """A table read from CSV (with a frequency axis, taken at the sonar's carrier): σ recovered within 0.3 dB."""
     angles = [10, 20, 35, 50, 65, 80, 90]
     rows = ["frequency_hz,grazing_deg,backscatter_db"]
-    for f, shift in ((50e3, -6.0), (150e3, 2.0)):   # at 100 kHz the table is halfway: shift −2 dB
+    for f, shift in ((200e3, -6.0), (600e3, 2.0)):  # at the 400 kHz carrier, halfway: shift −2 dB
         rows += [f"{f},{g},{-35 + 0.3 * g + shift}" for g in angles]
     (tmp_path / "curve.csv").write_text("\n".join(rows) + "\n")
     law = se.laws.Tabulated.from_csv(tmp_path / "curve.csv")
