@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
-from .laws import Kirchhoff, Lambert
+from .laws import Composite, Kirchhoff, Lambert
 from .laws.composite import Summable
 
 
@@ -93,8 +93,8 @@ class Sediment(Summable):
                 Kirchhoff.from_impedances(self.density_ratio, self.sound_speed_ratio, self.slope_rms))
 
     def sigma(self, cos_i, cos_s, phi_rad=0.0):
-        """Bistatic σ: the sum of the two terms'."""
-        return sum(t.sigma(cos_i, cos_s, phi_rad) for t in self.terms())
+        """Bistatic σ: the sum of the two terms' (as their :class:`~sonar_embree.laws.Composite`)."""
+        return Composite(self.terms()).sigma(cos_i, cos_s, phi_rad)
 
     @property
     def reference_db(self) -> float:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError, SceneError
+from ..errors import ConfigError
 from ..kernels import njit, prange
 
 MAP_KINDS = ("face", "vertex", "image")
@@ -93,11 +93,8 @@ class BackscatterMap:
             values = lo + (hi - lo) * values
         return cls("image", values, uv)
 
-    def corner_values(self, faces: np.ndarray, n_vertices: int, source: str) -> np.ndarray:
-        """(f, 3) dB at each triangle's corners (face and vertex maps)."""
-        want = faces.shape[0] if self.kind == "face" else n_vertices
-        if self.values_db.shape[0] != want:
-            raise SceneError(f"{source}: a per-{self.kind} map needs {want} values, got {self.values_db.shape[0]}")
+    def corner_values(self, faces: np.ndarray) -> np.ndarray:
+        """(f, 3) dB at each triangle's corners (face and vertex maps; sizes checked by ``Scene.add``)."""
         if self.kind == "face":
             return np.repeat(self.values_db[:, None], 3, axis=1)
         return self.values_db[faces]
@@ -204,7 +201,7 @@ class MapTable:
         for o in objects:
             m, nf = o.backscatter_map, o.faces.shape[0]
             image = m is not None and m.kind == "image"
-            corner_db.append(m.corner_values(o.faces, o.vertices.shape[0], o.label) if m is not None and not image
+            corner_db.append(m.corner_values(o.faces) if m is not None and not image
                              else np.zeros((nf, 3)))
             face_tex.append(np.full(nf, len(images) if image else -1, dtype=np.int32))
             corner_uv.append(o.uv[o.faces] if image else np.zeros((nf, 3, 2)))
