@@ -45,25 +45,27 @@ class ScattererLattice:
         self._alloc(max(int(n_tables), 1), 1 << 16)
 
     def _alloc(self, n_t, cap):
-        self.key = np.zeros((n_t, cap, 4), dtype=np.int64)
-        self.stamp = np.full((n_t, cap), -1, dtype=np.int64)
+        self.slots = np.full((n_t, cap), -1, dtype=np.int64)  # no slot belongs to any call yet
         self.epochs = np.zeros(n_t, dtype=np.int64)
-        self.vals = [np.zeros((n_t, cap)) for _ in range(5)]  # W, Wt, Wt2, t_min, t_max
-        self.order = np.zeros((n_t, cap), dtype=np.int64)
+        self.nodes = np.zeros((n_t, cap // 2, kernels.NODE_WIDTH))  # W, Wt, Wt2, t_min, t_max per node
+        self.node_key = np.zeros((n_t, cap // 2, 4), dtype=np.int64)
+        self.caches = np.zeros((n_t, kernels.CACHE_WIDTH), dtype=np.int64)
 
     def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
                    phase_cycles_per_s: float, synth: "WaveformTables", out):
         """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table."""
         status = np.zeros(pos_world.shape[0], dtype=np.int64)
+        if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
+            self._alloc(self.slots.shape[0], self.slots.shape[1])
         while True:
             kernels.speckle_block(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
                                   np.ascontiguousarray(pos_world), self.seed, self.cell_m, wavelength_m, rate_hz,
                                   phase_cycles_per_s, self.SUB_SCATTERERS, synth.table, synth.table_start,
-                                  synth.table_rate, self.key, self.stamp, self.epochs, *self.vals, self.order,
-                                  status, out)
+                                  synth.table_rate, self.slots, self.epochs, self.nodes, self.node_key,
+                                  self.caches, status, out)
             if np.all(status > 0):
                 return
-            self._alloc(self.key.shape[0], 2 * self.key.shape[1])
+            self._alloc(self.slots.shape[0], 2 * self.slots.shape[1])
             status[status < 0] = 0
 
 

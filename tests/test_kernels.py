@@ -90,24 +90,39 @@ def test_gather_nodes_matches_naive(rng):
     ext = rng.uniform(0, 0.2, n)
     ext[:100] = 0.0
     cap = 1 << 16
-    key = np.zeros((cap, 4), dtype=np.int64)
-    stamp = np.full(cap, -1, dtype=np.int64)
-    bufs = [np.zeros(cap) for _ in range(5)]
-    order = np.zeros(cap, dtype=np.int64)
+    slots = np.full(cap, -1, dtype=np.int64)
+    nodes = np.zeros((cap // 2, kernels.NODE_WIDTH))
+    node_key = np.zeros((cap // 2, 4), dtype=np.int64)
+    cache = np.zeros(kernels.CACHE_WIDTH, dtype=np.int64)
     for epoch in (1, 2):  # the second call reuses the table without clearing it
-        k = kernels.gather_nodes(ch, pts, w, r, ext, 0.25, key, stamp, epoch, *bufs, order)
+        k = kernels.gather_nodes(ch, pts, w, r, ext, 0.25, slots, epoch, nodes, node_key, cache)
         ref = naive.gather_nodes(ch, pts, w, r, ext, 0.25)
         assert k == len(ref)
-        slots = order[:k]
-        got = {tuple(key[s]): tuple(b[s] for b in bufs) for s in slots}
+        got = {tuple(node_key[i]): tuple(nodes[i]) for i in range(k)}
         assert got.keys() == ref.keys()
         for kk, vals in ref.items():
             np.testing.assert_allclose(got[kk], vals, rtol=1e-10, atol=1e-20)
-    np.testing.assert_allclose(bufs[0][order[:k]].sum(), w.sum(), rtol=1e-12)  # ΣW = Σw
+    np.testing.assert_allclose(nodes[:k, 0].sum(), w.sum(), rtol=1e-12)  # ΣW = Σw
+    first = {}                                         # listed in first-touch order: rays, then x, y, z corners
+    for i in np.flatnonzero(w > 0):
+        f = pts[i] / 0.25
+        for dz, dy, dx in np.ndindex(2, 2, 2):
+            t = np.abs(1 - np.array([dx, dy, dz]) - (f - np.floor(f)))
+            if np.prod(t) > 0:
+                first.setdefault((ch[i], *(np.floor(f).astype(np.int64) + [dx, dy, dz])), None)
+    first = list(first)
+    assert [tuple(node_key[i]) for i in range(k)] == first
     small = 1 << 10                                    # too small a table: says so instead of overfilling
-    args = [np.zeros((small, 4), dtype=np.int64), np.full(small, -1, dtype=np.int64), 1,
-            *[np.zeros(small) for _ in range(5)], np.zeros(small, dtype=np.int64)]
+    args = [np.full(small, -1, dtype=np.int64), 1, np.zeros((small // 2, kernels.NODE_WIDTH)),
+            np.zeros((small // 2, 4), dtype=np.int64), cache]
     assert kernels.gather_nodes(ch, pts, w, r, ext, 0.25, *args) == -1
+
+
+def _speckle_tables(n_tables, cap):
+    """Hash tables, node lists and last-cell caches for :func:`kernels.speckle_block`."""
+    return (np.full((n_tables, cap), -1, np.int64), np.zeros(n_tables, np.int64),
+            np.zeros((n_tables, cap // 2, kernels.NODE_WIDTH)), np.zeros((n_tables, cap // 2, 4), np.int64),
+            np.zeros((n_tables, kernels.CACHE_WIDTH), np.int64))
 
 
 # --------------------------------------------------------------------------- ray fan kernels
@@ -232,20 +247,12 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     pos = origin + rng.uniform(-1, 1, (n_p, 3)) + [0, 0, 10]
     table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
     out = np.zeros((n_p, 2, 200), dtype=np.complex128)
-    cap = 1 << 8  # small: the kernel must report pings that do not fit, and fit after growing
-    tabs = dict(slot_key=np.zeros((n_tables, cap, 4), np.int64), slot_epoch=np.full((n_tables, cap), -1, np.int64),
-                epochs=np.zeros(n_tables, np.int64))
     status = np.zeros(n_p, dtype=np.int64)
     args = (ray_start, pts, origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0, 10.0)
-    kernels.speckle_block(*args, tabs["slot_key"], tabs["slot_epoch"], tabs["epochs"],
-                          *[np.zeros((n_tables, cap)) for _ in range(5)], np.zeros((n_tables, cap), np.int64),
-                          status, out)
-    assert np.all(status == -1) and np.all(out == 0)  # too small a table: says so, writes nothing
-    cap = 1 << 12
+    kernels.speckle_block(*args, *_speckle_tables(n_tables, 1 << 8), status, out)  # too small a table
+    assert np.all(status == -1) and np.all(out == 0)  # says so, writes nothing
     status[:] = 0
-    kernels.speckle_block(*args, np.zeros((n_tables, cap, 4), np.int64), np.full((n_tables, cap), -1, np.int64),
-                          np.zeros(n_tables, np.int64), *[np.zeros((n_tables, cap)) for _ in range(5)],
-                          np.zeros((n_tables, cap), np.int64), status, out)
+    kernels.speckle_block(*args, *_speckle_tables(n_tables, 1 << 12), status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
                               -2.0, 10.0, np.zeros_like(out))

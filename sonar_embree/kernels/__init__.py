@@ -12,10 +12,10 @@ numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy
 """
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
 from .rays import _sinc, fan_echoes, fan_rays, place_rows
-from .speckle import frozen_scatterers, gather_nodes, speckle_block
+from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
 from .splat import splat_rows, splat_table
 from .truth import label_rows
 
-__all__ = ["REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays", "frozen_scatterers", "gather_nodes",
+__all__ = ["CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays", "frozen_scatterers", "gather_nodes",
            "label_rows", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
            "splat_table", "_sinc"]

@@ -70,9 +70,115 @@ def frozen_scatterers(seed, ijk, gain, position):
             position[i, s] = v
 
 
+#: Slot-hash multipliers (odd 64-bit constants; only where a node sits in the table depends on them, not any value).
+_K1 = np.uint64(0x9E3779B97F4A7C15)
+_K2 = np.uint64(0xC2B2AE3D27D4EB4F)
+_K3 = np.uint64(0x165667B19E3779F9)
+
+#: Columns of a node row: W, R̄, M2, min R, max R.
+NODE_WIDTH = 5
+#: Entries of a last-cell cache: cell (ch, i, j, k) and its 8 node indices.
+CACHE_WIDTH = 12
+
+
 @njit(cache=True, nogil=True)
-def gather_nodes(channel, points, weights, ranges, extents, cell_m, slot_key, slot_epoch, epoch, slot_w, slot_wr,
-                 slot_wr2, slot_rmin, slot_rmax, order):
+def _slot_of(ch, ix, iy, iz, mask):
+    """First probe of node (ch, i, j, k) in a table of mask + 1 slots."""
+    return _mix64((np.uint64(ix) * _K1) ^ (np.uint64(iy) * _K2) ^ (np.uint64(iz) * _K3) ^ np.uint64(ch)) & mask
+
+
+@njit(cache=True, nogil=True)
+def _node_index(slots, epoch, ch, ix, iy, iz, nodes, node_key, count):
+    """Index of node (ch, i, j, k) in this call's dense node list, appended empty if new: (index, count).
+
+    A slot holds epoch·2³² + node index (8 bytes, so the table stays in cache); the
+    key is compared in ``node_key``. The index is −1 when the list is full.
+    """
+    mask = np.uint64(slots.shape[0] - 1)
+    s = _slot_of(ch, ix, iy, iz, mask)
+    while True:
+        si = np.int64(s)
+        if (slots[si] >> 32) != epoch:
+            if count >= nodes.shape[0]:
+                return -1, count
+            slots[si] = (epoch << 32) | count
+            nodes[count, 0] = 0.0
+            nodes[count, 1] = 0.0
+            nodes[count, 2] = 0.0
+            nodes[count, 3] = math.inf
+            nodes[count, 4] = -math.inf
+            node_key[count, 0] = ch
+            node_key[count, 1] = ix
+            node_key[count, 2] = iy
+            node_key[count, 3] = iz
+            return count, count + 1
+        n = slots[si] & 0xFFFFFFFF
+        key = node_key[n]
+        if key[0] == ch and key[1] == ix and key[2] == iy and key[3] == iz:
+            return n, count
+        s = (s + np.uint64(1)) & mask
+
+
+@njit(cache=True, nogil=True)
+def _add_to_node(node, wb, rr, e2, r_lo, r_hi):
+    """Weighted Welford update of one node row with a share wb of an echo at range rr (no cancellation in σ²)."""
+    w_new = node[0] + wb
+    delta = rr - node[1]
+    node[1] += delta * (wb / w_new)
+    node[2] += wb * (delta * (rr - node[1]) + e2)
+    node[0] = w_new
+    node[3] = min(node[3], r_lo)
+    node[4] = max(node[4], r_hi)
+
+
+@njit(cache=True, nogil=True)
+def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slots, epoch, nodes, node_key, count, cache):
+    """Add one ray to the 8 nodes around its hit point (see :func:`gather_nodes`); the new node count or −1.
+
+    ``cache`` (CACHE_WIDTH,) int64 holds the last cell (ch, i, j, k) and its 8 node
+    indices (−1: not looked up): about two in three consecutive rays share a cell, and
+    the cache only skips table lookups, so the sums and their order are unchanged.
+    """
+    if not (w > 0.0):
+        return count
+    fx = px / cell_m  # divide, not multiply by 1/cell: at 5e6 m the two differ in t by 1e-9
+    fy = py / cell_m
+    fz = pz / cell_m
+    x0 = math.floor(fx)
+    y0 = math.floor(fy)
+    z0 = math.floor(fz)
+    tx = fx - x0
+    ty = fy - y0
+    tz = fz - z0
+    ix0 = np.int64(x0)
+    iy0 = np.int64(y0)
+    iz0 = np.int64(z0)
+    if not (cache[0] == ch and cache[1] == ix0 and cache[2] == iy0 and cache[3] == iz0):
+        cache[0] = ch
+        cache[1] = ix0
+        cache[2] = iy0
+        cache[3] = iz0
+        cache[4:] = -1
+    e2 = ext * ext / 12.0  # variance of a uniform spread over the footprint
+    for c in range(8):
+        dx = c & 1
+        dy = (c >> 1) & 1
+        dz = (c >> 2) & 1
+        b = (tx if dx else 1.0 - tx) * (ty if dy else 1.0 - ty) * (tz if dz else 1.0 - tz)
+        if not (b > 0.0):
+            continue
+        n = cache[4 + c]
+        if n < 0:
+            n, count = _node_index(slots, epoch, ch, ix0 + dx, iy0 + dy, iz0 + dz, nodes, node_key, count)
+            if n < 0:
+                return -1
+            cache[4 + c] = n
+        _add_to_node(nodes[n], w * b, rr, e2, rr - 0.5 * ext, rr + 0.5 * ext)
+    return count
+
+
+@njit(cache=True, nogil=True)
+def gather_nodes(channel, points, weights, ranges, extents, cell_m, slots, epoch, nodes, node_key, cache):
     """Share every ray's echo among the 8 surrounding nodes of a cubic lattice (trilinear).
 
     Node (ch, i, j, k) sits at (i, j, k)·cell_m in world metres and collects, for
@@ -81,9 +187,10 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m, slot_key, sl
     weighted mean range R̄ = Σ w·b·R / W, the centred second moment
     M2 = Σ w·b·((R − R̄)² + ΔR²/12) (each ray's echo spread uniformly over its extent
     ΔR; accumulated with Welford's update, so σ² = M2/W does not cancel) and the
-    least and greatest R ∓ ΔR/2. Nodes are kept in an open-addressing hash table owned by the caller;
-    a slot belongs to this call when ``slot_epoch == epoch``, so tables are reused
-    without clearing. Nodes are listed in first-touch order: deterministic.
+    least and greatest R ∓ ΔR/2. Nodes are found through an open-addressing hash
+    table owned by the caller (a slot belongs to this call when its epoch stamp
+    equals ``epoch``, so tables are reused without clearing) and listed densely in
+    first-touch order: deterministic, and read back sequentially.
 
     Parameters
     ----------
@@ -99,102 +206,81 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m, slot_key, sl
         Slant-range interval ΔR each ray's footprint covers, m.
     cell_m : float
         Lattice spacing, m.
-    slot_key : (cap, 4) int64
-        Hash table keys (ch, i, j, k); cap a power of two.
-    slot_epoch : (cap,) int64
-        Epoch stamp of each slot.
+    slots : (cap,) int64
+        Hash table: epoch·2³² + node index per slot (−1: empty); cap a power of two.
     epoch : int
-        Stamp of this call (must differ from every earlier call on the same table).
-    slot_w, slot_wr, slot_wr2, slot_rmin, slot_rmax : (cap,) float64
-        Hash table values W, R̄, M2, min R and max R.
-    order : (cap,) int64
-        Written with the slots of the nodes in first-touch order.
+        Stamp of this call, 1 ≤ epoch < 2³¹ (must differ from every earlier call on the same table).
+    nodes : (cap // 2, NODE_WIDTH) float64
+        Written with W, R̄, M2, min R and max R of each node, in first-touch order.
+    node_key : (cap // 2, 4) int64
+        Written with each node's (ch, i, j, k).
+    cache : (CACHE_WIDTH,) int64
+        Scratch for the last cell and its nodes (see :func:`_insert_ray`).
 
     Returns
     -------
     int
-        Number of nodes; their slots are ``order[:count]``. −1 when the nodes would
-        fill more than half the table: the caller grows it and calls again with a
+        Number of nodes (rows ``0 … count − 1`` of ``nodes``); −1 when there would be
+        more than ``nodes.shape[0]``: the caller grows the table and calls again with a
         new epoch.
     """
-    max_count = slot_epoch.shape[0] // 2
+    cache[:] = -1
     count = 0
     for r in range(points.shape[0]):
         count = _insert_ray(channel[r], points[r, 0], points[r, 1], points[r, 2], weights[r], ranges[r],
-                            extents[r], cell_m, slot_key, slot_epoch, epoch, slot_w, slot_wr, slot_wr2,
-                            slot_rmin, slot_rmax, order, count, max_count)
+                            extents[r], cell_m, slots, epoch, nodes, node_key, count, cache)
         if count < 0:
             return -1
     return count
 
 
 @njit(cache=True, nogil=True)
-def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slot_key, slot_epoch, epoch, slot_w, slot_wr, slot_wr2, slot_rmin,
-                slot_rmax, order, count, max_count):
-    """Add one ray to the 8 nodes around its hit point (see :func:`gather_nodes`); the new node count or −1."""
-    if not (w > 0.0):
-        return count
-    mask = np.uint64(slot_epoch.shape[0] - 1)
-    fx = px / cell_m  # divide, not multiply by 1/cell: at 5e6 m the two differ in t by 1e-9
-    fy = py / cell_m
-    fz = pz / cell_m
-    x0 = math.floor(fx)
-    y0 = math.floor(fy)
-    z0 = math.floor(fz)
-    tx = fx - x0
-    ty = fy - y0
-    tz = fz - z0
-    e2 = ext * ext / 12.0  # variance of a uniform spread over the footprint
-    r_lo = rr - 0.5 * ext
-    r_hi = rr + 0.5 * ext
-    for c in range(8):
-        dx = c & 1
-        dy = (c >> 1) & 1
-        dz = (c >> 2) & 1
-        b = (tx if dx else 1.0 - tx) * (ty if dy else 1.0 - ty) * (tz if dz else 1.0 - tz)
-        if not (b > 0.0):
-            continue
-        ix = np.int64(x0) + dx
-        iy = np.int64(y0) + dy
-        iz = np.int64(z0) + dz
-        s = _node_hash(np.uint64(ch), ix, iy, iz) & mask
-        wb = w * b
-        while True:
-            si = np.int64(s)
-            if slot_epoch[si] != epoch:
-                if count >= max_count:
-                    return -1
-                slot_epoch[si] = epoch
-                slot_key[si, 0] = ch
-                slot_key[si, 1] = ix
-                slot_key[si, 2] = iy
-                slot_key[si, 3] = iz
-                slot_w[si] = wb
-                slot_wr[si] = rr
-                slot_wr2[si] = wb * e2
-                slot_rmin[si] = r_lo
-                slot_rmax[si] = r_hi
-                order[count] = si
-                count += 1
-                break
-            if (slot_key[si, 0] == ch and slot_key[si, 1] == ix and slot_key[si, 2] == iy
-                    and slot_key[si, 3] == iz):
-                w_new = slot_w[si] + wb  # weighted Welford update: no cancellation in σ²
-                delta = rr - slot_wr[si]
-                slot_wr[si] += delta * (wb / w_new)
-                slot_wr2[si] += wb * (delta * (rr - slot_wr[si]) + e2)
-                slot_w[si] = w_new
-                slot_rmin[si] = min(slot_rmin[si], r_lo)
-                slot_rmax[si] = max(slot_rmax[si], r_hi)
-                break
-            s = (s + np.uint64(1)) & mask
+def _gather_ping(b, n_ch, ray_start, points, origin, weights, times, extents, cell_m, slots, epoch, nodes,
+                 node_key, cache):
+    """:func:`gather_nodes` on ping b's rays, channel by channel (points local + origin); count or −1."""
+    cache[:] = -1
+    count = 0
+    for ch in range(n_ch):
+        r = n_ch * b + ch
+        for i in range(ray_start[r], ray_start[r + 1]):
+            count = _insert_ray(ch, points[i, 0] + origin[0], points[i, 1] + origin[1], points[i, 2] + origin[2],
+                                weights[i], times[i], extents[i], cell_m, slots, epoch, nodes, node_key, count,
+                                cache)
+            if count < 0:
+                return -1
     return count
+
+
+@njit(cache=True, nogil=True)
+def _emit_node(node, key, pos, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table,
+               table_start, table_rate, row):
+    """Splat one node's ``n_sub`` frozen scatterers into its channel's row (see :func:`speckle_block`)."""
+    w = node[0]
+    sigma = math.sqrt(max(node[2] / w, 0.0))
+    ix = key[1]
+    iy = key[2]
+    iz = key[3]
+    ddx = ix * cell_m - pos[0]
+    ddy = iy * cell_m - pos[1]
+    ddz = iz * cell_m - pos[2]
+    cycles = (2.0 * math.sqrt(ddx * ddx + ddy * ddy + ddz * ddz) / wavelength_m) % 1.0
+    base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
+    h = _node_hash(seed, ix, iy, iz)
+    spread = math.sqrt(3.0) * sigma
+    for sub in range(n_sub):
+        g, v = _frozen(h, sub, n_sub)
+        r_env = min(max(node[1] + spread * (2.0 * v - 1.0), node[3]), node[4])
+        a = base * g
+        if phase_cycles_per_s != 0.0:
+            ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
+            a = a * complex(math.cos(ph), math.sin(ph))
+        _splat_one(row, r_env * rate_hz, a, table, table_start, table_rate)
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, seed, cell_m, wavelength_m,
-                  rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slot_key, slot_epoch,
-                  epochs, slot_w, slot_wr, slot_wr2, slot_rmin, slot_rmax, order, status, out):
+                  rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slots, epochs, nodes,
+                  node_key, caches, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
 
     For each ping: :func:`gather_nodes` on the ping's echoes (channel by channel),
@@ -227,9 +313,9 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
         Scatterers per node.
     table, table_start, table_rate
         The waveform h, as for :func:`splat_table`.
-    slot_key : (T, cap, 4) int64; slot_epoch : (T, cap) int64; epochs : (T,) int64
-    slot_w, slot_wr, slot_wr2, slot_rmin, slot_rmax : (T, cap) float64; order : (T, cap) int64
-        T hash tables (see :func:`gather_nodes`), reused without clearing.
+    slots : (T, cap) int64; epochs : (T,) int64
+    nodes : (T, cap // 2, NODE_WIDTH) float64; node_key : (T, cap // 2, 4) int64; caches : (T, CACHE_WIDTH) int64
+        T hash tables, node lists and last-cell caches (see :func:`gather_nodes`), reused without clearing.
     status : (pings,) int64
         0: to do (set to 1 when done, −1 when its table was too small: grow the
         tables, reset to 0 and call again; nothing was written for that ping).
@@ -238,52 +324,18 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
     """
     n_p = pos_world.shape[0]
     n_ch = out.shape[1]
-    n_t = slot_key.shape[0]
-    max_count = slot_epoch.shape[1] // 2
-    root3 = math.sqrt(3.0)
+    n_t = slots.shape[0]
     for t in prange(n_t):
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
             if status[b] != 0:
                 continue
             epochs[t] += 1
-            ep = epochs[t]
-            count = 0
-            for ch in range(n_ch):
-                r = n_ch * b + ch
-                for i in range(ray_start[r], ray_start[r + 1]):
-                    count = _insert_ray(ch, points[i, 0] + origin[0], points[i, 1] + origin[1],
-                                        points[i, 2] + origin[2], weights[i], times[i], extents[i], cell_m,
-                                        slot_key[t], slot_epoch[t], ep, slot_w[t], slot_wr[t], slot_wr2[t],
-                                        slot_rmin[t], slot_rmax[t], order[t], count, max_count)
-                    if count < 0:
-                        break
-                if count < 0:
-                    break
+            count = _gather_ping(b, n_ch, ray_start, points, origin, weights, times, extents, cell_m, slots[t],
+                                 epochs[t], nodes[t], node_key[t], caches[t])
             if count < 0:
                 status[b] = -1
                 continue
             for q in range(count):
-                si = order[t, q]
-                w = slot_w[t, si]
-                r_mean = slot_wr[t, si]
-                sigma = math.sqrt(max(slot_wr2[t, si] / w, 0.0))
-                ix = slot_key[t, si, 1]
-                iy = slot_key[t, si, 2]
-                iz = slot_key[t, si, 3]
-                ddx = ix * cell_m - pos_world[b, 0]
-                ddy = iy * cell_m - pos_world[b, 1]
-                ddz = iz * cell_m - pos_world[b, 2]
-                cycles = (2.0 * math.sqrt(ddx * ddx + ddy * ddy + ddz * ddz) / wavelength_m) % 1.0
-                base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles),
-                                                      -math.sin(2.0 * math.pi * cycles))
-                h = _node_hash(seed, ix, iy, iz)
-                row = out[b, slot_key[t, si, 0]]
-                for sub in range(n_sub):
-                    g, v = _frozen(h, sub, n_sub)
-                    r_env = min(max(r_mean + root3 * sigma * (2.0 * v - 1.0), slot_rmin[t, si]), slot_rmax[t, si])
-                    a = base * g
-                    if phase_cycles_per_s != 0.0:
-                        ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
-                        a = a * complex(math.cos(ph), math.sin(ph))
-                    _splat_one(row, r_env * rate_hz, a, table, table_start, table_rate)
+                _emit_node(nodes[t, q], node_key[t, q], pos_world[b], seed, cell_m, wavelength_m, rate_hz,
+                           phase_cycles_per_s, n_sub, table, table_start, table_rate, out[b, node_key[t, q, 0]])
             status[b] = 1
