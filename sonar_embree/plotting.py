@@ -108,7 +108,7 @@ def line_panels_png(panels, path, title=None) -> None:
     Parameters
     ----------
     panels : list of dict
-        Each: ``x`` (n,), ``lines`` [(label, y (n,)), …], ``xlabel``, ``ylabel``,
+        Each: ``x`` (n,), ``lines`` [(label, y (n,)[, matplotlib format]), …], ``xlabel``, ``ylabel``,
         optional ``title``, ``ylim`` (lo, hi) and ``vlines`` [(x, label), …].
     path : str
         PNG written atomically.
@@ -116,8 +116,8 @@ def line_panels_png(panels, path, title=None) -> None:
     plt = _pyplot()
     fig, axes = plt.subplots(1, len(panels), figsize=(5.2 * len(panels), 3.8), squeeze=False)
     for ax, p in zip(axes[0], panels):
-        for label, y in p["lines"]:
-            ax.plot(p["x"], y, label=label, lw=1.0)
+        for label, y, *fmt in p["lines"]:
+            ax.plot(p["x"], y, *fmt, label=label, lw=1.0)
         for x, label in p.get("vlines", []):
             ax.axvline(x, color="0.4", ls="--", lw=0.8)
             ax.annotate(label, (x, 0.97), xycoords=("data", "axes fraction"), fontsize=8, ha="left", va="top")

@@ -122,3 +122,20 @@ def test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend(tmp_path):
     r = curved.slant_range_m
     shift = (r[np.argmax(on_c, axis=1)] - r[np.argmax(on_s, axis=1)])[both]
     assert both.sum() > 20 and np.max(np.abs(shift)) > 3.0 and np.median(np.abs(shift)) > 1.0
+
+
+def test_seafloor_gallery_orders_the_presets_and_draws_sigma(tmp_path):
+    """Issue 14's figure: every floor drawn on one scale, mud darkest to rock brightest; σ(θ) on its curves."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "seafloor_gallery.py"), "-o", str(tmp_path),
+                           "--pings", "12"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["gallery.json", "presets.png", "sigma.png"]
+    for name in ("presets.png", "sigma.png"):
+        img = iio.imread(tmp_path / name)
+        assert img.ndim == 3 and img.shape[1] > 800 and img.std() > 10
+    info = json.loads((tmp_path / "gallery.json").read_text())
+    levels = [info["floor_median_db"][n] for n in ("mud", "sandy mud", "fine sand", "coarse sand", "gravel", "rock")]
+    assert np.all(np.diff(levels) > 2.0), levels                 # μ steps of 5–7 dB between neighbouring classes
+    assert sorted(info["sigma_error_db"]) == sorted(["mud", "sandy mud", "fine sand", "coarse sand", "gravel",
+                                                      "rock", "concrete", "steel"])
+    assert max(info["sigma_error_db"].values()) < 0.3
