@@ -1,4 +1,6 @@
-"""The medium: :class:`Environment` and its absorption models (later: surface, profile)."""
+"""The medium: :class:`Environment`, its absorption models and sound-speed profiles (their ray map; the
+renderer does not cast curved rays yet)."""
 from .medium import ABSORPTION_MODELS, Environment
+from .profile import SoundSpeedProfile
 
-__all__ = ["ABSORPTION_MODELS", "Environment"]
+__all__ = ["ABSORPTION_MODELS", "Environment", "SoundSpeedProfile"]
