@@ -155,3 +155,32 @@ def check_setup(caster, sonar, pos_local: np.ndarray, reach_m: float | None = No
     check_in_range(c, pos_local, sonar.max_range_m if reach_m is None else reach_m)
     check_altitude(check_poses(caster, pos_local), sonar.max_range_m)
     check_back_faces(caster, pos_local, sonar.max_range_m)
+
+
+def check_surface(compiled, sonar, chain, pos_local: np.ndarray) -> None:
+    """Refuse a sea surface the multipath model cannot honour (docs/physics.md §13).
+
+    The sonar and every scene object must lie below the surface (the image paths assume
+    nothing above it); multipath is modelled for side-scan sonars in expected
+    intensity only.
+    """
+    surface = sonar.environment.surface
+    if surface is None:
+        return
+    if not hasattr(sonar, "tilt_deg"):
+        raise ConfigError(f"Environment.surface: multipath is modelled for side-scan sonars, not "
+                          f"{type(sonar).__name__}")
+    if chain.speckle:
+        raise ConfigError("Environment.surface: multipath is synthesised in expected intensity only; "
+                          "run with speckle=False or without a surface")
+    z_s = surface.z_m - float(compiled.origin_m[2])
+    above = np.flatnonzero(pos_local[:, 2] >= z_s)
+    if above.size:
+        k = int(above[0])
+        raise ConfigError(f"the sonar is at or above the sea surface (SeaSurface.z_m = {surface.z_m:g} m) at ping "
+                          f"{k}: z = {pos_local[k, 2] + compiled.origin_m[2]:g} m")
+    top = compiled.vertices[:, 2].max() if compiled.vertices.shape[0] else -np.inf
+    if top > z_s:
+        obj = compiled.face_object[np.flatnonzero(compiled.vertices[compiled.faces][:, :, 2].max(axis=1) > z_s)[0]]
+        raise ConfigError(f"scene object {compiled.labels[obj]!r} reaches above the sea surface "
+                          f"(SeaSurface.z_m = {surface.z_m:g} m)")

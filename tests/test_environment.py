@@ -95,3 +95,11 @@ def test_toml_environment_table_and_old_sonar_keys(tmp_path):
         runconfig.load_run_config(_write(tmp_path, sonar_extra="temperature_c = 4.0\n", env="temperature_c = 5.0\n"))
     with pytest.raises(se.ConfigError, match="unknown key 'salinity' in \\[environment\\]"):
         runconfig.load_run_config(_write(tmp_path, env="salinity = 35.0\n"))
+
+
+def test_toml_sea_surface(tmp_path):
+    cfg = runconfig.load_run_config(_write(tmp_path, env="surface = { z_m = 30.0, rms_wave_height_m = 0.001 }\n"))
+    assert cfg.sonar.environment.surface == se.SeaSurface(z_m=30.0, rms_wave_height_m=0.001)
+    with pytest.raises(se.ConfigError, match="unknown key 'height' in Environment.surface|Environment.surface: "
+                                             "unknown key 'height'"):
+        runconfig.load_run_config(_write(tmp_path, env="surface = { z_m = 30.0, height = 1.0 }\n"))

@@ -2,5 +2,6 @@
 renderer does not cast curved rays yet)."""
 from .medium import ABSORPTION_MODELS, Environment
 from .profile import SoundSpeedProfile
+from .surface import SeaSurface
 
-__all__ = ["ABSORPTION_MODELS", "Environment", "SoundSpeedProfile"]
+__all__ = ["ABSORPTION_MODELS", "Environment", "SeaSurface", "SoundSpeedProfile"]

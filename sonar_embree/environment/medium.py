@@ -1,16 +1,16 @@
-"""The medium the sound travels in: sound speed, water properties and absorption.
+"""The medium the sound travels in: sound speed, water properties, absorption and the sea surface.
 
-The sea surface and a sound-speed profile join it later; :class:`Environment` is
-their one home (docs/physics.md §3).
+A sound-speed profile joins it later; :class:`Environment` is its one home (docs/physics.md §3, §13).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 from ..errors import ConfigError
-from ..validation import check_number
+from ..validation import check_number, field_names
 from .ainslie_mccolm import ainslie_mccolm_db_per_m
 from .francois_garrison import francois_garrison_db_per_m
+from .surface import SeaSurface
 
 #: Absorption models by name: f(frequency_hz, temperature_c, salinity_ppt, depth_m, ph) → dB/m.
 #: A new model is one module with such a function and one line here.
@@ -43,6 +43,9 @@ class Environment:
         One-way absorption α in dB/m (two-way loss 2αR dB), an explicit override of
         the model. ``None`` (default): the model at the sonar's frequency, 0.0961 dB/m
         for Francois–Garrison at 400 kHz, 10 °C, 35 ppt, pH 8.
+    surface : SeaSurface or None
+        The sea surface (multipath by the image method, docs/physics.md §13); None
+        (default): an unbounded ocean, today's code path.
     """
 
     sound_speed_m_s: float = 1500.0
@@ -52,6 +55,7 @@ class Environment:
     ph: float = 8.0
     absorption_model: str = "francois-garrison"
     absorption_db_per_m: float | None = None
+    surface: SeaSurface | None = None
 
     def __post_init__(self):
         check_number("Environment", "sound_speed_m_s", self.sound_speed_m_s, positive=True)
@@ -64,6 +68,14 @@ class Environment:
                               f"got {self.absorption_model!r}")
         if self.absorption_db_per_m is not None:
             check_number("Environment", "absorption_db_per_m", self.absorption_db_per_m, nonneg=True, hi=100.0)
+        if isinstance(self.surface, dict):  # from TOML ([environment] surface = {…}) or a record's metadata
+            unknown = sorted(set(self.surface) - set(field_names(SeaSurface)))
+            if unknown:
+                raise ConfigError(f"Environment.surface: unknown key {unknown[0]!r}; one of "
+                                  f"{', '.join(field_names(SeaSurface))}")
+            object.__setattr__(self, "surface", SeaSurface(**self.surface))
+        if self.surface is not None and not isinstance(self.surface, SeaSurface):
+            raise ConfigError(f"Environment.surface must be a sonar_embree.SeaSurface or None, got {self.surface!r}")
 
     def alpha_db_per_m(self, frequency_hz: float) -> float:
         """One-way absorption at ``frequency_hz`` (Hz) in dB/m: the override or the model."""

@@ -7,8 +7,12 @@ keeps the block's fan (:class:`~sonar_embree.fan.BlockEchoes`).
 """
 from __future__ import annotations
 
+import dataclasses
+import time
+
 import numpy as np
 
+from .. import multipath
 from ..config import FanSettings, Sonar
 from ..echoes import Echoes
 from ..fan import BlockEchoes, FanPlan, cast_block
@@ -44,10 +48,29 @@ class SideScanFrontEnd:
         clock : dict
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
         """
+        surface = self.sonar.environment.surface
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
-                         2.0 / self.sonar.sound_speed_m_s, want_points=want_points, timings=clock,
-                         frequency_hz=self.sonar.frequency_hz)
-        return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
+                         2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
+                         timings=clock, frequency_hz=self.sonar.frequency_hz)
+        ids = caster.compiled.face_object if want_ids else None
+        if surface is None:
+            return echoes_of(blk, ids), blk
+        return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, clock), blk
+
+    def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, clock) -> Echoes:
+        """Direct, one-bounce and two-bounce echoes of the block, row by row (docs/physics.md §13)."""
+        t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
+        z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
+        image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock)
+        mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s)
+        keep = np.isfinite(blk.range_m)
+        parts = [echoes_of(blk, ids), mixed, image]
+        if ids is not None:
+            parts[1] = dataclasses.replace(mixed, object_id=echoes_of(blk, ids).object_id[keep])
+            parts[2] = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
+        cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
+        clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
+        return multipath.merge(parts)
 
 
 def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:

@@ -1,0 +1,202 @@
+"""Sea-surface multipath (docs/physics.md §13) against an independent quadrature of the four-path image sum.
+
+Flat floor at z = 0, sonar at altitude h heading +x, flat surface a depth d above it; its mirror S' at height
+h + 2d. For a floor point at ground distance ρ: r = √(ρ² + h²), r' = √(ρ² + (h + 2d)²). The paths and their
+intensity per unit floor area (Lambert μ, bistatic σ = μ·cos θi·cos θs):
+
+    S→X→S     Γ⁴(u1)·μ cos²θi·e^(−2α'r)/r⁴                         at L = 2r
+    S→X→S' ×2 2·Γ²(u1)·Γ²(u2)·μ cos θi cos θs·|R_s|²·e^(−α'(r+r'))/(r² r'²)   at L = r + r'
+    S'→X→S'   Γ⁴(u2)·μ cos²θs·|R_s|⁴·e^(−2α'r')/r'⁴                 at L = 2r'
+
+with u1 = (X − S)/r, u2 the mirror of (X − S')/r' (the upward leg as the transducer sees it), cos θi = h/r,
+cos θs = (h + 2d)/r'. A rectangular pulse of length τ makes the sample at t the integral over
+c(t − τ) < L ≤ ct. The integrals over the floor are done here on a polar grid, without the simulator's code.
+"""
+import numpy as np
+import pytest
+
+import analytic
+import sonar_embree as se
+
+H, D, TILT, LY, TAU, MU_DB = 10.0, 4.0, 0.0, 0.0015, 50e-6, -20.0
+FS = 100e3
+
+
+def _sonar(surface=None, **kw):
+    env = se.Environment(surface=surface) if surface is not None else se.Environment()
+    return se.Sonar(tilt_deg=TILT, height_m=LY, max_range_m=35.0, sample_rate_hz=FS, environment=env, **kw)
+
+
+def _record(surface=None, extra=None):
+    scene = se.Scene().add(se.seafloor.flat((400.0, 200.0)), material=se.Material(backscatter_db=MU_DB),
+                           label="seafloor")
+    for mesh, mat, label in extra or ():
+        scene.add(mesh, material=mat, label=label)
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    return se.simulate(scene, line, _sonar(surface), se.Pulse.cw(duration_s=TAU, taper=0.0),
+                       start_time="2000-01-01")
+
+
+def _path_densities(rho, alpha_np, rs2=lambda sin_g: 1.0):
+    """φ-integrated intensity per unit ground distance of the three kinds of path, and their lengths L(ρ)."""
+    dense = np.linspace(-0.12, 0.12, 801)
+    phi = np.unique(np.concatenate([dense, np.linspace(-np.pi / 2, np.pi / 2, 801)]))
+    p, f = rho[:, None], phi[None, :]
+    xy = np.stack([p * np.sin(f), -p * np.cos(f)], axis=-1)           # φ = 0: broadside starboard (−y)
+    r, r2 = np.sqrt(rho ** 2 + H ** 2)[:, None], np.sqrt(rho ** 2 + (H + 2 * D) ** 2)[:, None]
+
+    def gamma(vx, vy, vz):                                            # starboard: side = −y, down = −z
+        return analytic.gamma_membrane(vx, -vy, -vz, ly=LY, tilt_deg=TILT)
+
+    g1 = gamma(xy[..., 0] / r, xy[..., 1] / r, -H / r)
+    g2 = gamma(xy[..., 0] / r2, xy[..., 1] / r2, (H + 2 * D) / r2)   # mirrored: the leg goes up
+    mu, ci, cs = 10 ** (MU_DB / 10), H / r, (H + 2 * D) / r2
+    sg = (H + 2 * D) / r2                                             # sin of the grazing angle at the surface
+    dens = {"direct": g1 ** 4 * mu * ci ** 2 * np.exp(-2 * alpha_np * r) / r ** 4,
+            "mixed": 2 * g1 ** 2 * g2 ** 2 * mu * ci * cs * rs2(sg) * np.exp(-alpha_np * (r + r2)) / (r * r2) ** 2,
+            "image": g2 ** 4 * mu * cs ** 2 * rs2(sg) ** 2 * np.exp(-2 * alpha_np * r2) / r2 ** 4}
+    lengths = {"direct": 2 * r[:, 0], "mixed": (r + r2)[:, 0], "image": 2 * r2[:, 0]}
+    return {k: np.trapezoid(v, phi, axis=1) * rho for k, v in dens.items()}, lengths
+
+
+def quadrature(t, c, alpha_db_m, rs2=lambda sin_g: 1.0):
+    """Expected intensity of each path at the sample times t (s): {path: (n,) float}."""
+    rho = np.concatenate([np.linspace(0, 2, 2001)[:-1], np.linspace(2, 40, 7601)])
+    alpha_np = alpha_db_m * np.log(10) / 10
+    dens, lengths = _path_densities(rho, alpha_np, rs2)
+    out = {}
+    for k, g in dens.items():
+        cum = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(rho))])
+        L = lengths[k]
+
+        def C(x):
+            return np.interp(x, L, cum, left=0.0, right=cum[-1])
+
+        out[k] = C(c * t) - C(c * (t - TAU))
+    return out
+
+
+@pytest.fixture(scope="module")
+def records():
+    return {"none": _record(), "flat": _record(se.SeaSurface(z_m=H + D))}
+
+
+@pytest.fixture(scope="module")
+def flat_quadrature(records):
+    rec = records["flat"]
+    return quadrature(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+
+
+def _edges(t, c, paths=("one", "two")):
+    """Samples within one of an onset or its end (onset + τ): the peak at normal incidence passes there."""
+    onsets = {"direct": 2 * H / c, "one": (2 * H + 2 * D) / c, "two": 2 * (H + 2 * D) / c}
+    near = np.zeros(t.shape, dtype=bool)
+    for p in paths:
+        for edge in (onsets[p], onsets[p] + TAU):
+            near |= np.abs(t - edge) <= 1.5 / FS
+    return near
+
+
+def test_four_path_image_sum_matches_quadrature(records, flat_quadrature):
+    rec, q = records["flat"], flat_quadrature
+    total = q["direct"] + q["mixed"] + q["image"]
+    got = rec.starboard.mean(axis=0)
+    c = rec.sonar.sound_speed_m_s
+    multi = ((q["mixed"] + q["image"]) > 0.1 * total) & ~_edges(rec.time_s, c)   # onset timing: tested below
+    assert multi.sum() > 100
+    err = 10 * np.log10(got[multi] / total[multi])
+    assert np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
+    direct_only = records["none"].starboard.mean(axis=0)
+    lit = (q["direct"] > 1e-3 * q["direct"].max()) & ~_edges(rec.time_s, c, ("direct",))
+    assert np.max(np.abs(10 * np.log10(direct_only[lit] / q["direct"][lit]))) < 0.5    # the reference itself
+
+
+def test_one_and_two_bounce_onsets(records, flat_quadrature):
+    rec, c = records["flat"], records["flat"].sonar.sound_speed_m_s
+    t = rec.time_s
+    extra = rec.starboard.mean(axis=0) - records["none"].starboard.mean(axis=0)
+    first = t[np.flatnonzero(extra > 1e-9 * records["none"].starboard.max())[0]]
+    assert abs(first - (2 * H + 2 * D) / c) <= 1.0 / FS                      # one bounce: (2h + 2d)/c
+    q = flat_quadrature
+    residual = extra - q["mixed"]                                             # what the mixed paths do not explain
+    onset2 = 2 * (H + 2 * D) / c
+    before, after = t < onset2 - 1.0 / FS, (t > onset2 + 1.0 / FS) & (t < onset2 + TAU)
+    assert np.all(np.abs(residual[before]) < 0.05 * q["mixed"][before].max())
+    assert np.all(residual[after] > 0.2 * q["image"][after])                  # two bounces: 2(h + 2d)/c
+    assert q["image"][after].min() > 0.0
+
+
+def test_rough_surface_scales_multipath_by_the_coherent_reflection(records):
+    hw = 0.3e-3
+    rough = _record(se.SeaSurface(z_m=H + D, rms_wave_height_m=hw))
+    k = rough.sonar.wavenumber_rad_m
+    c, t = rough.sonar.sound_speed_m_s, rough.time_s
+    direct = records["none"].starboard.mean(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):  # 0/0 before the first bounce arrives
+        ratio = (rough.starboard.mean(axis=0) - direct) / (records["flat"].starboard.mean(axis=0) - direct)
+    window = (t > (2 * H + 2 * D) / c + 2 * TAU) & (t < 2 * (H + 2 * D) / c)   # one bounce only
+    ell = c * (t[window] - TAU / 2)                                          # r + r' at broadside: solve for ρ
+    rho = np.sqrt(((ell ** 2 - H ** 2 - (H + 2 * D) ** 2) ** 2 - 4 * H ** 2 * (H + 2 * D) ** 2) / (4 * ell ** 2))
+    sin_g = (H + 2 * D) / np.sqrt(rho ** 2 + (H + 2 * D) ** 2)
+    want = np.exp(-4 * k ** 2 * hw ** 2 * sin_g ** 2)
+    assert want.min() < 10 ** (-0.2)                                          # the roughness matters here
+    err = 10 * np.log10(ratio[window] / want)
+    assert np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
+
+
+@pytest.mark.parametrize("leg,plate_y,plate_z,blocked,kept", [
+    # crosses the leg X → P (at z = 10.475–10.525 m it is 0.418–0.415·ρ out) for ρ = 2.4–7.2 m
+    ("X to P", (-3.0, -1.0), H + 0.5, [(14.5, 15.5)], [(16.3, 17.7), (20.0, 34.0)]),
+    # crosses the leg S → P (at z = 10.175–10.225 m it is 0.0097–0.0125·ρ out) for ρ = 4–20.6 m
+    ("S to P", (-0.2, -0.05), H + 0.2, [(15.5, 18.0), (19.0, 24.0)], [(28.0, 34.0)]),
+])
+def test_occluder_shadows_only_the_surface_paths(records, leg, plate_y, plate_z, blocked, kept):
+    """A plate between the sonar and the surface shadows the surface paths whose leg it crosses (windows of
+    R = ct/2 from the geometry: X, P and S' on one line, P at 4/18 of ρ); the direct echoes and every other
+    surface path stay."""
+    import trimesh
+
+    plate = trimesh.creation.box(extents=(60.0, plate_y[1] - plate_y[0], 0.05))
+    plate.apply_translation((0.0, 0.5 * sum(plate_y), plate_z))
+    rec = _record(se.SeaSurface(z_m=H + D), [(plate, se.Material(backscatter_db=-150.0), "plate")])
+    r_eq = rec.slant_range_m
+    got, flat, none = (x.starboard.mean(axis=0) for x in (rec, records["flat"], records["none"]))
+
+    def window(spans):
+        return np.any([(r_eq > lo) & (r_eq < hi) for lo, hi in spans], axis=0)
+
+    # the plate moves the adaptive ray budget a little (rtol) and adds its own −150 dB echo (atol)
+    direct = window([(1.0, H + D - 0.5)])  # the plate's own echo lies nearer
+    np.testing.assert_allclose(got[direct], none[direct], rtol=1e-4, atol=1e-9 * none.max())
+    dark, lit = window(blocked), window(kept)
+    for w in (dark, lit):
+        assert w.sum() > 50 and np.all(flat[w] - none[w] > 0.05 * flat[w])   # multipath matters in both
+    np.testing.assert_allclose(got[dark], none[dark], rtol=1e-4)
+    np.testing.assert_allclose(got[lit], flat[lit], rtol=1e-4)
+
+
+def test_no_surface_is_todays_code_path_and_surface_errors():
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    a = se.simulate(scene, line, se.Sonar(max_range_m=20.0), start_time="2000-01-01")
+    b = se.simulate(scene, line, se.Sonar(max_range_m=20.0, environment=se.Environment(surface=None)),
+                    start_time="2000-01-01")
+    np.testing.assert_array_equal(a.data, b.data)
+    with pytest.raises(se.ConfigError, match="above the sea surface"):
+        se.simulate(scene, line, _sonar(se.SeaSurface(z_m=H - 1.0)), start_time="2000-01-01")
+    with pytest.raises(se.ConfigError, match="expected intensity only"):
+        se.simulate(scene, line, _sonar(se.SeaSurface(z_m=H + 1.0)), speckle=True, start_time="2000-01-01")
+    tall = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    import trimesh
+    mast = trimesh.creation.box(extents=(1.0, 1.0, 30.0))
+    mast.apply_translation((0.0, -20.0, 15.0))
+    tall.add(mast, label="mast")
+    with pytest.raises(se.ConfigError, match="'mast' reaches above the sea surface"):
+        se.simulate(tall, line, _sonar(se.SeaSurface(z_m=H + 2.0)), start_time="2000-01-01")
+    for bad, needle in ((dict(z_m=float("nan")), "finite"), (dict(z_m=5.0, rms_wave_height_m=-1.0), ">= 0"),
+                        (dict(z_m=5.0, rms_wave_height_m=0.1, wind_speed_m_s=5.0), "not both")):
+        with pytest.raises(se.ConfigError, match=needle):
+            se.SeaSurface(**bad)
+    surf = se.SeaSurface(z_m=0.0, wind_speed_m_s=10.0)
+    assert surf.wave_height_m == pytest.approx(0.21 * 100 / 9.80665 / 4)             # Pierson–Moskowitz H_s/4
+    assert surf.reflection_db(90.0, 1.0) == pytest.approx(-20 * np.log10(np.e) * 2 * surf.wave_height_m ** 2)
