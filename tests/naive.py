@@ -279,3 +279,38 @@ def law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind,
             sigma = 10 ** (np.interp(np.pi / 2 - theta, data[off:off + n], data[off + n:off + 2 * n]) / 10)
         out[i] = sigma / np.cos(theta)
     return out
+
+
+def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m,
+               slope_cap_m_rad, c, wave_kh):
+    """The one-bounce legs of every direct echo in NumPy (twin of kernels.mixed_legs): a dict of its outputs."""
+    def gain(u):
+        e = np.einsum("nji,nj->ni", rot[ping], u)
+        ct, st = np.cos(beam[2]), np.sin(beam[2])
+        height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
+        return np.where(bore > 0, np.sinc(beam[0] * e[:, 0] / np.pi) * np.sinc(beam[1] * height / np.pi), 0.0)
+
+    s = pos[ping]
+    u1 = (x - s) / r[:, None]
+    img = s * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * z_s]
+    r2 = np.linalg.norm(img - x, axis=1)
+    v = (img - x) / r2[:, None]
+    leg1 = r2 * (z_s - x[:, 2]) / (img[:, 2] - x[:, 2])
+    to_p = x + leg1[:, None] * v - s
+    leg2 = np.linalg.norm(to_p, axis=1)
+    u2 = to_p / leg2[:, None]
+    n = face_normals[prim] * -np.sign(np.sum(face_normals[prim] * u1, axis=1))[:, None]
+    cos_i, cos_s = -np.sum(n * u1, axis=1), np.sum(n * v, axis=1)
+    w = (2 * gain(u1) ** 2 * gain(u2) ** 2 * np.exp(-0.5 * two_way_np_per_m * (r + r2)) * ds * dbeta
+         / (np.maximum(r2, min_range_m) ** 2 * cos_i) * np.exp(-4 * wave_kh ** 2 * v[:, 2] ** 2))
+    e = np.einsum("nji,nj->ni", rot[ping], u1)
+    f = np.einsum("nij,nj->ni", rot[ping], np.stack([0 * r, -side * e[:, 2], side * e[:, 1]], axis=1))
+    dx = r[:, None] * (f - u1 * (np.sum(n * f, axis=1) / np.sum(n * u1, axis=1))[:, None])
+    slope = np.minimum(np.abs(np.sum((u1 - v) * dx, axis=1)), 2 * slope_cap_m_rad)
+    b = -u1 - cos_i[:, None] * n                                          # −u1 − ((−u1)·n)·n
+    t = v - cos_s[:, None] * n
+    nb, nt = np.linalg.norm(b, axis=1), np.linalg.norm(t, axis=1)
+    ok = (nb > 1e-12) & (nt > 1e-12)
+    phi = np.where(ok, np.arccos(np.clip(np.sum(b * t, axis=1) / np.where(ok, nb * nt, 1), -1, 1)), 0.0)
+    return dict(time=(r + r2) / c, extent=slope * dbeta / c, weight=w, cos_i=cos_i, cos_s=cos_s, phi=phi, v=v,
+                leg1=leg1, u2=u2, leg2=leg2)

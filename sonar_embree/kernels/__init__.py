@@ -3,7 +3,8 @@
 - :mod:`.rays`: the side-scan fan (ray placement, directions, propagation per hit) — front end;
 - :mod:`.splat`: footprint splatting — back end, expected intensity;
 - :mod:`.speckle`: the frozen scatterer lattice and its synthesis — back end, speckle;
-- :mod:`.truth`: ground-truth labels of the centre line.
+- :mod:`.truth`: ground-truth labels of the centre line;
+- :mod:`.multipath`: the one-bounce surface legs of every direct echo — front end.
 
 :mod:`._numba` is the only module that imports numba (the scattering laws take ``njit`` and ``prange``
 from here). Kernels read no global state (named constants only), allocate nothing, draw no random
@@ -11,11 +12,12 @@ numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy
 ``tests/naive.py``. Compiled code is cached on disk.
 """
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
+from .multipath import mixed_legs
 from .rays import _sinc, fan_echoes, fan_rays, place_rows
 from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
 from .splat import splat_rows, splat_table
 from .truth import label_rows
 
 __all__ = ["CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays", "frozen_scatterers", "gather_nodes",
-           "label_rows", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
+           "label_rows", "mixed_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
            "splat_table", "_sinc"]

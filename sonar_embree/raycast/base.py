@@ -82,6 +82,25 @@ class Caster:
         """
         raise NotImplementedError
 
+    def occluded(self, origins_f32, directions_f32, dists_f32):
+        """Whether anything lies on each ray before its own distance (visibility of a leg).
+
+        Parameters
+        ----------
+        origins_f32, directions_f32 : (n, 3) float32, C-contiguous
+            Ray origins (local frame, m) and unit directions.
+        dists_f32 : (n,) float32
+            Length of each leg, m.
+
+        Returns
+        -------
+        (n,) bool
+        """
+        if directions_f32.shape[0] == 0:
+            return np.zeros(0, dtype=bool)
+        prim, tfar = self.cast_raw(origins_f32, directions_f32, float(np.max(dists_f32)))
+        return (prim >= 0) & (tfar < dists_f32)
+
     def cast(self, origins_local, directions, max_range_m: float) -> Hits:
         """First hit of each ray within ``max_range_m``.
 

@@ -33,25 +33,31 @@ class EmbreeCaster(Caster):
         one = np.zeros((1, 3), dtype=np.float32)
         self._scene.run(one, one + np.float32([0, 0, 1]), dists=np.ones(1, np.float32), output=0)  # build the BVH now
 
-    def _run(self, origins_f32, directions_f32, max_range_m: float, output: int):
+    def _run(self, origins_f32, directions_f32, dists_f32, output: int | None, query: str = "INTERSECT"):
         n = directions_f32.shape[0]
         if self._pool is None or n < THREADED_MIN_RAYS:
-            return self._scene.run(origins_f32, directions_f32, dists=np.full(n, max_range_m, dtype=np.float32),
-                                   output=output)
+            return self._scene.run(origins_f32, directions_f32, dists=dists_f32, query=query, output=output)
         cuts = np.linspace(0, n, self.threads + 1).astype(int)  # each ray is independent: same bits for any split
         parts = list(self._pool.map(
             lambda ab: self._scene.run(origins_f32[ab[0]:ab[1]], directions_f32[ab[0]:ab[1]],
-                                       dists=np.full(ab[1] - ab[0], max_range_m, dtype=np.float32), output=output),
+                                       dists=dists_f32[ab[0]:ab[1]], query=query, output=output),
             zip(cuts[:-1], cuts[1:])))
-        if output == 0:
+        if output != 1:
             return np.concatenate(parts)
         return {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in ("primID", "tfar")}
+
+    def occluded(self, origins_f32, directions_f32, dists_f32):
+        """Embree's occlusion query (any hit before each ray's own distance); as :meth:`Caster.occluded`."""
+        if directions_f32.shape[0] == 0:
+            return np.zeros(0, dtype=bool)
+        return np.asarray(self._run(origins_f32, directions_f32, np.ascontiguousarray(dists_f32, dtype=np.float32),
+                                    None, "OCCLUDED")) >= 0
 
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
         """Embree's first hits, unrefined; as :meth:`Caster.cast_raw`."""
         n = directions_f32.shape[0]
         if n == 0:
             return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
-        res = self._run(origins_f32, directions_f32, max_range_m, 1)
+        res = self._run(origins_f32, directions_f32, np.full(n, max_range_m, dtype=np.float32), 1)
         return (np.ascontiguousarray(res["primID"], dtype=np.int32),
                 np.ascontiguousarray(res["tfar"], dtype=np.float32))

@@ -55,9 +55,9 @@ class SideScanFrontEnd:
         ids = caster.compiled.face_object if want_ids else None
         if surface is None:
             return echoes_of(blk, ids), blk
-        return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, clock), blk
+        return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock), blk
 
-    def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, clock) -> Echoes:
+    def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock) -> Echoes:
         """Direct, one-bounce and two-bounce echoes of the block, row by row (docs/physics.md §13)."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
@@ -70,7 +70,7 @@ class SideScanFrontEnd:
             parts[2] = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
-        return multipath.merge(parts)
+        return multipath.merge(parts, want_points)
 
 
 def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:
