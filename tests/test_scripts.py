@@ -139,3 +139,17 @@ def test_seafloor_gallery_orders_the_presets_and_draws_sigma(tmp_path):
     assert sorted(info["sigma_error_db"]) == sorted(["mud", "sandy mud", "fine sand", "coarse sand", "gravel",
                                                       "rock", "concrete", "steel"])
     assert max(info["sigma_error_db"].values()) < 0.3
+
+
+def test_multipath_figure_shows_the_surface_paths(tmp_path):
+    """Issue 15's figure: three waterfalls and a ping; the surface adds echoes never before the one-bounce onset."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "multipath_figure.py"), "-o", str(tmp_path),
+                           "--pings", "4"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["multipath.json", "ping.png", "waterfalls.png"]
+    for name in ("waterfalls.png", "ping.png"):
+        img = iio.imread(tmp_path / name)
+        assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
+    info = json.loads((tmp_path / "multipath.json").read_text())
+    assert info["first_multipath_s"] >= info["one_bounce_onset_s"] - info["sample_s"]
+    assert info["first_multipath_s"] < info["one_bounce_onset_s"] + 0.1 * info["one_bounce_onset_s"]
