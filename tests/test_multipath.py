@@ -175,13 +175,17 @@ def test_occluder_shadows_only_the_surface_paths(records, leg, plate_y, plate_z,
     np.testing.assert_allclose(got[lit], flat[lit], rtol=1e-4)
 
 
-def test_no_surface_is_todays_code_path_and_surface_errors():
+def test_no_surface_runs_no_multipath_code_and_surface_errors(monkeypatch):
+    from sonar_embree import multipath
+
     scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
-    a = se.simulate(scene, line, se.Sonar(max_range_m=20.0), start_time="2000-01-01")
-    b = se.simulate(scene, line, se.Sonar(max_range_m=20.0, environment=se.Environment(surface=None)),
-                    start_time="2000-01-01")
-    np.testing.assert_array_equal(a.data, b.data)
+    for name in ("image_echoes", "mixed_echoes", "merge"):      # model only what a scene needs
+        monkeypatch.setattr(multipath, name, lambda *a, **k: pytest.fail("multipath ran without a surface"))
+    timings = {}
+    se.simulate(scene, line, se.Sonar(max_range_m=20.0), start_time="2000-01-01", timings=timings)
+    assert "multipath" not in timings
+    monkeypatch.undo()
     with pytest.raises(se.ConfigError, match="above the sea surface"):
         se.simulate(scene, line, _sonar(se.SeaSurface(z_m=H - 1.0)), start_time="2000-01-01")
     with pytest.raises(se.ConfigError, match="expected intensity only"):
