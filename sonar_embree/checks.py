@@ -157,12 +157,11 @@ def check_setup(caster, sonar, pos_local: np.ndarray, reach_m: float | None = No
     check_back_faces(caster, pos_local, sonar.max_range_m)
 
 
-def check_surface(compiled, sonar, chain, pos_local: np.ndarray) -> None:
+def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
     """Refuse a sea surface the multipath model cannot honour (docs/physics.md §13).
 
     The sonar and every scene object must lie below the surface (the image paths assume
-    nothing above it); multipath is modelled for side-scan sonars in expected
-    intensity only.
+    nothing above it); multipath is modelled for side-scan sonars.
     """
     surface = sonar.environment.surface
     if surface is None:
@@ -170,9 +169,6 @@ def check_surface(compiled, sonar, chain, pos_local: np.ndarray) -> None:
     if not hasattr(sonar, "tilt_deg"):
         raise ConfigError(f"Environment.surface: multipath is modelled for side-scan sonars, not "
                           f"{type(sonar).__name__}")
-    if chain.speckle:
-        raise ConfigError("Environment.surface: multipath is synthesised in expected intensity only; "
-                          "run with speckle=False or without a surface")
     z_s = surface.z_m - float(compiled.origin_m[2])
     above = np.flatnonzero(pos_local[:, 2] >= z_s)
     if above.size:

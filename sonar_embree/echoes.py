@@ -7,9 +7,14 @@ travel time is not 2R/c, and the back end never needs R.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+
+
+#: Paths of :attr:`Echoes.path`: 0 direct S→X→S, 1 one bounce (S→X→S' and S'→X→S), 2 two bounces S'→X→S'
+#: (S' the sonar's mirror image in the sea surface; docs/physics.md §13).
+PATHS = ("direct", "one bounce", "two bounces")
 
 
 @dataclass(frozen=True, eq=False)
@@ -35,6 +40,8 @@ class Echoes:
         Scattering points in the scene's local frame, m (when the back end needs them: speckle).
     object_id : (n,) int32 or (0,)
         Scene object of each echo, −1 for none (when ground truth needs it).
+    path : (n,) int8 or (0,)
+        Sea-surface path of each echo (:data:`PATHS`), or empty when every echo is direct.
     """
 
     n_channels: int
@@ -44,7 +51,20 @@ class Echoes:
     weight: np.ndarray
     point_m: np.ndarray
     object_id: np.ndarray
+    path: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
 
     @property
     def n_pings(self) -> int:
         return (self.ray_start.shape[0] - 1) // self.n_channels
+
+
+def select(e: Echoes, keep: np.ndarray) -> Echoes:
+    """The echoes where ``keep`` (n,) bool is true, in the same rows (points and ids kept when present)."""
+    rows = np.repeat(np.arange(e.ray_start.shape[0] - 1), np.diff(e.ray_start))[keep]
+    start = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=e.ray_start.shape[0] - 1)))).astype(np.int64)
+
+    def part(a):
+        return a[keep] if a.shape[0] == keep.shape[0] else a
+
+    return Echoes(e.n_channels, start, e.travel_time_s[keep], e.extent_s[keep], e.weight[keep], part(e.point_m),
+                  part(e.object_id), part(e.path))

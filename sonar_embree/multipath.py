@@ -136,7 +136,7 @@ def _scattered(blk, keep, time_s, ext, w, x) -> Echoes:
 
 
 def merge(parts, points: bool) -> Echoes:
-    """Echoes of several paths, row by row (each row: the parts' echoes in order).
+    """Echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path.
 
     The hit points are kept when ``points`` (speckle, maps), the object ids when every part has them.
     """
@@ -150,4 +150,5 @@ def merge(parts, points: bool) -> Echoes:
 
     pts = cat("point_m") if points else np.zeros((0, 3))
     ids = cat("object_id") if all(e.object_id.shape[0] == e.weight.shape[0] for e in parts) else np.zeros(0, np.int32)
-    return Echoes(parts[0].n_channels, start, cat("travel_time_s"), cat("extent_s"), cat("weight"), pts, ids)
+    path = np.concatenate([np.full(e.weight.shape[0], k, dtype=np.int8) for k, e in enumerate(parts)])[order]
+    return Echoes(parts[0].n_channels, start, cat("travel_time_s"), cat("extent_s"), cat("weight"), pts, ids, path)

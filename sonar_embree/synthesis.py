@@ -19,7 +19,7 @@ import numpy as np
 
 from . import kernels, processing, pulses
 from .config import Pulse, SignalChain
-from .echoes import Echoes
+from .echoes import Echoes, select
 from .processing import convolve_time
 
 
@@ -52,14 +52,19 @@ class ScattererLattice:
         self.caches = np.zeros((n_t, kernels.CACHE_WIDTH), dtype=np.int64)
 
     def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
-                   phase_cycles_per_s: float, synth: "WaveformTables", out):
-        """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table."""
+                   phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None):
+        """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table.
+
+        ``pos_world`` transmits and ``pos_rx`` (default: the same) receives, world m per ping.
+        """
+        pos_world = np.ascontiguousarray(pos_world)
+        pos_rx = pos_world if pos_rx is None else np.ascontiguousarray(pos_rx)
         status = np.zeros(pos_world.shape[0], dtype=np.int64)
         if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
             self._alloc(self.slots.shape[0], self.slots.shape[1])
         while True:
             kernels.speckle_block(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
-                                  np.ascontiguousarray(pos_world), self.seed, self.cell_m, wavelength_m, rate_hz,
+                                  pos_world, pos_rx, self.seed, self.cell_m, wavelength_m, rate_hz,
                                   phase_cycles_per_s, self.SUB_SCATTERERS, synth.table, synth.table_start,
                                   synth.table_rate, self.slots, self.epochs, self.nodes, self.node_key,
                                   self.caches, status, out)
@@ -161,11 +166,11 @@ class SpeckleSynthesis:
         fs, f0 = s.sample_rate_hz, s.frequency_hz
         n_b, n_ch, n_s = out.shape
         if chain.band == "baseband":
-            self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, fs, 0.0, self.tables, out)  # coherent
+            self._lattice(e, origin_m, pos_world, fs, 0.0, out)  # coherent
         else:
             m = self.tables.carrier_factor
             buf = np.zeros((n_b, n_ch, (n_s - 1) * m + 1), dtype=np.complex128)
-            self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, m * fs, f0, self.tables, buf)
+            self._lattice(e, origin_m, pos_world, m * fs, f0, buf)
         t = time.perf_counter()
         for b in range(n_b):
             noise = None
@@ -180,6 +185,19 @@ class SpeckleSynthesis:
         dt = time.perf_counter() - t  # per-ping detection on the carrier is processing, not synthesis
         clock["processing"] = clock.get("processing", 0.0) + dt
         clock["synthesis"] = clock.get("synthesis", 0.0) - dt
+
+    def _lattice(self, e: Echoes, origin_m, pos_world, rate_hz: float, phase_cycles_per_s: float, out) -> None:
+        """The lattice's echoes of every path: each its own gather and phase, the frozen scatterers shared."""
+        s = self.sonar
+        if e.path.shape[0] == 0:
+            self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
+                                    out)
+            return
+        image = np.array(pos_world, dtype=np.float64)
+        image[:, 2] = 2.0 * s.environment.surface.z_m - image[:, 2]
+        for p, (tx, rx) in enumerate(((pos_world, pos_world), (pos_world, image), (image, image))):
+            self.lattice.synthesise(select(e, e.path == p), origin_m, tx, s.wavelength_m, rate_hz,
+                                    phase_cycles_per_s, self.tables, out, pos_rx=rx)
 
     def finish(self):
         """Detected intensity (pings, channels, n_s) and the complex signal (coherent) or None."""

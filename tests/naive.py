@@ -188,7 +188,7 @@ def splat_rows(ray_start, delay, width, weights, out, sub=4001):
 
 
 def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
-                  delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out):
+                  delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out, pos_rx=None):
     """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table."""
     for b in range(pos_world.shape[0]):
         lo, mid, hi = ray_start[2 * b], ray_start[2 * b + 1], ray_start[2 * b + 2]
@@ -201,8 +201,10 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
         w, r_mean, m2, rmin, rmax = vals.T
         sigma = np.sqrt(m2 / w)
         g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
-        r_node = np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
-        base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((2 * r_node / wavelength_m) % 1))
+        rx = pos_world[b] if pos_rx is None else pos_rx[b]
+        l_node = (np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
+                  + np.linalg.norm(keys[:, 1:] * cell_m - rx, axis=1))            # 2R for the direct path
+        base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))
         r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None], rmax[:, None])
         amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
         splat_table(np.repeat(keys[:, 0], n_sub), r_env.ravel() * delay_per_m, amp.ravel(), table, table_start,

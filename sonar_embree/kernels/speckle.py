@@ -252,7 +252,16 @@ def _gather_ping(b, n_ch, ray_start, points, origin, weights, times, extents, ce
 
 
 @njit(cache=True, nogil=True)
-def _emit_node(node, key, pos, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table,
+def _distance(ix, iy, iz, cell_m, pos):
+    """|node (i, j, k)·cell − pos|, m."""
+    ddx = ix * cell_m - pos[0]
+    ddy = iy * cell_m - pos[1]
+    ddz = iz * cell_m - pos[2]
+    return math.sqrt(ddx * ddx + ddy * ddy + ddz * ddz)
+
+
+@njit(cache=True, nogil=True)
+def _emit_node(node, key, pos_tx, pos_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table,
                table_start, table_rate, row):
     """Splat one node's ``n_sub`` frozen scatterers into its channel's row (see :func:`speckle_block`)."""
     w = node[0]
@@ -260,10 +269,8 @@ def _emit_node(node, key, pos, seed, cell_m, wavelength_m, rate_hz, phase_cycles
     ix = key[1]
     iy = key[2]
     iz = key[3]
-    ddx = ix * cell_m - pos[0]
-    ddy = iy * cell_m - pos[1]
-    ddz = iz * cell_m - pos[2]
-    cycles = (2.0 * math.sqrt(ddx * ddx + ddy * ddy + ddz * ddz) / wavelength_m) % 1.0
+    path = _distance(ix, iy, iz, cell_m, pos_tx) + _distance(ix, iy, iz, cell_m, pos_rx)
+    cycles = (path / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
     base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
     h = _node_hash(seed, ix, iy, iz)
     spread = math.sqrt(3.0) * sigma
@@ -278,7 +285,7 @@ def _emit_node(node, key, pos, seed, cell_m, wavelength_m, rate_hz, phase_cycles
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, seed, cell_m, wavelength_m,
+def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, pos_rx, seed, cell_m, wavelength_m,
                   rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slots, epochs, nodes,
                   node_key, caches, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
@@ -289,8 +296,9 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
 
         t = clip(t̄ + √3·σ·(2v − 1), t_min, t_max),  σ² = M2/W,
 
-    with amplitude √(W/n_sub)·g·e^(−j2π·(2R_node/λ mod 1))·e^(j2π·(φ·t mod 1)), R_node
-    the node's distance from the sonar and φ = ``phase_cycles_per_s``; each adds
+    with amplitude √(W/n_sub)·g·e^(−j2π·(L_node/λ mod 1))·e^(j2π·(φ·t mod 1)), L_node
+    the node's distance from the transmitter plus that to the receiver (2R for the
+    direct path) and φ = ``phase_cycles_per_s``; each adds
     a·h(k − t·rate_hz) to its channel's row. Pings are split into one contiguous
     chunk per hash table; a ping's result depends only on its own rays, so the
     output does not depend on the number of tables or threads.
@@ -303,8 +311,9 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
         Hit points in the scene's local frame, m; ``origin`` (3,) float64 makes them world.
     weights, times, extents : (n,) float64
         Expected intensity, two-way travel time (s) and its extent (s) of every echo.
-    pos_world : (pings, 3) float64
-        Sonar position per ping, world m.
+    pos_world, pos_rx : (pings, 3) float64
+        Transmitting and receiving position per ping, world m (the same for the direct path; the
+        mirror image in the sea surface for a surface leg): the node phase is (|X − tx| + |X − rx|)/λ.
     seed : int; cell_m, wavelength_m : float
         Speckle seed, lattice spacing (m) and acoustic wavelength (m).
     rate_hz, phase_cycles_per_s : float
@@ -336,6 +345,6 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
                 status[b] = -1
                 continue
             for q in range(count):
-                _emit_node(nodes[t, q], node_key[t, q], pos_world[b], seed, cell_m, wavelength_m, rate_hz,
+                _emit_node(nodes[t, q], node_key[t, q], pos_world[b], pos_rx[b], seed, cell_m, wavelength_m, rate_hz,
                            phase_cycles_per_s, n_sub, table, table_start, table_rate, out[b, node_key[t, q, 0]])
             status[b] = 1
