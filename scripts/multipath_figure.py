@@ -70,8 +70,8 @@ def ping_panel(recs):
     with np.errstate(divide="ignore"):
         lines = [(name, 10 * np.log10(rec.starboard[i])) for name, rec in recs.items()]
     top = max(np.nanmax(y[np.isfinite(y)]) for _, y in lines)
-    return {"x": first.slant_range_m, "lines": lines, "xlabel": "ct/2 (m): first return h, one bounce h + d, "
-                                                                 "two bounces h + 2d", "ylabel": "intensity (dB, unit source)",
+    xlabel = "ct/2 (m): first return h, one bounce h + d, two bounces h + 2d"
+    return {"x": first.slant_range_m, "lines": lines, "xlabel": xlabel, "ylabel": "intensity (dB, unit source)",
             "ylim": (top - 60, top + 5), "title": "middle ping, starboard",
             "vlines": [(H, "h"), (H + D, "h + d"), (H + 2 * D, "h + 2d")]}
 

@@ -68,7 +68,8 @@ def _db_image(rec, white_db, span_db=50.0, columns=400):
     g = tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
     block = max(rec.time_s.size // (2 * columns), 1)  # average in intensity, then place on the ground
     r = block_mean(rec.slant_range_m[None, :], block)[0]
-    sides = [to_ground_range(block_mean(x * g, block), r, rec.altitude_m, columns)[1] for x in (rec.port, rec.starboard)]
+    sides = [to_ground_range(block_mean(x * g, block), r, rec.altitude_m, columns)[1]
+             for x in (rec.port, rec.starboard)]
     with np.errstate(divide="ignore"):
         db = 10 * np.log10(np.concatenate([sides[0][:, ::-1], sides[1]], axis=1))
     return (255 * np.clip((db - (white_db - span_db)) / span_db, 0, 1)).astype(np.uint8), db

@@ -122,8 +122,8 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local) -> Echoes:
         if detail is not None:
             detail.apply(c, prim, x, w)
     lit = np.flatnonzero(w > 0)                                 # only lit echoes need their legs checked
-    blocked = occluded(caster, x[lit], v[lit], leg1[lit]) | occluded(caster, pos_local[row[lit] // 2], u2[lit],
-                                                                      leg2[lit])
+    sonar_at = pos_local[row[lit] // 2]
+    blocked = occluded(caster, x[lit], v[lit], leg1[lit]) | occluded(caster, sonar_at, u2[lit], leg2[lit])
     w[lit[blocked]] = 0.0
     return _scattered(blk, keep, t, ext, w, x)
 

@@ -249,3 +249,13 @@ def test_speckle_with_a_surface_averages_to_the_expected_four_paths(records):
     for lo, hi in ((14.5, 17.5), (18.5, 24.0), (26.0, 34.0)):   # one bounce; two bounces begin; far range
         w = (r_eq > lo) & (r_eq < hi)
         assert 10 * np.log10(rec.starboard[:, w].mean() / want[w].mean()) == pytest.approx(0.0, abs=0.3)
+
+
+def test_surface_survives_the_record_file(tmp_path):
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    line = se.Trajectory.line((-0.5, 0.0, 6.0), (0.5, 0.0, 6.0), 2)
+    surface = se.SeaSurface(z_m=9.0, rms_wave_height_m=0.001)
+    rec = se.simulate(scene, line, se.Sonar(max_range_m=20.0, environment=se.Environment(surface=surface)),
+                      start_time="2000-01-01")
+    rec.save(tmp_path / "r.npz")
+    assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == surface

@@ -18,6 +18,6 @@ from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, s
 from .splat import splat_rows, splat_table
 from .truth import label_rows
 
-__all__ = ["CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays", "frozen_scatterers", "gather_nodes",
-           "label_rows", "mixed_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
+__all__ = ["CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
+           "frozen_scatterers", "gather_nodes", "label_rows", "mixed_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
            "splat_table", "_sinc"]

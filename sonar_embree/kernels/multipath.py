@@ -40,8 +40,8 @@ def _footprint_slope(rot, side, u, v, n, r):
 
 @njit(cache=True, nogil=True, parallel=True)
 def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m,
-               slope_cap_m_rad, sound_speed_m_s, wave_kh, time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out,
-               v_out, leg1_out, u2_out, leg2_out):
+               slope_cap_m_rad, sound_speed_m_s, wave_kh, time_out, extent_out, weight_out, cos_i_out, cos_s_out,
+               phi_out, v_out, leg1_out, u2_out, leg2_out):
     """The S→X→S' and S'→X→S paths of every direct echo, without σ, maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
