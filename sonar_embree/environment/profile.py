@@ -3,8 +3,8 @@
 In a layer where c(z) = c_a + g·(z − z_a) (z depth, positive down) Snell's invariant
 ξ = cos θ / c(z) (θ the grazing angle) makes every ray a circular arc of radius
 1/(ξ|g|). From θ0 to θ1 inside one layer (Jensen, Kuperman, Porter and Schmidt,
-*Computational Ocean Acoustics*, 2nd ed., Springer 2011, §3.3; Medwin and Clay,
-*Fundamentals of Acoustical Oceanography*, 1998, §2.6):
+*Computational Ocean Acoustics*, 2nd ed., Springer 2011, ch. 3 (ray methods); Medwin and Clay,
+*Fundamentals of Acoustical Oceanography*, Academic Press, 1998):
 
     Δx = |sin θ1 − sin θ0| / (ξ|g|),   Δs = |θ1 − θ0| / (ξ|g|),
     Δt = |ln[(sec θ1 + tan θ1) / (sec θ0 + tan θ0)]| / |g|,

@@ -3,7 +3,7 @@
 A flat pressure-release surface reflects with R_s = −1. With RMS wave height h_w the
 coherent (specular) part of the reflection is |R_s| = exp(−2k²h_w² sin²θg), the
 Rayleigh roughness (Kirchhoff) coefficient for Gaussian surface heights (Jensen,
-Kuperman, Porter and Schmidt, *Computational Ocean Acoustics*, 2nd ed., 2011, §1.6;
+Kuperman, Porter and Schmidt, *Computational Ocean Acoustics*, 2nd ed., 2011, ch. 1;
 APL-UW TR 9407, 1994, surface section). From a wind speed U (m/s at 19.5 m) the fully
 developed Pierson–Moskowitz sea has a significant wave height H_s = 0.21·U²/g and
 h_w = H_s/4 (Pierson and Moskowitz, *J. Geophys. Res.* 69(24), 5181–5190, 1964).
