@@ -39,8 +39,8 @@ def _record(surface=None, extra=None):
 
 def _path_densities(rho, alpha_np, rs2=lambda sin_g: 1.0):
     """φ-integrated intensity per unit ground distance of the three kinds of path, and their lengths L(ρ)."""
-    dense = np.linspace(-0.12, 0.12, 801)
-    phi = np.unique(np.concatenate([dense, np.linspace(-np.pi / 2, np.pi / 2, 801)]))
+    dense = np.linspace(-0.12, 0.12, 401)
+    phi = np.unique(np.concatenate([dense, np.linspace(-np.pi / 2, np.pi / 2, 401)]))
     p, f = rho[:, None], phi[None, :]
     xy = np.stack([p * np.sin(f), -p * np.cos(f)], axis=-1)           # φ = 0: broadside starboard (−y)
     r, r2 = np.sqrt(rho ** 2 + H ** 2)[:, None], np.sqrt(rho ** 2 + (H + 2 * D) ** 2)[:, None]
@@ -61,7 +61,7 @@ def _path_densities(rho, alpha_np, rs2=lambda sin_g: 1.0):
 
 def quadrature(t, c, alpha_db_m, rs2=lambda sin_g: 1.0):
     """Expected intensity of each path at the sample times t (s): {path: (n,) float}."""
-    rho = np.concatenate([np.linspace(0, 2, 2001)[:-1], np.linspace(2, 40, 7601)])
+    rho = np.concatenate([np.linspace(0, 2, 1001)[:-1], np.linspace(2, 40, 3801)])
     alpha_np = alpha_db_m * np.log(10) / 10
     dens, lengths = _path_densities(rho, alpha_np, rs2)
     out = {}
