@@ -127,7 +127,7 @@ def test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend(tmp_path):
 def test_seafloor_gallery_orders_the_presets_and_draws_sigma(tmp_path):
     """Issue 14's figure: every floor drawn on one scale, mud darkest to rock brightest; σ(θ) on its curves."""
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "seafloor_gallery.py"), "-o", str(tmp_path),
-                           "--pings", "12"], capture_output=True, text=True, timeout=600)
+                           "--pings", "4"], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert sorted(os.listdir(tmp_path)) == ["gallery.json", "presets.png", "sigma.png"]
     for name in ("presets.png", "sigma.png"):
