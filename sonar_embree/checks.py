@@ -175,8 +175,7 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
         k = int(above[0])
         raise ConfigError(f"the sonar is at or above the sea surface (SeaSurface.z_m = {surface.z_m:g} m) at ping "
                           f"{k}: z = {pos_local[k, 2] + compiled.origin_m[2]:g} m")
-    top = compiled.vertices[:, 2].max() if compiled.vertices.shape[0] else -np.inf
-    if top > z_s:
+    if compiled.bounds_local[1, 2] > z_s:
         obj = compiled.face_object[np.flatnonzero(compiled.vertices[compiled.faces][:, :, 2].max(axis=1) > z_s)[0]]
         raise ConfigError(f"scene object {compiled.labels[obj]!r} reaches above the sea surface "
                           f"(SeaSurface.z_m = {surface.z_m:g} m)")

@@ -58,10 +58,19 @@ class Echoes:
         return (self.ray_start.shape[0] - 1) // self.n_channels
 
 
+def row_of(ray_start: np.ndarray) -> np.ndarray:
+    """(n,) int: the row (channels·ping + channel) of every echo of offsets ``ray_start``."""
+    return np.repeat(np.arange(ray_start.shape[0] - 1), np.diff(ray_start))
+
+
+def row_starts(rows: np.ndarray, n_rows: int) -> np.ndarray:
+    """(n_rows + 1,) int64 offsets of echoes sorted by their ``rows`` (the inverse of :func:`row_of`)."""
+    return np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=n_rows)))).astype(np.int64)
+
+
 def select(e: Echoes, keep: np.ndarray) -> Echoes:
     """The echoes where ``keep`` (n,) bool is true, in the same rows (points and ids kept when present)."""
-    rows = np.repeat(np.arange(e.ray_start.shape[0] - 1), np.diff(e.ray_start))[keep]
-    start = np.concatenate(([0], np.cumsum(np.bincount(rows, minlength=e.ray_start.shape[0] - 1)))).astype(np.int64)
+    start = row_starts(row_of(e.ray_start)[keep], e.ray_start.shape[0] - 1)
 
     def part(a):
         return a[keep] if a.shape[0] == keep.shape[0] else a

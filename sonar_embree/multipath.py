@@ -21,25 +21,25 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
-from .echoes import Echoes
+from .echoes import Echoes, row_of, row_starts
 from .fan import BlockEchoes, cast_block
 
 #: Visibility rays start this far along their leg (m), off the surface they leave.
 LEG_EPSILON_M = 1e-3
 
 
+def mirror(pos: np.ndarray, z_s: float) -> np.ndarray:
+    """Positions (n, 3) mirrored in the plane z = z_s (same frame as ``pos``)."""
+    out = np.array(pos, dtype=np.float64)
+    out[:, 2] = 2.0 * z_s - out[:, 2]
+    return out
+
+
 def mirror_pose(rot: np.ndarray, pos_local: np.ndarray, z_s_local: float):
     """The image transducer: attitude with world z negated (an improper rotation) and position 2z_s − z."""
     rot_i = rot.copy()
     rot_i[:, 2, :] *= -1.0
-    pos_i = pos_local.copy()
-    pos_i[:, 2] = 2.0 * z_s_local - pos_i[:, 2]
-    return rot_i, pos_i
-
-
-def ray_rows(ray_start: np.ndarray) -> np.ndarray:
-    """Row index (channels·ping + channel) of every ray."""
-    return np.repeat(np.arange(ray_start.shape[0] - 1), np.diff(ray_start))
+    return rot_i, mirror(pos_local, z_s_local)
 
 
 def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) -> np.ndarray:
@@ -48,7 +48,7 @@ def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) ->
     Only the part of a leg below the top of the scene can be blocked: legs are cut there, and those left
     shorter than 2·LEG_EPSILON_M (a flat floor's, a sonar above everything) are not cast at all.
     """
-    top = float(caster.compiled.vertices[:, 2].max()) if caster.compiled.vertices.shape[0] else -np.inf
+    top = float(caster.compiled.bounds_local[1, 2])
     if origins.shape[0] == 0 or top <= origins[:, 2].min() + LEG_EPSILON_M * 1e-3:  # every leg starts on top
         return np.zeros(origins.shape[0], dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -72,7 +72,7 @@ def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock) -
                      2.0 / s.sound_speed_m_s, want_points=True, timings=clock, frequency_hz=s.frequency_hz)
     w = blk.weight.copy()
     hit = np.flatnonzero(w > 0)
-    ping = ray_rows(blk.ray_start)[hit] // 2
+    ping = row_of(blk.ray_start)[hit] // 2
     d = blk.point_m[hit] - pos_i[ping]
     r = np.linalg.norm(d, axis=1)
     d /= r[:, None]
@@ -130,8 +130,7 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local) -> Echoes:
 
 def _scattered(blk, keep, time_s, ext, w, x) -> Echoes:
     """Echoes aligned with the rows of ``blk``, holding only the rays ``keep``."""
-    counts = np.bincount(ray_rows(blk.ray_start)[keep], minlength=blk.ray_start.shape[0] - 1)
-    start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+    start = row_starts(row_of(blk.ray_start)[keep], blk.ray_start.shape[0] - 1)
     return Echoes(2, start, time_s, ext, w, x, np.zeros(0, np.int32))
 
 
@@ -140,10 +139,9 @@ def merge(parts, points: bool) -> Echoes:
 
     The hit points are kept when ``points`` (speckle, maps), the object ids when every part has them.
     """
-    rows = parts[0].ray_start.shape[0] - 1
-    row = np.concatenate([ray_rows(e.ray_start) for e in parts])
+    row = np.concatenate([row_of(e.ray_start) for e in parts])
     order = np.argsort(row, kind="stable")                      # stable: within a row, the parts in order
-    start = np.concatenate(([0], np.cumsum(np.bincount(row, minlength=rows)))).astype(np.int64)
+    start = row_starts(row, parts[0].ray_start.shape[0] - 1)
 
     def cat(name):
         return np.concatenate([getattr(e, name) for e in parts])[order]

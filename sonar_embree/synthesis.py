@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels, processing, pulses
+from . import kernels, multipath, processing, pulses
 from .config import Pulse, SignalChain
 from .echoes import Echoes, select
 from .processing import convolve_time
@@ -193,8 +193,7 @@ class SpeckleSynthesis:
             self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
                                     out)
             return
-        image = np.array(pos_world, dtype=np.float64)
-        image[:, 2] = 2.0 * s.environment.surface.z_m - image[:, 2]
+        image = multipath.mirror(pos_world, s.environment.surface.z_m)
         for p, (tx, rx) in enumerate(((pos_world, pos_world), (pos_world, image), (image, image))):
             self.lattice.synthesise(select(e, e.path == p), origin_m, tx, s.wavelength_m, rate_hz,
                                     phase_cycles_per_s, self.tables, out, pos_rx=rx)

@@ -1,8 +1,12 @@
 """Validation helpers shared by the frozen parameter dataclasses (one-line errors naming the field)."""
 from __future__ import annotations
 
+import csv
 import math
+import os
 from dataclasses import fields
+
+import numpy as np
 
 from .errors import ConfigError
 
@@ -30,3 +34,28 @@ def check_number(owner: str, name: str, value, *, positive=False, nonneg=False,
 def field_names(cls) -> tuple[str, ...]:
     """Names of the constructor fields of a config dataclass (for TOML key checking)."""
     return tuple(f.name for f in fields(cls) if f.init)
+
+
+def read_numeric_csv(path, required, optional=(), what="table", columns_hint=None):
+    """A CSV with a header, as floats: (the columns read, (rows, columns) array).
+
+    The columns are the ``optional`` ones the file has, then the ``required`` ones. One-line
+    errors name the file: unreadable, ``required`` columns missing (``columns_hint`` spells
+    them, default their names), or the first row that is not numeric (its line number).
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"{path}: cannot read the {what} ({exc})") from None
+    if not rows or not set(required) <= set(rows[0]):
+        raise ConfigError(f"{path}: a {what} needs the columns {columns_hint or ', '.join(required)}")
+    cols = [c for c in optional if c in rows[0]] + list(required)
+    vals = []
+    for i, r in enumerate(rows):
+        try:
+            vals.append([float(r[c]) for c in cols])
+        except (TypeError, ValueError):
+            raise ConfigError(f"{path}: row {i + 2} is not numeric: {r}") from None
+    return cols, np.array(vals)

@@ -17,13 +17,13 @@ take a profile (issue 15, build item 2).
 """
 from __future__ import annotations
 
-import csv
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ConfigError
+from ..validation import read_numeric_csv
 
 #: Plausible sea-water sound speeds, m/s (fresh water at 0 °C ≈ 1403, warm deep brine ≈ 1560): a value
 #: outside is an error, not a warning, because it is almost certainly a unit or column slip.
@@ -72,20 +72,8 @@ class SoundSpeedProfile:
     def from_csv(cls, path) -> "SoundSpeedProfile":
         """A profile from a CSV with the header ``depth_m,speed_m_s`` (one row per depth, as a CTD export)."""
         path = os.fspath(path)
-        try:
-            with open(path, newline="") as fh:
-                rows = list(csv.DictReader(fh))
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"{path}: cannot read the sound-speed profile ({exc})") from None
-        if not rows or not {"depth_m", "speed_m_s"} <= set(rows[0]):
-            raise ConfigError(f"{path}: a sound-speed profile needs the columns depth_m, speed_m_s")
-        vals = []
-        for i, r in enumerate(rows):
-            try:
-                vals.append((float(r["depth_m"]), float(r["speed_m_s"])))
-            except (TypeError, ValueError):
-                raise ConfigError(f"{path}: row {i + 2} is not numeric: {r}") from None
-        z, c = np.array(vals).T
+        _, vals = read_numeric_csv(path, ("depth_m", "speed_m_s"), what="sound-speed profile")
+        z, c = vals.T
         try:
             return cls(tuple(z), tuple(c))
         except ConfigError as exc:

@@ -14,7 +14,6 @@ assumption when only a monostatic curve is known.
 """
 from __future__ import annotations
 
-import csv
 import math
 import os
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..kernels import njit, prange
+from ..validation import read_numeric_csv
 from .composite import Summable
 
 
@@ -120,22 +120,10 @@ class Tabulated(Summable):
         """A table from a CSV file with a header: ``grazing_deg,backscatter_db`` and optionally ``frequency_hz``
         (one row per frequency and angle; every frequency on the same angles)."""
         path = os.fspath(path)
+        cols, vals = read_numeric_csv(path, ("grazing_deg", "backscatter_db"), ("frequency_hz",), "backscatter table",
+                                      "grazing_deg, backscatter_db [, frequency_hz]")
         try:
-            with open(path, newline="") as fh:
-                rows = list(csv.DictReader(fh))
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"{path}: cannot read the table ({exc})") from None
-        if not rows or not {"grazing_deg", "backscatter_db"} <= set(rows[0]):
-            raise ConfigError(f"{path}: a backscatter table needs the columns grazing_deg, backscatter_db "
-                              f"[, frequency_hz]")
-        cols = ["frequency_hz"] if "frequency_hz" in rows[0] else []
-        try:
-            vals = np.array([[float(r[k]) for k in cols + ["grazing_deg", "backscatter_db"]] for r in rows])
-        except (TypeError, ValueError):
-            bad = next(i for i, r in enumerate(rows) if not _numeric(r, cols))
-            raise ConfigError(f"{path}: row {bad + 2} is not numeric: {rows[bad]}") from None
-        try:
-            if not cols:
+            if "frequency_hz" not in cols:
                 return cls(tuple(vals[:, 0]), tuple(vals[:, 1]))
             freqs = np.unique(vals[:, 0])
             grid = [vals[vals[:, 0] == f] for f in freqs]
@@ -177,14 +165,6 @@ class Tabulated(Summable):
         gs = np.degrees(np.arcsin(np.clip(cos_s, 0.0, 1.0)))
         db = 0.5 * (self.backscatter_strength_db(gi) + self.backscatter_strength_db(gs))
         return np.where((cos_i > 0) & (cos_s > 0), 10.0 ** (db / 10.0), 0.0) + 0.0 * np.asarray(phi_rad)
-
-
-def _numeric(row, cols) -> bool:
-    try:
-        [float(row[k]) for k in cols + ["grazing_deg", "backscatter_db"]]
-        return True
-    except (TypeError, ValueError):
-        return False
 
 
 __all__ = ["Tabulated"]

@@ -63,11 +63,11 @@ class SideScanFrontEnd:
         z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
         image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock)
         mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s)
-        keep = np.isfinite(blk.range_m)
-        parts = [echoes_of(blk, ids), mixed, image]
-        if ids is not None:
-            parts[1] = dataclasses.replace(mixed, object_id=echoes_of(blk, ids).object_id[keep])
-            parts[2] = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
+        direct = echoes_of(blk, ids)
+        if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
+            mixed = dataclasses.replace(mixed, object_id=direct.object_id[np.isfinite(blk.range_m)])
+            image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
+        parts = [direct, mixed, image]
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
         return multipath.merge(parts, want_points)
