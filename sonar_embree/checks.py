@@ -179,3 +179,26 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
         obj = compiled.face_object[np.flatnonzero(compiled.vertices[compiled.faces][:, :, 2].max(axis=1) > z_s)[0]]
         raise ConfigError(f"scene object {compiled.labels[obj]!r} reaches above the sea surface "
                           f"(SeaSurface.z_m = {surface.z_m:g} m)")
+
+
+def check_profile(compiled, sonar, pos_local: np.ndarray, labels: bool) -> None:
+    """Refuse what the curved-ray path does not model (docs/physics.md §12): one-line errors.
+
+    Curved rays are cast for side-scan sonars, without labels (their shadows assume straight
+    rays), from below the profile's depth 0.
+    """
+    env = sonar.environment
+    if not env.refracts:
+        return
+    if not hasattr(sonar, "tilt_deg"):
+        raise ConfigError(f"Environment.sound_speed: curved rays are cast for side-scan sonars, not "
+                          f"{type(sonar).__name__}")
+    if labels:
+        raise ConfigError("ground-truth labels assume straight rays: not available with a sound-speed profile yet "
+                          "(drop Environment.sound_speed or the labels)")
+    z0 = env.profile_origin_z_m() - float(compiled.origin_m[2])
+    above = np.flatnonzero(pos_local[:, 2] > z0)
+    if above.size:
+        k = int(above[0])
+        raise ConfigError(f"the sonar is above the sound-speed profile's depth 0 (z = {env.profile_origin_z_m():g} m) "
+                          f"at ping {k}: z = {pos_local[k, 2] + compiled.origin_m[2]:g} m")

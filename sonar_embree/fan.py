@@ -122,6 +122,32 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     return el_start, beta, dbeta
 
 
+def probe_rows(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float):
+    """Probe a block of pings with straight rays and place the elevation rays of every row.
+
+    Returns
+    -------
+    el_start, beta, dbeta
+        As :func:`elevation_rows`.
+    altitude : (pings,) float64
+        Range of the nadir ray (world vertical), NaN if nothing is within ``max_range_m``.
+    seconds : float
+        Time spent in the caster.
+    """
+    n_p = rot.shape[0]
+    probe_dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1)).reshape(-1, 3)
+    probe_org = np.repeat(pos_local, plan.probe_body.shape[0], axis=0)
+    t = time.perf_counter()
+    prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
+    t_embree = time.perf_counter() - t
+    probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, -1)
+    t = time.perf_counter()
+    nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
+    t_embree += time.perf_counter() - t
+    altitude = np.where(nadir.tri >= 0, nadir.range_m, np.nan)  # world vertical, float64
+    return (*elevation_rows(plan, probe_r), altitude, t_embree)
+
+
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, time_per_m: float, want_points: bool = False,
                timings: dict | None = None, frequency_hz: float = 0.0) -> BlockEchoes:
@@ -150,22 +176,11 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
         The carrier, for scattering laws tabulated against frequency.
     """
     t0 = time.perf_counter()
-    t_embree = 0.0
     n_p = rot.shape[0]
     # hits a little beyond the window still reach into it with their footprints; the splatting crops them
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
-    probe_dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1)).reshape(-1, 3)
-    probe_org = np.repeat(pos_local, plan.probe_body.shape[0], axis=0)
-    t = time.perf_counter()
-    prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
-    t_embree += time.perf_counter() - t
-    probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, -1)
-    t = time.perf_counter()
-    nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
-    t_embree += time.perf_counter() - t
-    altitude = np.where(nadir.tri >= 0, nadir.range_m, np.nan)  # world vertical, float64
-    el_start, beta, dbeta = elevation_rows(plan, probe_r)
+    el_start, beta, dbeta, altitude, t_embree = probe_rows(caster, plan, rot, pos_local, max_range_m)
 
     n_az = plan.s.shape[0]
     n = n_az * int(el_start[-1])

@@ -261,6 +261,7 @@ class _Run:
         pos_local = trajectory.positions_m - compiled.origin_m
         checks.check_setup(caster, sonar, pos_local, max_r + c * pulse.duration_s / 2.0)
         checks.check_surface(compiled, sonar, pos_local)
+        checks.check_profile(compiled, sonar, pos_local, labels)
         n0 = None if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
         kernel = (pulses.expected_kernel(pulse, sonar.frequency_hz, fs, chain.matched_filter)

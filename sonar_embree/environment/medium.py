@@ -1,6 +1,7 @@
 """The medium the sound travels in: sound speed, water properties, absorption and the sea surface.
 
-A sound-speed profile joins it later; :class:`Environment` is its one home (docs/physics.md §3, §13).
+With a sound-speed profile rays bend (docs/physics.md §12); :class:`Environment` is the medium's one home
+(docs/physics.md §3, §13).
 """
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from ..errors import ConfigError
 from ..validation import check_number, field_names
 from .ainslie_mccolm import ainslie_mccolm_db_per_m
 from .francois_garrison import francois_garrison_db_per_m
+from .profile import SoundSpeedProfile
 from .surface import SeaSurface
 
 #: Absorption models by name: f(frequency_hz, temperature_c, salinity_ppt, depth_m, ph) → dB/m.
@@ -27,7 +29,8 @@ class Environment:
     Parameters
     ----------
     sound_speed_m_s : float
-        Speed of sound c in m/s, constant over the water column.
+        Speed of sound c in m/s: of the whole water column without a profile; with one, the speed
+        the sonar assumes (its range axis 2R = c·t, wavelength and beam), best c at the sonar.
     temperature_c : float
         Water temperature, °C (absorption model).
     salinity_ppt : float
@@ -46,6 +49,10 @@ class Environment:
     surface : SeaSurface or None
         The sea surface (multipath by the image method, docs/physics.md §13); None
         (default): an unbounded ocean, today's code path.
+    sound_speed : SoundSpeedProfile or None
+        c(depth) for curved rays (docs/physics.md §12); None (default) or a uniform profile
+        (which must equal ``sound_speed_m_s``): straight rays, today's code path. Its depth 0 is
+        its ``surface_z_m`` or the surface's ``z_m``. Not yet combined with a surface's multipath.
     """
 
     sound_speed_m_s: float = 1500.0
@@ -56,6 +63,7 @@ class Environment:
     absorption_model: str = "francois-garrison"
     absorption_db_per_m: float | None = None
     surface: SeaSurface | None = None
+    sound_speed: SoundSpeedProfile | None = None
 
     def __post_init__(self):
         check_number("Environment", "sound_speed_m_s", self.sound_speed_m_s, positive=True)
@@ -76,6 +84,35 @@ class Environment:
             object.__setattr__(self, "surface", SeaSurface(**self.surface))
         if self.surface is not None and not isinstance(self.surface, SeaSurface):
             raise ConfigError(f"Environment.surface must be a sonar_embree.SeaSurface or None, got {self.surface!r}")
+        object.__setattr__(self, "sound_speed", _profile(self.sound_speed))
+        self._check_profile()
+
+    def _check_profile(self):
+        """A uniform profile must agree with sound_speed_m_s; a curved one needs its depth origin."""
+        p = self.sound_speed
+        if p is None:
+            return
+        if p.is_uniform:
+            if abs(p.speed_m_s[0] - self.sound_speed_m_s) > 1e-9 * self.sound_speed_m_s:
+                raise ConfigError(f"Environment: a uniform sound_speed profile at {p.speed_m_s[0]:g} m/s disagrees "
+                                  f"with sound_speed_m_s={self.sound_speed_m_s:g}; give one of the two")
+            return
+        if p.surface_z_m is None and self.surface is None:
+            raise ConfigError("Environment.sound_speed: the profile's depth 0 needs a height: give "
+                              "SoundSpeedProfile(surface_z_m=…) or a surface")
+        if self.surface is not None:
+            raise ConfigError("Environment: refraction together with a sea surface's multipath is not modelled yet; "
+                              "drop the surface and give the profile's surface_z_m instead")
+
+    @property
+    def refracts(self) -> bool:
+        """True when rays bend (a profile that is not uniform)."""
+        return self.sound_speed is not None and not self.sound_speed.is_uniform
+
+    def profile_origin_z_m(self) -> float:
+        """World z of the profile's depth 0, m (its own ``surface_z_m`` or the surface's)."""
+        p = self.sound_speed
+        return float(p.surface_z_m if p.surface_z_m is not None else self.surface.z_m)
 
     def alpha_db_per_m(self, frequency_hz: float) -> float:
         """One-way absorption at ``frequency_hz`` (Hz) in dB/m: the override or the model."""
@@ -83,3 +120,25 @@ class Environment:
             return float(self.absorption_db_per_m)
         return ABSORPTION_MODELS[self.absorption_model](frequency_hz, self.temperature_c, self.salinity_ppt,
                                                         self.depth_m, self.ph)
+
+
+def _profile(value):
+    """A SoundSpeedProfile from itself, None, or a dict (TOML ``sound_speed = {…}``, a record's metadata).
+
+    The dict takes the profile's fields, or ``csv`` (a ``depth_m,speed_m_s`` file) with an optional
+    ``surface_z_m``.
+    """
+    if value is None or isinstance(value, SoundSpeedProfile):
+        return value
+    if not isinstance(value, dict):
+        raise ConfigError(f"Environment.sound_speed must be a sonar_embree.SoundSpeedProfile or None, got {value!r}")
+    keys = field_names(SoundSpeedProfile) + ("csv",)
+    unknown = sorted(set(value) - set(keys))
+    if unknown:
+        raise ConfigError(f"Environment.sound_speed: unknown key {unknown[0]!r}; one of {', '.join(keys)}")
+    if "csv" in value:
+        extra = sorted(set(value) - {"csv", "surface_z_m"})
+        if extra:
+            raise ConfigError(f"Environment.sound_speed: give 'csv' or {extra[0]!r}, not both")
+        return SoundSpeedProfile.from_csv(value["csv"], value.get("surface_z_m"))
+    return SoundSpeedProfile(**value)

@@ -11,9 +11,9 @@ In a layer where c(z) = c_a + g·(z − z_a) (z depth, positive down) Snell's in
 
 and for g = 0 the straight line: Δx = Δz / tan θ, Δs = Δz / sin θ, Δt = Δs / c.
 
-This module is the ray map only (launch angle → range, path length, travel time at a
-depth); the simulator does not yet cast curved rays, so :class:`Environment` does not
-take a profile (issue 15, build item 2).
+:meth:`SoundSpeedProfile.trace_down` is this ray map in NumPy (launch angle → range, path
+length, travel time at a depth); the renderer marches the same arcs chord by chord through
+Embree (:mod:`sonar_embree.refraction`, :mod:`sonar_embree.kernels.refraction`).
 """
 from __future__ import annotations
 
@@ -40,10 +40,15 @@ class SoundSpeedProfile:
         Depths below the surface, m, strictly increasing, ≥ 0.
     speed_m_s : (n,) float
         Sound speed at each depth, m/s, within :data:`SPEED_RANGE_M_S`.
+    surface_z_m : float or None
+        World z (up, the trajectory's frame) of depth 0, m. None: the
+        :class:`~sonar_embree.environment.SeaSurface`'s ``z_m`` (one of the two is needed
+        to place the profile in a scene).
     """
 
     depth_m: tuple
     speed_m_s: tuple
+    surface_z_m: float | None = None
 
     def __post_init__(self):
         z = np.asarray(self.depth_m, dtype=float).ravel()
@@ -60,22 +65,25 @@ class SoundSpeedProfile:
         if bad.size:
             raise ConfigError(f"SoundSpeedProfile.speed_m_s must lie in {lo:g}–{hi:g} m/s (sea water), got "
                               f"{bad[0]:g}")
+        if self.surface_z_m is not None and not np.isfinite(self.surface_z_m):
+            raise ConfigError(f"SoundSpeedProfile.surface_z_m must be finite, got {self.surface_z_m!r}")
         object.__setattr__(self, "depth_m", tuple(z.tolist()))
         object.__setattr__(self, "speed_m_s", tuple(c.tolist()))
 
     @classmethod
-    def linear(cls, speed_m_s: float, gradient_per_s: float, depth_m: float = 200.0) -> "SoundSpeedProfile":
+    def linear(cls, speed_m_s: float, gradient_per_s: float, depth_m: float = 200.0,
+               surface_z_m: float | None = None) -> "SoundSpeedProfile":
         """c(z) = speed + gradient·z (s⁻¹) from the surface to ``depth_m`` (m), held below."""
-        return cls((0.0, depth_m), (speed_m_s, speed_m_s + gradient_per_s * depth_m))
+        return cls((0.0, depth_m), (speed_m_s, speed_m_s + gradient_per_s * depth_m), surface_z_m)
 
     @classmethod
-    def from_csv(cls, path) -> "SoundSpeedProfile":
+    def from_csv(cls, path, surface_z_m: float | None = None) -> "SoundSpeedProfile":
         """A profile from a CSV with the header ``depth_m,speed_m_s`` (one row per depth, as a CTD export)."""
         path = os.fspath(path)
         _, vals = read_numeric_csv(path, ("depth_m", "speed_m_s"), what="sound-speed profile")
         z, c = vals.T
         try:
-            return cls(tuple(z), tuple(c))
+            return cls(tuple(z), tuple(c), surface_z_m)
         except ConfigError as exc:
             raise ConfigError(f"{path}: {exc}") from None
 
@@ -87,6 +95,24 @@ class SoundSpeedProfile:
     def is_uniform(self) -> bool:
         """True when c is the same at every depth (straight rays)."""
         return len(set(self.speed_m_s)) == 1
+
+    def layers(self):
+        """The profile as the renderer's layer table.
+
+        Returns
+        -------
+        (k + 2, 3) float64
+            Row j: depth of the layer's top (m; −inf for the first), c there (m/s) and the gradient
+            dc/d(depth) (s⁻¹) down to the next row's top (+inf after the last); the first and last
+            layers hold c constant.
+        """
+        z = np.asarray(self.depth_m)
+        c = np.asarray(self.speed_m_s)
+        g = np.diff(c) / np.diff(z) if z.size > 1 else np.zeros(0)
+        top = np.concatenate(([-np.inf], z))
+        ct = np.concatenate(([c[0]], c))
+        gt = np.concatenate(([0.0], g, [0.0]))
+        return np.ascontiguousarray(np.stack([top, ct, gt], axis=1))
 
     def _layers(self, z0: float, z1: float):
         """(top, bottom, c_top, gradient) of the linear pieces between depths z0 < z1."""

@@ -4,7 +4,8 @@
 - :mod:`.splat`: footprint splatting — back end, expected intensity;
 - :mod:`.speckle`: the frozen scatterer lattice and its synthesis — back end, speckle;
 - :mod:`.truth`: ground-truth labels of the centre line;
-- :mod:`.multipath`: the one-bounce surface legs of every direct echo — front end.
+- :mod:`.multipath`: the one-bounce surface legs of every direct echo — front end;
+- :mod:`.refraction`: curved rays in a sound-speed profile, chord by chord — front end.
 
 :mod:`._numba` is the only module that imports numba (the scattering laws take ``njit`` and ``prange``
 from here). Kernels read no global state (named constants only), allocate nothing, draw no random
@@ -13,11 +14,12 @@ numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy
 """
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
 from .multipath import mixed_legs
+from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start
 from .rays import _sinc, fan_echoes, fan_rays, place_rows
 from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
 from .splat import splat_rows, splat_table
 from .truth import label_rows
 
-__all__ = ["CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
+__all__ = ["HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
            "frozen_scatterers", "gather_nodes", "label_rows", "mixed_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
            "splat_table", "_sinc"]

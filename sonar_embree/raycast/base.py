@@ -82,6 +82,26 @@ class Caster:
         """
         raise NotImplementedError
 
+    def cast_segments(self, origins_f32, directions_f32, dists_f32):
+        """First hits on segments of their own lengths (the chords of curved rays).
+
+        Parameters
+        ----------
+        origins_f32, directions_f32 : (n, 3) float32, C-contiguous
+            Segment starts (local frame, m) and unit directions.
+        dists_f32 : (n,) float32
+            Length of each segment, m.
+
+        Returns
+        -------
+        prim, tfar
+            As :meth:`cast_raw`; a hit beyond its segment's length is a miss.
+        """
+        if directions_f32.shape[0] == 0:
+            return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
+        prim, tfar = self.cast_raw(origins_f32, directions_f32, float(np.max(dists_f32)))
+        return np.where(tfar <= dists_f32, prim, -1).astype(np.int32), tfar
+
     def occluded(self, origins_f32, directions_f32, dists_f32):
         """Whether anything lies on each ray before its own distance (visibility of a leg).
 

@@ -53,6 +53,14 @@ class EmbreeCaster(Caster):
         return np.asarray(self._run(origins_f32, directions_f32, np.ascontiguousarray(dists_f32, dtype=np.float32),
                                     None, "OCCLUDED")) >= 0
 
+    def cast_segments(self, origins_f32, directions_f32, dists_f32):
+        """Embree's first hits on segments of their own lengths; as :meth:`Caster.cast_segments`."""
+        if directions_f32.shape[0] == 0:
+            return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
+        res = self._run(origins_f32, directions_f32, np.ascontiguousarray(dists_f32, dtype=np.float32), 1)
+        return (np.ascontiguousarray(res["primID"], dtype=np.int32),
+                np.ascontiguousarray(res["tfar"], dtype=np.float32))
+
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
         """Embree's first hits, unrefined; as :meth:`Caster.cast_raw`."""
         n = directions_f32.shape[0]

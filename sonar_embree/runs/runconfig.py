@@ -170,6 +170,9 @@ def load_run_config(path) -> RunConfig:
     base = os.path.dirname(os.path.abspath(source))
     _check_keys("the top level", data, TOP_KEYS, source)
 
+    profile = data.get("environment", {}).get("sound_speed")
+    if isinstance(profile, dict) and "csv" in profile:  # a CTD file next to the config
+        profile["csv"] = _resolve(base, profile["csv"])
     environment = _dataclass_table(data, "environment", Environment, source)
     sonar_table = data.get("sonar", {})
     _check_keys("[sonar]", sonar_table, table_keys(Sonar), source)

@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from .. import multipath
+from .. import multipath, refraction
 from ..config import FanSettings, Sonar
 from ..echoes import Echoes
 from ..fan import BlockEchoes, FanPlan, cast_block
@@ -29,6 +29,7 @@ class SideScanFrontEnd:
         self.sonar = sonar
         self.plan = FanPlan.build(sonar, fan)
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
+        self.buffers = refraction.Buffers() if sonar.environment.refracts else None
 
     def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
              want_ids: bool, clock: dict):
@@ -49,6 +50,11 @@ class SideScanFrontEnd:
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
         """
         surface = self.sonar.environment.surface
+        if self.sonar.environment.refracts:  # curved rays (never with a surface: Environment refuses both)
+            blk = refraction.cast_refracted(caster, self.plan, rot, pos_local, self.sonar.environment,
+                                            self.two_way_np_per_m, max_range_m, self.sonar, want_points, clock,
+                                            self.buffers)
+            return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
                          2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
                          timings=clock, frequency_hz=self.sonar.frequency_hz)

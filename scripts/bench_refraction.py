@@ -1,0 +1,56 @@
+"""Cost of refraction (curved rays in a sound-speed profile) against the straight-ray ping (docs/benchmarks.md).
+
+    python scripts/bench_refraction.py            # prints one JSON line
+
+Cases: the flat floor (10 m altitude, 60 m range) and the shipwreck pass, each with straight rays and in a linear
+profile (gradient 0.5 s⁻¹, the sonar 20 m deep); speckle-free. ms per ping, best of three, the stage times, and
+the rounds of chords the curved rays took. No test reads it.
+"""
+import dataclasses
+import json
+import os
+import sys
+import time
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
+
+import sonar_embree as se  # noqa: E402
+from sonar_embree import shipwreck  # noqa: E402
+
+
+def _best(scene, traj, sonar):
+    best = None
+    for _ in range(3):
+        t = {}
+        t0 = time.perf_counter()
+        se.simulate(scene, traj, sonar, se.Pulse.cw(), start_time="2000-01-01", timings=t)
+        wall = time.perf_counter() - t0 - t.get("setup", 0.0)
+        if best is None or wall < best[0]:
+            best = (wall, t)
+    wall, t = best
+    row = {k: round(1e3 * v / len(traj), 3) for k, v in t.items() if k != "setup"}
+    row["total"] = round(1e3 * wall / len(traj), 3)
+    return row
+
+
+def main() -> int:
+    flat = se.Scene().add(se.seafloor.flat((400.0, 200.0)), label="seafloor")
+    line = se.Trajectory.line((-3.2, 0.0, 10.0), (3.2, 0.0, 10.0), 64)
+    ship = shipwreck.shipwreck_scene(resolution_m=0.2)
+    ship_pass = shipwreck.straight_pass(30, ping_rate_hz=1.0)
+    cases = {"flat": (flat, line, se.Sonar(max_range_m=60.0)), "ship": (ship, ship_pass, se.Sonar())}
+    se.simulate(flat, line[:2], start_time="2000-01-01")  # compile
+    out = {}
+    for name, (scene, traj, sonar) in cases.items():
+        z = float(traj.positions_m[:, 2].max()) + 20.0
+        profile = se.SoundSpeedProfile.linear(sonar.sound_speed_m_s - 0.5 * 20.0, 0.5, surface_z_m=z)
+        bent = dataclasses.replace(sonar, environment=se.Environment(sound_speed=profile))
+        se.simulate(scene, traj[:2], bent, start_time="2000-01-01")  # compile the curved path
+        out[name] = {"straight": _best(scene, traj, sonar), "profile": _best(scene, traj, bent)}
+        out[name]["ratio"] = round(out[name]["profile"]["total"] / out[name]["straight"]["total"], 2)
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

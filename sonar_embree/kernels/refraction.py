@@ -1,0 +1,563 @@
+"""Curved rays in a layered sound-speed profile, marched chord by chord (docs/physics.md §12).
+
+A ray in a layer where c = c_top + g·(depth − top) keeps Snell's invariant ξ = cos θ / c
+(θ the grazing angle, signed: positive going down) and turns at the constant rate
+dθ/ds = −κ, κ = ξg, along its arc length s. From θa, after an arc length Δs
+(θb = θa − κΔs, θm = (θa + θb)/2):
+
+    Δx = Δs·cos θm·sinc(κΔs/2),   Δdepth = Δs·sin θm·sinc(κΔs/2),
+    Δt = (asinh tan θa − asinh tan θb) / g     (= Δs·ξ / cos θm as κΔs → 0),
+
+the closed-form arcs of Jensen et al. (*Computational Ocean Acoustics*, 2nd ed., 2011, ch. 3)
+written so that they stay exact for g → 0 and through a turning point (θ changes sign).
+Each step is one chord, short enough that it stands off its arc by at most a given sagitta
+(Δs ≤ √(8·sagitta/|κ|)), cast as one Embree segment; knots end a step, so a chord never
+crosses one. A chord's hit is then moved onto the arc: Newton's method on the arc length
+puts it on the hit triangle's plane (so the sagitta costs no accuracy, only the rare ray that
+the chord and the arc see differently at an edge), with the arc's tangent as the incident
+direction.
+
+The tube spreading needs J = ∂x/∂ξ at constant depth: over a layer segment from θa to θb
+it is X̃/(sin θa·sin θb) with X̃ = Δx/ξ, so that the ray tube's area per steradian is
+A_Ω = X̃_total·|M| / c0², M = sin θ0·sin θh·J (A_Ω = R² for straight rays).
+
+Per-ray state, ``state[i]`` (:data:`STATE_WIDTH` columns): position (local frame, m) ×3,
+θ (rad), path length L (m); then at the start of the current layer segment: T (s), L (m),
+depth (m), sin θ, the horizontal coordinate along the ray's azimuth (m) and X̃ (m²/s);
+P = sin θ0·J of the finished segments; ra = sin θ0 / sin θ at the segment's start (1 on the
+first); cos θ and sin θ. Times and X̃ are evaluated only at knots and hits, from the segment's start in one
+closed form (X̃ = Δx/ξ from the positions). ``ray[i]``: horizontal direction (2), ξ (s/m),
+sin θ0, c0. Turning by u = κΔs, the offsets use sin u / u and (1 − cos u)/u, as
+polynomials for the small u of a chord (no transcendental functions on the hot path).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
+from .rays import _sinc
+
+#: Columns of a ray's marching state (see the module docstring).
+STATE_WIDTH = 15
+#: Newton steps that move a chord's hit onto the arc, and the step (m) below which it has arrived.
+NEWTON_STEPS = 4
+NEWTON_TOL_M = 1e-6
+# state columns: position, θ, L; at the segment's start T, L, depth, sin θ, horizontal coordinate, X̃; P; ra
+S_TH, S_L, S_T0, S_L0, S_D0, S_SN0, S_XH0, S_X0, S_P, S_RA = 3, 4, 5, 6, 7, 8, 9, 10, 11, 12
+# and cos θ, sin θ of the current θ (carried by the exact rotations, not recomputed)
+S_CT, S_ST = 13, 14
+#: Below this turn u (rad) sin u / u and (1 − cos u)/u are taken from their series (error < u⁶/5040).
+SERIES_MAX_U = 0.05
+#: Columns of a ray's constants: h_x, h_y, ξ, sin θ0, c0.
+RAY_WIDTH = 5
+#: Smallest |sin θ| divided by at a layer crossing (a turning point exactly on a knot).
+MIN_SIN = 1e-12
+#: Closed-form steps a ray outside the scene's height range may take in one call (knots and turns).
+MAX_SKIPS = 64
+
+
+@njit(cache=True, nogil=True)
+def _speed(layers, k, depth):
+    """c at ``depth`` in layer k (m/s)."""
+    g = layers[k, 2]
+    if g == 0.0:
+        return layers[k, 1]
+    return layers[k, 1] + g * (depth - layers[k, 0])
+
+
+@njit(cache=True, nogil=True)
+def _layer_of(layers, depth):
+    """Index of the layer holding ``depth`` (a depth on a knot belongs to the layer below it)."""
+    k = 0
+    while k + 1 < layers.shape[0] and depth >= layers[k + 1, 0]:
+        k += 1
+    return k
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, state, lay, ray):
+    """Launch state of every ray of a block of side-scan fans (directions as :func:`fan_rays`).
+
+    Parameters
+    ----------
+    s, cos_beta, sin_beta, el_start, rot, pos
+        The block's fan, as for :func:`~sonar_embree.kernels.rays.fan_rays` (float64).
+    layers : (k, 3) float64
+        Layer tops (depth, m; −inf first), c there (m/s), gradient (s⁻¹).
+    z0 : float
+        Local z of depth 0, m.
+    state : (n, STATE_WIDTH) float64; lay : (n,) int64; ray : (n, RAY_WIDTH) float64
+        Written.
+    """
+    n_az = s.shape[0]
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        n_el = el_start[r + 1] - el_start[r]
+        base = n_az * el_start[r]
+        depth = z0 - pos[b, 2]
+        k = _layer_of(layers, depth)
+        c0 = _speed(layers, k, depth)
+        for a in range(n_az):
+            sa = s[a]
+            cpsi = math.sqrt(1.0 - sa * sa)
+            for j in range(n_el):
+                i = base + a * n_el + j
+                e1 = side * cpsi * cos_beta[el_start[r] + j]
+                e2 = cpsi * sin_beta[el_start[r] + j]
+                ux = rot[b, 0, 0] * sa + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2
+                uy = rot[b, 1, 0] * sa + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2
+                uz = rot[b, 2, 0] * sa + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2
+                hz = math.sqrt(ux * ux + uy * uy)
+                ray[i, 0] = ux / hz if hz > 0.0 else 1.0
+                ray[i, 1] = uy / hz if hz > 0.0 else 0.0
+                ray[i, 2] = hz / c0
+                ray[i, 3] = -uz
+                ray[i, 4] = c0
+                state[i, 0] = pos[b, 0]
+                state[i, 1] = pos[b, 1]
+                state[i, 2] = pos[b, 2]
+                state[i, S_TH] = math.atan2(-uz, hz)
+                for q in range(S_L, STATE_WIDTH):
+                    state[i, q] = 0.0
+                state[i, S_D0] = depth
+                state[i, S_SN0] = -uz
+                state[i, S_XH0] = pos[b, 0] * ray[i, 0] + pos[b, 1] * ray[i, 1]
+                state[i, S_RA] = 1.0
+                state[i, S_CT] = hz
+                state[i, S_ST] = -uz
+                lay[i] = k
+
+
+@njit(cache=True, nogil=True)
+def _turn(ca, sa, kappa, ds):
+    """(Δx, Δdepth, cos θb, sin θb) after an arc length ``ds`` from θa (cos ``ca``, sin ``sa``), θb = θa − κ·ds.
+
+    Δx = ds·(cos θa·S + sin θa·C), Δdepth = ds·(sin θa·S − cos θa·C) with S = sin u / u, C = (1 − cos u)/u,
+    u = κ·ds (straight for u = 0).
+    """
+    u = kappa * ds
+    if abs(u) < SERIES_MAX_U:
+        u2 = u * u
+        sinc_u = 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0))
+        cosc_u = 0.5 * u * (1.0 - u2 / 12.0 * (1.0 - u2 / 30.0 * (1.0 - u2 / 56.0)))
+    else:
+        sinc_u = math.sin(u) / u
+        cosc_u = (1.0 - math.cos(u)) / u
+    cos_u = 1.0 - u * cosc_u
+    sin_u = u * sinc_u
+    return (ds * (ca * sinc_u + sa * cosc_u), ds * (sa * sinc_u - ca * cosc_u),
+            ca * cos_u + sa * sin_u, sa * cos_u - ca * sin_u)
+
+
+@njit(cache=True, nogil=True)
+def _boundary(layers, k, th, xi, lo, hi):
+    """Where a curved ray leaves depths [lo, hi] of layer k: (θ there, depth there); ξc ≥ 1 at one edge means
+    the ray turns before it and leaves by the other."""
+    kappa = xi * layers[k, 2]
+    c_hi = _speed(layers, k, hi)
+    c_lo = _speed(layers, k, lo)
+    if kappa > 0.0:
+        down = th > 0.0 and xi * c_hi < 1.0
+    else:
+        down = not (th < 0.0 and xi * c_lo < 1.0)
+    if down:
+        return math.acos(min(xi * c_hi, 1.0)), hi
+    return -math.acos(min(xi * c_lo, 1.0)), lo
+
+
+@njit(cache=True, nogil=True)
+def _stays(layers, k, depth, dd, sa, sb, xi, lo, hi):
+    """Whether an arc from ``depth`` (sin θ ``sa``) to depth + ``dd`` (sin θ ``sb``) stays inside (lo, hi)."""
+    d_end = depth + dd
+    if not (lo < d_end < hi):
+        return False
+    if sa * sb > 0.0:
+        return True
+    g = layers[k, 2]  # it turned on the way: at the depth where ξc = 1
+    d_turn = layers[k, 0] + (1.0 / xi - layers[k, 1]) / g if g != 0.0 else depth
+    return lo < d_turn < hi
+
+
+@njit(cache=True, nogil=True)
+def _step(layers, k, depth, th, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
+    """One step of a ray in layer k between depths ``d_lo`` and ``d_hi`` (stops, or ±inf), at most ``ds_max``.
+
+    Returns (Δs, layer after, θ after, depth to snap to or NaN, Δx, Δdepth, cos θ and sin θ after): to the next
+    knot or stop depth, to the chord limit (a chord of arc length Δs on radius 1/|κ| stands off the arc
+    by Δs²|κ|/8, so Δs ≤ √(8·sagitta/|κ|)), or to ``ds_max``.
+    """
+    last = layers.shape[0] - 1
+    kappa = xi * layers[k, 2]
+    top = layers[k, 0]
+    bot = layers[k + 1, 0] if k < last else math.inf
+    lo = max(top, d_lo)
+    hi = min(bot, d_hi)
+    ds = ds_max
+    if kappa != 0.0:
+        ds = min(ds, math.sqrt(8.0 * sagitta_m / abs(kappa)))
+    if ds < math.inf:  # the common case: a chord (or the rest of the window) that stays inside
+        dx, dd, cb, sb = _turn(ca, sa, kappa, ds)
+        if _stays(layers, k, depth, dd, sa, sb, xi, lo, hi):
+            return ds, k, th - kappa * ds, math.nan, dx, dd, cb, sb
+    if kappa == 0.0:
+        if sa > 0.0 and hi < math.inf:
+            ds, d_b = (hi - depth) / sa, hi
+        elif sa < 0.0 and lo > -math.inf:
+            ds, d_b = (lo - depth) / sa, lo
+        else:
+            return math.inf, k, th, math.nan, math.inf, 0.0, ca, sa
+        th_b = th
+    else:
+        th_b, d_b = _boundary(layers, k, th, xi, lo, hi)
+        ds = max((th - th_b) / kappa, 0.0)
+    k_b = k + 1 if d_b == bot else (k - 1 if d_b == top else k)
+    dx, dd, cb, sb = _turn(ca, sa, kappa, ds)
+    return ds, k_b, th_b, d_b, dx, dd, math.cos(th_b), math.sin(th_b)
+
+
+@njit(cache=True, nogil=True)
+def _seg_dt_xt(layers, k, d_a, s_a, d_b, s_b, dxh, ds, xi):
+    """One-way time (s) and X̃ = Δx/ξ (m²/s) of a layer segment from depth ``d_a`` (sin θ ``s_a``) to ``d_b``.
+
+    Δt = (asinh tan θa − asinh tan θb)/g with asinh tan θ = ln((1 + sin θ)/(ξc)), one logarithm taken on the
+    side away from sin θ = ∓1, or ∫ds/c by the trapezoid where that difference is below 1e-5 (then exact to
+    ~1e-11); straight rays Δs/c, a vertical ray in a gradient ln(c_b/c_a)/g.
+    """
+    g = layers[k, 2]
+    c_a = _speed(layers, k, d_a)
+    if g == 0.0:
+        return ds / c_a, ds * c_a
+    c_b = _speed(layers, k, d_b)
+    if xi == 0.0:
+        return math.log(c_b / c_a) / g, 0.5 * ds * (c_a + c_b)
+    if s_a + s_b >= 0.0:
+        df = math.log((1.0 + s_a) * c_b / ((1.0 + s_b) * c_a))
+    else:
+        df = math.log((1.0 - s_b) * c_a / ((1.0 - s_a) * c_b))
+    dt = df / g if abs(df) > 1e-5 else 2.0 * ds / (c_a + c_b)
+    return dt, dxh / xi
+
+
+@njit(cache=True, nogil=True)
+def _close_segment(out, o, k, ray, i, layers, depth_b, sin_b):
+    """Ray i (state ``out[o]``) reached a knot at ``depth_b``: the finished layer segment's T, X̃ and J join
+    the totals. (Rows are passed as array and index: a row view per ray costs reference counting that the
+    threads contend for.)"""
+    xh = out[o, 0] * ray[i, 0] + out[o, 1] * ray[i, 1]
+    dt, xt = _seg_dt_xt(layers, k, out[o, S_D0], out[o, S_SN0], depth_b, sin_b, xh - out[o, S_XH0],
+                        out[o, S_L] - out[o, S_L0], ray[i, 2])
+    sb = math.copysign(max(abs(sin_b), MIN_SIN), sin_b)
+    out[o, S_T0] += dt
+    out[o, S_X0] += xt
+    out[o, S_P] += out[o, S_RA] * xt / sb
+    out[o, S_RA] = ray[i, 3] / sb
+    out[o, S_L0] = out[o, S_L]
+    out[o, S_D0] = depth_b
+    out[o, S_SN0] = sin_b
+    out[o, S_XH0] = xh
+
+
+@njit(cache=True, nogil=True)
+def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o):
+    """One step of ray i from state ``st[si]`` (see :func:`_step`), at most to path length ``l_max``:
+    ``out[o]`` gets the state after it; returns the layer after it."""
+    depth = z0 - st[si, 2]
+    th = st[si, S_TH]
+    ds, kn, th_b, d_b, dx, dd, cb, sb = _step(layers, k, depth, th, st[si, S_CT], st[si, S_ST], ray[i, 2],
+                                              sagitta_m, max(l_max - st[si, S_L], 0.0) + 1e-6, d_lo, d_hi)
+    for q in range(STATE_WIDTH):
+        out[o, q] = st[si, q]
+    if ds == math.inf:  # a straight ray that meets nothing: it is done
+        out[o, S_L] = math.inf
+        return k
+    out[o, 0] += dx * ray[i, 0]
+    out[o, 1] += dx * ray[i, 1]
+    out[o, 2] = out[o, 2] - dd if math.isnan(d_b) else z0 - d_b  # on a knot or stop exactly
+    out[o, S_TH] = th_b
+    out[o, S_CT] = cb
+    out[o, S_ST] = sb
+    out[o, S_L] += ds
+    if kn != k:
+        _close_segment(out, o, k, ray, i, layers, d_b, sb)
+    return kn
+
+
+@njit(cache=True, nogil=True)
+def _skip_outside(st, i, k, ray, layers, z0, z_lo, z_hi, l_max, tmp, o):
+    """Move ray i that is above z_hi or below z_lo (outside the scene) to that height, in closed form.
+
+    Nothing can be hit out there, so no chord is cast; ``st[i]`` is updated in place (``tmp[o]`` is
+    scratch), the layer returned.
+    """
+    for _ in range(MAX_SKIPS):
+        if st[i, S_L] >= l_max or z_lo <= st[i, 2] <= z_hi:
+            break
+        if st[i, 2] > z_hi:
+            k = _advance(st, i, k, ray, i, layers, z0, math.inf, l_max, -math.inf, z0 - z_hi, tmp, o)
+        else:
+            k = _advance(st, i, k, ray, i, layers, z0, math.inf, l_max, z0 - z_lo, math.inf, tmp, o)
+        for q in range(STATE_WIDTH):
+            st[i, q] = tmp[o, q]
+    return k
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def arc_chord(idx, state, lay, ray, layers, z0, box_z, sagitta_m, l_max, nxt, nlay, org, dirs, seg_len):
+    """The next chord of every live ray ``idx``: its state after it, and the chord as an Embree segment.
+
+    A ray outside the scene's height range first moves to its edge in closed form
+    (:func:`_skip_outside`, written into ``state``), so chords are cast only where there is
+    something to hit.
+
+    Parameters
+    ----------
+    idx : (m,) int64
+        Live rays.
+    state, lay, ray
+        As written by :func:`arc_start` (updated for the skipped part).
+    layers : (k, 3) float64; z0 : float
+        As for :func:`arc_start`.
+    box_z : (2,) float64
+        Local z range outside which no chord is cast (the scene's, widened by a margin), m.
+    sagitta_m : float
+        Largest distance of a chord from its arc, m.
+    l_max : float
+        Path length after which a ray is not followed, m (the window's time × the fastest c).
+    nxt : (m, STATE_WIDTH) float64; nlay : (m,) int64
+        Written: the state and layer after the chord.
+    org, dirs : (m, 3) float32; seg_len : (m,) float32
+        Written: the chord's start (local frame, m), unit direction and length (m; 0 past ``l_max``).
+    """
+    for j in prange(idx.shape[0]):
+        i = idx[j]
+        lay[i] = _skip_outside(state, i, lay[i], ray, layers, z0, box_z[0], box_z[1], l_max, nxt, j)
+        nlay[j] = _advance(state, i, lay[i], ray, i, layers, z0, sagitta_m, l_max, -math.inf, math.inf, nxt, j)
+        vx = nxt[j, 0] - state[i, 0]
+        vy = nxt[j, 1] - state[i, 1]
+        vz = nxt[j, 2] - state[i, 2]
+        n = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if state[i, S_L] >= l_max:
+            n = 0.0
+        org[j, 0] = state[i, 0]
+        org[j, 1] = state[i, 1]
+        org[j, 2] = state[i, 2]
+        if n > 0.0:
+            dirs[j, 0] = vx / n
+            dirs[j, 1] = vy / n
+            dirs[j, 2] = vz / n
+        else:
+            dirs[j, 0] = ray[i, 0]
+            dirs[j, 1] = ray[i, 1]
+            dirs[j, 2] = 0.0
+        seg_len[j] = n
+
+
+#: Columns of a hit: point (3, local m), incident direction (3), one-way time T (s), path length L (m),
+#: X̃ (m²/s), M (m²/s), sin θ and cos θ at the hit, c at the hit (m/s).
+HIT_WIDTH = 13
+
+
+@njit(cache=True, nogil=True)
+def _refit(st, i, ux, uy, uz, t_emb, tri, vertices, faces, face_normals):
+    """Float64 distance along the chord from ``st[i]`` (unit direction u) to the hit triangle's plane
+    (Embree's where ill-conditioned)."""
+    dn = ux * face_normals[tri, 0] + uy * face_normals[tri, 1] + uz * face_normals[tri, 2]
+    num = 0.0
+    for q in range(3):
+        num += (vertices[faces[tri, 0], q] - st[i, q]) * face_normals[tri, q]
+    if abs(dn) > REFIT_MIN_COS:
+        t64 = num / dn
+        if abs(t64 - t_emb) <= REFIT_REL_TOL * (1.0 + t_emb):
+            return t64
+    return t_emb
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, faces, face_normals, hit_prim, hit):
+    """Rays whose chord hit something stop there (``hit``); the others move to the chord's end.
+
+    Parameters
+    ----------
+    idx, state, lay, ray, nxt, nlay, layers, z0
+        As for :func:`arc_chord` (``state``, ``lay`` updated for the rays that missed).
+    prim : (m,) int32; tfar : (m,) float32
+        Embree's answer for each chord.
+    vertices, faces, face_normals
+        The scene (local frame), for the float64 refit of the hit.
+    hit_prim : (n,) int32; hit : (n, HIT_WIDTH) float64
+        Written for the rays that hit: the triangle and the quantities of :data:`HIT_WIDTH` at the point
+        where the arc meets the triangle's plane (:func:`_onto_arc`), from the closed forms.
+    """
+    for j in prange(idx.shape[0]):
+        i = idx[j]
+        if prim[j] < 0:
+            for q in range(STATE_WIDTH):
+                state[i, q] = nxt[j, q]
+            lay[i] = nlay[j]
+            continue
+        dx = nxt[j, 0] - state[i, 0]
+        dy = nxt[j, 1] - state[i, 1]
+        dz = nxt[j, 2] - state[i, 2]
+        length = math.sqrt(dx * dx + dy * dy + dz * dz)
+        tri = prim[j]
+        t = 0.0
+        if length > 0.0:
+            t = _refit(state, i, dx / length, dy / length, dz / length, np.float64(tfar[j]), tri, vertices, faces,
+                       face_normals)
+        ds_chord = nxt[j, S_L] - state[i, S_L]
+        s = min(max(t / length, 0.0), 1.0) * ds_chord if length > 0 else 0.0
+        ca, sa = state[i, S_CT], state[i, S_ST]
+        kappa = ray[i, 2] * layers[lay[i], 2]
+        s = _onto_arc(state, i, ray, ca, sa, kappa, s, ds_chord, vertices, faces, face_normals, tri)
+        _hit_of(state, i, lay[i], ray, layers, z0, ca, sa, kappa, s, hit)
+        hit_prim[i] = tri
+
+
+@njit(cache=True, nogil=True)
+def _onto_arc(st, i, ray, ca, sa, kappa, s0, ds_chord, vertices, faces, face_normals, tri):
+    """Arc length from the chord's start at which the arc meets the hit triangle's plane (Newton from s0).
+
+    Stops when a step is below :data:`NEWTON_TOL_M` (keeping the point it evaluated); falls back to ``s0``
+    (the chord's own hit) if Newton leaves the chord or the arc runs along the plane.
+    """
+    v = faces[tri, 0]
+    hn = ray[i, 0] * face_normals[tri, 0] + ray[i, 1] * face_normals[tri, 1]
+    nz = face_normals[tri, 2]
+    base = 0.0
+    for q in range(3):
+        base += (st[i, q] - vertices[v, q]) * face_normals[tri, q]
+    s = s0
+    for _ in range(NEWTON_STEPS):
+        dx, dd, cb, sb = _turn(ca, sa, kappa, s)
+        fp = cb * hn - sb * nz
+        if abs(fp) < REFIT_MIN_COS:
+            return s0
+        step = (base + dx * hn - dd * nz) / fp
+        if abs(step) < NEWTON_TOL_M:
+            break
+        s -= step
+    tol = REFIT_REL_TOL * (1.0 + ds_chord)
+    return s if -tol <= s <= ds_chord + tol else s0
+
+
+@njit(cache=True, nogil=True)
+def _hit_of(st, i, k, ray, layers, z0, ca, sa, kappa, s, out):
+    """The :data:`HIT_WIDTH` quantities (into ``out[i]``) of the arc point an arc length ``s`` after the
+    chord's start ``st[i]``."""
+    dx, dd, cb, sb = _turn(ca, sa, kappa, s)
+    hx, hy = ray[i, 0], ray[i, 1]
+    out[i, 0] = st[i, 0] + dx * hx
+    out[i, 1] = st[i, 1] + dx * hy
+    out[i, 2] = st[i, 2] - dd
+    out[i, 3] = cb * hx
+    out[i, 4] = cb * hy
+    out[i, 5] = -sb
+    depth = z0 - out[i, 2]
+    xh = out[i, 0] * hx + out[i, 1] * hy
+    dt, xt = _seg_dt_xt(layers, k, st[i, S_D0], st[i, S_SN0], depth, sb, xh - st[i, S_XH0],
+                        st[i, S_L] + s - st[i, S_L0], ray[i, 2])
+    out[i, 6] = st[i, S_T0] + dt
+    out[i, 7] = st[i, S_L] + s
+    out[i, 8] = st[i, S_X0] + xt
+    out[i, 9] = st[i, S_P] * sb + st[i, S_RA] * xt
+    out[i, 10] = sb
+    out[i, 11] = cb
+    out[i, 12] = _speed(layers, k, depth)
+
+
+@njit(cache=True, nogil=True)
+def _membrane_gain(beam, sa, cpsi, cb, sb):
+    """Γ of body direction (s, β) for the baffled membrane (0 behind the baffle), as in fan_echoes."""
+    cos_t = math.cos(beam[2])
+    sin_t = math.sin(beam[2])
+    if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:
+        return 0.0
+    return _sinc(beam[0] * sa) * _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, ray, face_normals, face_two_sided,
+               beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom, range_out, time_out, extent_out,
+               weight_out, cos_out, points_out):
+    """Weights of the curved rays of a block (docs/physics.md §12); the law multiplies σ(θi)/cos θi afterwards.
+
+    w = Γ⁴(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
+
+    at two-way time 2T (apparent range c_nom·T), spread over the travel-time interval
+    2·|n̂·δ⊥|·dβ / (c_h·cos θi) of its cell, δ⊥ the ray tube's sideways motion per dβ
+    (−(M/c0)·n̂_v·∂θ0/∂β + (X̃/c0)·cos θ0·ĥ⊥·∂φ/∂β, n̂_v the normal of the ray in its vertical
+    plane, ĥ⊥ the horizontal normal of that plane; the straight-ray footprint when c is constant).
+    Misses, back faces (unless two-sided), grazing hits, hits after ``t_max`` and rays behind the
+    baffle get w = 0. Arguments as for :func:`~sonar_embree.kernels.rays.fan_echoes`, plus
+    ``hit_prim``, ``hit``, ``ray`` from :func:`arc_land` / :func:`arc_start`, ``t_max`` (one-way, s)
+    and ``c_nom`` (the sonar's sound speed, m/s). Outputs as there; points are the hit points.
+    """
+    n_az = s.shape[0]
+    want_points = points_out.shape[0] == range_out.shape[0]
+    for r in prange(el_start.shape[0] - 1):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        n_el = el_start[r + 1] - el_start[r]
+        base = n_az * el_start[r]
+        for a in range(n_az):
+            sa = s[a]
+            cpsi = math.sqrt(1.0 - sa * sa)
+            for j in range(n_el):
+                i = base + a * n_el + j
+                range_out[i] = math.inf
+                time_out[i] = math.inf
+                extent_out[i] = 0.0
+                weight_out[i] = 0.0
+                cos_out[i] = 0.0
+                if want_points:
+                    for q in range(3):
+                        points_out[i, q] = 0.0
+                t = hit_prim[i]
+                if t < 0:
+                    continue
+                e = el_start[r] + j
+                dn = 0.0
+                for q in range(3):
+                    dn += hit[i, 3 + q] * face_normals[t, q]
+                cos_i = -dn
+                if cos_i < 0.0 and face_two_sided[t]:
+                    cos_i = dn
+                g = _membrane_gain(beam, sa, cpsi, cos_beta[e], sin_beta[e])
+                if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or g == 0.0:
+                    continue
+                c0 = ray[i, 4]
+                area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
+                g2 = g * g
+                weight_out[i] = (g2 * g2 * math.exp(-two_way_np_per_m * hit[i, 7]) * ds * dbeta[e]
+                                 / max(area, min_range_m * min_range_m))
+                range_out[i] = c_nom * hit[i, 6]
+                time_out[i] = 2.0 * hit[i, 6]
+                cos_out[i] = cos_i
+                slope = _tube_shift(rot[b], side, cpsi, cos_beta[e], sin_beta[e], sa, hit[i], ray[i], face_normals[t])
+                extent_out[i] = 2.0 * min(slope / cos_i, slope_cap_m_rad) * dbeta[e] / hit[i, 12]
+                if want_points:
+                    for q in range(3):
+                        points_out[i, q] = hit[i, q]
+
+
+@njit(cache=True, nogil=True)
+def _tube_shift(rot, side, cpsi, cb, sb, sa, h, ry, nrm):
+    """|n̂·δ⊥| per radian of β (m/rad): the ray tube's sideways motion seen across the hit surface."""
+    e1, e2 = side * cpsi * cb, cpsi * sb
+    f1, f2 = -side * cpsi * sb, cpsi * cb  # ∂e/∂β in body axes (0, f1, f2)
+    ux = rot[0, 0] * sa + rot[0, 1] * e1 + rot[0, 2] * e2
+    uy = rot[1, 0] * sa + rot[1, 1] * e1 + rot[1, 2] * e2
+    dux = rot[0, 1] * f1 + rot[0, 2] * f2
+    duy = rot[1, 1] * f1 + rot[1, 2] * f2
+    duz = rot[2, 1] * f1 + rot[2, 2] * f2
+    cos0 = max(math.sqrt(ux * ux + uy * uy), 1e-12)
+    c0 = ry[4]
+    sh, ch = h[10], h[11]
+    n_v = nrm[0] * sh * ry[0] + nrm[1] * sh * ry[1] + nrm[2] * ch
+    n_p = -nrm[0] * ry[1] + nrm[1] * ry[0]
+    d_theta = -duz / cos0
+    d_phi_cos = (ux * duy - uy * dux) / cos0
+    return abs(-(h[9] / c0) * n_v * d_theta + (h[8] / c0) * n_p * d_phi_cos)

@@ -1,0 +1,135 @@
+"""Side-scan fans in a sound-speed profile: curved rays, chord by chord through the caster (docs/physics.md §12).
+
+The block's rays are placed as for straight rays (:func:`~sonar_embree.fan.probe_rows`:
+straight probes only set the ray density), launched with the fan's directions, and
+marched along their closed-form arcs (:mod:`sonar_embree.kernels.refraction`): each round
+casts every live ray's next chord as one Embree segment; rays that hit stop, the others
+move on until their one-way time passes the window. The echo of a hit carries the travel
+time and path length of its arc, the ray tube's spreading A_Ω of the stratified ray map and
+the launch direction's beam gain; the law and maps apply as for straight rays.
+
+Labels assume straight rays and are refused with a profile
+(:func:`~sonar_embree.checks.check_profile`); the speckle lattice takes the echoes' times for its envelopes and straight distances for its
+phases (its statistics, not its exact pattern, hold in a profile).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from . import kernels
+from .fan import BlockEchoes, FanPlan, probe_rows
+from .laws import apply_laws
+
+#: A chord stands off its arc by at most this many of the sonar's range bins (its hits are moved onto the arc;
+#: the sagitta only decides which rays graze an edge).
+SAGITTA_FRACTION = 1.0
+#: Chords start this far (m) outside the scene's height range: a chord never starts on a surface.
+BOX_MARGIN_M = 0.5
+#: Rounds of chords after which marching stops with an error (a ray that never leaves the window).
+MAX_ROUNDS = 100_000
+
+
+class Buffers:
+    """Working arrays kept from block to block: in the marching, first-touch page faults of fresh arrays
+    cost more than the arithmetic (measured: the hit kernel 2× slower on fresh memory)."""
+
+    def __init__(self):
+        self._kept = {}
+
+    def take(self, name: str, shape, dtype=np.float64) -> np.ndarray:
+        """An uninitialised C-contiguous array of ``shape`` backed by the kept buffer ``name``."""
+        size = int(np.prod(shape))
+        buf = self._kept.get(name)
+        if buf is None or buf.size < size:
+            buf = np.empty(size + size // 4, dtype=dtype)  # headroom for the next, slightly larger block
+            self._kept[name] = buf
+        return buf[:size].reshape(shape)
+
+
+def march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers: Buffers):
+    """Follow every ray chord by chord until it hits or its path could no longer arrive before ``t_max``.
+
+    Returns (hit_prim, hit) of the block (:func:`~sonar_embree.kernels.refraction.arc_land`).
+
+    Chords are cast only within the scene's height range (widened by :data:`BOX_MARGIN_M`); outside it
+    rays move in closed form.
+    """
+    c = caster.compiled
+    box_z = c.bounds_local[:, 2] + np.array([-BOX_MARGIN_M, BOX_MARGIN_M])
+    l_max = t_max * float(layers[:, 1].max())  # no ray goes further in the window
+    n = state.shape[0]
+    hit_prim = np.full(n, -1, dtype=np.int32)
+    hit = buffers.take("hit", (n, kernels.HIT_WIDTH))  # read only where hit_prim ≥ 0
+    idx = np.arange(n, dtype=np.int64)
+    for _ in range(MAX_ROUNDS):
+        if idx.size == 0:
+            return hit_prim, hit
+        m = idx.size
+        nxt, nlay = buffers.take("nxt", (m, kernels.STATE_WIDTH)), buffers.take("nlay", m, np.int64)
+        org, dirs = buffers.take("org", (m, 3), np.float32), buffers.take("dirs", (m, 3), np.float32)
+        seg = buffers.take("seg", m, np.float32)
+        kernels.arc_chord(idx, state, lay, ray, layers, z0, box_z, sagitta_m, l_max, nxt, nlay, org, dirs, seg)
+        t = time.perf_counter()
+        prim, tfar = caster.cast_segments(org, dirs, seg)
+        clock["embree"] = clock.get("embree", 0.0) + time.perf_counter() - t
+        kernels.arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, c.vertices, c.faces,
+                         c.face_normals, hit_prim, hit)
+        idx = idx[(prim < 0) & (nxt[:, kernels.S_L] < l_max)]
+    raise RuntimeError(f"curved rays still in flight after {MAX_ROUNDS} chords")  # pragma: no cover
+
+
+def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
+                   sonar, want_points: bool, clock: dict, buffers: Buffers | None = None) -> BlockEchoes:
+    """:func:`~sonar_embree.fan.cast_block` for curved rays in ``environment.sound_speed``.
+
+    Parameters
+    ----------
+    caster, plan, rot, pos_local, two_way_np_per_m, max_range_m
+        As for :func:`~sonar_embree.fan.cast_block`.
+    environment : Environment
+        With a non-uniform profile.
+    sonar : Sonar
+        Its sound speed sets the range axis (apparent range c·T), its range bin the chord length.
+    want_points : bool
+        Also return the hit points.
+    clock : dict
+        Seconds spent are added under ``"embree"`` and ``"rays"``.
+    buffers : Buffers, optional
+        Working arrays to reuse (a front end keeps one).
+    """
+    buffers = Buffers() if buffers is None else buffers
+    t0, before = time.perf_counter(), clock.get("embree", 0.0)
+    c_nom = sonar.sound_speed_m_s
+    max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
+    pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
+    z0 = environment.profile_origin_z_m() - float(caster.compiled.origin_m[2])
+    layers = environment.sound_speed.layers()
+    reach = max_range_m * layers[:, 1].max() / c_nom * 1.05 + 1.0  # the probes' straight stand-in for the arcs
+    el_start, beta, dbeta, altitude, t_probe = probe_rows(caster, plan, rot, pos_local, reach)
+    clock["embree"] = before + t_probe
+    n_az = plan.s.shape[0]
+    n = n_az * int(el_start[-1])
+    cos_b, sin_b = np.cos(beta), np.sin(beta)
+    state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
+    ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
+    kernels.arc_start(plan.s, cos_b, sin_b, el_start, rot, pos_local, layers, z0, state, lay, ray)
+    t_max = max_range_m / c_nom
+    hit_prim, hit = march(caster, layers, z0, SAGITTA_FRACTION * sonar.range_bin_m, t_max, state, lay, ray, clock,
+                          buffers)
+
+    c = caster.compiled
+    rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
+    pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
+    kernels.arc_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, hit_prim, hit, ray, c.face_normals,
+                       c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, t_max, plan.slope_cap_m_rad,
+                       c_nom, rng, t_s, ext, w, cos_i, pts)
+    apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
+    if not plan.footprint:
+        ext[:] = 0.0
+    n_rays = n_az * np.diff(el_start).reshape(rot.shape[0], 2).sum(axis=1) + plan.n_probe
+    clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
+    tfar = np.where(hit_prim >= 0, hit[:, 7], np.inf).astype(np.float32)
+    return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar)
