@@ -316,3 +316,92 @@ def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam,
     phi = np.where(ok, np.arccos(np.clip(np.sum(b * t, axis=1) / np.where(ok, nb * nt, 1), -1, 1)), 0.0)
     return dict(time=(r + r2) / c, extent=slope * dbeta / c, weight=w, cos_i=cos_i, cos_s=cos_s, phi=phi, v=v,
                 leg1=leg1, u2=u2, leg2=leg2)
+
+
+def arc_start(s, beta, el_start, rot, pos, layers, z0):
+    """Launch of every ray in a profile (twin of kernels.arc_start): horizontal direction, ξ, θ0, c0 per ray."""
+    u = fan_directions(s, beta, el_start, rot)
+    rows = np.repeat(np.arange(len(el_start) - 1), len(s) * np.diff(el_start))
+    depth = z0 - pos[rows // 2, 2]
+    c0 = np.interp(depth, layers[1:, 0], layers[1:, 1])        # the profile's knots, held beyond
+    hz = np.hypot(u[:, 0], u[:, 1])
+    return dict(h=u[:, :2] / hz[:, None], xi=hz / c0, theta=np.arcsin(-u[:, 2]), c0=c0, depth=depth)
+
+
+def _profile_speed(layers, depth):
+    return np.interp(depth, layers[1:, 0], layers[1:, 1])
+
+
+def arc_trace(theta0, depth0, xi, layers, planes, z0, s_max=300.0, n=30001):
+    """A ray from depth0 at grazing θ0 (azimuth along +x) to the first of ``planes``, layer by layer.
+
+    In each layer the arc is θ(s) = θa − κs, x(s) = xa + (sin θa − sin θ(s))/κ, depth(s) = da + (cos θ(s) −
+    cos θa)/κ (a straight line for κ = 0), in plain trigonometry; the first root of n̂·(X(s) − p) over the
+    planes (x, depth → local (x, 0, z0 − depth)) or of the layer's edges is found by a sign change on a 1 cm
+    grid and brentq, the time by quad of ds/c(depth(s)). ``planes``: ((a, b, e), …), each the line
+    a·x + b·z + e = 0 where a plane cuts the ray's vertical plane (x along the azimuth from the sonar, z up,
+    z = z0 − depth). Returns (plane index, x, depth, L, T, θ) at the hit, or None.
+    """
+    from scipy.integrate import quad
+    from scipy.optimize import brentq
+    th, d, x, L, T = float(theta0), float(depth0), 0.0, 0.0, 0.0
+    knots = layers[1:, 0]
+    for _ in range(40):
+        k = int(np.searchsorted(knots, d, side="right"))          # layer k: knots[k−1] ≤ d < knots[k]
+        kap = xi * layers[k, 2]
+
+        def pos(s, th=th, d=d, x=x, kap=kap):
+            if kap == 0:
+                return x + s * np.cos(th), d + s * np.sin(th)
+            return x + (np.sin(th) - np.sin(th - kap * s)) / kap, d + (np.cos(th - kap * s) - np.cos(th)) / kap
+
+        lo = knots[k - 1] if k > 0 else -np.inf
+        hi = knots[k] if k < len(knots) else np.inf
+        grid = np.linspace(1e-9, s_max - L, n)  # off the knot it starts on
+        gx, gd = pos(grid)
+        funcs = [lambda q, a=a, b=b, e=e: a * pos(q)[0] + b * (z0 - pos(q)[1]) + e for a, b, e in planes]
+        funcs += [lambda q: pos(q)[1] - hi, lambda q: pos(q)[1] - lo]
+        vals = [a * gx + b * (z0 - gd) + e for a, b, e in planes] + [gd - hi, gd - lo]
+        first, which = np.inf, None
+        for w, v in enumerate(vals):
+            j = np.flatnonzero(np.sign(v[1:]) != np.sign(v[:-1]))
+            if j.size and np.isfinite(v).all() and grid[j[0] + 1] < first:
+                first, which = grid[j[0] + 1], (w, j[0])
+        if which is None:
+            return None
+        w, j = which
+        s = brentq(funcs[w], grid[j], grid[j + 1], xtol=1e-13)
+        T += quad(lambda q: 1.0 / _profile_speed(layers, pos(q)[1]), 0.0, s, epsabs=0, epsrel=1e-12)[0]
+        x, d = pos(s)
+        L += s
+        th -= kap * s
+        if w < len(planes):
+            return w, x, d, L, T, th
+        d = hi if w == len(planes) else lo  # on the knot exactly: the next layer starts there
+    return None
+
+
+def arc_echoes(s, ds, beta, dbeta, el_start, rot, hit_prim, point, direction, T, L, area, shift_per_rad, c_hit,
+               face_normals, k, lx, ly, tilt, two_way, min_range, t_max, slope_cap, c_nom):
+    """Weights, times and extents of curved-ray hits by vector algebra (twin of kernels.arc_echoes).
+
+    ``area`` (A_Ω) and ``shift_per_rad`` (|n̂·δ⊥| per dβ) are given per ray: the twin checks the beam, the
+    baffle, the law-free weight, the travel time and the footprint built from them.
+    """
+    rows = np.repeat(np.arange(len(el_start) - 1), len(s) * np.diff(el_start))
+    bb = np.concatenate([np.tile(beta[el_start[r]:el_start[r + 1]], len(s)) for r in range(len(el_start) - 1)])
+    dbb = np.concatenate([np.tile(dbeta[el_start[r]:el_start[r + 1]], len(s)) for r in range(len(el_start) - 1)])
+    ss = np.concatenate([np.repeat(s, el_start[r + 1] - el_start[r]) for r in range(len(el_start) - 1)])
+    n = rows.shape[0]
+    w, t, ext = np.zeros(n), np.full(n, np.inf), np.zeros(n)
+    hit = hit_prim >= 0
+    nrm = face_normals[np.maximum(hit_prim, 0)]
+    cos_i = -np.sum(direction * nrm, axis=1)
+    cpsi = np.sqrt(1 - ss ** 2)
+    rel = bb - tilt
+    g = np.sinc(k * lx / 2 * ss / np.pi) * np.sinc(k * ly / 2 * cpsi * np.sin(rel) / np.pi)
+    ok = hit & (cos_i > 1e-9) & (T <= t_max) & (cpsi * np.cos(rel) > 0)
+    w[ok] = (g[ok] ** 4 * np.exp(-two_way * L[ok]) * ds * dbb[ok] / np.maximum(area[ok], min_range ** 2))
+    t[ok] = 2 * T[ok]
+    ext[ok] = 2 * np.minimum(shift_per_rad[ok] / cos_i[ok], slope_cap) * dbb[ok] / c_hit[ok]
+    return w, t, ext, c_nom * T

@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import analytic
+import naive
 import sonar_embree as se
 from sonar_embree.fan import FanPlan
 from sonar_embree.raycast.embree import EmbreeCaster
@@ -146,3 +147,178 @@ def test_zero_gradient_profile_gives_todays_record_bit_for_bit(records):
     flat = se.SoundSpeedProfile((0.0, 100.0), (C_SONAR, C_SONAR))
     rec = _record(flat)
     assert np.array_equal(rec.data, straight.data)
+
+
+# --- the kernels against their NumPy twins (tests/naive.py), in a three-layer profile of both signs ---
+THREE = se.SoundSpeedProfile((0.0, 12.0, 20.0, 60.0), (1500.0, 1506.0, 1497.0, 1499.0), surface_z_m=24.0)
+Z_SONAR, SLOPE, Z_CEILING = 14.0, np.radians(10.0), 22.5
+# the sonar 10 m deep: rays cross the knots at 12 and 20 m on their way down to a floor tilted across track
+# (its normal leans sideways: the footprint's azimuth term counts), or go up to a ceiling 1.5 m deep
+FLOOR_N = np.array([0.0, np.sin(SLOPE), np.cos(SLOPE)])
+CEILING_N = np.array([0.0, 0.0, -1.0])
+
+
+def _planes_scene():
+    import trimesh
+    e1, e2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, np.cos(SLOPE), -np.sin(SLOPE)])
+    quad = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], float)
+    floor = trimesh.Trimesh(quad[:, :1] * 300 * e1 + quad[:, 1:] * 200 * e2, [[0, 1, 2], [0, 2, 3]], process=False)
+    ceiling = trimesh.Trimesh(np.c_[quad * [300, 200], np.full(4, Z_CEILING)], [[0, 2, 1], [0, 3, 2]],
+                              process=False)
+    mat = se.Material(backscatter_db=MU_DB)
+    return se.Scene().add(floor, material=mat, label="seafloor").add(ceiling, material=mat, label="ceiling")
+
+
+@pytest.fixture(scope="module")
+def three_layer_block():
+    """One ping's fan in THREE between the tilted floor and the ceiling: the kernels' launch, hits and echoes."""
+    from sonar_embree import kernels
+    from sonar_embree.fan import probe_rows
+    from sonar_embree.refraction import Buffers, march
+    sonar = se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS, environment=se.Environment(sound_speed=THREE))
+    front = SideScanFrontEnd(sonar, se.FanSettings())
+    compiled = _planes_scene().compiled(np.zeros(3))
+    caster = EmbreeCaster.for_scene(compiled)
+    rot = np.ascontiguousarray(se.Trajectory.line((0.0, 0.0, Z_SONAR), (1.0, 0.3, Z_SONAR), 2).rotations()[:1])
+    pos = np.array([[0.0, 0.0, Z_SONAR]]) - compiled.origin_m
+    el_start, beta, dbeta, _, _ = probe_rows(caster, front.plan, rot, pos, 45.0)
+    n = front.plan.s.size * int(el_start[-1])
+    layers, z0 = THREE.layers(), 24.0 - compiled.origin_m[2]
+    state, lay, ray = np.empty((n, kernels.STATE_WIDTH)), np.empty(n, np.int64), np.empty((n, kernels.RAY_WIDTH))
+    kernels.arc_start(front.plan.s, np.cos(beta), np.sin(beta), el_start, rot, pos, layers, z0, state, lay, ray)
+    start = state.copy()
+    t_max = 40.0 / sonar.sound_speed_m_s
+    hit_prim, hit = march(caster, layers, z0, 0.02, t_max, state, lay, ray, {}, Buffers())
+    return dict(front=front, sonar=sonar, caster=caster, rot=rot, pos=pos, el_start=el_start, beta=beta, dbeta=dbeta,
+                layers=layers, z0=z0, start=start, ray=ray, hit_prim=hit_prim, hit=hit.copy(), t_max=t_max,
+                face_object=compiled.face_object, origin=compiled.origin_m)
+
+
+def _launch(b, s_az, beta_row, row):
+    """World direction of the ray (s, β) of row ``row`` of the block's ping (fan axes as the kernels)."""
+    side = 1.0 if row % 2 else -1.0
+    c = np.sqrt(1 - s_az ** 2)
+    return b["rot"][0] @ np.array([s_az, side * c * np.cos(beta_row), c * np.sin(beta_row)])
+
+
+def _trace(b, u):
+    """(landing point (3, local), one-way time, path, θ there, plane index) for launch direction u, by the twin."""
+    sonar = b["pos"][0]
+    depth0 = b["z0"] - sonar[2]
+    hz = np.hypot(u[0], u[1])
+    h = u[:2] / hz
+    planes = []
+    for n_, p_ in ((FLOOR_N, np.zeros(3)), (CEILING_N, np.array([0.0, 0.0, Z_CEILING]))):
+        p_ = p_ - b["origin"]
+        planes.append((n_[:2] @ h, n_[2], n_[:2] @ (sonar[:2] - p_[:2]) - n_[2] * p_[2]))
+    out = naive.arc_trace(np.arcsin(-u[2]), depth0, hz / THREE.speed_at(depth0), b["layers"], planes, b["z0"])
+    if out is None:
+        return None
+    w, x, d, L, T, th = out
+    return np.r_[sonar[:2] + x * h, b["z0"] - d], T, L, th, w
+
+
+def _sample(b, count=40, seed=3):
+    """Rays (index, row, s, β, dβ) that hit something, spread over both sides."""
+    plan, el = b["front"].plan, b["el_start"]
+    rng = np.random.default_rng(seed)
+    out = []
+    for row in (0, 1):
+        n_el = el[row + 1] - el[row]
+        for _ in range(count // 2):
+            a, j = rng.integers(plan.s.size), rng.integers(n_el)
+            i = plan.s.size * el[row] + a * n_el + j
+            if b["hit_prim"][i] >= 0:
+                out.append((i, row, plan.s[a], b["beta"][el[row] + j], b["dbeta"][el[row] + j]))
+    return out
+
+
+def _tube(b, s_az, beta, row, normal, eps=1e-6):
+    """Finite differences of the twin: A_Ω = cos θi·|∂X/∂s × ∂X/∂β| and |∂T/∂β| (s/rad)."""
+    up, dn = _trace(b, _launch(b, s_az, beta + eps, row)), _trace(b, _launch(b, s_az, beta - eps, row))
+    sp, sm = _trace(b, _launch(b, s_az + eps, beta, row)), _trace(b, _launch(b, s_az - eps, beta, row))
+    cross = np.cross(sp[0] - sm[0], up[0] - dn[0]) / (2 * eps) ** 2
+    ref = _trace(b, _launch(b, s_az, beta, row))
+    t_hat = np.r_[np.cos(ref[3]) * (ref[0][:2] - b["pos"][0, :2]) / np.hypot(*(ref[0][:2] - b["pos"][0, :2])),
+                  -np.sin(ref[3])]
+    cos_i = -t_hat @ normal
+    return cos_i * np.linalg.norm(cross), abs(up[1] - dn[1]) / (2 * eps), t_hat, cos_i
+
+
+def test_arc_start_matches_its_twin(three_layer_block):
+    b = three_layer_block
+    ref = naive.arc_start(b["front"].plan.s, b["beta"], b["el_start"], b["rot"], b["pos"], b["layers"], b["z0"])
+    from sonar_embree.kernels.refraction import S_TH
+    np.testing.assert_allclose(b["ray"][:, :2], ref["h"], atol=1e-12)
+    np.testing.assert_allclose(b["ray"][:, 2], ref["xi"], rtol=1e-12)
+    np.testing.assert_allclose(b["start"][:, S_TH], ref["theta"], atol=1e-12)
+    np.testing.assert_allclose(b["ray"][:, 4], ref["c0"], rtol=1e-12)
+
+
+def test_marching_matches_the_plain_trigonometry_tracer(three_layer_block):
+    """arc_chord + arc_land (through refraction.march) against naive.arc_trace, down to the tilted floor through
+    two knots and up to the ceiling: the hit point, time, path, grazing angle and the tube area
+    A_Ω = X̃·|M|/c0² against cos θi·|∂X/∂s × ∂X/∂β| by finite differences."""
+    b = three_layer_block
+    rays = _sample(b)
+    kinds = set()
+    for i, row, s_az, beta, _ in rays:
+        ref = _trace(b, _launch(b, s_az, beta, row))
+        h = b["hit"][i]
+        kinds.add(ref[4])
+        # Newton stops when its step is below 1 µm: the hit is within that of the twin's (1 ns in time)
+        np.testing.assert_allclose(h[:3], ref[0], atol=2e-6)
+        assert abs(h[7] - ref[2]) < 2e-6 and abs(h[6] - ref[1]) < 2e-9
+        assert h[10] == pytest.approx(np.sin(ref[3]), abs=1e-9)
+        area, _, _, _ = _tube(b, s_az, beta, row, FLOOR_N if ref[4] == 0 else CEILING_N)
+        assert h[8] * abs(h[9]) / b["ray"][i, 4] ** 2 == pytest.approx(area, rel=1e-5)
+    assert len(rays) >= 24 and kinds == {0, 1}                     # floor and ceiling hits both checked
+
+
+def test_arc_echoes_matches_its_twin(three_layer_block):
+    """Weights, times and footprints of the sampled rays; the footprint's time span is |∂T/∂β|·dβ both ways."""
+    from sonar_embree import kernels
+    b, plan, s = three_layer_block, three_layer_block["front"].plan, three_layer_block["sonar"]
+    n = b["hit"].shape[0]
+    out = [np.empty(n) for _ in range(5)]
+    c = b["caster"].compiled
+    kernels.arc_echoes(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"], b["rot"],
+                       b["hit_prim"], b["hit"], b["ray"], c.face_normals, c.face_two_sided, plan.beam,
+                       b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"], plan.slope_cap_m_rad,
+                       s.sound_speed_m_s, *out, np.empty((0, 3)))
+    rng_k, t_k, ext_k, w_k, _ = out
+    rays = _sample(b, seed=7)
+    prim = np.full(n, -1, np.int32)
+    area, shift, T, L = np.ones(n), np.zeros(n), np.zeros(n), np.zeros(n)
+    direction, c_hit = np.zeros((n, 3)), np.full(n, 1500.0)
+    for i, row, s_az, beta, _ in rays:
+        ref = _trace(b, _launch(b, s_az, beta, row))
+        normal = FLOOR_N if ref[4] == 0 else CEILING_N
+        area[i], dtdb, direction[i], cos_i = _tube(b, s_az, beta, row, normal)
+        c_hit[i] = THREE.speed_at(b["z0"] - ref[0][2])
+        shift[i] = dtdb * c_hit[i] * cos_i                                 # |n̂·δ⊥| = |∂T/∂β|·c·cos θi
+        prim[i], T[i], L[i] = b["hit_prim"][i], ref[1], ref[2]
+    w, t, ext, rr = naive.arc_echoes(plan.s, plan.ds, b["beta"], b["dbeta"], b["el_start"], b["rot"], prim, None,
+                                     direction, T, L, area, shift, c_hit, c.face_normals, s.wavenumber_rad_m,
+                                     s.length_m, s.height_m, s.tilt_rad, b["front"].two_way_np_per_m,
+                                     plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s)
+    idx = np.array([r[0] for r in rays])
+    lit = w[idx] > 0
+    assert lit.sum() >= 10
+    np.testing.assert_allclose(w_k[idx], w[idx], rtol=1e-4)
+    np.testing.assert_allclose(t_k[idx][lit], t[idx][lit], atol=4e-9)        # the hits agree to 1 µm (above)
+    np.testing.assert_allclose(rng_k[idx][lit], rr[idx][lit], atol=4e-6)
+    np.testing.assert_allclose(ext_k[idx], ext[idx], rtol=1e-4, atol=1e-12)
+
+
+def test_turn_series_meets_the_trigonometry():
+    """The chord offsets use series of sin u/u and (1 − cos u)/u below SERIES_MAX_U: both sides of the switch."""
+    from sonar_embree.kernels.refraction import SERIES_MAX_U, _turn
+    for u in (1e-9, 1e-3, 0.9 * SERIES_MAX_U, 0.999 * SERIES_MAX_U, 1.001 * SERIES_MAX_U, 0.3):
+        th, ds = 0.4, 7.0
+        kap = u / ds
+        got = _turn(np.cos(th), np.sin(th), kap, ds)
+        tb = th - u
+        half = 2 * np.sin(u / 2) / kap   # sin a − sin b = 2 cos((a+b)/2) sin((a−b)/2), free of cancellation
+        want = (half * np.cos((th + tb) / 2), half * np.sin((th + tb) / 2), np.cos(tb), np.sin(tb))
+        np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-15)
