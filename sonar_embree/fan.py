@@ -141,11 +141,15 @@ def probe_rows(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
     t_embree = time.perf_counter() - t
     probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, -1)
+    altitude, t_nadir = nadir_altitude(caster, pos_local, max_range_m)
+    return (*elevation_rows(plan, probe_r), altitude, t_embree + t_nadir)
+
+
+def nadir_altitude(caster: Caster, pos_local: np.ndarray, max_range_m: float):
+    """(altitude (pings,) float64: the range straight down, NaN if nothing within ``max_range_m``; seconds)."""
     t = time.perf_counter()
-    nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
-    t_embree += time.perf_counter() - t
-    altitude = np.where(nadir.tri >= 0, nadir.range_m, np.nan)  # world vertical, float64
-    return (*elevation_rows(plan, probe_r), altitude, t_embree)
+    nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (pos_local.shape[0], 3)), max_range_m)
+    return np.where(nadir.tri >= 0, nadir.range_m, np.nan), time.perf_counter() - t  # world vertical, float64
 
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,

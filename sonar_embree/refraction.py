@@ -1,8 +1,9 @@
 """Side-scan fans in a sound-speed profile: curved rays, chord by chord through the caster (docs/physics.md §12).
 
-The block's rays are placed as for straight rays (:func:`~sonar_embree.fan.probe_rows`:
-straight probes only set the ray density), launched with the fan's directions, and
-marched along their closed-form arcs (:mod:`sonar_embree.kernels.refraction`): each round
+The block's rays are placed as for straight rays (:func:`~sonar_embree.fan.elevation_rows`),
+from probes that are themselves curved rays (their apparent ranges c·T set the density, so rays
+follow the record's range where refraction stretches or folds it), launched with the fan's
+directions, and marched along their closed-form arcs (:mod:`sonar_embree.kernels.refraction`): each round
 casts every live ray's next chord as one Embree segment; rays that hit stop, the others
 move on until their one-way time passes the window. The echo of a hit carries the travel
 time and path length of its arc, the ray tube's spreading A_Ω of the stratified ray map and
@@ -19,7 +20,7 @@ import time
 import numpy as np
 
 from . import kernels
-from .fan import BlockEchoes, FanPlan, probe_rows
+from .fan import PROBE_LINES, BlockEchoes, FanPlan, elevation_rows, nadir_altitude
 from .laws import apply_laws
 
 #: A chord stands off its arc by at most this many of the sonar's range bins (its hits are moved onto the arc;
@@ -80,6 +81,23 @@ def march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers:
     raise RuntimeError(f"curved rays still in flight after {MAX_ROUNDS} chords")  # pragma: no cover
 
 
+def _probe_ranges(caster, plan, rot, pos_local, layers, z0, sagitta_m, t_max, c_nom, clock, buffers):
+    """Apparent range c·T (NaN: nothing in the window) of the curved probes, (rows, lines·m) as for straight ones."""
+    rows, m = 2 * rot.shape[0], plan.probe_beta.shape[0]
+    lines = PROBE_LINES * np.abs(plan.s).max()
+    el = np.arange(rows + 1, dtype=np.int64) * m
+    beta = np.tile(plan.probe_beta, rows)
+    n = rows * lines.size * m
+    state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
+    ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
+    kernels.arc_start(lines, np.cos(beta), np.sin(beta), el, rot, pos_local, layers, z0, state, lay, ray)
+    hit_prim, hit = march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers)
+    out = np.full(n, np.nan)
+    lit = np.flatnonzero(hit_prim >= 0)   # ``hit`` holds nothing for the other rays
+    out[lit] = np.where(hit[lit, 6] <= t_max, c_nom * hit[lit, 6], np.nan)
+    return out.reshape(rows, -1)
+
+
 def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
                    sonar, want_points: bool, clock: dict, buffers: Buffers | None = None) -> BlockEchoes:
     """:func:`~sonar_embree.fan.cast_block` for curved rays in ``environment.sound_speed``.
@@ -107,18 +125,19 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     z0 = environment.profile_origin_z_m() - float(caster.compiled.origin_m[2])
     layers = environment.sound_speed.layers()
-    reach = max_range_m * layers[:, 1].max() / c_nom * 1.05 + 1.0  # the probes' straight stand-in for the arcs
-    el_start, beta, dbeta, altitude, t_probe = probe_rows(caster, plan, rot, pos_local, reach)
-    clock["embree"] = before + t_probe
+    t_max = max_range_m / c_nom
+    sagitta = SAGITTA_FRACTION * sonar.range_bin_m
+    el_start, beta, dbeta = elevation_rows(plan, _probe_ranges(caster, plan, rot, pos_local, layers, z0, sagitta,
+                                                               t_max, c_nom, clock, buffers))
+    altitude, t_nadir = nadir_altitude(caster, pos_local, max_range_m)  # straight down is straight in any profile
+    clock["embree"] = clock.get("embree", 0.0) + t_nadir
     n_az = plan.s.shape[0]
     n = n_az * int(el_start[-1])
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
     ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
     kernels.arc_start(plan.s, cos_b, sin_b, el_start, rot, pos_local, layers, z0, state, lay, ray)
-    t_max = max_range_m / c_nom
-    hit_prim, hit = march(caster, layers, z0, SAGITTA_FRACTION * sonar.range_bin_m, t_max, state, lay, ray, clock,
-                          buffers)
+    hit_prim, hit = march(caster, layers, z0, sagitta, t_max, state, lay, ray, clock, buffers)
 
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
@@ -131,5 +150,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(rot.shape[0], 2).sum(axis=1) + plan.n_probe
     clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
-    tfar = np.where(hit_prim >= 0, hit[:, 7], np.inf).astype(np.float32)
+    tfar = np.full(n, np.inf, dtype=np.float32)
+    lit = np.flatnonzero(hit_prim >= 0)
+    tfar[lit] = hit[lit, 7]
     return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar)

@@ -270,7 +270,7 @@ def test_marching_matches_the_plain_trigonometry_tracer(three_layer_block):
         np.testing.assert_allclose(h[:3], ref[0], atol=2e-6)
         assert abs(h[7] - ref[2]) < 2e-6 and abs(h[6] - ref[1]) < 2e-9
         assert h[10] == pytest.approx(np.sin(ref[3]), abs=1e-9)
-        area, _, _, _ = _tube(b, s_az, beta, row, FLOOR_N if ref[4] == 0 else CEILING_N)
+        area = _tube(b, s_az, beta, row, FLOOR_N if ref[4] == 0 else CEILING_N)[0]
         assert h[8] * abs(h[9]) / b["ray"][i, 4] ** 2 == pytest.approx(area, rel=1e-5)
     assert len(rays) >= 24 and kinds == {0, 1}                     # floor and ceiling hits both checked
 
@@ -322,3 +322,59 @@ def test_turn_series_meets_the_trigonometry():
         half = 2 * np.sin(u / 2) / kap   # sin a − sin b = 2 cos((a+b)/2) sin((a−b)/2), free of cancellation
         want = (half * np.cos((th + tb) / 2), half * np.sin((th + tb) / 2), np.cos(tb), np.sin(tb))
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-15)
+
+
+# --- set-up: TOML, CSV, record files, errors, and nothing run without a profile ---
+def test_profile_from_toml_inline_and_from_a_csv_next_to_the_config(tmp_path):
+    from sonar_embree.runs import runconfig
+    from test_environment import _write
+    env = "sound_speed = { depth_m = [0.0, 50.0], speed_m_s = [1500.0, 1525.0], surface_z_m = 40.0 }\n"
+    p = runconfig.load_run_config(_write(tmp_path, env=env)).sonar.environment.sound_speed
+    assert (p.depth_m, p.speed_m_s, p.surface_z_m) == ((0.0, 50.0), (1500.0, 1525.0), 40.0)
+    (tmp_path / "ctd.csv").write_text("depth_m,speed_m_s\n0,1500\n10,1502.5\n80,1490\n")
+    env = "sound_speed = { csv = \"ctd.csv\", surface_z_m = 40.0 }\n"
+    p = runconfig.load_run_config(_write(tmp_path, env=env)).sonar.environment.sound_speed
+    assert p.speed_m_s == (1500.0, 1502.5, 1490.0) and p.surface_z_m == 40.0
+    with pytest.raises(se.ConfigError, match="unknown key 'gradient'"):
+        runconfig.load_run_config(_write(tmp_path, env="sound_speed = { gradient = 0.5 }\n"))
+    with pytest.raises(se.ConfigError, match="give 'csv' or 'depth_m'"):
+        runconfig.load_run_config(_write(tmp_path, env="sound_speed = { csv = \"ctd.csv\", depth_m = [0.0] }\n"))
+
+
+def test_profile_survives_the_record_file(tmp_path):
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    rec = se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=se.Environment(sound_speed=_profile())),
+                      start_time="2000-01-01")
+    rec.save(tmp_path / "r.npz")
+    back = se.Record.load(tmp_path / "r.npz").sonar.environment.sound_speed
+    assert (back.depth_m, back.speed_m_s, back.surface_z_m) == (_profile().depth_m, _profile().speed_m_s, H + DEPTH)
+
+
+def test_profile_errors_name_the_problem():
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    bent = se.SoundSpeedProfile.linear(1500.0, 0.5)
+    with pytest.raises(se.ConfigError, match="depth 0 needs a height"):
+        se.Environment(sound_speed=bent)
+    with pytest.raises(se.ConfigError, match="not modelled yet"):
+        se.Environment(sound_speed=bent, surface=se.SeaSurface(z_m=30.0))
+    with pytest.raises(se.ConfigError, match="uniform sound_speed profile at 1490 m/s disagrees"):
+        se.Environment(sound_speed=se.SoundSpeedProfile((0.0,), (1490.0,)))
+    with pytest.raises(se.ConfigError, match="surface_z_m must be finite"):
+        se.SoundSpeedProfile((0.0,), (1490.0,), surface_z_m=float("inf"))
+    env = se.Environment(sound_speed=_profile())
+    with pytest.raises(se.ConfigError, match="labels assume straight rays"):
+        se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=env), start_time="2000-01-01", labels=True)
+    shallow = se.Environment(sound_speed=se.SoundSpeedProfile.linear(1500.0, 0.5, surface_z_m=H - 1.0))
+    with pytest.raises(se.ConfigError, match="above the sound-speed profile's depth 0"):
+        se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=shallow), start_time="2000-01-01")
+    with pytest.raises(se.ConfigError, match="curved rays are cast for side-scan sonars, not EchoSounder"):
+        se.simulate(_scene(), line, se.EchoSounder(environment=env), start_time="2000-01-01")
+
+
+def test_no_profile_runs_no_refraction_code(monkeypatch):
+    from sonar_embree import refraction
+    monkeypatch.setattr(refraction, "cast_refracted", lambda *a, **k: pytest.fail("refraction ran without a profile"))
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    se.simulate(_scene(), line, se.Sonar(max_range_m=20.0), start_time="2000-01-01")
+    flat = se.Environment(sound_speed=se.SoundSpeedProfile((0.0, 100.0), (1500.0, 1500.0)))
+    se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=flat), start_time="2000-01-01")

@@ -153,3 +153,17 @@ def test_multipath_figure_shows_the_surface_paths(tmp_path):
     info = json.loads((tmp_path / "multipath.json").read_text())
     assert info["first_multipath_s"] >= info["one_bounce_onset_s"] - info["sample_s"]
     assert info["first_multipath_s"] < info["one_bounce_onset_s"] + 0.1 * info["one_bounce_onset_s"]
+
+
+def test_refraction_figure_ends_the_floor_at_the_ray_maps_shadow_edge(tmp_path):
+    """Issue 15's refraction figure: three waterfalls and a ping; in the upward-refracting profile the floor's echo
+    ends a pulse after the limiting ray of the closed-form ray map (straight rays light it to the window's end)."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "refraction_figure.py"), "-o", str(tmp_path),
+                           "--pings", "2"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["ping.png", "refraction.json", "waterfalls.png"]
+    for name in ("waterfalls.png", "ping.png"):
+        img = iio.imread(tmp_path / name)
+        assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
+    info = json.loads((tmp_path / "refraction.json").read_text())
+    assert info["limiting_ray_s"] <= info["last_lit_s"] <= info["limiting_ray_s"] + info["pulse_s"] + 3 * info["sample_s"]
