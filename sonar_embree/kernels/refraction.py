@@ -54,6 +54,8 @@ SERIES_MAX_U = 0.05
 RAY_WIDTH = 5
 #: Smallest |sin θ| divided by at a layer crossing (a turning point exactly on a knot).
 MIN_SIN = 1e-12
+# Helpers that take arrays are inlined (inline='always'): a call per ray with array arguments costs reference
+# counting that the threads contend for (measured: the chord kernel 1.6× slower); scalar helpers stay calls.
 #: Closed-form steps a ray outside the scene's height range may take in one call (knots and turns).
 MAX_SKIPS = 64
 
@@ -154,8 +156,8 @@ def _turn(ca, sa, kappa, ds):
 
 @njit(cache=True, nogil=True)
 def _boundary(layers, k, th, xi, lo, hi):
-    """Where a curved ray leaves depths [lo, hi] of layer k: (θ there, depth there); ξc ≥ 1 at one edge means
-    the ray turns before it and leaves by the other."""
+    """Where a curved ray leaves depths [lo, hi] of layer k: (cos θ, sin θ there, depth there), cos θ = ξc
+    (Snell); ξc ≥ 1 at one edge means the ray turns before it and leaves by the other."""
     kappa = xi * layers[k, 2]
     c_hi = _speed(layers, k, hi)
     c_lo = _speed(layers, k, lo)
@@ -163,9 +165,9 @@ def _boundary(layers, k, th, xi, lo, hi):
         down = th > 0.0 and xi * c_hi < 1.0
     else:
         down = not (th < 0.0 and xi * c_lo < 1.0)
-    if down:
-        return math.acos(min(xi * c_hi, 1.0)), hi
-    return -math.acos(min(xi * c_lo, 1.0)), lo
+    cb = min(xi * (c_hi if down else c_lo), 1.0)
+    sb = math.sqrt(1.0 - cb * cb)
+    return cb, sb if down else -sb, hi if down else lo
 
 
 @njit(cache=True, nogil=True)
@@ -211,11 +213,17 @@ def _step(layers, k, depth, th, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
             return math.inf, k, th, math.nan, math.inf, 0.0, ca, sa
         th_b = th
     else:
-        th_b, d_b = _boundary(layers, k, th, xi, lo, hi)
-        ds = max((th - th_b) / kappa, 0.0)
+        cb, sb, d_b = _boundary(layers, k, th, xi, lo, hi)
+        dth = math.atan2(sa * cb - ca * sb, ca * cb + sa * sb)  # θ − θb, well conditioned at any angle
+        if dth * kappa < 0.0:
+            dth = 0.0
+        ds = dth / kappa
+        th_b = th - dth
+        dx, dd, _, _ = _turn(ca, sa, kappa, ds)
+        return ds, k + 1 if d_b == bot else (k - 1 if d_b == top else k), th_b, d_b, dx, dd, cb, sb
     k_b = k + 1 if d_b == bot else (k - 1 if d_b == top else k)
     dx, dd, cb, sb = _turn(ca, sa, kappa, ds)
-    return ds, k_b, th_b, d_b, dx, dd, math.cos(th_b), math.sin(th_b)
+    return ds, k_b, th_b, d_b, dx, dd, cb, sb
 
 
 @njit(cache=True, nogil=True)
@@ -241,7 +249,7 @@ def _seg_dt_xt(layers, k, d_a, s_a, d_b, s_b, dxh, ds, xi):
     return dt, dxh / xi
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _close_segment(out, o, k, ray, i, layers, depth_b, sin_b):
     """Ray i (state ``out[o]``) reached a knot at ``depth_b``: the finished layer segment's T, X̃ and J join
     the totals. (Rows are passed as array and index: a row view per ray costs reference counting that the
@@ -260,7 +268,7 @@ def _close_segment(out, o, k, ray, i, layers, depth_b, sin_b):
     out[o, S_XH0] = xh
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o):
     """One step of ray i from state ``st[si]`` (see :func:`_step`), at most to path length ``l_max``:
     ``out[o]`` gets the state after it; returns the layer after it."""
@@ -285,7 +293,7 @@ def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o
     return kn
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _skip_outside(st, i, k, ray, layers, z0, z_lo, z_hi, l_max, tmp, o):
     """Move ray i that is above z_hi or below z_lo (outside the scene) to that height, in closed form.
 
@@ -360,7 +368,7 @@ def arc_chord(idx, state, lay, ray, layers, z0, box_z, sagitta_m, l_max, nxt, nl
 HIT_WIDTH = 13
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _refit(st, i, ux, uy, uz, t_emb, tri, vertices, faces, face_normals):
     """Float64 distance along the chord from ``st[i]`` (unit direction u) to the hit triangle's plane
     (Embree's where ill-conditioned)."""
@@ -416,7 +424,7 @@ def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, 
         hit_prim[i] = tri
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _onto_arc(st, i, ray, ca, sa, kappa, s0, ds_chord, vertices, faces, face_normals, tri):
     """Arc length from the chord's start at which the arc meets the hit triangle's plane (Newton from s0).
 
@@ -443,7 +451,7 @@ def _onto_arc(st, i, ray, ca, sa, kappa, s0, ds_chord, vertices, faces, face_nor
     return s if -tol <= s <= ds_chord + tol else s0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _hit_of(st, i, k, ray, layers, z0, ca, sa, kappa, s, out):
     """The :data:`HIT_WIDTH` quantities (into ``out[i]``) of the arc point an arc length ``s`` after the
     chord's start ``st[i]``."""
@@ -468,14 +476,13 @@ def _hit_of(st, i, k, ray, layers, z0, ca, sa, kappa, s, out):
     out[i, 12] = _speed(layers, k, depth)
 
 
-@njit(cache=True, nogil=True)
-def _membrane_gain(beam, sa, cpsi, cb, sb):
-    """Γ of body direction (s, β) for the baffled membrane (0 behind the baffle), as in fan_echoes."""
-    cos_t = math.cos(beam[2])
-    sin_t = math.sin(beam[2])
+@njit(cache=True, nogil=True, inline='always')
+def _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb):
+    """Γ of body direction (s, β) for the baffled membrane (0 behind the baffle), as in fan_echoes; ``g_az`` the
+    azimuth factor sinc(k·lx/2·s), cos_t and sin_t of the tilt."""
     if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:
         return 0.0
-    return _sinc(beam[0] * sa) * _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))
+    return g_az * _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -497,6 +504,8 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
     """
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
+    cos_t = math.cos(beam[2])
+    sin_t = math.sin(beam[2])
     for r in prange(el_start.shape[0] - 1):
         b = r // 2
         side = 1.0 if r % 2 else -1.0
@@ -505,6 +514,7 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
         for a in range(n_az):
             sa = s[a]
             cpsi = math.sqrt(1.0 - sa * sa)
+            g_az = _sinc(beam[0] * sa)
             for j in range(n_el):
                 i = base + a * n_el + j
                 range_out[i] = math.inf
@@ -525,7 +535,7 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
                 cos_i = -dn
                 if cos_i < 0.0 and face_two_sided[t]:
                     cos_i = dn
-                g = _membrane_gain(beam, sa, cpsi, cos_beta[e], sin_beta[e])
+                g = _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cos_beta[e], sin_beta[e])
                 if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or g == 0.0:
                     continue
                 c0 = ray[i, 4]
@@ -543,7 +553,7 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
                         points_out[i, q] = hit[i, q]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _tube_shift(rot, side, cpsi, cb, sb, sa, h, ry, nrm):
     """|n̂·δ⊥| per radian of β (m/rad): the ray tube's sideways motion seen across the hit surface."""
     e1, e2 = side * cpsi * cb, cpsi * sb
