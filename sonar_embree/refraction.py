@@ -49,6 +49,11 @@ class Buffers:
         return buf[:size].reshape(shape)
 
 
+def _box(caster) -> np.ndarray:
+    """(2,) local z range where chords are cast: the scene's, widened by BOX_MARGIN_M."""
+    return caster.compiled.bounds_local[:, 2] + np.array([-BOX_MARGIN_M, BOX_MARGIN_M])
+
+
 def march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers: Buffers):
     """Follow every ray chord by chord until it hits or its path could no longer arrive before ``t_max``.
 
@@ -58,7 +63,7 @@ def march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers:
     rays move in closed form.
     """
     c = caster.compiled
-    box_z = c.bounds_local[:, 2] + np.array([-BOX_MARGIN_M, BOX_MARGIN_M])
+    box_z = _box(caster)
     l_max = t_max * float(layers[:, 1].max())  # no ray goes further in the window
     n = state.shape[0]
     hit_prim = np.full(n, -1, dtype=np.int32)
@@ -90,7 +95,8 @@ def _probe_ranges(caster, plan, rot, pos_local, layers, z0, sagitta_m, t_max, c_
     n = rows * lines.size * m
     state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
     ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
-    kernels.arc_start(lines, np.cos(beta), np.sin(beta), el, rot, pos_local, layers, z0, state, lay, ray)
+    kernels.arc_start(lines, np.cos(beta), np.sin(beta), el, rot, pos_local, layers, z0, _box(caster),
+                      t_max * layers[:, 1].max(), state, lay, ray)
     hit_prim, hit = march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers)
     out = np.full(n, np.nan)
     lit = np.flatnonzero(hit_prim >= 0)   # ``hit`` holds nothing for the other rays
@@ -136,7 +142,8 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
     ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
-    kernels.arc_start(plan.s, cos_b, sin_b, el_start, rot, pos_local, layers, z0, state, lay, ray)
+    kernels.arc_start(plan.s, cos_b, sin_b, el_start, rot, pos_local, layers, z0, _box(caster),
+                      t_max * layers[:, 1].max(), state, lay, ray)
     hit_prim, hit = march(caster, layers, z0, sagitta, t_max, state, lay, ray, clock, buffers)
 
     c = caster.compiled

@@ -185,7 +185,9 @@ def three_layer_block():
     n = front.plan.s.size * int(el_start[-1])
     layers, z0 = THREE.layers(), 24.0 - compiled.origin_m[2]
     state, lay, ray = np.empty((n, kernels.STATE_WIDTH)), np.empty(n, np.int64), np.empty((n, kernels.RAY_WIDTH))
-    kernels.arc_start(front.plan.s, np.cos(beta), np.sin(beta), el_start, rot, pos, layers, z0, state, lay, ray)
+    no_box = np.array([-np.inf, np.inf])  # the launch itself (march skips to the scene's heights)
+    kernels.arc_start(front.plan.s, np.cos(beta), np.sin(beta), el_start, rot, pos, layers, z0, no_box, np.inf,
+                      state, lay, ray)
     start = state.copy()
     t_max = 40.0 / sonar.sound_speed_m_s
     hit_prim, hit = march(caster, layers, z0, 0.02, t_max, state, lay, ray, {}, Buffers())

@@ -79,8 +79,9 @@ def _layer_of(layers, depth):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, state, lay, ray):
-    """Launch state of every ray of a block of side-scan fans (directions as :func:`fan_rays`).
+def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_max, state, lay, ray):
+    """Launch state of every ray of a block of side-scan fans (directions as :func:`fan_rays`), moved in closed
+    form to the scene's height range if it starts outside (:func:`_skip_outside`).
 
     Parameters
     ----------
@@ -90,6 +91,8 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, state, lay,
         Layer tops (depth, m; −inf first), c there (m/s), gradient (s⁻¹).
     z0 : float
         Local z of depth 0, m.
+    box_z, l_max
+        As for :func:`arc_chord`.
     state : (n, STATE_WIDTH) float64; lay : (n,) int64; ray : (n, RAY_WIDTH) float64
         Written.
     """
@@ -130,7 +133,7 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, state, lay,
                 state[i, S_RA] = 1.0
                 state[i, S_CT] = hz
                 state[i, S_ST] = -uz
-                lay[i] = k
+                lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
 
 
 @njit(cache=True, nogil=True)
@@ -294,21 +297,19 @@ def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _skip_outside(st, i, k, ray, layers, z0, z_lo, z_hi, l_max, tmp, o):
+def _skip_outside(st, i, k, ray, layers, z0, z_lo, z_hi, l_max):
     """Move ray i that is above z_hi or below z_lo (outside the scene) to that height, in closed form.
 
-    Nothing can be hit out there, so no chord is cast; ``st[i]`` is updated in place (``tmp[o]`` is
-    scratch), the layer returned.
+    Nothing can be hit out there, so no chord is cast; ``st[i]`` is updated in place (``_advance`` reads a
+    row's values before it writes them), the layer returned.
     """
     for _ in range(MAX_SKIPS):
         if st[i, S_L] >= l_max or z_lo <= st[i, 2] <= z_hi:
             break
         if st[i, 2] > z_hi:
-            k = _advance(st, i, k, ray, i, layers, z0, math.inf, l_max, -math.inf, z0 - z_hi, tmp, o)
+            k = _advance(st, i, k, ray, i, layers, z0, math.inf, l_max, -math.inf, z0 - z_hi, st, i)
         else:
-            k = _advance(st, i, k, ray, i, layers, z0, math.inf, l_max, z0 - z_lo, math.inf, tmp, o)
-        for q in range(STATE_WIDTH):
-            st[i, q] = tmp[o, q]
+            k = _advance(st, i, k, ray, i, layers, z0, math.inf, l_max, z0 - z_lo, math.inf, st, i)
     return k
 
 
@@ -341,7 +342,7 @@ def arc_chord(idx, state, lay, ray, layers, z0, box_z, sagitta_m, l_max, nxt, nl
     """
     for j in prange(idx.shape[0]):
         i = idx[j]
-        lay[i] = _skip_outside(state, i, lay[i], ray, layers, z0, box_z[0], box_z[1], l_max, nxt, j)
+        lay[i] = _skip_outside(state, i, lay[i], ray, layers, z0, box_z[0], box_z[1], l_max)
         nlay[j] = _advance(state, i, lay[i], ray, i, layers, z0, sagitta_m, l_max, -math.inf, math.inf, nxt, j)
         vx = nxt[j, 0] - state[i, 0]
         vy = nxt[j, 1] - state[i, 1]
