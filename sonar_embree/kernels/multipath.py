@@ -7,7 +7,7 @@ from ._numba import njit, prange
 from .rays import _sinc
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/refraction.py
 def _gain(rot, side, ux, uy, uz, beam, c, s):
     """Γ of the channel's membrane (side −1 port, +1 starboard) for the world direction u; rot body → world,
     c and s the cosine and sine of the tilt."""
@@ -19,7 +19,7 @@ def _gain(rot, side, ux, uy, uz, beam, c, s):
     return _sinc(beam[0] * e0) * _sinc(beam[1] * (e2 * c - side * e1 * s))
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/refraction.py
 def _footprint_slope(rot, side, u, v, n, r):
     """|d(r + r')/dβ| of a ray cell: dX/dβ = r·(f − u·(n·f)/(n·u)), f = ∂u/∂β in world axes."""
     e1 = rot[0, 1] * u[0] + rot[1, 1] * u[1] + rot[2, 1] * u[2]
