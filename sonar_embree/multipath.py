@@ -42,6 +42,11 @@ def mirror_pose(rot: np.ndarray, pos_local: np.ndarray, z_s_local: float):
     return rot_i, mirror(pos_local, z_s_local)
 
 
+def _below_top(caster, z: float) -> bool:
+    """Whether a leg starting at height z (local) can be blocked at all: the scene reaches above it."""
+    return float(caster.compiled.bounds_local[1, 2]) > z + LEG_EPSILON_M * 1e-3
+
+
 def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) -> np.ndarray:
     """True where something lies on the upward segment origin + t·dir, LEG_EPSILON_M < t < dist (local frame).
 
@@ -49,7 +54,7 @@ def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) ->
     shorter than 2·LEG_EPSILON_M (a flat floor's, a sonar above everything) are not cast at all.
     """
     top = float(caster.compiled.bounds_local[1, 2])
-    if origins.shape[0] == 0 or top <= origins[:, 2].min() + LEG_EPSILON_M * 1e-3:  # every leg starts on top
+    if origins.shape[0] == 0 or not _below_top(caster, origins[:, 2].min()):  # every leg starts on top
         return np.zeros(origins.shape[0], dtype=bool)
     with np.errstate(divide="ignore", invalid="ignore"):
         reach = np.where(dirs[:, 2] > 0, (top - origins[:, 2]) / dirs[:, 2], np.inf)
@@ -122,8 +127,11 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local) -> Echoes:
         if detail is not None:
             detail.apply(c, prim, x, w)
     lit = np.flatnonzero(w > 0)                                 # only lit echoes need their legs checked
-    sonar_at = pos_local[row[lit] // 2]
-    blocked = occluded(caster, x[lit], v[lit], leg1[lit]) | occluded(caster, sonar_at, u2[lit], leg2[lit])
+    blocked = np.zeros(lit.shape[0], dtype=bool)
+    if n and _below_top(caster, x[:, 2].min()):                 # a flat floor's legs start on top: skip the gathers
+        blocked |= occluded(caster, x[lit], v[lit], leg1[lit])
+    if n and _below_top(caster, pos_local[:, 2].min()):
+        blocked |= occluded(caster, pos_local[row[lit] // 2], u2[lit], leg2[lit])
     w[lit[blocked]] = 0.0
     return _scattered(blk, keep, t, ext, w, x)
 
