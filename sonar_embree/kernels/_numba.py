@@ -11,6 +11,11 @@ import numba  # noqa: E402
 from numba import njit, prange  # noqa: E402,F401 (re-exported)
 
 
+# Helpers that take arrays and are called per ray, node or scatterer are marked inline='always': a call with
+# array arguments costs reference counting on the arrays' shared header, which the threads contend for
+# (measured: the curved-ray chord kernel 176 → 110 ns per ray, speckle synthesis 15.7 → 11.2 ms per
+# shipwreck ping, same bits). Scalar helpers stay plain calls (inlining everything triples cold compiles).
+
 #: The float64 refit of a hit: the range from the hit triangle's plane replaces Embree's float32
 #: distance unless the ray is within this cosine of the plane or the two differ by more than
 #: REFIT_REL_TOL·(1 m + distance) (then the plane is not the one hit: keep Embree's).

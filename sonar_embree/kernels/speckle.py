@@ -87,7 +87,7 @@ def _slot_of(ch, ix, iy, iz, mask):
     return _mix64((np.uint64(ix) * _K1) ^ (np.uint64(iy) * _K2) ^ (np.uint64(iz) * _K3) ^ np.uint64(ch)) & mask
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _node_index(slots, epoch, ch, ix, iy, iz, nodes, node_key, count):
     """Index of node (ch, i, j, k) in this call's dense node list, appended empty if new: (index, count).
 
@@ -119,7 +119,7 @@ def _node_index(slots, epoch, ch, ix, iy, iz, nodes, node_key, count):
         s = (s + np.uint64(1)) & mask
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _add_to_node(node, wb, rr, e2, r_lo, r_hi):
     """Weighted Welford update of one node row with a share wb of an echo at range rr (no cancellation in σ²)."""
     w_new = node[0] + wb
@@ -131,7 +131,7 @@ def _add_to_node(node, wb, rr, e2, r_lo, r_hi):
     node[4] = max(node[4], r_hi)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slots, epoch, nodes, node_key, count, cache):
     """Add one ray to the 8 nodes around its hit point (see :func:`gather_nodes`); the new node count or −1.
 
@@ -251,7 +251,7 @@ def _gather_ping(b, n_ch, ray_start, points, origin, weights, times, extents, ce
     return count
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _distance(ix, iy, iz, cell_m, pos):
     """|node (i, j, k)·cell − pos|, m."""
     ddx = ix * cell_m - pos[0]
@@ -260,7 +260,7 @@ def _distance(ix, iy, iz, cell_m, pos):
     return math.sqrt(ddx * ddx + ddy * ddy + ddz * ddz)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _emit_node(node, key, pos_tx, pos_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table,
                table_start, table_rate, row):
     """Splat one node's ``n_sub`` frozen scatterers into its channel's row (see :func:`speckle_block`)."""

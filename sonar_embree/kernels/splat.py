@@ -41,7 +41,7 @@ def splat_table(channel, delay_samples, amplitude, table, table_start, table_rat
         _splat_one(out[ch], delay_samples[i], amplitude[i], table, table_start, table_rate)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')
 def _splat_one(row, x, a, table, table_start, table_rate):
     """row[k] += a·h(k − x) for every k the tabulated waveform h covers (see :func:`splat_table`)."""
     if not (abs(x) < math.inf):
