@@ -4,8 +4,8 @@
 
 - waterfalls.png  a box on a flat fine-sand floor in shallow water (6 m altitude, surface 3 m above the
                   sonar, 30 m range, a broad 10°-tilted beam that reaches the surface), speckle-free:
-                  without a surface, with a flat one and with a rough one (h_w = 0.5 mm), on one
-                  common grey scale (display TVG, 50 dB)
+                  without a surface, with a flat one, with a rough one (h_w = 0.5 mm) and under a swell
+                  (meshed, one Embree reflection per ray), on one common grey scale (display TVG, 50 dB)
 - ping.png        one starboard ping of each against slant range ct/2, with the one-bounce (h + d) and
                   two-bounce (h + 2d) onsets marked
 - multipath.json  the first sample where the surface record departs from the direct one, against the
@@ -40,7 +40,9 @@ def records(se, pings):
     """{name: Record} without a surface, with a flat one and with a rough one."""
     traj = se.Trajectory.line((-0.1 * pings / 2, 0.0, H), (0.1 * pings / 2, 0.0, H), pings)
     surfaces = {"no surface": None, f"flat surface {D:g} m above": se.SeaSurface(z_m=H + D),
-                "rough surface (h_w = 0.5 mm)": se.SeaSurface(z_m=H + D, rms_wave_height_m=0.5e-3)}
+                "rough surface (h_w = 0.5 mm)": se.SeaSurface(z_m=H + D, rms_wave_height_m=0.5e-3),
+                "swell (H = 0.4 m, Λ = 8 m, along track)": se.SeaSurface(z_m=H + D, swell_height_m=0.4,
+                                                                        swell_length_m=8.0)}
     out = {}
     for name, surf in surfaces.items():
         sonar = se.Sonar(max_range_m=30.0, tilt_deg=10.0, height_m=0.0019, environment=se.Environment(surface=surf))
@@ -99,7 +101,7 @@ def main(argv=None) -> int:
 
     os.makedirs(args.output, exist_ok=True)
     recs = records(se, args.pings)
-    plotting.mosaic_png(_images(recs), list(recs), os.path.join(args.output, "waterfalls.png"), columns=3)
+    plotting.mosaic_png(_images(recs), list(recs), os.path.join(args.output, "waterfalls.png"), columns=2)
     plotting.line_panels_png([ping_panel(recs)], os.path.join(args.output, "ping.png"))
     text = json.dumps(onset(recs), indent=1) + "\n"
     atomic_write(os.path.join(args.output, "multipath.json"), lambda tmp: open(tmp, "w").write(text))

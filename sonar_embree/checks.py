@@ -169,16 +169,16 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
     if not hasattr(sonar, "tilt_deg"):
         raise ConfigError(f"Environment.surface: multipath is modelled for side-scan sonars, not "
                           f"{type(sonar).__name__}")
-    z_s = surface.z_m - float(compiled.origin_m[2])
+    z_s = surface.lowest_z_m - float(compiled.origin_m[2])  # a swell's troughs
     above = np.flatnonzero(pos_local[:, 2] >= z_s)
     if above.size:
         k = int(above[0])
-        raise ConfigError(f"the sonar is at or above the sea surface (SeaSurface.z_m = {surface.z_m:g} m) at ping "
+        raise ConfigError(f"the sonar is at or above the sea surface (its lowest z = {surface.lowest_z_m:g} m) at ping "
                           f"{k}: z = {pos_local[k, 2] + compiled.origin_m[2]:g} m")
     if compiled.bounds_local[1, 2] > z_s:
         obj = compiled.face_object[np.flatnonzero(compiled.vertices[compiled.faces][:, :, 2].max(axis=1) > z_s)[0]]
         raise ConfigError(f"scene object {compiled.labels[obj]!r} reaches above the sea surface "
-                          f"(SeaSurface.z_m = {surface.z_m:g} m)")
+                          f"(its lowest z = {surface.lowest_z_m:g} m)")
 
 
 def check_profile(compiled, sonar, pos_local: np.ndarray, labels: bool) -> None:

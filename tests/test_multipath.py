@@ -259,3 +259,44 @@ def test_surface_survives_the_record_file(tmp_path):
                       start_time="2000-01-01")
     rec.save(tmp_path / "r.npz")
     assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == surface
+
+
+# --- a swell: the surface meshed and every surface path by one Embree reflection (sonar_embree.swell) ---
+def test_a_flat_swell_mesh_gives_the_four_path_quadrature(flat_quadrature, monkeypatch):
+    """A swell of 1 µm is a flat mesh: the bounced rays (a different sampling of the same paths: the one-bounce
+    paths from the reflected rays rather than from the direct ones) must give the four-path image sum."""
+    from sonar_embree import multipath
+    for name in ("image_echoes", "mixed_echoes"):
+        monkeypatch.setattr(multipath, name, lambda *a, **k: pytest.fail("the image method ran for a swell"))
+    q = flat_quadrature
+    rec = _record(se.SeaSurface(z_m=H + D, swell_height_m=1e-6, swell_length_m=20.0))
+    total = q["direct"] + q["mixed"] + q["image"]
+    c = rec.sonar.sound_speed_m_s
+    multi = ((q["mixed"] + q["image"]) > 0.1 * total) & ~_edges(rec.time_s, c)
+    err = 10 * np.log10(rec.starboard.mean(axis=0)[multi] / total[multi])
+    assert multi.sum() > 100 and np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
+
+
+def test_a_swell_runs_the_reflection_path_and_modulates_the_multipath_along_track(monkeypatch):
+    """Over one swell length the one-bounce energy changes with the facets above the sonar (it is largest under
+    a crest or trough, where they are level), where a flat surface gives the same energy at every ping."""
+    scene = se.Scene().add(se.seafloor.flat((400.0, 200.0)), material=se.Material(backscatter_db=MU_DB),
+                           label="seafloor")
+    length = 12.0
+    line = se.Trajectory.line((0.0, 0.0, H), (length * 7 / 8, 0.0, H), 8)
+    swell = se.SeaSurface(z_m=H + D, swell_height_m=0.6, swell_length_m=length)
+    wavy = se.simulate(scene, line, _sonar(swell), se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
+    monkeypatch.undo()
+    flat = se.simulate(scene, line, _sonar(se.SeaSurface(z_m=H + D)), se.Pulse.cw(duration_s=TAU, taper=0.0),
+                       start_time="2000-01-01")
+    direct = se.simulate(scene, line, _sonar(), se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
+    w = (flat.slant_range_m > 14.5) & (flat.slant_range_m < 17.5)               # one bounce, before two bounces
+    e_wavy = 10 * np.log10((wavy.starboard[:, w] - direct.starboard[:, w]).sum(axis=1))
+    e_flat = 10 * np.log10((flat.starboard[:, w] - direct.starboard[:, w]).sum(axis=1))
+    assert np.ptp(e_flat) < 0.01 and np.ptp(e_wavy) > 6.0
+    assert np.argmax(e_wavy) in (2, 6)                                           # x = Λ/4, 3Λ/4: crest, trough
+    with pytest.raises(se.ConfigError, match="steeper than 1/7"):
+        se.SeaSurface(z_m=0.0, swell_height_m=3.0, swell_length_m=20.0)
+    with pytest.raises(se.ConfigError, match="lowest z"):
+        se.simulate(scene, line, _sonar(se.SeaSurface(z_m=H + 0.2, swell_height_m=0.6, swell_length_m=length)),
+                    start_time="2000-01-01")

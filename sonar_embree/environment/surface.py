@@ -7,6 +7,11 @@ Kuperman, Porter and Schmidt, *Computational Ocean Acoustics*, 2nd ed., 2011, ch
 APL-UW TR 9407, 1994, surface section). From a wind speed U (m/s at 19.5 m) the fully
 developed Pierson–Moskowitz sea has a significant wave height H_s = 0.21·U²/g and
 h_w = H_s/4 (Pierson and Moskowitz, *J. Geophys. Res.* 69(24), 5181–5190, 1964).
+
+A swell makes the surface wavy: one long-crested sinusoidal (linear, Airy) wave of height H (crest to
+trough) and length Λ travelling towards ψ, z = z_s + (H/2)·sin(2π(x cos ψ + y sin ψ)/Λ), meshed and
+reflected by Embree (:mod:`sonar_embree.multipath`); waves steeper than H/Λ = 1/7 break (Michell's limit;
+Holthuijsen, *Waves in Oceanic and Coastal Waters*, Cambridge University Press, 2007, ch. 7) and are refused.
 """
 from __future__ import annotations
 
@@ -35,11 +40,20 @@ class SeaSurface:
     wind_speed_m_s : float or None
         Wind speed at 19.5 m, m/s: sets h_w of a fully developed sea when
         ``rms_wave_height_m`` is 0 (give one or the other).
+    swell_height_m : float
+        Crest-to-trough height H of a swell, m (0: a flat mean surface, the image method).
+    swell_length_m : float
+        Its wavelength Λ, m.
+    swell_direction_deg : float
+        The direction it travels, degrees counterclockwise from +x.
     """
 
     z_m: float
     rms_wave_height_m: float = 0.0
     wind_speed_m_s: float | None = None
+    swell_height_m: float = 0.0
+    swell_length_m: float = 40.0
+    swell_direction_deg: float = 0.0
 
     def __post_init__(self):
         check_number("SeaSurface", "z_m", self.z_m)
@@ -48,6 +62,45 @@ class SeaSurface:
             check_number("SeaSurface", "wind_speed_m_s", self.wind_speed_m_s, nonneg=True, hi=60.0)
             if self.rms_wave_height_m > 0:
                 raise ConfigError("SeaSurface: give rms_wave_height_m or wind_speed_m_s, not both")
+        check_number("SeaSurface", "swell_height_m", self.swell_height_m, nonneg=True, hi=30.0)
+        check_number("SeaSurface", "swell_length_m", self.swell_length_m, positive=True, hi=2000.0)
+        check_number("SeaSurface", "swell_direction_deg", self.swell_direction_deg)
+        if self.swell_height_m > self.swell_length_m / 7.0:
+            raise ConfigError(f"SeaSurface: a swell of height {self.swell_height_m:g} m and length "
+                              f"{self.swell_length_m:g} m is steeper than 1/7 and would break")
+
+    @property
+    def is_flat(self) -> bool:
+        """True without a swell (the image method applies)."""
+        return self.swell_height_m == 0.0
+
+    @property
+    def lowest_z_m(self) -> float:
+        """World z of the swell's troughs, m (z_m for a flat surface)."""
+        return float(self.z_m - 0.5 * self.swell_height_m)
+
+    def height_at(self, x_m, y_m):
+        """World z of the surface over world (x, y), m (any shapes that broadcast)."""
+        psi = math.radians(self.swell_direction_deg)
+        phase = 2.0 * math.pi * (np.asarray(x_m) * math.cos(psi) + np.asarray(y_m) * math.sin(psi))
+        return self.z_m + 0.5 * self.swell_height_m * np.sin(phase / self.swell_length_m)
+
+    def mesh(self, x_range_m, y_range_m, origin_m=(0.0, 0.0, 0.0)):
+        """The swell as a triangle mesh over world x and y ranges (m), in the frame shifted by ``origin_m``.
+
+        A grid of Λ/24 spacing (the sinusoid's chords stand off it by < 1 % of H), normals up.
+        """
+        import trimesh
+
+        step = self.swell_length_m / 24.0
+        xs = np.arange(x_range_m[0], x_range_m[1] + step, step)
+        ys = np.arange(y_range_m[0], y_range_m[1] + step, step)
+        gx, gy = np.meshgrid(xs, ys)
+        v = np.stack([gx, gy, self.height_at(gx, gy)], axis=-1).reshape(-1, 3) - np.asarray(origin_m, float)
+        nx = xs.size
+        i = (np.arange(ys.size - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
+        faces = np.concatenate([np.stack([i, i + 1, i + nx + 1], 1), np.stack([i, i + nx + 1, i + nx], 1)])
+        return trimesh.Trimesh(v, faces, process=False)
 
     @property
     def wave_height_m(self) -> float:

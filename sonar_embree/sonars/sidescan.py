@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from .. import multipath, refraction
+from .. import multipath, refraction, swell
 from ..config import FanSettings, Sonar
 from ..echoes import Echoes
 from ..fan import BlockEchoes, FanPlan, cast_block
@@ -66,13 +66,16 @@ class SideScanFrontEnd:
     def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock) -> Echoes:
         """Direct, one-bounce and two-bounce echoes of the block, row by row (docs/physics.md §13)."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
-        z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
-        image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock)
-        mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s)
         direct = echoes_of(blk, ids)
-        if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
-            mixed = dataclasses.replace(mixed, object_id=direct.object_id[np.isfinite(blk.range_m)])
-            image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
+        if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
+            mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock)
+        else:
+            z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
+            image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock)
+            mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s)
+            if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
+                mixed = dataclasses.replace(mixed, object_id=direct.object_id[np.isfinite(blk.range_m)])
+                image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
         parts = [direct, mixed, image]
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast

@@ -1,0 +1,161 @@
+"""Sea-surface multipath off a wavy surface (a swell): one Embree reflection per ray (docs/physics.md §13).
+
+For a flat surface the image method gives every path in closed form (:mod:`sonar_embree.multipath`). A swell
+is meshed (:meth:`SeaSurface.mesh`) and the rays bounce on it:
+
+- The image fan is placed as for the flat mean surface (its probes from the mirrored pose), so rays are
+  dense where the bounced range changes fast. Each image ray's direction, mirrored back, is a real upward ray
+  from the transducer S; it is cast against the surface mesh (to P, facet normal n_P), checked for anything
+  of the scene on S→P, reflected (u_r = u − 2(u·n_P)n_P) and cast again through the scene (to X).
+- Each facet is a flat mirror: the bounced ray is a straight ray of length R = |SP| + |PX| from S's image in
+  the facet, so the two-bounce path S→P→X→P→S has the flat case's weight with that R, the law at X along u_r,
+  Γ⁴ of the launch direction and |R_s|⁴ at P's grazing angle.
+- The one-bounce paths S→P→X→S and S→X→P→S (equal by reciprocity, one echo of twice the weight) take the
+  bounced ray to X and the direct leg back: w = 2·Γ²(u)·Γ²(u_d)·σ(θi, θs, φ)·|R_s|²·e^(−α'(R + r))·dΩ /
+  (r²·cos θi), r = |X − S|, with the direct leg checked for visibility.
+
+Speckle phases of the surface paths use the mean plane's image (statistics, not the exact pattern, hold).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import kernels
+from .echoes import Echoes, row_starts
+from .fan import probe_rows
+from .laws import apply_laws
+from .multipath import LEG_EPSILON_M, bistatic_sigma, mirror_pose, occluded
+
+
+def surface_caster(caster, surface, max_range_m: float):
+    """An Embree caster of the swell's mesh over the scene's extent ± the range, in the scene's local frame.
+
+    Kept with the scene's compiled arrays (built once per scene, surface and range).
+    """
+    from .raycast import RayCaster
+    from .scene import Scene
+
+    c = caster.compiled
+    cache = c.__dict__.setdefault("_swell_casters", {})
+    key = (surface, round(max_range_m, 6))
+    if key not in cache:  # reflection points lie between the sonar and the scene: within its extent ± the range
+        lo, hi = c.bounds_local[0, :2] + c.origin_m[:2], c.bounds_local[1, :2] + c.origin_m[:2]
+        mesh = surface.mesh((lo[0] - max_range_m, hi[0] + max_range_m), (lo[1] - max_range_m, hi[1] + max_range_m))
+        cache[key] = RayCaster(Scene().add(mesh, label="sea surface").compiled(c.origin_m))
+    return cache[key]
+
+
+def _gain(rot, side, u, beam):
+    """Γ of the channel's membrane for world directions u (n, 3), rot (n, 3, 3) body → world (as the kernels)."""
+    e = np.einsum("nji,nj->ni", rot, u)                              # body: forward, starboard, down
+    ct, st = np.cos(beam[2]), np.sin(beam[2])
+    height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
+    return np.where(bore > 0, np.sinc(beam[0] * e[:, 0] / np.pi) * np.sinc(beam[1] * height / np.pi), 0.0)
+
+
+def _bounce(front, caster, swell, rot, pos_local, max_range_m, clock):
+    """The image fan's rays bounced on the swell: a dict of per-ray arrays of the rays that reach the scene."""
+    plan = front.plan
+    z_s = front.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
+    rot_i, pos_i = mirror_pose(rot, pos_local, z_s)
+    # a one-bounce echo at range (R + r)/2 in the window may have travelled R up to twice the range on its bounce
+    max_range_m = 2.0 * (max_range_m * (1.0 + 1e-3) + 0.05)
+    el_start, beta, dbeta, _, t_probe = probe_rows(caster, plan, rot_i, pos_i, max_range_m)
+    n_az, rows = plan.s.shape[0], el_start.shape[0] - 1
+    n = n_az * int(el_start[-1])
+    dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot_i), pos_i, dirs, org)
+    row = np.repeat(np.arange(rows), n_az * np.diff(el_start))
+    j = np.arange(n) - n_az * el_start[row]
+    n_el = np.diff(el_start)[row]
+    cell = el_start[row] + j % n_el
+    u = dirs.astype(np.float64) * [1.0, 1.0, -1.0]                   # the real, upward ray
+    s_org = pos_local[row // 2]
+    prim_s, t1 = swell.cast_raw(s_org.astype(np.float32), u.astype(np.float32), max_range_m)
+    up = np.flatnonzero((prim_s >= 0) & (u[:, 2] > 0))
+    t1 = t1[up].astype(np.float64)
+    seen = ~occluded(caster, s_org[up], u[up], t1)                    # S→P through the scene
+    up, t1 = up[seen], t1[seen]
+    n_p = swell.compiled.face_normals[prim_s[up]]
+    u_r = u[up] - 2.0 * np.sum(u[up] * n_p, axis=1)[:, None] * n_p
+    p = s_org[up] + t1[:, None] * u[up]
+    prim, t2 = caster.cast_raw((p + LEG_EPSILON_M * u_r).astype(np.float32), u_r.astype(np.float32), max_range_m)
+    hit = (prim >= 0) & (t1 + t2 + LEG_EPSILON_M <= max_range_m)
+    k = up[hit]
+    clock["embree"] = clock.get("embree", 0.0) + t_probe
+    return dict(ray=k, row=row[k], s=plan.s[(j // n_el)[k]], beta=beta[cell[k]], dbeta=dbeta[cell[k]],
+                u=u[k], n_p=n_p[hit], u_r=u_r[hit], R=(t1 + LEG_EPSILON_M + t2)[hit], prim=prim[hit],
+                x=p[hit] + (LEG_EPSILON_M + t2[hit])[:, None] * u_r[hit], ray_start=n_az * el_start, rot_i=rot_i)
+
+
+def _footprint(b, rot_i, n_x, cos_i):
+    """dX/dβ of each bounced ray on the surface it hit, (n, 3) m/rad (the facet's image is a straight ray)."""
+    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
+    cpsi = np.sqrt(1.0 - b["s"] ** 2)
+    f_body = np.stack([0.0 * cpsi, -side * cpsi * np.sin(b["beta"]), cpsi * np.cos(b["beta"])], axis=1)
+    f = np.einsum("nij,nj->ni", rot_i[b["row"] // 2], f_body) * [1.0, 1.0, -1.0]   # ∂u/∂β of the real ray
+    f_r = f - 2.0 * np.sum(f * b["n_p"], axis=1)[:, None] * b["n_p"]
+    nf = np.sum(n_x * f_r, axis=1)
+    return b["R"][:, None] * (f_r + b["u_r"] * (nf / np.maximum(cos_i, 1e-12))[:, None])
+
+
+def _two_bounce(front, caster, b, rot, rs2, cos_i, dx):
+    """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied)."""
+    plan, s = front.plan, front.sonar
+    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
+    g = _gain(rot[b["row"] // 2], side, b["u"], plan.beam)
+    w = (g ** 4 * np.exp(-front.two_way_np_per_m * b["R"]) * rs2 ** 2 * plan.ds * b["dbeta"]
+         / np.maximum(b["R"], plan.min_range_m) ** 2)
+    w = np.where(cos_i > 1e-9, w, 0.0)
+    apply_laws(caster.compiled, s.frequency_hz, b["prim"], np.maximum(cos_i, 1e-9), w, b["x"])
+    slope = np.minimum(np.abs(np.sum(b["u_r"] * dx, axis=1)), plan.slope_cap_m_rad)   # |dR/dβ|, R unfolded
+    return w, 2.0 * b["R"] / s.sound_speed_m_s, 2.0 * slope * b["dbeta"] / s.sound_speed_m_s
+
+
+def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local):
+    """S→P→X→S and S→X→P→S: the bounced ray in, the direct leg back, one echo of twice the weight."""
+    plan, s, c = front.plan, front.sonar, caster.compiled
+    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
+    rot = rot[b["row"] // 2]
+    d = b["x"] - pos_local[b["row"] // 2]
+    r = np.linalg.norm(d, axis=1)
+    u_d = d / r[:, None]
+    n_x = c.face_normals[b["prim"]]
+    cos_s = -np.sum(n_x * u_d, axis=1)
+    bb = -b["u_r"] - cos_i[:, None] * n_x
+    tt = -u_d - cos_s[:, None] * n_x
+    nb, nt = np.linalg.norm(bb, axis=1), np.linalg.norm(tt, axis=1)
+    ok = (nb > 1e-12) & (nt > 1e-12)
+    phi = np.where(ok, np.arccos(np.clip(np.sum(bb * tt, axis=1) / np.where(ok, nb * nt, 1.0), -1, 1)), 0.0)
+    lit = (cos_i > 1e-9) & (cos_s > 1e-9)
+    sigma = np.zeros(r.shape[0])
+    sigma[lit] = bistatic_sigma(c, s.frequency_hz, b["prim"][lit], cos_i[lit], cos_s[lit], phi[lit])
+    g2 = _gain(rot, side, b["u"], plan.beam) ** 2 * _gain(rot, side, u_d, plan.beam) ** 2
+    w = (2.0 * g2 * sigma * rs2 * np.exp(-0.5 * front.two_way_np_per_m * (b["R"] + r)) * plan.ds * b["dbeta"]
+         / (np.maximum(r, plan.min_range_m) ** 2 * np.maximum(cos_i, 1e-9)))
+    for detail in (c.maps, c.textures):
+        if detail is not None:
+            detail.apply(c, b["prim"], b["x"], w)
+    on = np.flatnonzero(w > 0)
+    w[on[occluded(caster, b["x"][on], -u_d[on], r[on])]] = 0.0        # the direct leg X→S
+    slope = np.minimum(np.abs(np.sum((b["u_r"] + u_d) * dx, axis=1)), 2.0 * plan.slope_cap_m_rad)
+    return w, (b["R"] + r) / s.sound_speed_m_s, slope * b["dbeta"] / s.sound_speed_m_s
+
+
+def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock):
+    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan."""
+    swell = surface_caster(caster, front.sonar.environment.surface, max_range_m)
+    b = _bounce(front, caster, swell, rot, pos_local, max_range_m, clock)
+    n_x = caster.compiled.face_normals[b["prim"]]
+    cos_i = -np.sum(n_x * b["u_r"], axis=1)
+    rs2 = front.sonar.environment.surface.reflection_intensity(np.abs(np.sum(b["u"] * b["n_p"], axis=1)),
+                                                               front.sonar.wavenumber_rad_m)
+    dx = _footprint(b, b["rot_i"], n_x, cos_i)
+    start = row_starts(b["row"], b["ray_start"].shape[0] - 1)
+    rot = np.asarray(rot, dtype=np.float64)
+    out = []
+    for w, t, ext in (_one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local),
+                      _two_bounce(front, caster, b, rot, rs2, cos_i, dx)):
+        obj = np.zeros(0, np.int32) if ids is None else np.where(w > 0, ids[b["prim"]], -1).astype(np.int32)
+        out.append(Echoes(2, start, t, ext, w, b["x"], obj))
+    return out[0], out[1]
