@@ -10,27 +10,12 @@ import dataclasses
 import json
 import os
 import sys
-import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
 
 import sonar_embree as se  # noqa: E402
 from sonar_embree import shipwreck  # noqa: E402
-
-
-def _best(scene, traj, sonar):
-    best = None
-    for _ in range(3):
-        t = {}
-        t0 = time.perf_counter()
-        se.simulate(scene, traj, sonar, se.Pulse.cw(), start_time="2000-01-01", timings=t)
-        wall = time.perf_counter() - t0 - t.get("setup", 0.0)
-        if best is None or wall < best[0]:
-            best = (wall, t)
-    wall, t = best
-    row = {k: round(1e3 * v / len(traj), 3) for k, v in t.items() if k != "setup"}
-    row["total"] = round(1e3 * wall / len(traj), 3)
-    return row
+from bench_multipath import _best  # noqa: E402  (ms per stage and ping, best of three: one definition)
 
 
 def main() -> int:

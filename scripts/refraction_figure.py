@@ -74,21 +74,6 @@ def shadow_edge(se, recs) -> dict:
             "pulse_s": float(rec.pulse.duration_s), "sample_s": float(rec.time_s[1] - rec.time_s[0])}
 
 
-def _images(recs, span_db=50.0, columns=300):
-    from sonar_embree.processing import tvg_gain
-    from sonar_embree.waterfall import block_mean
-
-    dbs = []
-    for rec in recs.values():
-        g = tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
-        block = max(rec.time_s.size // columns, 1)
-        port, stbd = (block_mean(x * g, block) for x in (rec.port, rec.starboard))
-        with np.errstate(divide="ignore"):
-            dbs.append(10 * np.log10(np.concatenate([port[:, ::-1], stbd], axis=1)))
-    white = max(np.percentile(d[np.isfinite(d)], 99.5) for d in dbs)
-    return [(255 * np.clip((d - (white - span_db)) / span_db, 0, 1)).astype(np.uint8) for d in dbs]
-
-
 def ping_panel(recs, edge):
     """One starboard ping of every record in dB against ct/2, with the closed-form shadow edge."""
     first = next(iter(recs.values()))
@@ -110,6 +95,7 @@ def main(argv=None) -> int:
         p.error(f"--pings must be at least 2, got {args.pings}")
     sys.path.insert(0, ROOT)
     import sonar_embree as se
+    from multipath_figure import _images  # the same common grey scale (display TVG, 50 dB)
     from sonar_embree import plotting
     from sonar_embree.io.files import atomic_write
 
