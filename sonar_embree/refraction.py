@@ -16,6 +16,7 @@ phases (its statistics, not its exact pattern, hold in a profile).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -49,22 +50,60 @@ class Buffers:
         return buf[:size].reshape(shape)
 
 
-def _box(caster) -> np.ndarray:
-    """(2,) local z range where chords are cast: the scene's, widened by BOX_MARGIN_M."""
-    return caster.compiled.bounds_local[:, 2] + np.array([-BOX_MARGIN_M, BOX_MARGIN_M])
+@dataclass(frozen=True, eq=False)
+class Marching:
+    """What a block's curved rays need in every kernel: the profile in the scene's frame and the limits.
+
+    Attributes
+    ----------
+    layers : (k, 3) float64
+        :meth:`SoundSpeedProfile.layers`.
+    z0 : float
+        Local z of the profile's depth 0, m.
+    box_z : (2,) float64
+        Local z range where chords are cast: the scene's, widened by :data:`BOX_MARGIN_M`.
+    sagitta_m : float
+        Largest distance of a chord from its arc, m.
+    t_max : float
+        One-way time of the window's end, s.
+    """
+
+    layers: np.ndarray
+    z0: float
+    box_z: np.ndarray
+    sagitta_m: float
+    t_max: float
+
+    @classmethod
+    def of(cls, caster, environment, sagitta_m: float, t_max: float) -> "Marching":
+        c = caster.compiled
+        return cls(environment.sound_speed.layers(), environment.profile_origin_z_m() - float(c.origin_m[2]),
+                   c.bounds_local[:, 2] + np.array([-BOX_MARGIN_M, BOX_MARGIN_M]), sagitta_m, t_max)
+
+    @property
+    def l_max(self) -> float:
+        """Path length after which no ray can arrive within the window, m (t_max × the fastest c)."""
+        return self.t_max * float(self.layers[:, 1].max())
+
+    def launch(self, s, beta, el_start, rot, pos_local, buffers):
+        """(state, lay, ray) of a fan's rays (:func:`~sonar_embree.kernels.refraction.arc_start`), in ``buffers``."""
+        n = s.shape[0] * int(el_start[-1])
+        state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
+        ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
+        kernels.arc_start(s, np.cos(beta), np.sin(beta), el_start, rot, pos_local, self.layers, self.z0, self.box_z,
+                          self.l_max, state, lay, ray)
+        return state, lay, ray
 
 
-def march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers: Buffers):
-    """Follow every ray chord by chord until it hits or its path could no longer arrive before ``t_max``.
+def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
+    """Follow every ray chord by chord until it hits or its path could no longer arrive before ``m.t_max``.
 
     Returns (hit_prim, hit) of the block (:func:`~sonar_embree.kernels.refraction.arc_land`).
 
-    Chords are cast only within the scene's height range (widened by :data:`BOX_MARGIN_M`); outside it
-    rays move in closed form.
+    Chords are cast only within ``m.box_z``; outside it rays move in closed form.
     """
     c = caster.compiled
-    box_z = _box(caster)
-    l_max = t_max * float(layers[:, 1].max())  # no ray goes further in the window
+    l_max = m.l_max
     n = state.shape[0]
     hit_prim = np.full(n, -1, dtype=np.int32)
     hit = buffers.take("hit", (n, kernels.HIT_WIDTH))  # read only where hit_prim ≥ 0
@@ -72,35 +111,31 @@ def march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers:
     for _ in range(MAX_ROUNDS):
         if idx.size == 0:
             return hit_prim, hit
-        m = idx.size
-        nxt, nlay = buffers.take("nxt", (m, kernels.STATE_WIDTH)), buffers.take("nlay", m, np.int64)
-        org, dirs = buffers.take("org", (m, 3), np.float32), buffers.take("dirs", (m, 3), np.float32)
-        seg = buffers.take("seg", m, np.float32)
-        kernels.arc_chord(idx, state, lay, ray, layers, z0, box_z, sagitta_m, l_max, nxt, nlay, org, dirs, seg)
+        k = idx.size
+        nxt, nlay = buffers.take("nxt", (k, kernels.STATE_WIDTH)), buffers.take("nlay", k, np.int64)
+        org, dirs = buffers.take("org", (k, 3), np.float32), buffers.take("dirs", (k, 3), np.float32)
+        seg = buffers.take("seg", k, np.float32)
+        kernels.arc_chord(idx, state, lay, ray, m.layers, m.z0, m.box_z, m.sagitta_m, l_max, nxt, nlay, org, dirs,
+                          seg)
         t = time.perf_counter()
         prim, tfar = caster.cast_segments(org, dirs, seg)
         clock["embree"] = clock.get("embree", 0.0) + time.perf_counter() - t
-        kernels.arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, c.vertices, c.faces,
+        kernels.arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, m.layers, m.z0, c.vertices, c.faces,
                          c.face_normals, hit_prim, hit)
         idx = idx[(prim < 0) & (nxt[:, kernels.S_L] < l_max)]
     raise RuntimeError(f"curved rays still in flight after {MAX_ROUNDS} chords")  # pragma: no cover
 
 
-def _probe_ranges(caster, plan, rot, pos_local, layers, z0, sagitta_m, t_max, c_nom, clock, buffers):
+def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffers):
     """Apparent range c·T (NaN: nothing in the window) of the curved probes, (rows, lines·m) as for straight ones."""
-    rows, m = 2 * rot.shape[0], plan.probe_beta.shape[0]
+    rows, n_beta = 2 * rot.shape[0], plan.probe_beta.shape[0]
     lines = PROBE_LINES * np.abs(plan.s).max()
-    el = np.arange(rows + 1, dtype=np.int64) * m
-    beta = np.tile(plan.probe_beta, rows)
-    n = rows * lines.size * m
-    state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
-    ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
-    kernels.arc_start(lines, np.cos(beta), np.sin(beta), el, rot, pos_local, layers, z0, _box(caster),
-                      t_max * layers[:, 1].max(), state, lay, ray)
-    hit_prim, hit = march(caster, layers, z0, sagitta_m, t_max, state, lay, ray, clock, buffers)
-    out = np.full(n, np.nan)
+    el = np.arange(rows + 1, dtype=np.int64) * n_beta
+    state, lay, ray = m.launch(lines, np.tile(plan.probe_beta, rows), el, rot, pos_local, buffers)
+    hit_prim, hit = march(caster, m, state, lay, ray, clock, buffers)
+    out = np.full(state.shape[0], np.nan)
     lit = np.flatnonzero(hit_prim >= 0)   # ``hit`` holds nothing for the other rays
-    out[lit] = np.where(hit[lit, 6] <= t_max, c_nom * hit[lit, 6], np.nan)
+    out[lit] = np.where(hit[lit, 6] <= m.t_max, c_nom * hit[lit, 6], np.nan)
     return out.reshape(rows, -1)
 
 
@@ -129,28 +164,21 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
     rot = np.ascontiguousarray(rot, dtype=np.float64)
-    z0 = environment.profile_origin_z_m() - float(caster.compiled.origin_m[2])
-    layers = environment.sound_speed.layers()
-    t_max = max_range_m / c_nom
-    sagitta = SAGITTA_FRACTION * sonar.range_bin_m
-    el_start, beta, dbeta = elevation_rows(plan, _probe_ranges(caster, plan, rot, pos_local, layers, z0, sagitta,
-                                                               t_max, c_nom, clock, buffers))
+    m = Marching.of(caster, environment, SAGITTA_FRACTION * sonar.range_bin_m, max_range_m / c_nom)
+    el_start, beta, dbeta = elevation_rows(plan, _probe_ranges(caster, plan, rot, pos_local, m, c_nom, clock, buffers))
     altitude, t_nadir = nadir_altitude(caster, pos_local, max_range_m)  # straight down is straight in any profile
     clock["embree"] = clock.get("embree", 0.0) + t_nadir
     n_az = plan.s.shape[0]
     n = n_az * int(el_start[-1])
     cos_b, sin_b = np.cos(beta), np.sin(beta)
-    state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
-    ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
-    kernels.arc_start(plan.s, cos_b, sin_b, el_start, rot, pos_local, layers, z0, _box(caster),
-                      t_max * layers[:, 1].max(), state, lay, ray)
-    hit_prim, hit = march(caster, layers, z0, sagitta, t_max, state, lay, ray, clock, buffers)
+    state, lay, ray = m.launch(plan.s, beta, el_start, rot, pos_local, buffers)
+    hit_prim, hit = march(caster, m, state, lay, ray, clock, buffers)
 
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.arc_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, hit_prim, hit, ray, c.face_normals,
-                       c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, t_max, plan.slope_cap_m_rad,
+                       c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max, plan.slope_cap_m_rad,
                        c_nom, rng, t_s, ext, w, cos_i, pts)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
+from . import beam, kernels
 from .echoes import Echoes, row_starts
 from .fan import probe_rows
 from .laws import apply_laws
@@ -45,12 +45,13 @@ def surface_caster(caster, surface, max_range_m: float):
     return cache[key]
 
 
-def _gain(rot, side, u, beam):
-    """Γ of the channel's membrane for world directions u (n, 3), rot (n, 3, 3) body → world (as the kernels)."""
+def _gain(sonar, rot, side, u):
+    """Γ of the channel's membrane (:func:`beam.directivity`) for world directions u (n, 3), rot (n, 3, 3)
+    body → world, side −1 port, +1 starboard."""
     e = np.einsum("nji,nj->ni", rot, u)                              # body: forward, starboard, down
-    ct, st = np.cos(beam[2]), np.sin(beam[2])
-    height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
-    return np.where(bore > 0, np.sinc(beam[0] * e[:, 0] / np.pi) * np.sinc(beam[1] * height / np.pi), 0.0)
+    ct, st = np.cos(sonar.tilt_rad), np.sin(sonar.tilt_rad)
+    return beam.directivity(e[:, 0], e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st,
+                            sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m)
 
 
 def _bounce(front, caster, swell, rot, pos_local, max_range_m, clock):
@@ -103,7 +104,7 @@ def _two_bounce(front, caster, b, rot, rs2, cos_i, dx):
     """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied)."""
     plan, s = front.plan, front.sonar
     side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
-    g = _gain(rot[b["row"] // 2], side, b["u"], plan.beam)
+    g = _gain(s, rot[b["row"] // 2], side, b["u"])
     w = (g ** 4 * np.exp(-front.two_way_np_per_m * b["R"]) * rs2 ** 2 * plan.ds * b["dbeta"]
          / np.maximum(b["R"], plan.min_range_m) ** 2)
     w = np.where(cos_i > 1e-9, w, 0.0)
@@ -130,7 +131,7 @@ def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local):
     lit = (cos_i > 1e-9) & (cos_s > 1e-9)
     sigma = np.zeros(r.shape[0])
     sigma[lit] = bistatic_sigma(c, s.frequency_hz, b["prim"][lit], cos_i[lit], cos_s[lit], phi[lit])
-    g2 = _gain(rot, side, b["u"], plan.beam) ** 2 * _gain(rot, side, u_d, plan.beam) ** 2
+    g2 = _gain(s, rot, side, b["u"]) ** 2 * _gain(s, rot, side, u_d) ** 2
     w = (2.0 * g2 * sigma * rs2 * np.exp(-0.5 * front.two_way_np_per_m * (b["R"] + r)) * plan.ds * b["dbeta"]
          / (np.maximum(r, plan.min_range_m) ** 2 * np.maximum(cos_i, 1e-9)))
     for detail in (c.maps, c.textures):

@@ -174,7 +174,7 @@ def three_layer_block():
     """One ping's fan in THREE between the tilted floor and the ceiling: the kernels' launch, hits and echoes."""
     from sonar_embree import kernels
     from sonar_embree.fan import probe_rows
-    from sonar_embree.refraction import Buffers, march
+    from sonar_embree.refraction import Buffers, Marching, march
     sonar = se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS, environment=se.Environment(sound_speed=THREE))
     front = SideScanFrontEnd(sonar, se.FanSettings())
     compiled = _planes_scene().compiled(np.zeros(3))
@@ -190,7 +190,8 @@ def three_layer_block():
                       state, lay, ray)
     start = state.copy()
     t_max = 40.0 / sonar.sound_speed_m_s
-    hit_prim, hit = march(caster, layers, z0, 0.02, t_max, state, lay, ray, {}, Buffers())
+    box = compiled.bounds_local[:, 2] + [-0.5, 0.5]
+    hit_prim, hit = march(caster, Marching(layers, z0, box, 0.02, t_max), state, lay, ray, {}, Buffers())
     return dict(front=front, sonar=sonar, caster=caster, rot=rot, pos=pos, el_start=el_start, beta=beta, dbeta=dbeta,
                 layers=layers, z0=z0, start=start, ray=ray, hit_prim=hit_prim, hit=hit.copy(), t_max=t_max,
                 face_object=compiled.face_object, origin=compiled.origin_m)
