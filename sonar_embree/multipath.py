@@ -69,92 +69,111 @@ def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) ->
     return out
 
 
+def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w) -> None:
+    """Zero the weights ``w`` (n,) of a block's echoes whose upward leg is blocked (see kernels.visibility_legs).
+
+    Legs start at the sonar (``from_sonar``) or at the hit points ``x`` (n, 3) and run along ``dirs`` (n, 3)
+    for ``dist`` (n,) m; ``buf`` holds the float32 rays.
+    """
+    n = w.shape[0]
+    idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
+                        buf.take("leg_dir", (n, 3), np.float32), buf.take("leg_len", n, np.float32))
+    top = float(caster.compiled.bounds_local[1, 2])
+    k = kernels.visibility_legs(ray_start, x, pos_local, from_sonar, dirs, dist, w, top, LEG_EPSILON_M, idx, org, dr,
+                                ln)
+    if k:
+        w[idx[:k][caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
+
+
 def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock) -> tuple[Echoes, BlockEchoes]:
     """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked."""
-    s, surf = front.sonar, front.sonar.environment.surface
+    s = front.sonar
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
     blk = cast_block(caster, front.plan, rot_i, pos_i, front.two_way_np_per_m, max_range_m,
                      2.0 / s.sound_speed_m_s, want_points=True, timings=clock, frequency_hz=s.frequency_hz)
-    w = blk.weight.copy()
-    hit = np.flatnonzero(w > 0)
-    ping = row_of(blk.ray_start)[hit] // 2
-    d = blk.point_m[hit] - pos_i[ping]
-    r = np.linalg.norm(d, axis=1)
-    d /= r[:, None]
-    w[hit] *= surf.reflection_intensity(np.abs(d[:, 2]), s.wavenumber_rad_m) ** 2
-    t_p = (pos_i[ping, 2] - z_s_local) / np.abs(d[:, 2])           # image → surface = sonar → surface
-    up = d * np.array([1.0, 1.0, -1.0])
-    w[hit[occluded(caster, pos_local[ping], up, t_p)]] = 0.0
+    n, buf = blk.weight.shape[0], front.buffers
+    w, up, leg = buf.take("image_w", n), buf.take("image_up", (n, 3)), buf.take("image_leg", n)
+    w[:] = blk.weight
+    kernels.two_bounce(blk.ray_start, blk.point_m, pos_i, z_s_local, _wave_kh(s), w, up, leg)
+    block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, up, leg, w)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
 
 
-def ray_cells(blk: BlockEchoes, rays: np.ndarray):
-    """Row and elevation cell width dβ (rad) of the rays ``rays`` of a side-scan block."""
-    n_el = np.diff(blk.el_start)
-    row = np.searchsorted(blk.ray_start, rays, side="right") - 1
-    j = (rays - blk.ray_start[row]) % n_el[row]
-    return row, blk.dbeta[blk.el_start[row] + j]
+def _wave_kh(sonar) -> float:
+    """k·h_w of the sonar's sea surface."""
+    return sonar.wavenumber_rad_m * sonar.environment.surface.wave_height_m
 
 
 def bistatic_sigma(compiled, frequency_hz, prim, cos_i, cos_s, phi):
     """σ(θi, θs, φ) of each echo's object law (maps and texture are applied separately)."""
-    out = np.zeros(prim.shape[0])
     obj = compiled.face_object[prim]
-    for o in np.unique(obj):
-        law = compiled.laws[o]
-        law = law.at_frequency(frequency_hz) if hasattr(law, "at_frequency") else law
+    present = np.flatnonzero(np.bincount(obj, minlength=len(compiled.laws)))
+    if present.shape[0] == 1:                                   # one law: no masks
+        return _law_at(compiled, present[0], frequency_hz).sigma(cos_i, cos_s, phi)
+    out = np.zeros(prim.shape[0])
+    for o in present:
         k = obj == o
-        out[k] = law.sigma(cos_i[k], cos_s[k], phi[k])
+        out[k] = _law_at(compiled, o, frequency_hz).sigma(cos_i[k], cos_s[k], phi[k])
     return out
 
 
+def _law_at(compiled, o: int, frequency_hz: float):
+    """Object o's scattering law at the carrier."""
+    law = compiled.laws[o]
+    return law.at_frequency(frequency_hz) if hasattr(law, "at_frequency") else law
+
+
 def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local) -> Echoes:
-    """S→X→S' and S'→X→S (one echo, twice the weight) from every valid direct echo of ``blk``."""
+    """S→X→S' and S'→X→S (one echo, twice the weight) of every direct echo of ``blk``, aligned with its rays."""
     s, plan, c = front.sonar, front.plan, caster.compiled
-    keep = np.flatnonzero(np.isfinite(blk.range_m))
-    row, dbeta = ray_cells(blk, keep)
-    x, prim = blk.point_m[keep], blk.prim[keep]
-    n = keep.shape[0]
-    t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (np.empty(n) for _ in range(8))
-    v, u2 = np.empty((n, 3)), np.empty((n, 3))
-    kernels.mixed_legs(x, blk.range_m[keep], row // 2, np.where(row % 2 == 1, 1.0, -1.0), dbeta, prim,
+    n, buf = blk.range_m.shape[0], front.buffers
+    t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
+                                                                          "leg1", "leg2"))
+    v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
+    kernels.mixed_legs(blk.ray_start, blk.el_start, blk.dbeta, blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, s.wavenumber_rad_m * s.environment.surface.wave_height_m, t, ext, w,
-                       cos_i, cos_s, phi, v, leg1, u2, leg2)
-    w *= bistatic_sigma(c, s.frequency_hz, prim, cos_i, cos_s, phi)
+                       s.sound_speed_m_s, _wave_kh(s), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
+    lit = np.flatnonzero(w > 0)                                 # only lit echoes need σ, maps and their legs
+    x, prim = blk.point_m[lit], blk.prim[lit]
+    w_lit = w[lit] * bistatic_sigma(c, s.frequency_hz, prim, cos_i[lit], cos_s[lit], phi[lit])
     for detail in (c.maps, c.textures):
         if detail is not None:
-            detail.apply(c, prim, x, w)
-    lit = np.flatnonzero(w > 0)                                 # only lit echoes need their legs checked
-    blocked = np.zeros(lit.shape[0], dtype=bool)
-    if n and _below_top(caster, x[:, 2].min()):                 # a flat floor's legs start on top: skip the gathers
-        blocked |= occluded(caster, x[lit], v[lit], leg1[lit])
-    if n and _below_top(caster, pos_local[:, 2].min()):
-        blocked |= occluded(caster, pos_local[row[lit] // 2], u2[lit], leg2[lit])
-    w[lit[blocked]] = 0.0
-    return _scattered(blk, keep, t, ext, w, x)
-
-
-def _scattered(blk, keep, time_s, ext, w, x) -> Echoes:
-    """Echoes aligned with the rows of ``blk``, holding only the rays ``keep``."""
-    start = row_starts(row_of(blk.ray_start)[keep], blk.ray_start.shape[0] - 1)
-    return Echoes(2, start, time_s, ext, w, x, np.zeros(0, np.int32))
+            detail.apply(c, prim, x, w_lit)
+    w[lit] = w_lit
+    block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w)
+    block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w)
+    return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 
 def merge(parts, points: bool) -> Echoes:
-    """Echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path.
+    """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path.
 
-    The hit points are kept when ``points`` (speckle, maps), the object ids when every part has them.
+    Within a row, each part's echoes in their order, part by part. The hit points are kept when ``points``
+    (speckle, maps), the object ids when every part has them.
     """
-    row = np.concatenate([row_of(e.ray_start) for e in parts])
-    order = np.argsort(row, kind="stable")                      # stable: within a row, the parts in order
-    start = row_starts(row, parts[0].ray_start.shape[0] - 1)
+    rows = parts[0].ray_start.shape[0] - 1
+    starts = tuple(e.ray_start for e in parts)
+    weights = tuple(e.weight for e in parts)
+    counts = np.empty(rows, dtype=np.int64)
+    kernels.count_lit(starts, weights, counts)
+    start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+    m = int(start[-1])
+    with_ids = all(e.object_id.shape[0] == e.weight.shape[0] for e in parts)
+    t, ext, w, path = np.empty(m), np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
+    pts = np.empty((m if points else 0, 3))
+    ids = np.empty(m if with_ids else 0, dtype=np.int32)
+    kernels.merge_lit(starts, tuple(e.travel_time_s for e in parts), tuple(e.extent_s for e in parts), weights,
+                      tuple(_points(e) for e in parts), tuple(_ids(e) for e in parts), start, t, ext, w, pts,
+                      ids, path)
+    return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids, path)
 
-    def cat(name):
-        return np.concatenate([getattr(e, name) for e in parts])[order]
 
-    pts = cat("point_m") if points else np.zeros((0, 3))
-    ids = cat("object_id") if all(e.object_id.shape[0] == e.weight.shape[0] for e in parts) else np.zeros(0, np.int32)
-    path = np.concatenate([np.full(e.weight.shape[0], k, dtype=np.int8) for k, e in enumerate(parts)])[order]
-    return Echoes(parts[0].n_channels, start, cat("travel_time_s"), cat("extent_s"), cat("weight"), pts, ids, path)
+def _points(e: Echoes) -> np.ndarray:
+    """The echoes' points, or a (n, 3) stand-in where they are not kept (never read then)."""
+    return e.point_m if e.point_m.shape[0] == e.weight.shape[0] else np.zeros((0, 3))
+
+
+def _ids(e: Echoes) -> np.ndarray:
+    """The echoes' object ids, or an empty stand-in (never read then)."""
+    return e.object_id if e.object_id.shape[0] == e.weight.shape[0] else np.zeros(0, np.int32)

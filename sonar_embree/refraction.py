@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
+from .buffers import Buffers
 from .fan import PROBE_LINES, BlockEchoes, FanPlan, elevation_rows, nadir_altitude
 from .laws import apply_laws
 
@@ -31,23 +32,6 @@ SAGITTA_FRACTION = 1.0
 BOX_MARGIN_M = 0.5
 #: Rounds of chords after which marching stops with an error (a ray that never leaves the window).
 MAX_ROUNDS = 100_000
-
-
-class Buffers:
-    """Working arrays kept from block to block: in the marching, first-touch page faults of fresh arrays
-    cost more than the arithmetic (measured: the hit kernel 2× slower on fresh memory)."""
-
-    def __init__(self):
-        self._kept = {}
-
-    def take(self, name: str, shape, dtype=np.float64) -> np.ndarray:
-        """An uninitialised C-contiguous array of ``shape`` backed by the kept buffer ``name``."""
-        size = int(np.prod(shape))
-        buf = self._kept.get(name)
-        if buf is None or buf.size < size:
-            buf = np.empty(size + size // 4, dtype=dtype)  # headroom for the next, slightly larger block
-            self._kept[name] = buf
-        return buf[:size].reshape(shape)
 
 
 @dataclass(frozen=True, eq=False)

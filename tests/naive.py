@@ -318,6 +318,42 @@ def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam,
                 leg1=leg1, u2=u2, leg2=leg2)
 
 
+def two_bounce(ray_start, x, pos_image, z_s, wave_kh, weight):
+    """Image-fan weights × |R_s|⁴ and the real upward legs in NumPy (twin of kernels.two_bounce)."""
+    ping = np.repeat(np.arange(len(ray_start) - 1), np.diff(ray_start)) // 2
+    d = x - pos_image[ping]
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    lit = weight > 0
+    sin_g = np.abs(d[:, 2])
+    w = np.where(lit, weight * np.exp(-4 * wave_kh ** 2 * sin_g ** 2) ** 2, weight)
+    return w, d * [1.0, 1.0, -1.0], np.where(lit, (pos_image[ping, 2] - z_s) / sin_g, 0.0)
+
+
+def merge_lit(parts):
+    """Lit echoes of parts [(ray_start, time, extent, weight, point, id)] row by row, part by part, in NumPy by a
+    stable sort on the row (twin of kernels.count_lit + kernels.merge_lit): (start, time, extent, weight, point,
+    id, path)."""
+    rows = np.concatenate([np.repeat(np.arange(len(p[0]) - 1), np.diff(p[0])) for p in parts])
+    path = np.concatenate([np.full(len(p[3]), k) for k, p in enumerate(parts)])
+    cols = [np.concatenate([p[c] for p in parts]) for c in range(1, 6)]
+    keep = cols[2] > 0
+    order = np.argsort(rows[keep], kind="stable")
+    start = np.concatenate(([0], np.cumsum(np.bincount(rows[keep], minlength=len(parts[0][0]) - 1))))
+    return (start, *[c[keep][order] for c in cols], path[keep][order])
+
+
+def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps):
+    """The legs to cast for visibility in NumPy (twin of kernels.visibility_legs): (index, origin, dir, length)."""
+    ping = np.repeat(np.arange(len(ray_start) - 1), np.diff(ray_start)) // 2
+    o = pos[ping] if from_sonar else x
+    with np.errstate(divide="ignore"):
+        reach = np.where(dirs[:, 2] > 0, (top - o[:, 2]) / dirs[:, 2], np.inf)
+    length = np.minimum(dist - eps, reach + eps) - eps
+    i = np.flatnonzero((weight > 0) & (length > 0))
+    return (i, (o[i] + eps * dirs[i]).astype(np.float32), dirs[i].astype(np.float32),
+            length[i].astype(np.float32))
+
+
 def arc_start(s, beta, el_start, rot, pos, layers, z0):
     """Launch of every ray in a profile (twin of kernels.arc_start): horizontal direction, ξ, θ0, c0 per ray."""
     u = fan_directions(s, beta, el_start, rot)

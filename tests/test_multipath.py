@@ -205,34 +205,128 @@ def test_no_surface_runs_no_multipath_code_and_surface_errors(monkeypatch):
 
 
 def test_mixed_legs_kernel_matches_naive(rng):
-    """kernels.mixed_legs against its NumPy twin on random tilted faces, attitudes and both sides."""
+    """kernels.mixed_legs against its NumPy twin on random tilted faces, attitudes and both sides, in the block
+    layout of a side-scan fan (rows 2·ping + side, azimuth-major rays over each row's elevation cells)."""
     import naive
     from scipy.spatial.transform import Rotation
 
     from sonar_embree import kernels
 
-    n, n_p = 400, 3
+    n_p = 3
     rot = Rotation.from_euler("xyz", rng.uniform(-0.2, 0.2, (n_p, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
     pos = np.column_stack([rng.uniform(-5, 5, (n_p, 2)), rng.uniform(8, 12, n_p)])
     normals = rng.normal(size=(7, 3)) * [0.3, 0.3, 1.0]
     normals /= np.linalg.norm(normals, axis=1)[:, None]
-    ping, prim = rng.integers(0, n_p, n), rng.integers(0, 7, n).astype(np.int32)
-    side = np.where(rng.random(n) < 0.5, -1.0, 1.0)
+    n_el = rng.integers(5, 20, 2 * n_p)                               # elevation cells per row
+    n_az = rng.integers(3, 8, 2 * n_p)                                # azimuth rays per row
+    el_start = np.concatenate(([0], np.cumsum(n_el))).astype(np.int64)
+    ray_start = np.concatenate(([0], np.cumsum(n_el * n_az))).astype(np.int64)
+    n = int(ray_start[-1])
+    row = np.repeat(np.arange(2 * n_p), n_el * n_az)
+    j = np.arange(n) - ray_start[row]
+    dbeta_cell = rng.uniform(1e-4, 1e-2, el_start[-1])
+    ping, side, dbeta = row // 2, np.where(row % 2 == 1, 1.0, -1.0), dbeta_cell[el_start[row] + j % n_el[row]]
+    prim = rng.integers(0, 7, n).astype(np.int32)
     x = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-1, 2, n)])
     r = np.linalg.norm(x - pos[ping], axis=1)
-    dbeta = rng.uniform(1e-4, 1e-2, n)
+    miss = rng.random(n) < 0.1                                        # rays without a direct echo
+    r[miss] = np.inf
     beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
-    args = (x, r, ping, side, dbeta, prim, rot, pos, 15.0, normals, beam, 0.01, 0.0375, 0.044, 600.0, 1500.0, 0.3)
-    out = {k: np.empty(n) for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")}
-    v, u2 = np.empty((n, 3)), np.empty((n, 3))
-    kernels_args = [out[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")]
-    kernels.mixed_legs(*args, *kernels_args, v, out["leg1"], u2, out["leg2"])
-    ref = naive.mixed_legs(*args)
+    rest = (rot, pos, 15.0, normals, beam, 0.01, 0.0375, 0.044, 600.0, 1500.0, 0.3)
+    out = {k: np.full(n, np.nan) for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")}
+    v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    kernels.mixed_legs(ray_start, el_start, dbeta_cell, r, x, prim, *rest,
+                       *[out[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], v, out["leg1"], u2,
+                       out["leg2"])
+    hit = ~miss
+    ref = naive.mixed_legs(x[hit], r[hit], ping[hit], side[hit], dbeta[hit], prim[hit], *rest)
     for k in out:
-        np.testing.assert_allclose(out[k], ref[k], rtol=1e-9, atol=1e-12, err_msg=k)
-    np.testing.assert_allclose(v, ref["v"], rtol=1e-12, atol=1e-14)
-    np.testing.assert_allclose(u2, ref["u2"], rtol=1e-12, atol=1e-14)
-    assert np.count_nonzero(out["weight"]) > n // 4 and np.count_nonzero(out["weight"] == 0) > 0  # baffle both ways
+        np.testing.assert_allclose(out[k][hit], ref[k], rtol=1e-9, atol=1e-12, err_msg=k)
+    np.testing.assert_allclose(v[hit], ref["v"], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(u2[hit], ref["u2"], rtol=1e-12, atol=1e-14)
+    assert np.all(out["weight"][miss] == 0) and np.all(np.isinf(out["time"][miss]))
+    assert np.count_nonzero(out["weight"]) > n // 4 and np.count_nonzero(out["weight"][hit] == 0) > 0  # both ways
+
+
+def _block(rng, n_p=3):
+    """A random side-scan block layout: ray_start over 2·n_p rows, and each ray's ping."""
+    counts = rng.integers(0, 40, 2 * n_p)
+    counts[1] = 0                                                      # an empty row
+    ray_start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+    return ray_start, np.repeat(np.arange(2 * n_p), counts) // 2
+
+
+def test_two_bounce_kernel_matches_naive(rng):
+    """kernels.two_bounce against its NumPy twin: |R_s|⁴ on lit echoes, the upward legs from the real sonar."""
+    import naive
+
+    from sonar_embree import kernels
+
+    ray_start, ping = _block(rng)
+    n = int(ray_start[-1])
+    pos_i = np.column_stack([rng.uniform(-5, 5, (3, 2)), rng.uniform(18, 22, 3)])
+    x = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-1, 2, n)])
+    w = np.where(rng.random(n) < 0.2, 0.0, rng.uniform(0.1, 1.0, n))
+    up, leg = np.full((n, 3), np.nan), np.full(n, np.nan)
+    got = w.copy()
+    kernels.two_bounce(ray_start, x, pos_i, 15.0, 0.4, got, up, leg)
+    ref_w, ref_up, ref_leg = naive.two_bounce(ray_start, x, pos_i, 15.0, 0.4, w)
+    np.testing.assert_allclose(got, ref_w, rtol=1e-13)
+    lit = w > 0
+    np.testing.assert_allclose(up[lit], ref_up[lit], rtol=1e-13, atol=1e-15)
+    np.testing.assert_allclose(leg, ref_leg, rtol=1e-13)
+    assert np.all(got[lit] < w[lit]) and np.all(leg[~lit] == 0)
+
+
+def test_merge_kernels_match_naive(rng):
+    """kernels.count_lit + merge_lit against a stable sort by row: lit echoes only, part by part in each row."""
+    import naive
+
+    from sonar_embree import kernels
+
+    parts = []
+    for _ in range(3):
+        ray_start, _ = _block(rng)
+        n = int(ray_start[-1])
+        w = np.where(rng.random(n) < 0.3, 0.0, rng.random(n))
+        parts.append((ray_start, rng.random(n), rng.random(n), w, rng.random((n, 3)),
+                      rng.integers(-1, 5, n).astype(np.int32)))
+    rows = len(parts[0][0]) - 1
+    counts = np.empty(rows, dtype=np.int64)
+    kernels.count_lit(tuple(p[0] for p in parts), tuple(p[3] for p in parts), counts)
+    start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+    m = int(start[-1])
+    out = [np.empty(m), np.empty(m), np.empty(m), np.empty((m, 3)), np.empty(m, np.int32), np.empty(m, np.int8)]
+    kernels.merge_lit(*(tuple(p[c] for p in parts) for c in range(6)), start, *out)
+    ref = naive.merge_lit(parts)
+    np.testing.assert_array_equal(start, ref[0])
+    for got, want in zip(out, ref[1:]):
+        np.testing.assert_array_equal(got, want)
+    assert m < sum(len(p[3]) for p in parts) and set(np.unique(out[5])) == {0, 1, 2}
+
+
+@pytest.mark.parametrize("from_sonar", [False, True])
+def test_visibility_legs_kernel_matches_naive(rng, from_sonar):
+    """kernels.visibility_legs against its NumPy twin: legs cut at the scene's top, unlit and empty ones skipped."""
+    import naive
+
+    from sonar_embree import kernels
+
+    ray_start, ping = _block(rng)
+    n = int(ray_start[-1])
+    pos = np.column_stack([rng.uniform(-5, 5, (3, 2)), rng.uniform(-1, 4, 3)])
+    x = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-1, 4, n)])
+    dirs = rng.normal(size=(n, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2]) * np.where(rng.random(n) < 0.1, -1, 1)
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    dist, w = rng.uniform(0.0, 20.0, n), np.where(rng.random(n) < 0.2, 0.0, 1.0)
+    idx, org, dr, ln = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
+                        np.empty(n, np.float32))
+    k = kernels.visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, w, 2.0, 1e-3, idx, org, dr, ln)
+    ref = naive.visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, w, 2.0, 1e-3)
+    assert 0 < k < n
+    for got, want in zip((idx[:k], org[:k], dr[:k], ln[:k]), ref):
+        np.testing.assert_array_equal(got, want)
 
 
 def test_speckle_with_a_surface_averages_to_the_expected_four_paths(records):

@@ -4,7 +4,7 @@
 - :mod:`.splat`: footprint splatting — back end, expected intensity;
 - :mod:`.speckle`: the frozen scatterer lattice and its synthesis — back end, speckle;
 - :mod:`.truth`: ground-truth labels of the centre line;
-- :mod:`.multipath`: the one-bounce surface legs of every direct echo — front end;
+- :mod:`.multipath`: the one- and two-bounce surface paths of a block, and merging paths — front end;
 - :mod:`.refraction`: curved rays in a sound-speed profile, chord by chord — front end.
 
 :mod:`._numba` is the only module that imports numba (the scattering laws take ``njit`` and ``prange``
@@ -13,7 +13,7 @@ numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy
 ``tests/naive.py``. Compiled code is cached on disk.
 """
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
-from .multipath import mixed_legs
+from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_legs
 from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start
 from .rays import _sinc, fan_echoes, fan_rays, place_rows
 from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
@@ -21,5 +21,5 @@ from .splat import splat_rows, splat_table
 from .truth import label_rows
 
 __all__ = ["HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
-           "frozen_scatterers", "gather_nodes", "label_rows", "mixed_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
+           "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
            "splat_table", "_sinc"]

@@ -1,4 +1,4 @@
-"""Front-end kernels, sea-surface multipath: the one-bounce legs of every direct echo (docs/physics.md §13)."""
+"""Front-end kernels, sea-surface multipath: the one- and two-bounce paths of a block (docs/physics.md §13)."""
 from __future__ import annotations
 
 import math
@@ -7,106 +7,38 @@ from ._numba import njit, prange
 from .rays import _sinc
 
 
-@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/refraction.py
-def _gain(rot, side, ux, uy, uz, beam, c, s):
-    """Γ of the channel's membrane (side −1 port, +1 starboard) for the world direction u; rot body → world,
-    c and s the cosine and sine of the tilt."""
-    e0 = rot[0, 0] * ux + rot[1, 0] * uy + rot[2, 0] * uz     # body = rotᵀ·u: forward, starboard, down
-    e1 = rot[0, 1] * ux + rot[1, 1] * uy + rot[2, 1] * uz
-    e2 = rot[0, 2] * ux + rot[1, 2] * uy + rot[2, 2] * uz
+@njit(cache=True, nogil=True)
+def _rotation(rot, b):
+    """The 3×3 body-to-world rotation of ping b as a 9-tuple (row-major): scalars, no array view per echo."""
+    return (rot[b, 0, 0], rot[b, 0, 1], rot[b, 0, 2], rot[b, 1, 0], rot[b, 1, 1], rot[b, 1, 2],
+            rot[b, 2, 0], rot[b, 2, 1], rot[b, 2, 2])
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _gain(m, side, ux, uy, uz, beam, c, s):
+    """Γ of the channel's membrane (side −1 port, +1 starboard) for the world direction u; m the body → world
+    rotation (9-tuple, row-major), c and s the cosine and sine of the tilt."""
+    e0 = m[0] * ux + m[3] * uy + m[6] * uz                    # body = mᵀ·u: forward, starboard, down
+    e1 = m[1] * ux + m[4] * uy + m[7] * uz
+    e2 = m[2] * ux + m[5] * uy + m[8] * uz
     if side * e1 * c + e2 * s <= 0.0:                         # cos ψ · cos(β − δ): behind the baffle
         return 0.0
     return _sinc(beam[0] * e0) * _sinc(beam[1] * (e2 * c - side * e1 * s))
 
 
-@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/refraction.py
-def _footprint_slope(rot, side, u, v, n, r):
-    """|d(r + r')/dβ| of a ray cell: dX/dβ = r·(f − u·(n·f)/(n·u)), f = ∂u/∂β in world axes."""
-    e1 = rot[0, 1] * u[0] + rot[1, 1] * u[1] + rot[2, 1] * u[2]
-    e2 = rot[0, 2] * u[0] + rot[1, 2] * u[1] + rot[2, 2] * u[2]
-    nf, nu = 0.0, 0.0
-    fx = rot[0, 1] * (-side * e2) + rot[0, 2] * (side * e1)
-    fy = rot[1, 1] * (-side * e2) + rot[1, 2] * (side * e1)
-    fz = rot[2, 1] * (-side * e2) + rot[2, 2] * (side * e1)
-    f = (fx, fy, fz)
-    for q in range(3):
-        nf += n[q] * f[q]
-        nu += n[q] * u[q]
+@njit(cache=True, nogil=True)
+def _footprint_slope(m, side, u, v, n, r):
+    """|d(r + r')/dβ| of a ray cell: dX/dβ = r·(f − u·(n·f)/(n·u)), f = ∂u/∂β in world axes (m a 9-tuple)."""
+    e1 = m[1] * u[0] + m[4] * u[1] + m[7] * u[2]
+    e2 = m[2] * u[0] + m[5] * u[1] + m[8] * u[2]
+    f = (m[1] * (-side * e2) + m[2] * (side * e1), m[4] * (-side * e2) + m[5] * (side * e1),
+         m[7] * (-side * e2) + m[8] * (side * e1))
+    nf = n[0] * f[0] + n[1] * f[1] + n[2] * f[2]
+    nu = n[0] * u[0] + n[1] * u[1] + n[2] * u[2]
     out = 0.0
     for q in range(3):
         out += (u[q] - v[q]) * r * (f[q] - u[q] * nf / nu)
     return abs(out)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m,
-               slope_cap_m_rad, sound_speed_m_s, wave_kh, time_out, extent_out, weight_out, cos_i_out, cos_s_out,
-               phi_out, v_out, leg1_out, u2_out, leg2_out):
-    """The S→X→S' and S'→X→S paths of every direct echo, without σ, maps or visibility.
-
-    S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
-    (r' = |S' − X|), P = X + leg1·v the surface point and u2 the unit vector S → P
-    (leg2 = |P − S|). Per echo:
-
-        w = 2·Γ²(u1)·Γ²(u2)·|R_s|²·e^(−α'(r + r'))·ds·dβ / (max(r', R_min)²·cos θi),
-        |R_s|² = exp(−4·(k·h_w)²·sin²θg)  (sin θg = v_z at the surface),
-        t = (r + r')/c,  Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c,
-
-    cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
-    and v in the plane of n (the bistatic azimuth; 0 for backscatter).
-
-    Parameters
-    ----------
-    x : (n, 3) float64; r : (n,) float64
-        Direct echoes' hit points (local frame, m) and slant ranges (m).
-    ping, side : (n,) int64, float64
-        Ping in the block and channel side (−1 port, +1 starboard) of each echo.
-    dbeta : (n,) float64; prim : (n,) int32
-        Elevation cell width (rad) and triangle of each echo.
-    rot : (pings, 3, 3) float64; pos : (pings, 3) float64
-        Body-to-world rotations and sonar positions (local frame).
-    z_s : float
-        Surface height in the local frame, m.
-    face_normals : (f, 3) float64; beam : (4,) float64
-        Scene normals; k·lx/2, k·ly/2, tilt (rad), 0.
-    ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s : float
-        Azimuth spacing, near-field bound, two-way absorption (Np/m), |dR/dβ| cap (m/rad), c (m/s).
-    wave_kh : float
-        k·h_w of the surface (0: a mirror).
-    time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
-    v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
-        Written.
-    """
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
-    for i in prange(x.shape[0]):
-        b = ping[i]
-        sx, sy, sz = pos[b, 0], pos[b, 1], pos[b, 2]
-        u = ((x[i, 0] - sx) / r[i], (x[i, 1] - sy) / r[i], (x[i, 2] - sz) / r[i])
-        vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
-        r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
-        v = (vx / r2, vy / r2, vz / r2)
-        leg1 = r2 * (z_s - x[i, 2]) / (2.0 * z_s - sz - x[i, 2])
-        px, py, pz = x[i, 0] + leg1 * v[0] - sx, x[i, 1] + leg1 * v[1] - sy, x[i, 2] + leg1 * v[2] - sz
-        leg2 = math.sqrt(px * px + py * py + pz * pz)
-        nrm = face_normals[prim[i]]
-        flip = -1.0 if nrm[0] * u[0] + nrm[1] * u[1] + nrm[2] * u[2] > 0.0 else 1.0
-        n = (flip * nrm[0], flip * nrm[1], flip * nrm[2])
-        cos_i = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2])
-        cos_s = n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
-        g1 = _gain(rot[b], side[i], u[0], u[1], u[2], beam, ct, st)
-        g2 = _gain(rot[b], side[i], px / leg2, py / leg2, pz / leg2, beam, ct, st)
-        rb2 = max(r2, min_range_m)
-        att = math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2])
-        weight_out[i] = 2.0 * g1 * g1 * g2 * g2 * att * ds * dbeta[i] / (rb2 * rb2 * cos_i)
-        time_out[i] = (r[i] + r2) / sound_speed_m_s
-        slope = min(_footprint_slope(rot[b], side[i], u, v, n, r[i]), 2.0 * slope_cap_m_rad)
-        extent_out[i] = slope * dbeta[i] / sound_speed_m_s
-        cos_i_out[i], cos_s_out[i] = cos_i, cos_s
-        phi_out[i] = _azimuth(n, u, v)
-        for q in range(3):
-            v_out[i, q] = v[q]
-        u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = px / leg2, py / leg2, pz / leg2
-        leg1_out[i], leg2_out[i] = leg1, leg2
 
 
 @njit(cache=True, nogil=True)
@@ -124,3 +56,214 @@ def _azimuth(n, u, v):
     if bb <= 1e-24 or tt <= 1e-24:
         return 0.0
     return math.acos(min(max(bt / math.sqrt(bb * tt), -1.0), 1.0))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, z_s, face_normals, beam, ds, min_range_m,
+               two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, time_out, extent_out, weight_out,
+               cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out):
+    """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
+
+    S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
+    (r' = |S' − X|), P = X + leg1·v the surface point and u2 the unit vector S → P
+    (leg2 = |P − S|). Per echo:
+
+        w = 2·Γ²(u1)·Γ²(u2)·|R_s|²·e^(−α'(r + r'))·ds·dβ / (max(r', R_min)²·cos θi),
+        |R_s|² = exp(−4·(k·h_w)²·sin²θg)  (sin θg = v_z at the surface),
+        t = (r + r')/c,  Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c,
+
+    cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
+    and v in the plane of n (the bistatic azimuth; 0 for backscatter). Rays without
+    a direct echo (r = inf) get w = 0, t = inf.
+
+    Parameters
+    ----------
+    ray_start, el_start : (rows + 1,) int64
+        The block's rows (row = 2·ping + side, port 0) of rays and of elevation cells.
+    dbeta : (el_start[-1],) float64
+        Elevation cell widths, rad.
+    r : (n,) float64; x : (n, 3) float64; prim : (n,) int32
+        Direct slant ranges (m, inf: none), hit points (local frame, m) and triangles of the block's rays.
+    rot : (pings, 3, 3) float64; pos : (pings, 3) float64
+        Body-to-world rotations and sonar positions (local frame).
+    z_s : float
+        Surface height in the local frame, m.
+    face_normals : (f, 3) float64; beam : (4,) float64
+        Scene normals; k·lx/2, k·ly/2, tilt (rad), 0.
+    ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s : float
+        Azimuth spacing, near-field bound, two-way absorption (Np/m), |dR/dβ| cap (m/rad), c (m/s).
+    wave_kh : float
+        k·h_w of the surface (0: a mirror).
+    time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
+    v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
+        Written.
+    """
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
+    for row in prange(ray_start.shape[0] - 1):
+        b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
+        m = _rotation(rot, b)
+        n_el = el_start[row + 1] - el_start[row]
+        sx, sy, sz = pos[b, 0], pos[b, 1], pos[b, 2]
+        for i in range(ray_start[row], ray_start[row + 1]):
+            if not math.isfinite(r[i]):
+                weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
+                continue
+            db = dbeta[el_start[row] + (i - ray_start[row]) % n_el]
+            u = ((x[i, 0] - sx) / r[i], (x[i, 1] - sy) / r[i], (x[i, 2] - sz) / r[i])
+            vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
+            r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
+            v = (vx / r2, vy / r2, vz / r2)
+            leg1 = r2 * (z_s - x[i, 2]) / (2.0 * z_s - sz - x[i, 2])
+            px, py, pz = x[i, 0] + leg1 * v[0] - sx, x[i, 1] + leg1 * v[1] - sy, x[i, 2] + leg1 * v[2] - sz
+            leg2 = math.sqrt(px * px + py * py + pz * pz)
+            p = prim[i]
+            nx, ny, nz = face_normals[p, 0], face_normals[p, 1], face_normals[p, 2]
+            flip = -1.0 if nx * u[0] + ny * u[1] + nz * u[2] > 0.0 else 1.0
+            n = (flip * nx, flip * ny, flip * nz)
+            cos_i = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2])
+            g1 = _gain(m, side, u[0], u[1], u[2], beam, ct, st)
+            g2 = _gain(m, side, px / leg2, py / leg2, pz / leg2, beam, ct, st)
+            rb2 = max(r2, min_range_m)
+            att = math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2])
+            weight_out[i] = 2.0 * g1 * g1 * g2 * g2 * att * ds * db / (rb2 * rb2 * cos_i)
+            time_out[i] = (r[i] + r2) / sound_speed_m_s
+            extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
+            cos_i_out[i], cos_s_out[i] = cos_i, n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+            phi_out[i] = _azimuth(n, u, v)
+            v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
+            u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = px / leg2, py / leg2, pz / leg2
+            leg1_out[i], leg2_out[i] = leg1, leg2
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def two_bounce(ray_start, x, pos_image, z_s, wave_kh, weight, up_out, leg_out):
+    """S'→X→S' echoes of the fan cast from the image transducer S' (rows 2·ping + side, as the direct fan's).
+
+    Per lit echo (weight > 0), with d = (X − S')/|X − S'| and sin θg = |d_z| at the surface:
+    ``weight`` ×= |R_s|⁴ = exp(−8·(k·h_w)²·sin²θg) (two bounces), and the real upward leg from
+    S to the surface point, u = (d_x, d_y, −d_z) over length (z_S' − z_s)/sin θg, is written for
+    the visibility check (length 0 for unlit echoes).
+
+    Parameters
+    ----------
+    ray_start : (rows + 1,) int64
+    x : (n, 3) float64
+        Hit points of the image fan, local frame, m.
+    pos_image : (pings, 3) float64
+        Image transducer positions S', local frame, m.
+    z_s, wave_kh : float
+        Surface height (local, m) and k·h_w.
+    weight : (n,) float64
+        The image fan's weights, multiplied in place.
+    up_out : (n, 3) float64; leg_out : (n,) float64
+        Written.
+    """
+    for row in prange(ray_start.shape[0] - 1):
+        b = row // 2
+        for i in range(ray_start[row], ray_start[row + 1]):
+            if not weight[i] > 0.0:
+                leg_out[i] = 0.0
+                continue
+            dx, dy, dz = x[i, 0] - pos_image[b, 0], x[i, 1] - pos_image[b, 1], x[i, 2] - pos_image[b, 2]
+            rr = math.sqrt(dx * dx + dy * dy + dz * dz)
+            sg = abs(dz) / rr
+            weight[i] *= math.exp(-8.0 * wave_kh * wave_kh * sg * sg)
+            up_out[i, 0], up_out[i, 1], up_out[i, 2] = dx / rr, dy / rr, -dz / rr
+            leg_out[i] = (pos_image[b, 2] - z_s) / sg
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def count_lit(starts, weights, counts):
+    """counts[r] = echoes of weight > 0 in row r over every part (``starts``, ``weights``: tuples, one per part)."""
+    for r in prange(counts.shape[0]):
+        c = 0
+        for p in range(len(starts)):
+            w = weights[p]
+            for i in range(starts[p][r], starts[p][r + 1]):
+                if w[i] > 0.0:
+                    c += 1
+        counts[r] = c
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def merge_lit(starts, times, extents, weights, points, ids, out_start, time_out, extent_out, weight_out, point_out,
+              id_out, path_out):
+    """The lit echoes of every part (path) row by row: within a row, part 0's, then part 1's, … in their order.
+
+    Parameters
+    ----------
+    starts : tuple of (rows + 1,) int64
+        Each part's row offsets.
+    times, extents, weights : tuple of (n_p,) float64; points : tuple of (n_p, 3) float64; ids : tuple of (n_p,) int32
+        Each part's echoes (points and ids are copied when ``point_out`` / ``id_out`` are not empty).
+    out_start : (rows + 1,) int64
+        Offsets of the merged rows (from :func:`count_lit`).
+    time_out, extent_out, weight_out : (m,) float64; point_out : (m, 3) or (0, 3) float64
+    id_out : (m,) or (0,) int32; path_out : (m,) int8
+        Written; ``path_out`` holds the part index.
+    """
+    for r in prange(out_start.shape[0] - 1):
+        k = out_start[r]
+        for p in range(len(starts)):
+            w = weights[p]
+            for i in range(starts[p][r], starts[p][r + 1]):
+                if not w[i] > 0.0:
+                    continue
+                time_out[k], extent_out[k], weight_out[k], path_out[k] = times[p][i], extents[p][i], w[i], p
+                if point_out.shape[0] > 0:
+                    point_out[k, 0], point_out[k, 1], point_out[k, 2] = (points[p][i, 0], points[p][i, 1],
+                                                                         points[p][i, 2])
+                if id_out.shape[0] > 0:
+                    id_out[k] = ids[p][i]
+                k += 1
+
+
+@njit(cache=True, nogil=True)
+def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps, idx_out, org_out, dir_out, len_out):
+    """The legs of a block's lit echoes that can be blocked, as float32 rays for an occlusion query.
+
+    Leg i starts at the sonar of its row's ping (``from_sonar``) or at its hit point x[i] and runs
+    along dirs[i] for dist[i]. Only its part below the top of the scene can be blocked: it is cut
+    there, and it is cast from eps along it to eps short of its end. Legs left with no length (a
+    flat floor's, a sonar above everything) and echoes of weight 0 are skipped.
+
+    Parameters
+    ----------
+    ray_start : (rows + 1,) int64
+        The block's rows (row = 2·ping + side).
+    x : (n, 3) float64; pos : (pings, 3) float64
+        Hit points and sonar positions, local frame, m.
+    from_sonar : bool
+    dirs : (n, 3) float64; dist : (n,) float64; weight : (n,) float64
+        Unit direction and length (m) of each echo's leg, and its weight.
+    top, eps : float
+        Top of the scene (local z, m) and the offset from each end, m.
+    idx_out : (n,) int64; org_out, dir_out : (n, 3) float32; len_out : (n,) float32
+        Written, the first k rows.
+
+    Returns
+    -------
+    k : int
+        Legs to cast.
+    """
+    k = 0
+    for row in range(ray_start.shape[0] - 1):
+        b = row // 2
+        for i in range(ray_start[row], ray_start[row + 1]):
+            if not weight[i] > 0.0:
+                continue
+            if from_sonar:
+                ox, oy, oz = pos[b, 0], pos[b, 1], pos[b, 2]
+            else:
+                ox, oy, oz = x[i, 0], x[i, 1], x[i, 2]
+            dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+            reach = (top - oz) / dz if dz > 0.0 else math.inf
+            length = min(dist[i] - eps, reach + eps) - eps
+            if not length > 0.0:
+                continue
+            idx_out[k] = i
+            org_out[k, 0], org_out[k, 1], org_out[k, 2] = ox + eps * dx, oy + eps * dy, oz + eps * dz
+            dir_out[k, 0], dir_out[k, 1], dir_out[k, 2] = dx, dy, dz
+            len_out[k] = length
+            k += 1
+    return k

@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from .. import multipath, refraction, swell
+from ..buffers import Buffers
 from ..config import FanSettings, Sonar
 from ..echoes import Echoes
 from ..fan import BlockEchoes, FanPlan, cast_block
@@ -29,7 +30,8 @@ class SideScanFrontEnd:
         self.sonar = sonar
         self.plan = FanPlan.build(sonar, fan)
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
-        self.buffers = refraction.Buffers() if sonar.environment.refracts else None
+        env = sonar.environment
+        self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
 
     def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
              want_ids: bool, clock: dict):
@@ -74,7 +76,7 @@ class SideScanFrontEnd:
             image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock)
             mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s)
             if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
-                mixed = dataclasses.replace(mixed, object_id=direct.object_id[np.isfinite(blk.range_m)])
+                mixed = dataclasses.replace(mixed, object_id=direct.object_id)
                 image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
         parts = [direct, mixed, image]
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
