@@ -11,7 +11,7 @@ from ._version import __version__
 
 from . import assets, laws, raycast, sediments
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
-from .environment import Environment, SeaSurface, SoundSpeedProfile
+from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
 from .laws.maps import BackscatterMap
@@ -23,6 +23,6 @@ from .simulate import simulate
 from .sonars import EchoSounder
 from .trajectory import Trajectory
 
-__all__ = ["BackscatterMap", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["AmbientNoise", "BackscatterMap", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "laws", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -63,6 +63,30 @@ class Transducer:
         fs = max(4.0 / pulse.duration_s, 4.0 * off)
         return dataclasses.replace(self, sample_rate_hz=float(math.ceil(fs * (1.0 - 1e-12))))
 
+    def _check_levels(self, owner: str) -> None:
+        """Validate ``source_level_db`` and ``self_noise_db_per_hz`` (a linear or µPa-at-1-m slip is refused)."""
+        if self.source_level_db is not None:
+            _check_number(owner, "source_level_db", self.source_level_db, lo=150.0, hi=250.0)
+        if self.self_noise_db_per_hz is not None:
+            _check_number(owner, "self_noise_db_per_hz", self.self_noise_db_per_hz, lo=-50.0, hi=150.0)
+
+    @property
+    def level_scale(self) -> float:
+        """10^(SL/10): µPa² per unit-source intensity (1.0 for a unit source)."""
+        return 1.0 if self.source_level_db is None else 10.0 ** (self.source_level_db / 10.0)
+
+    def noise_density(self) -> float:
+        """The received noise spectral density in µPa²/Hz: ambient/DI + self-noise (0 for a unit source)."""
+        if self.source_level_db is None:
+            return 0.0
+        n = 0.0
+        if self.environment.noise is not None:
+            n += 10.0 ** ((float(self.environment.noise.spectral_density_db(self.frequency_hz))
+                           - self.directivity_index_db) / 10.0)
+        if self.self_noise_db_per_hz is not None:
+            n += 10.0 ** (self.self_noise_db_per_hz / 10.0)
+        return n
+
     def _rate(self) -> float:
         if self.sample_rate_hz is None:
             raise ConfigError("Sonar.sample_rate_hz is None (derived from the pulse): use Sonar.for_pulse(pulse) "
@@ -107,6 +131,14 @@ class Sonar(Transducer):
         The medium's keywords ``sound_speed_m_s``, ``absorption_db_per_m``,
         ``temperature_c``, ``salinity_ppt``, ``depth_m`` and ``ph`` are still accepted
         here and go into ``environment``; read them as properties of the same name.
+    source_level_db : float or None
+        Source level SL, dB re 1 µPa at 1 m on axis, in [150, 250]. ``None`` (default): a
+        unit source (on-axis intensity 1 at 1 m), no noise. Set: the record is in µPa²
+        (the unit-source record × 10^(SL/10)) and holds the environment's ambient noise
+        and the receiver's self-noise (docs/physics.md §14).
+    self_noise_db_per_hz : float or None
+        The receiver's own noise as an equivalent input spectral density, dB re 1 µPa²/Hz
+        (not reduced by the directivity index); heard only with a source level.
     """
 
     frequency_hz: float = 400e3
@@ -116,12 +148,15 @@ class Sonar(Transducer):
     max_range_m: float = 50.0
     sample_rate_hz: float | None = None
     environment: Environment = Environment()
+    source_level_db: float | None = None
+    self_noise_db_per_hz: float | None = None
 
     def __post_init__(self):
         if isinstance(self.environment, dict):  # from a saved record's metadata
             object.__setattr__(self, "environment", Environment(**self.environment))
         if not isinstance(self.environment, Environment):
             raise ConfigError(f"Sonar.environment must be a sonar_embree.Environment, got {self.environment!r}")
+        self._check_levels("Sonar")
         for name in ("frequency_hz", "length_m", "height_m", "max_range_m"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)
@@ -137,6 +172,15 @@ class Sonar(Transducer):
     def default_speckle_cell_m(self) -> float:
         """Speckle lattice spacing by default, lx/2: the along-track resolution (docs/physics.md §4)."""
         return 0.5 * self.length_m
+
+    @property
+    def directivity_index_db(self) -> float:
+        """Receiving directivity index DI = 10·log10(4π·lx·ly/λ²) of the baffled membrane, dB (docs/physics.md §14).
+
+        The large-aperture form for a rectangular piston in a baffle (R. J. Urick, *Principles of Underwater
+        Sound*, 3rd ed., McGraw-Hill, 1983, §3.6): 28.1 dB for the default 190 mm × 3.8 mm at 400 kHz.
+        """
+        return 10.0 * math.log10(4.0 * math.pi * self.length_m * self.height_m / self.wavelength_m ** 2)
 
     @property
     def tilt_rad(self) -> float:

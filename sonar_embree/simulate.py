@@ -241,6 +241,7 @@ class _Run:
     n_out: int
     altitude: np.ndarray
     n_rays: np.ndarray
+    n0: float | None = None  # receiver noise density, unit-source intensity per Hz
 
     @classmethod
     def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster) -> "_Run":
@@ -262,7 +263,7 @@ class _Run:
         checks.check_setup(caster, sonar, pos_local, max_r + c * pulse.duration_s / 2.0)
         checks.check_surface(compiled, sonar, pos_local)
         checks.check_profile(compiled, sonar, pos_local, labels)
-        n0 = None if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
+        n0 = _noise_density(sonar, chain)
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
         kernel = (pulses.expected_kernel(pulse, sonar.frequency_hz, fs, chain.matched_filter)
                   if labels or not chain.speckle else None)
@@ -270,7 +271,16 @@ class _Run:
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), n0, kernel))
         truth = GroundTruth((n_p, n_ch, n_out), compiled, kernel) if labels else None
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, trajectory.rotations(), pos_local,
-                   max_r, n_out, np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64))
+                   max_r, n_out, np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0)
+
+
+def _noise_density(sonar, chain: SignalChain) -> float | None:
+    """Receiver noise N0 in unit-source intensity per Hz (the back end adds it before the source level scales the
+    record): the chain's N0 (record units) plus, with a source level, the sea's and the receiver's (docs/physics.md
+    §14). None: no noise."""
+    n0 = 0.0 if chain.noise_db_per_hz is None else 10.0 ** (chain.noise_db_per_hz / 10.0)
+    n0 = (n0 + sonar.noise_density()) / sonar.level_scale
+    return n0 if n0 > 0.0 else None
 
 
 def _progress_bar(progress: bool, n_pings: int):
@@ -287,6 +297,9 @@ def _process(run: _Run, keep_complex: bool):
     intensity, cplx = run.back.finish()
     intensity = intensity[..., :n_out]
     cplx = cplx[..., :n_out] if keep_complex else None
+    if sonar.source_level_db is not None:  # unit source → µPa²: one scale, after the noise went in (scaled down)
+        intensity = intensity * sonar.level_scale
+        cplx = None if cplx is None else cplx * math.sqrt(sonar.level_scale)
     if chain.lowpass_hz is not None:
         intensity = processing.lowpass(intensity, chain.lowpass_hz, sonar.sample_rate_hz)
     if chain.tvg:
@@ -306,7 +319,10 @@ def _record(run: _Run, intensity, cplx, trajectory, fan, start_iso: str) -> Reco
     sonar, chain = run.sonar, run.chain
     attrs = {"mode": run.back.mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
              "quality": fan.quality, "rays_per_ping": float(run.n_rays.mean()) if len(trajectory) else 0.0,
-             "start_time": start_iso}
+             "start_time": start_iso,
+             "intensity_unit": "unit source" if sonar.source_level_db is None else "uPa^2",
+             "received_noise_db_per_hz": (None if run.n0 is None
+                                          else 10.0 * math.log10(run.n0 * sonar.level_scale))}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = run.back.tables.carrier_factor * sonar.sample_rate_hz
     return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,

@@ -11,6 +11,7 @@ from ..errors import ConfigError
 from ..validation import check_number, field_names
 from .ainslie_mccolm import ainslie_mccolm_db_per_m
 from .francois_garrison import francois_garrison_db_per_m
+from .noise import AmbientNoise
 from .profile import SoundSpeedProfile
 from .surface import SeaSurface
 
@@ -53,6 +54,10 @@ class Environment:
         c(depth) for curved rays (docs/physics.md §12); None (default) or a uniform profile
         (which must equal ``sound_speed_m_s``): straight rays, today's code path. Its depth 0 is
         its ``surface_z_m`` or the surface's ``z_m``. Not yet combined with a surface's multipath.
+    noise : AmbientNoise or None
+        The sea's ambient noise (docs/physics.md §14), heard once the sonar has a source level
+        (``Sonar.source_level_db``): default :class:`AmbientNoise` () (5 m/s wind, moderate
+        shipping, thermal); None: a silent sea. A unit-source record never holds it.
     """
 
     sound_speed_m_s: float = 1500.0
@@ -64,6 +69,7 @@ class Environment:
     absorption_db_per_m: float | None = None
     surface: SeaSurface | None = None
     sound_speed: SoundSpeedProfile | None = None
+    noise: AmbientNoise | None = AmbientNoise()
 
     def __post_init__(self):
         check_number("Environment", "sound_speed_m_s", self.sound_speed_m_s, positive=True)
@@ -85,6 +91,7 @@ class Environment:
         if self.surface is not None and not isinstance(self.surface, SeaSurface):
             raise ConfigError(f"Environment.surface must be a sonar_embree.SeaSurface or None, got {self.surface!r}")
         object.__setattr__(self, "sound_speed", _profile(self.sound_speed))
+        object.__setattr__(self, "noise", _noise(self.noise))
         self._check_profile()
 
     def _check_profile(self):
@@ -120,6 +127,18 @@ class Environment:
             return float(self.absorption_db_per_m)
         return ABSORPTION_MODELS[self.absorption_model](frequency_hz, self.temperature_c, self.salinity_ppt,
                                                         self.depth_m, self.ph)
+
+
+def _noise(value):
+    """An AmbientNoise from itself, None/False (a silent sea), or a dict (TOML ``noise = {…}``, a record's metadata)."""
+    if value is None or value is False or isinstance(value, AmbientNoise):
+        return None if value is False else value
+    if not isinstance(value, dict):
+        raise ConfigError(f"Environment.noise must be a sonar_embree.AmbientNoise, None or false, got {value!r}")
+    unknown = sorted(set(value) - set(field_names(AmbientNoise)))
+    if unknown:
+        raise ConfigError(f"Environment.noise: unknown key {unknown[0]!r}; one of {', '.join(field_names(AmbientNoise))}")
+    return AmbientNoise(**value)
 
 
 def _profile(value):

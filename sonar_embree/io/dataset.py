@@ -37,7 +37,10 @@ def _flat_attrs(record) -> dict:
              "source": f"sonar_embree {__version__} (ray-traced side-scan simulation)",
              "package": "sonar_embree", "package_version": __version__,
              "sample_order": "sample n at time n/fs from the start of transmission, both channels",
-             "intensity_reference": "unit source: on-axis intensity 1 at 1 m (docs/physics.md section 3)"}
+             "intensity_reference": ("unit source: on-axis intensity 1 at 1 m (docs/physics.md section 3)"
+                                     if record.sonar.source_level_db is None else
+                                     f"source level {record.sonar.source_level_db:g} dB re 1 uPa at 1 m: intensities in "
+                                     "uPa^2 (docs/physics.md section 14)")}
     for group, obj in (("sonar", record.sonar), ("environment", record.sonar.environment), ("pulse", record.pulse)):
         for k, v in dataclasses.asdict(obj).items():
             if v is not None and not isinstance(v, dict):
@@ -90,8 +93,13 @@ def to_xarray(record):
     """
     import xarray as xr
 
+    sl = record.sonar.source_level_db
+
     def intensity(side):
-        return {"units": "1", "long_name": f"{side} intensity for a unit source (linear)"}
+        if sl is None:
+            return {"units": "1", "long_name": f"{side} intensity for a unit source (linear)"}
+        return {"units": "uPa2", "long_name": f"{side} mean-square pressure at the receiver, source level {sl:g} dB "
+                                              "re 1 uPa at 1 m"}
 
     data = {ch: (("ping", "sample"), record.channel(ch), intensity(ch)) for ch in record.channels}
     data |= {"altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
@@ -99,7 +107,7 @@ def to_xarray(record):
     for side in record.channels:
         z = record.channel(side, complex_=True)
         if z is not None:
-            data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1",
+            data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1" if sl is None else "uPa",
                                                               "long_name": f"{side} complex baseband, |.|^2 = {side}"})
     coords = {"time_s": (("sample",), record.time_s,
                          {"units": "s", "long_name": "time from the start of transmission"}),

@@ -51,6 +51,8 @@ class EchoSounder(Transducer):
         Record sample rate, Hz (``None``: from the pulse, as for :class:`~sonar_embree.Sonar`).
     environment : Environment
         The medium.
+    source_level_db, self_noise_db_per_hz : float or None
+        As for :class:`~sonar_embree.Sonar`.
     """
 
     frequency_hz: float = 200e3
@@ -58,6 +60,8 @@ class EchoSounder(Transducer):
     max_range_m: float = 50.0
     sample_rate_hz: float | None = None
     environment: Environment = Environment()
+    source_level_db: float | None = None
+    self_noise_db_per_hz: float | None = None
 
     channels = ("down",)
 
@@ -71,11 +75,18 @@ class EchoSounder(Transducer):
             check_number("EchoSounder", "sample_rate_hz", self.sample_rate_hz, positive=True)
         if not isinstance(self.environment, Environment):
             raise ConfigError(f"EchoSounder.environment must be a sonar_embree.Environment, got {self.environment!r}")
+        self._check_levels("EchoSounder")
 
     @property
     def ka(self) -> float:
         """k·a of the piston that has this beamwidth."""
         return HALF_POWER_X / math.sin(math.radians(self.beamwidth_deg) / 2.0)
+
+    @property
+    def directivity_index_db(self) -> float:
+        """Receiving directivity index DI = 10·log10((ka)²) of the baffled circular piston, dB (Kinsler et al.,
+        §8.9, large ka; docs/physics.md §14)."""
+        return 20.0 * math.log10(self.ka)
 
     @property
     def default_speckle_cell_m(self) -> float:
