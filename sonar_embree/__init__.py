@@ -16,6 +16,7 @@ from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
 from .laws.maps import BackscatterMap
 from .laws.texture import KTexture
+from .receiver import AGC, TVG, Receiver
 from .record import Record
 from .runs import batch, demo, runconfig, sweep  # not cli: python -m sonar_embree.runs.cli runs it
 from .scene import Scene, seafloor, shipwreck
@@ -23,6 +24,6 @@ from .simulate import simulate
 from .sonars import EchoSounder
 from .trajectory import Trajectory
 
-__all__ = ["AmbientNoise", "BackscatterMap", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "laws", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -13,6 +13,7 @@ import math
 from dataclasses import dataclass
 
 from .environment import Environment
+from .receiver import Receiver, receiver_of
 from .errors import ConfigError
 from .laws import Lambert, Summable
 from .laws.texture import KTexture
@@ -69,6 +70,10 @@ class Transducer:
             _check_number(owner, "source_level_db", self.source_level_db, lo=150.0, hi=250.0)
         if self.self_noise_db_per_hz is not None:
             _check_number(owner, "self_noise_db_per_hz", self.self_noise_db_per_hz, lo=-50.0, hi=150.0)
+        object.__setattr__(self, "receiver", receiver_of(self.receiver))
+        if self.receiver is not None and self.source_level_db is None:
+            raise ConfigError(f"{owner}.receiver needs source_level_db: a receive chain digitises pressures (uPa), "
+                              "a unit source has none")
 
     @property
     def level_scale(self) -> float:
@@ -139,6 +144,9 @@ class Sonar(Transducer):
     self_noise_db_per_hz : float or None
         The receiver's own noise as an equivalent input spectral density, dB re 1 µPa²/Hz
         (not reduced by the directivity index); heard only with a source level.
+    receiver : Receiver or None
+        The device's receive chain (sensitivity, TVG or AGC, ADC; docs/physics.md §15): the
+        record then also holds the integer ``samples`` a device would store. Needs a source level.
     """
 
     frequency_hz: float = 400e3
@@ -150,6 +158,7 @@ class Sonar(Transducer):
     environment: Environment = Environment()
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
+    receiver: Receiver | None = None
 
     def __post_init__(self):
         if isinstance(self.environment, dict):  # from a saved record's metadata

@@ -45,6 +45,9 @@ class Record:
         The channel names (side-scan: ``("port", "starboard")``); ``port``,
         ``starboard`` (and ``port_complex``, ``starboard_complex``) read them, shape
         (n_pings, n_samples).
+    samples : (n_pings, n_channels, n_samples) uint8 or uint16, or None
+        The integers the sonar's :class:`~sonar_embree.Receiver` stores (gain, ADC), beside the
+        physical ``data``; None without a receiver.
     """
 
     data: np.ndarray
@@ -57,11 +60,14 @@ class Record:
     labels: Labels | None = None
     complex_data: np.ndarray | None = None
     channels: tuple = ("port", "starboard")
+    samples: np.ndarray | None = None
 
     def __post_init__(self):
         if self.data.ndim != 3 or self.data.shape[1] != len(self.channels):
             raise ConfigError(f"Record.data must have shape (pings, {len(self.channels)} channels, samples), "
                               f"got {self.data.shape}")
+        if self.samples is not None and self.samples.shape != self.data.shape:
+            raise ConfigError(f"Record.samples must have the shape of data {self.data.shape}, got {self.samples.shape}")
 
     def channel(self, name: str, complex_: bool = False) -> np.ndarray:
         """The (n_pings, n_samples) series of channel ``name`` (the complex signal with ``complex_``)."""
@@ -112,9 +118,10 @@ class Record:
             attrs["rays_per_ping"] = float(np.dot(n, [p.attrs["rays_per_ping"] for p in parts]) / n.sum())
         labels = None if first.labels is None else Labels.concatenate([p.labels for p in parts])
         cplx = None if first.complex_data is None else np.concatenate([p.complex_data for p in parts])
+        ints = None if first.samples is None else np.concatenate([p.samples for p in parts])
         return cls(np.concatenate([p.data for p in parts]), first.time_s,
                    Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
-                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels)
+                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels, ints)
 
     # ------------------------------------------------------------------ files
     def save(self, path) -> None:
@@ -133,6 +140,8 @@ class Record:
             extra = {f"labels_{k}": getattr(self.labels, k) for k in Labels.ARRAYS}
         if self.complex_data is not None:
             extra.update({f"{ch}_complex": self.channel(ch, complex_=True) for ch in self.channels})
+        if self.samples is not None:
+            extra["samples"] = self.samples
         series = {ch: self.channel(ch) for ch in self.channels}
 
         def write(tmp):
@@ -169,7 +178,7 @@ class Record:
                 else None)
         return cls(np.stack([arrays[ch] for ch in channels], axis=1), arrays["time_s"], traj,
                    sonar_cls(**meta["sonar"]), Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}),
-                   labels, cplx, channels)
+                   labels, cplx, channels, arrays.get("samples"))
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""
@@ -183,17 +192,18 @@ class Record:
 
         to_zarr(self, path)
 
-    def to_xtf(self, path, start=None, *, scale="auto", surface_z_m: float | None = None) -> None:
+    def to_xtf(self, path, start=None, *, scale="auto", surface_z_m: float | None = None, samples: bool = True) -> None:
         """Write an XTF file (2 sonar channels, one packet per ping) that pyxtf reads; atomic.
 
-        Samples are float32 intensity × ``scale`` ("auto": a power of ten that makes
+        A record with a receiver's integer ``samples`` is written as the device would (``samples=False``:
+        floats). Float samples are intensity × ``scale`` ("auto": a power of ten that makes
         the image visible in viewers, written in the header); port is stored from far
         range to nadir, starboard from nadir outwards; ping times from ``start``
         (default ``attrs["start_time"]``). Conventions in :mod:`sonar_embree.io.xtf`.
         """
         from .io.xtf import to_xtf
 
-        to_xtf(self, path, start=start, scale=scale, surface_z_m=surface_z_m)
+        to_xtf(self, path, start=start, scale=scale, surface_z_m=surface_z_m, samples=samples)
 
     def to_coco(self, path, file_name: str = "waterfall.png", categories=None, max_columns: int | None = 1024):
         """Write COCO JSON with each object's box in the waterfall PNG ``file_name``; atomic.

@@ -190,9 +190,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if bar is not None:
         bar.close()
     t = time.perf_counter()
-    intensity, cplx = _process(run, keep_complex)
+    intensity, cplx, samples = _process(run, keep_complex)
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
-    return _record(run, intensity, cplx, trajectory, fan, iso_utc(start_time))
+    return _record(run, intensity, cplx, samples, trajectory, fan, iso_utc(start_time))
 
 
 def _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset, chain_kwargs):
@@ -292,7 +292,8 @@ def _progress_bar(progress: bool, n_pings: int):
 
 
 def _process(run: _Run, keep_complex: bool):
-    """The common tail: crop to the window, lowpass, perfect TVG; intensity (pings, channels, n_out) and complex."""
+    """The common tail: crop to the window, source level, lowpass, the receiver's samples, perfect TVG; intensity
+    (pings, channels, n_out), complex and the device's integer samples (or None)."""
     sonar, chain, n_out = run.sonar, run.chain, run.n_out
     intensity, cplx = run.back.finish()
     intensity = intensity[..., :n_out]
@@ -302,6 +303,9 @@ def _process(run: _Run, keep_complex: bool):
         cplx = None if cplx is None else cplx * math.sqrt(sonar.level_scale)
     if chain.lowpass_hz is not None:
         intensity = processing.lowpass(intensity, chain.lowpass_hz, sonar.sample_rate_hz)
+    samples = None
+    if sonar.receiver is not None:  # the device's integers, from the physical pressures (before display TVG)
+        samples = sonar.receiver.samples(intensity, np.arange(n_out) / sonar.sample_rate_hz, sonar)
     if chain.tvg:
         gain = processing.tvg_gain(np.arange(n_out) / sonar.sample_rate_hz, sonar.sound_speed_m_s,
                                    sonar.alpha_db_per_m)
@@ -312,10 +316,10 @@ def _process(run: _Run, keep_complex: bool):
     if not np.isfinite(intensity).all():  # never reached by valid settings; never let NaN/inf into a record
         raise ConfigError("simulate: the record would hold NaN or infinite values; check the absorption, "
                           "noise and TVG settings")
-    return intensity, cplx
+    return intensity, cplx, samples
 
 
-def _record(run: _Run, intensity, cplx, trajectory, fan, start_iso: str) -> Record:
+def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str) -> Record:
     sonar, chain = run.sonar, run.chain
     attrs = {"mode": run.back.mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
              "quality": fan.quality, "rays_per_ping": float(run.n_rays.mean()) if len(trajectory) else 0.0,
@@ -327,4 +331,5 @@ def _record(run: _Run, intensity, cplx, trajectory, fan, start_iso: str) -> Reco
         attrs["carrier_rate_hz"] = run.back.tables.carrier_factor * sonar.sample_rate_hz
     return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,
                   run.pulse, run.altitude, attrs, None if run.truth is None else run.truth.labels(),
-                  None if cplx is None else np.ascontiguousarray(cplx), channels=tuple(run.front.channels))
+                  None if cplx is None else np.ascontiguousarray(cplx), channels=tuple(run.front.channels),
+                  samples=samples)

@@ -45,6 +45,12 @@ def _flat_attrs(record) -> dict:
         for k, v in dataclasses.asdict(obj).items():
             if v is not None and not isinstance(v, dict):
                 attrs[f"{group}.{k}"] = _attr_value(v)
+    rx = getattr(record.sonar, "receiver", None)
+    if rx is not None:
+        for k, v in dataclasses.asdict(rx).items():
+            for kk, vv in (v.items() if isinstance(v, dict) else ((None, v),)):
+                attrs[f"receiver.{k}" + ("" if kk is None else f".{kk}")] = _attr_value(vv)
+        attrs["receiver.gain.kind"] = type(rx.gain).__name__.lower()
     for k, v in record.attrs.items():
         if v is not None:
             attrs[f"simulation.{k}"] = _attr_value(v)
@@ -109,6 +115,12 @@ def to_xarray(record):
         if z is not None:
             data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1" if sl is None else "uPa",
                                                               "long_name": f"{side} complex baseband, |.|^2 = {side}"})
+    if record.samples is not None:  # the device's integers (Receiver), beside the physical intensity
+        rx = record.sonar.receiver
+        for i, side in enumerate(record.channels):
+            data[f"{side}_samples"] = (("ping", "sample"), record.samples[:, i],
+                                       {"units": "1", "long_name": f"{side} ADC codes ({rx.adc_bits} bits, "
+                                                                   f"full scale {rx.full_scale_v:g} V) after the gain"})
     coords = {"time_s": (("sample",), record.time_s,
                          {"units": "s", "long_name": "time from the start of transmission"}),
               "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),

@@ -7,7 +7,12 @@ pyxtf reads the files (tested).
 
 Conventions of what is written:
 
-- Samples: 4-byte IEEE floats (SampleFormat 5): the record's linear intensity
+- Device samples: a record from a sonar with a :class:`~sonar_embree.Receiver` is written as the device
+  would store it: its integer ADC codes (uint16 as SampleFormat 3 "word", 2 bytes per sample, or uint8 as
+  SampleFormat 8 "byte"), unipolar, VoltScale the ADC's full scale in volts, and the gain law in each
+  channel header: GainCode = k of a TVG (20/30/40; 0 for AGC), InitialGainCode = its G0 in dB,
+  MillivoltScale = full scale in mV. ``scale`` does not apply to them.
+- Otherwise samples are 4-byte IEEE floats (SampleFormat 5): the record's linear intensity
   (unit source) times a scale factor, rounded to float32. ``scale="auto"``
   (default) is the power of ten that puts the 99.5th percentile of the positive
   samples between 100 and 1000 — raw unit-source intensities (~1e-12) show black
@@ -96,6 +101,7 @@ assert (_CHAN_INFO.itemsize, _FILE_HEADER.itemsize, _PING_HEADER.itemsize, _CHAN
 
 PORT_CHANNEL, STARBOARD_CHANNEL = 1, 2  # XTF TypeOfChannel
 SAMPLE_FORMAT_FLOAT32 = 5
+SAMPLE_FORMAT = {np.dtype(np.uint16): 3, np.dtype(np.uint8): 8}  # XTF word, byte
 KNOT_M_S = 1852.0 / 3600.0
 
 
@@ -122,7 +128,7 @@ def speed_m_s(trajectory) -> np.ndarray:
     return np.concatenate([v[:1], 0.5 * (v[1:] + v[:-1]), v[-1:]])
 
 
-def _file_header(record, factor: float) -> np.ndarray:
+def _file_header(record, factor: float, ints) -> np.ndarray:
     from .._version import __version__
 
     h = np.zeros((), dtype=_FILE_HEADER)
@@ -130,18 +136,22 @@ def _file_header(record, factor: float) -> np.ndarray:
     h["RecordingProgramName"] = b"sonar_em"
     h["RecordingProgramVersion"] = __version__.encode()[:8]
     h["SonarName"] = b"sonar_embree"
-    h["NoteString"] = f"simulated side-scan, unit-source intensity x {factor:.6g}".encode()[:64]
+    h["NoteString"] = (f"simulated side-scan, unit-source intensity x {factor:.6g}" if ints is None else
+                       f"simulated side-scan, {record.sonar.receiver.adc_bits}-bit ADC codes").encode()[:64]
     h["NavUnits"] = 0
     h["NumberOfSonarChannels"] = 2
     s = record.sonar
     beam_deg = math.degrees(s.wavelength_m / s.length_m)  # first-null to first-null / 2, along track
     for i, (kind, name) in enumerate(((PORT_CHANNEL, b"port"), (STARBOARD_CHANNEL, b"starboard"))):
         c = h["ChanInfo"][i]
-        c["TypeOfChannel"], c["SubChannelNumber"], c["BytesPerSample"] = kind, i, 4
+        c["TypeOfChannel"], c["SubChannelNumber"] = kind, i
+        c["BytesPerSample"] = 4 if ints is None else ints.dtype.itemsize
         c["Reserved"] = record.port.shape[1]  # legacy samples-per-channel field
         c["ChannelName"], c["VoltScale"], c["Frequency"] = name, 1.0, s.frequency_hz / 1e3
         c["HorizBeamAngle"], c["TiltAngle"], c["BeamWidth"] = beam_deg, s.tilt_deg, beam_deg
-        c["SampleFormat"] = SAMPLE_FORMAT_FLOAT32
+        c["SampleFormat"] = SAMPLE_FORMAT_FLOAT32 if ints is None else SAMPLE_FORMAT[ints.dtype]
+        if ints is not None:
+            c["UniPolar"], c["VoltScale"] = 1, record.sonar.receiver.full_scale_v
     for i in range(2, 6):
         h["ChanInfo"][i]["Reserved"] = 1024
     return h
@@ -169,7 +179,7 @@ def _ping_times(h, start: dt.datetime, times_s) -> None:
 
 
 def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto",
-           surface_z_m: float | None = None) -> None:
+           surface_z_m: float | None = None, samples: bool = True) -> None:
     """Write ``record`` as an XTF file (atomic); conventions in this module's docstring.
 
     Parameters
@@ -180,16 +190,20 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         Time of ping time 0 (naive: UTC); default the record's ``attrs["start_time"]``
         (the time it was simulated), else now.
     scale : "auto" or float
-        Factor on the intensities written (see :func:`sample_scale`).
+        Factor on the intensities written as floats (see :func:`sample_scale`).
     surface_z_m : float, optional
         World height of the sea surface, m, for SensorDepth = surface_z_m − z; every
         pose must lie below it. Default: no surface known, depth written as 0.
+    samples : bool
+        Write the device's integer samples when the record has them (default); False:
+        the float intensities.
     """
     if tuple(record.channels) != ("port", "starboard"):
         raise ConfigError(f"to_xtf: XTF holds side-scan records (port and starboard); this record's channels are "
                           f"{', '.join(record.channels)}")
     when = _start(record, start)
-    factor = sample_scale(record, scale)
+    ints = record.samples if samples and record.samples is not None else None
+    factor = sample_scale(record, scale) if ints is None else 1.0
     t = record.trajectory
     if surface_z_m is not None:
         if isinstance(surface_z_m, bool) or not isinstance(surface_z_m, (int, float)) or not math.isfinite(surface_z_m):
@@ -197,11 +211,30 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         if np.any(t.positions_m[:, 2] > surface_z_m):
             raise ConfigError(f"to_xtf: the sonar rises to z = {t.positions_m[:, 2].max():.2f} m, above the sea "
                               f"surface at surface_z_m = {surface_z_m} m")
+    packet = _packets(record, when, surface_z_m, ints)
+    if ints is None:
+        packet["port"] = record.port[:, ::-1] * factor
+        packet["stbd"] = record.starboard * factor
+    else:
+        packet["port"] = ints[:, 0, ::-1]
+        packet["stbd"] = ints[:, 1]
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            fh.write(_file_header(record, factor, ints).tobytes())
+            fh.write(packet.tobytes())
+
+    atomic_write(path, write, suffix=".xtf")
+
+
+def _packets(record, when, surface_z_m, ints) -> np.ndarray:
+    """One sonar packet per ping with its headers filled in; the samples left to the caller."""
+    t, s = record.trajectory, record.sonar
     n_p, n_s = record.port.shape
-    s = record.sonar
+    kind = "<f4" if ints is None else ints.dtype.newbyteorder("<")
     packet = np.zeros(n_p, dtype=np.dtype([("head", _PING_HEADER), ("port_head", _CHAN_HEADER),
-                                           ("port", "<f4", (n_s,)), ("stbd_head", _CHAN_HEADER),
-                                           ("stbd", "<f4", (n_s,))]))
+                                           ("port", kind, (n_s,)), ("stbd_head", _CHAN_HEADER),
+                                           ("stbd", kind, (n_s,))]))
     h = packet["head"]
     h["MagicNumber"], h["HeaderType"], h["NumChansToFollow"] = 0xFACE, 0, 2
     h["NumBytesThisRecord"] = packet.dtype.itemsize
@@ -219,19 +252,14 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
     h["ShipGyro"] = t.heading_deg
     dt_ping = np.diff(t.times_s)
     per_ping = np.concatenate([dt_ping, dt_ping[-1:]]) if n_p > 1 else np.ones(1)
-    for side, key, number in (("port_head", "port", 0), ("stbd_head", "stbd", 1)):
+    codes = {} if ints is None else s.receiver.header_codes()
+    for side, number in (("port_head", 0), ("stbd_head", 1)):
         c = packet[side]
         c["ChannelNumber"], c["SlantRange"] = number, s.max_range_m
         c["TimeDuration"] = n_s / s.sample_rate_hz
         c["SecondsPerPing"] = per_ping
         c["Frequency"] = min(int(round(s.frequency_hz / 1e3)), 65535)
         c["NumSamples"] = n_s
-    packet["port"] = record.port[:, ::-1] * factor
-    packet["stbd"] = record.starboard * factor
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            fh.write(_file_header(record, factor).tobytes())
-            fh.write(packet.tobytes())
-
-    atomic_write(path, write, suffix=".xtf")
+        for name, value in codes.items():
+            c[name] = value
+    return packet

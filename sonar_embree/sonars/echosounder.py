@@ -18,6 +18,7 @@ import numpy as np
 from scipy.special import j1
 
 from ..config import FanSettings, Transducer
+from ..receiver import Receiver
 from ..echoes import Echoes
 from ..environment import Environment
 from ..errors import ConfigError
@@ -51,7 +52,7 @@ class EchoSounder(Transducer):
         Record sample rate, Hz (``None``: from the pulse, as for :class:`~sonar_embree.Sonar`).
     environment : Environment
         The medium.
-    source_level_db, self_noise_db_per_hz : float or None
+    source_level_db, self_noise_db_per_hz, receiver
         As for :class:`~sonar_embree.Sonar`.
     """
 
@@ -62,6 +63,7 @@ class EchoSounder(Transducer):
     environment: Environment = Environment()
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
+    receiver: Receiver | None = None
 
     channels = ("down",)
 

@@ -1,0 +1,182 @@
+"""The receive chain as a device records it: sensitivity, TVG or AGC, ADC (docs/physics.md §15).
+
+From the record's mean-square pressure I(t) in µPa² (a sonar with a source level) to the integers a device
+stores, per ping and channel:
+
+    v(t)   = 10^(S/20)·√I(t)                       volts rms at the hydrophone's output, S in dB re 1 V/µPa
+    g(t)   = G(R)/20 dB, R = c·t/2                 TVG: G(R) = G0 + k·log10(max(R, 1 m)) + 2αR, k = 20, 30, 40
+           = target·V_fs / √⟨(v)²⟩_window          or AGC: a centred moving mean over ``window_s``
+    code   = clip(round(v·10^(g)/Δ), 0, 2^b − 1),  Δ = V_fs/(2^b − 1)
+
+the ADC sampling the detected envelope (unipolar), rounding to the nearest level and clipping at full scale
+V_fs. The TVG law is the textbook one that undoes spreading (k = 40: two-way spherical spreading of a point
+target, 30: of a seafloor's reverberation, 20: cylindrical) and absorption (Urick 1983, §12.5; Lurton,
+*An Introduction to Underwater Acoustics*, 2nd ed., Springer, 2010, §9.2); the quantisation error of a
+rounding ADC is uniform on ±Δ/2 with variance Δ²/12 (Widrow and Kollár, *Quantization Noise*, Cambridge
+University Press, 2008, ch. 4).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ConfigError
+from .validation import check_number, field_names
+
+
+@dataclass(frozen=True)
+class TVG:
+    """Time-varied gain G(R) = g0_db + k·log10(R/1 m) + 2·α·R dB (α the sonar's one-way absorption, dB/m).
+
+    Parameters
+    ----------
+    g0_db : float
+        Gain at 1 m, dB (default 20 dB).
+    k : float
+        Spreading law: 20, 30 or 40 (dB per decade of range).
+    absorption : bool
+        Include the 2αR term (default True).
+    """
+
+    g0_db: float = 20.0
+    k: float = 30.0
+    absorption: bool = True
+
+    def __post_init__(self):
+        check_number("TVG", "g0_db", self.g0_db, lo=-100.0, hi=200.0)
+        if self.k not in (20, 30, 40):
+            raise ConfigError(f"TVG.k must be 20, 30 or 40 (dB per decade), got {self.k!r}")
+
+    def gain_db(self, range_m: np.ndarray, alpha_db_per_m: float) -> np.ndarray:
+        """G(R) in dB for slant ranges ``range_m`` (m; below 1 m held at 1 m)."""
+        r = np.maximum(np.asarray(range_m, dtype=float), 1.0)
+        return self.g0_db + self.k * np.log10(r) + (2.0 * alpha_db_per_m * r if self.absorption else 0.0)
+
+
+@dataclass(frozen=True)
+class AGC:
+    """Automatic gain control: each sample's gain brings the moving RMS of the signal to ``target``·V_fs.
+
+    Parameters
+    ----------
+    window_s : float
+        Length of the centred moving mean of v², s.
+    target : float
+        Wanted RMS as a fraction of full scale, in (0, 1).
+    """
+
+    window_s: float = 5e-3
+    target: float = 0.25
+
+    def __post_init__(self):
+        check_number("AGC", "window_s", self.window_s, positive=True, hi=10.0)
+        check_number("AGC", "target", self.target, positive=True, hi=1.0)
+
+
+@dataclass(frozen=True)
+class Receiver:
+    """A device's receive chain: hydrophone sensitivity, a gain law and an ADC.
+
+    Parameters
+    ----------
+    sensitivity_db : float
+        Receiving sensitivity with the preamplifier, dB re 1 V/µPa (typically −200 to −160).
+    gain : TVG or AGC
+        The gain law (default: 30·log10 R + 2αR from 20 dB at 1 m).
+    adc_bits : int
+        ADC resolution, 1 to 16 bits: samples are uint8 up to 8 bits, uint16 above.
+    full_scale_v : float
+        ADC full scale, V (the envelope clips there).
+    """
+
+    sensitivity_db: float = -180.0
+    gain: TVG | AGC = TVG()
+    adc_bits: int = 16
+    full_scale_v: float = 1.0
+
+    def __post_init__(self):
+        check_number("Receiver", "sensitivity_db", self.sensitivity_db, lo=-260.0, hi=-100.0)
+        check_number("Receiver", "full_scale_v", self.full_scale_v, positive=True, hi=1e3)
+        if isinstance(self.adc_bits, bool) or not isinstance(self.adc_bits, (int, np.integer)) \
+                or not 1 <= self.adc_bits <= 16:
+            raise ConfigError(f"Receiver.adc_bits must be an integer in 1 … 16, got {self.adc_bits!r}")
+        object.__setattr__(self, "gain", _gain(self.gain))
+
+    @property
+    def dtype(self):
+        """numpy dtype of the samples: uint8 up to 8 bits, else uint16."""
+        return np.uint8 if self.adc_bits <= 8 else np.uint16
+
+    @property
+    def step_v(self) -> float:
+        """Δ = V_fs/(2^b − 1), V."""
+        return self.full_scale_v / (2 ** self.adc_bits - 1)
+
+    def volts(self, intensity_upa2) -> np.ndarray:
+        """Hydrophone output, V rms, for mean-square pressures in µPa²."""
+        return 10.0 ** (self.sensitivity_db / 20.0) * np.sqrt(np.maximum(intensity_upa2, 0.0))
+
+    def digitise(self, volts) -> np.ndarray:
+        """The ADC: round to the nearest of 2^b levels Δ apart, clip to [0, 2^b − 1]; ``dtype`` codes."""
+        code = np.rint(np.asarray(volts, dtype=float) / self.step_v)
+        return np.clip(code, 0, 2 ** self.adc_bits - 1).astype(self.dtype)
+
+    def gained(self, volts: np.ndarray, time_s: np.ndarray, sound_speed_m_s: float, alpha_db_per_m: float,
+               sample_rate_hz: float) -> np.ndarray:
+        """``volts`` (…, n) after the gain law, time along the last axis."""
+        g = self.gain
+        if isinstance(g, TVG):
+            return volts * 10.0 ** (g.gain_db(0.5 * sound_speed_m_s * time_s, alpha_db_per_m) / 20.0)
+        from scipy.ndimage import uniform_filter1d
+
+        n = max(int(round(g.window_s * sample_rate_hz)), 1)
+        rms = np.sqrt(uniform_filter1d(volts * volts, n, axis=-1, mode="nearest"))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.where(rms > 0, volts * (g.target * self.full_scale_v) / rms, 0.0)
+
+    def samples(self, intensity_upa2, time_s, sonar) -> np.ndarray:
+        """The device's integer samples (same shape as ``intensity_upa2``, µPa², time on the last axis)."""
+        v = self.gained(self.volts(intensity_upa2), time_s, sonar.sound_speed_m_s, sonar.alpha_db_per_m,
+                        sonar.sample_rate_hz)
+        return self.digitise(v)
+
+    def header_codes(self) -> dict:
+        """What a device writes in its XTF channel headers: the gain law as codes (see :mod:`.io.xtf`)."""
+        g = self.gain
+        tvg = isinstance(g, TVG)
+        return {"InitialGainCode": int(round(min(max(g.g0_db, 0.0), 65535.0))) if tvg else 0,
+                "GainCode": int(g.k) if tvg else 0, "MillivoltScale": int(round(min(1e3 * self.full_scale_v,
+                                                                                    65535.0)))}
+
+
+def _gain(value):
+    """A TVG or AGC from itself or a dict ``{kind = "tvg" | "agc", …}`` (TOML, a record's metadata)."""
+    if isinstance(value, (TVG, AGC)):
+        return value
+    if not isinstance(value, dict):
+        raise ConfigError(f"Receiver.gain must be a sonar_embree.TVG or AGC, got {value!r}")
+    value = dict(value)
+    kind = value.pop("kind", "agc" if "window_s" in value or "target" in value else "tvg")
+    cls = {"tvg": TVG, "agc": AGC}.get(kind)
+    if cls is None:
+        raise ConfigError(f"Receiver.gain: kind must be 'tvg' or 'agc', got {kind!r}")
+    unknown = sorted(set(value) - set(field_names(cls)))
+    if unknown:
+        raise ConfigError(f"Receiver.gain ({kind}): unknown key {unknown[0]!r}; one of {', '.join(field_names(cls))}")
+    return cls(**value)
+
+
+def receiver_of(value):
+    """A Receiver from itself, None or a dict (TOML ``receiver = {…}``, a record's metadata)."""
+    if value is None or isinstance(value, Receiver):
+        return value
+    if not isinstance(value, dict):
+        raise ConfigError(f"Sonar.receiver must be a sonar_embree.Receiver or None, got {value!r}")
+    unknown = sorted(set(value) - set(field_names(Receiver)))
+    if unknown:
+        raise ConfigError(f"Sonar.receiver: unknown key {unknown[0]!r}; one of {', '.join(field_names(Receiver))}")
+    return Receiver(**value)
+
+
+__all__ = ["AGC", "Receiver", "TVG"]
