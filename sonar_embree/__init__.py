@@ -9,7 +9,7 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 from ._version import __version__
 
-from . import assets, laws, raycast, sediments
+from . import assets, devices, laws, raycast, sediments
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
 from .errors import ConfigError, SceneError, SonarEmbreeError
@@ -24,6 +24,6 @@ from .simulate import simulate
 from .sonars import EchoSounder
 from .trajectory import Trajectory
 
-__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "laws", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -197,6 +197,14 @@ class Sonar(Transducer):
         return math.radians(self.tilt_deg)
 
     @classmethod
+    def preset(cls, name: str, **overrides) -> "Sonar":
+        """The side-scan sonar of a device preset (:data:`sonar_embree.devices.DEVICES`), e.g.
+        ``Sonar.preset("edgetech-4125-400", max_range_m=75)``; ``overrides`` replace any field."""
+        from .devices import preset_sonar
+
+        return preset_sonar(name, **overrides)
+
+    @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,
                         rule: str = "exact", **kwargs) -> "Sonar":
         """Build a sonar whose membrane gives the requested one-way −3 dB beamwidths.

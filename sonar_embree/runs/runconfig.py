@@ -27,6 +27,7 @@ except ModuleNotFoundError:  # Python < 3.11
 
 from .. import assets
 from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from ..devices import device
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..io import registry
@@ -122,7 +123,7 @@ def _build(source: str, where: str, fn, kwargs):
 def table_keys(cls) -> tuple:
     """The keys a TOML table of ``cls`` may hold: its fields (``[sonar]``: also the medium's old keys)."""
     if cls is Sonar:
-        return tuple(k for k in field_names(Sonar) if k != "environment") + LEGACY_MEDIUM_KEYS
+        return tuple(k for k in field_names(Sonar) if k != "environment") + LEGACY_MEDIUM_KEYS + ("preset",)
     return field_names(cls)
 
 
@@ -138,7 +139,11 @@ def build_sonar(source: str, where: str, sonar_table: dict, environment: Environ
     if both:
         raise ConfigError(f"{source}: {where}: {both[0]!r} is given in both [sonar] and [environment]; "
                           "keep it in [environment]")
-    return _build(source, where, Sonar, {**sonar_table, "environment": environment})
+    kwargs = {k: v for k, v in sonar_table.items() if k != "preset"}
+    if "preset" in sonar_table:  # a device's sonar; the table's other keys override it
+        return _build(source, where, lambda **kw: Sonar.preset(sonar_table["preset"], **kw),
+                      {**kwargs, "environment": environment})
+    return _build(source, where, Sonar, {**kwargs, "environment": environment})
 
 
 def _resolve(base: str, path) -> str:
@@ -178,6 +183,8 @@ def load_run_config(path) -> RunConfig:
     _check_keys("[sonar]", sonar_table, table_keys(Sonar), source)
     sonar = build_sonar(source, "[sonar]", sonar_table, environment)
     pulse = _dataclass_table(data, "pulse", Pulse, source)
+    if "preset" in sonar_table and "pulse" not in data:  # the device's own pulse
+        pulse = device(sonar_table["preset"]).make_pulse()
     fan = _dataclass_table(data, "fan", FanSettings, source)
 
     chain = _dataclass_table(data, "simulation", SignalChain, source)
