@@ -12,6 +12,7 @@ import inspect
 import math
 from dataclasses import dataclass
 
+from .devices import device
 from .environment import Environment
 from .receiver import Receiver, receiver_of
 from .errors import ConfigError
@@ -200,9 +201,10 @@ class Sonar(Transducer):
     def preset(cls, name: str, **overrides) -> "Sonar":
         """The side-scan sonar of a device preset (:data:`sonar_embree.devices.DEVICES`), e.g.
         ``Sonar.preset("edgetech-4125-400", max_range_m=75)``; ``overrides`` replace any field."""
-        from .devices import preset_sonar
-
-        return preset_sonar(name, **overrides)
+        d = device(name)
+        kw = dict(frequency_hz=d.frequency_hz, tilt_deg=d.tilt_deg, max_range_m=d.ranges_m[0],
+                  source_level_db=d.source_level_db)
+        return cls.from_beamwidths(d.azimuth_deg, d.elevation_deg, rule="exact", **{**kw, **overrides})
 
     @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,
@@ -327,6 +329,12 @@ class Pulse:
                                   f"center_hz={self.center_hz}")
         if self.kind == "exp_chirp" and (self.f_start_hz is None or self.f_stop_hz is None):
             raise ConfigError("Pulse.f_start_hz and Pulse.f_stop_hz are required for kind='exp_chirp'")
+
+    @classmethod
+    def preset(cls, name: str) -> "Pulse":
+        """The pulse of a device preset (:data:`sonar_embree.devices.DEVICES`): its CW or LFM pulse."""
+        p = device(name).pulse
+        return cls.cw(duration_s=p[1]) if p[0] == "cw" else cls.lfm(bandwidth_hz=p[2], duration_s=p[1])
 
     @classmethod
     def cw(cls, duration_s: float = 100e-6, taper: float = 0.1) -> "Pulse":

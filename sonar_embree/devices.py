@@ -1,22 +1,21 @@
 """Device presets: common side-scan sonars from their public datasheets (docs/physics.md §14–15).
 
 Each :class:`Device` holds what a manufacturer's datasheet states — carrier, one-way −3 dB beamwidths,
-depression (tilt), range settings, pulse — and builds a :class:`~sonar_embree.Sonar` whose membrane has
-exactly those beamwidths (:meth:`Sonar.from_beamwidths`, rule "exact") and the matching
-:class:`~sonar_embree.Pulse`. Datasheets rarely state a source level or the receiver's sampling: where a
+depression (tilt), range settings, pulse; :meth:`Sonar.preset <sonar_embree.Sonar.preset>` builds the sonar
+whose membrane has exactly those beamwidths (:meth:`Sonar.from_beamwidths`, rule "exact") and
+:meth:`Pulse.preset <sonar_embree.Pulse.preset>` its pulse. Datasheets rarely state a source level or the receiver's sampling: where a
 field below is not from the cited document its ``assumed`` entry says so, and it is a representative value
 for the class of device (source levels of 100 kHz–1 MHz side-scans lie between about 200 and 230 dB re
 1 µPa at 1 m, Lurton 2010, §8.2).
 
 The values were transcribed from the manufacturers' published datasheets named in ``source``; they
 describe one configuration of each product line, and a user with the device's own calibration sheet
-should override them (``Device.sonar(source_level_db=…)``).
+should override them (``Sonar.preset(name, source_level_db=…)``).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .config import Pulse, Sonar
 from .errors import ConfigError
 
 
@@ -61,20 +60,6 @@ class Device:
     source_level_db: float
     assumed: tuple = ()
 
-    def make_pulse(self) -> Pulse:
-        """The device's pulse."""
-        if self.pulse[0] == "cw":
-            return Pulse.cw(duration_s=self.pulse[1])
-        return Pulse.lfm(bandwidth_hz=self.pulse[2], duration_s=self.pulse[1])
-
-    def sonar(self, **overrides) -> Sonar:
-        """A :class:`Sonar` with the device's membrane (exact −3 dB widths), tilt, default range and source
-        level; ``overrides`` replace any Sonar field (``max_range_m``, ``environment``, ``receiver``, …)."""
-        kw = dict(frequency_hz=self.frequency_hz, tilt_deg=self.tilt_deg, max_range_m=self.ranges_m[0],
-                  source_level_db=self.source_level_db)
-        kw.update(overrides)
-        return Sonar.from_beamwidths(self.azimuth_deg, self.elevation_deg, rule="exact", **kw)
-
 
 DEVICES = {d.name: d for d in (
     Device("klein-3000-100", "Klein Associates, System 3000 Digital Side Scan Sonar datasheet (100 kHz channel)",
@@ -107,9 +92,4 @@ def device(name: str) -> Device:
         raise ConfigError(f"unknown device preset {name!r}; one of {', '.join(sorted(DEVICES))}") from None
 
 
-def preset_sonar(name: str, **overrides) -> Sonar:
-    """``Sonar.preset``: the device's sonar with ``overrides``."""
-    return device(name).sonar(**overrides)
-
-
-__all__ = ["DEVICES", "Device", "device", "preset_sonar"]
+__all__ = ["DEVICES", "Device", "device"]

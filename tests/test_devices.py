@@ -26,7 +26,7 @@ def test_preset_reproduces_its_cited_beamwidths(name):
     assert (s.frequency_hz, s.tilt_deg, s.max_range_m, s.source_level_db) == (d.frequency_hz, d.tilt_deg,
                                                                               d.ranges_m[0], d.source_level_db)
     assert d.source and set(d.assumed) <= {f.name for f in dataclasses.fields(d)} | {"pulse duration"}
-    pulse = d.make_pulse()
+    pulse = se.Pulse.preset(name)
     assert pulse.duration_s == d.pulse[1]
 
 
@@ -53,7 +53,7 @@ def test_preset_overrides_errors_and_toml(tmp_path):
     (tmp_path / "p.toml").write_text(text[:a] + text[b:])
     cfg = runconfig.load_run_config(tmp_path / "p.toml")
     assert cfg.sonar == se.Sonar.preset("starfish-450f", max_range_m=40.0, environment=cfg.sonar.environment)
-    assert cfg.pulse == se.devices.device("starfish-450f").make_pulse()                 # the device's pulse
+    assert cfg.pulse == se.Pulse.preset("starfish-450f")                 # the device's pulse
     (tmp_path / "q.toml").write_text(text.replace("starfish-450f", "starfish-9"))
     with pytest.raises(se.ConfigError, match="unknown device preset"):
         runconfig.load_run_config(tmp_path / "q.toml")
@@ -63,6 +63,6 @@ def test_a_preset_renders_a_flat_floor():
     scene = se.Scene().add(se.seafloor.flat((200.0, 200.0)), label="seafloor")
     sonar = se.Sonar.preset("marine-sonic-arc-1800")
     rec = se.simulate(scene, se.Trajectory.line((0, 0, 5.0), (0.1, 0, 5.0), 2), sonar,
-                      se.devices.device("marine-sonic-arc-1800").make_pulse(), start_time="2000-01-01")
+                      se.Pulse.preset("marine-sonic-arc-1800"), start_time="2000-01-01")
     assert rec.altitude_m == pytest.approx(5.0, abs=0.01)
     assert rec.attrs["intensity_unit"] == "uPa^2" and rec.data.max() > 0

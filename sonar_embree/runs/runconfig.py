@@ -27,7 +27,6 @@ except ModuleNotFoundError:  # Python < 3.11
 
 from .. import assets
 from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
-from ..devices import device
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..io import registry
@@ -184,7 +183,7 @@ def load_run_config(path) -> RunConfig:
     sonar = build_sonar(source, "[sonar]", sonar_table, environment)
     pulse = _dataclass_table(data, "pulse", Pulse, source)
     if "preset" in sonar_table and "pulse" not in data:  # the device's own pulse
-        pulse = device(sonar_table["preset"]).make_pulse()
+        pulse = Pulse.preset(sonar_table["preset"])
     fan = _dataclass_table(data, "fan", FanSettings, source)
 
     chain = _dataclass_table(data, "simulation", SignalChain, source)
