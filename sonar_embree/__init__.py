@@ -14,6 +14,7 @@ from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
 from .errors import ConfigError, SceneError, SonarEmbreeError
 from .labels import Labels
+from .motion import Motion
 from .laws.maps import BackscatterMap
 from .laws.texture import KTexture
 from .receiver import AGC, TVG, Receiver
@@ -24,6 +25,6 @@ from .simulate import simulate
 from .sonars import EchoSounder
 from .trajectory import Trajectory
 
-__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Pulse", "Record", "Scene", "SceneError",
+__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "laws", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

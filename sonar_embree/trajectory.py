@@ -186,32 +186,54 @@ class Trajectory:
         A cubic spline in chord-length parameter (straight for two waypoints); the
         heading follows the horizontal tangent.
         """
-        from scipy.interpolate import CubicSpline
-
-        w = _as_float_array("waypoints_m", waypoints_m)
-        if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2:
-            raise ConfigError(f"Trajectory.through_waypoints needs (m>=2, 3) waypoints, got {w.shape}")
         _check_n_pings("through_waypoints", n_pings)
-        chord = np.linalg.norm(np.diff(w, axis=0), axis=1)
-        if np.any(chord == 0.0):
-            raise ConfigError("Trajectory.through_waypoints: two consecutive waypoints coincide")
-        u = np.concatenate(([0.0], np.cumsum(chord)))
-        spline = CubicSpline(u, w, bc_type="natural") if w.shape[0] > 2 else None
-        dense_u = np.linspace(0.0, u[-1], max(2000, 20 * n_pings))
-        if spline is None:
-            dense = w[0] + (dense_u / u[-1])[:, None] * (w[1] - w[0])
-        else:
-            dense = spline(dense_u)
-        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))))
-        s = np.linspace(0.0, arc[-1], n_pings)
-        pu = np.interp(s, arc, dense_u)
-        if spline is None:
-            pos = w[0] + (pu / u[-1])[:, None] * (w[1] - w[0])
-            tan = np.broadcast_to(w[1] - w[0], pos.shape)
-        else:
-            pos, tan = spline(pu), spline(pu, 1)
-        heading = np.degrees(np.arctan2(tan[:, 0], tan[:, 1])) % 360.0
+        length, sample = _path(waypoints_m, "through_waypoints", 20 * n_pings)
+        s = np.linspace(0.0, length, n_pings)
+        pos, heading = sample(s)
         return cls(pos, heading, pitch_deg, roll_deg, s / speed_m_s if n_pings > 1 else None)
+
+    @classmethod
+    def survey(cls, waypoints_m, speed_m_s: float, ping_rate_hz: float | None = None, *, sonar=None,
+               pitch_deg=0.0, roll_deg=0.0) -> "Trajectory":
+        """Pings timed by a ping rate along a path flown at a speed (docs/physics.md §16).
+
+        The path is that of :meth:`through_waypoints`; ping k is at arc length k·v/PRF and time k/PRF, so the
+        path's length and the speed set the number of pings. ``ping_rate_hz`` None: back to back, one ping
+        every 2·R_max/c of ``sonar``; a rate faster than that is refused (the next ping would transmit
+        before the last echo of this one is in).
+
+        Parameters
+        ----------
+        waypoints_m : (m, 3) float
+            The path, world m.
+        speed_m_s : float
+            Speed over the path, m/s.
+        ping_rate_hz : float or None
+            Pings per second.
+        sonar : Sonar or EchoSounder, optional
+            Its range window and sound speed limit (and by default set) the ping rate.
+        """
+        if not (isinstance(speed_m_s, (int, float)) and math.isfinite(speed_m_s) and 0 < speed_m_s <= 50):
+            raise ConfigError(f"Trajectory.survey speed_m_s must be in (0, 50] m/s, got {speed_m_s!r}")
+        prf = _ping_rate(ping_rate_hz, sonar)
+        length, sample = _path(waypoints_m, "survey", 2000)
+        n = int(math.floor(length * prf / speed_m_s * (1 + 1e-12))) + 1
+        if n > 50_000_000:
+            raise ConfigError(f"Trajectory.survey: {n} pings; split the path or lower the ping rate")
+        t = np.arange(n) / prf
+        pos, heading = sample(t * speed_m_s)
+        return cls(pos, heading, pitch_deg, roll_deg, t if n > 1 else None)
+
+    def with_motion(self, motion, seed: int = 0) -> "Trajectory":
+        """This trajectory with the attitude and heave jitter of ``motion`` (:class:`~sonar_embree.Motion`)
+        added at its ping times, frozen by ``seed``."""
+        from .motion import jitter
+
+        d = jitter(motion, self.times_s, seed)
+        pos = self.positions_m.copy()
+        pos[:, 2] += d["heave_m"]
+        return Trajectory(pos, (self.heading_deg + d["yaw_deg"]) % 360.0, self.pitch_deg + d["pitch_deg"],
+                          self.roll_deg + d["roll_deg"], self.times_s)
 
     @classmethod
     def from_csv(cls, path) -> "Trajectory":
@@ -263,6 +285,50 @@ class Trajectory:
             fh.write(",".join(CSV_COLUMNS) + "\n")
             np.savetxt(fh, data, delimiter=",", fmt="%.17g")
         os.replace(tmp, path)
+
+
+def _ping_rate(ping_rate_hz, sonar) -> float:
+    """The survey's ping rate: the given one (checked against the sonar's window) or back to back."""
+    limit = None if sonar is None else sonar.sound_speed_m_s / (2.0 * sonar.max_range_m)
+    if ping_rate_hz is None:
+        if limit is None:
+            raise ConfigError("Trajectory.survey: give ping_rate_hz or the sonar (back to back at 2 R_max / c)")
+        return limit
+    if isinstance(ping_rate_hz, bool) or not isinstance(ping_rate_hz, (int, float)) or not 0 < ping_rate_hz < 1e4:
+        raise ConfigError(f"Trajectory.survey ping_rate_hz must be in (0, 1e4) Hz, got {ping_rate_hz!r}")
+    if limit is not None and ping_rate_hz > limit * (1 + 1e-12):
+        raise ConfigError(f"Trajectory.survey: ping_rate_hz={ping_rate_hz:g} is faster than the sonar's "
+                          f"{limit:.4g} Hz (2 x max_range_m / c): pings would overlap")
+    return float(ping_rate_hz)
+
+
+def _path(waypoints_m, where: str, n_dense: int):
+    """(length m, sample(s) → (positions (k, 3), headings (k,) deg)) of the path through ``waypoints_m``."""
+    from scipy.interpolate import CubicSpline
+
+    w = _as_float_array("waypoints_m", waypoints_m)
+    if w.ndim != 2 or w.shape[1] != 3 or w.shape[0] < 2:
+        raise ConfigError(f"Trajectory.{where} needs (m>=2, 3) waypoints, got {w.shape}")
+    chord = np.linalg.norm(np.diff(w, axis=0), axis=1)
+    if np.any(chord == 0.0):
+        raise ConfigError(f"Trajectory.{where}: two consecutive waypoints coincide")
+    u = np.concatenate(([0.0], np.cumsum(chord)))
+    if w.shape[0] == 2:  # straight: arc length is the parameter
+        def straight(s):
+            pos = w[0] + (np.asarray(s) / u[-1])[:, None] * (w[1] - w[0])
+            d = w[1] - w[0]
+            return pos, np.full(pos.shape[0], math.degrees(math.atan2(d[0], d[1])) % 360.0)
+        return float(u[-1]), straight
+    spline = CubicSpline(u, w, bc_type="natural")
+    dense_u = np.linspace(0.0, u[-1], max(2000, n_dense))
+    dense = spline(dense_u)
+    arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))))
+
+    def curved(s):
+        pu = np.interp(s, arc, dense_u)
+        tan = spline(pu, 1)
+        return spline(pu), np.degrees(np.arctan2(tan[:, 0], tan[:, 1])) % 360.0
+    return float(arc[-1]), curved
 
 
 def iso_utc(value=None) -> str:

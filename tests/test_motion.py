@@ -1,0 +1,75 @@
+"""Timing and jitter (docs/physics.md §16): pings by ping rate and speed, Gauss–Markov attitude and heave.
+
+References here: ping k of a survey at arc length k·v/PRF and time k/PRF; back to back PRF = c/(2·R_max);
+a first-order Gauss–Markov process has variance σ² and autocorrelation exp(−|Δt|/T) (Gelb 1974, §3.8).
+"""
+import numpy as np
+import pytest
+
+import sonar_embree as se
+
+
+def test_survey_pings_follow_rate_and_speed_on_a_line():
+    t = se.Trajectory.survey([(0, 0, 10), (100, 0, 10)], speed_m_s=2.0, ping_rate_hz=5.0)
+    assert len(t) == 251                                            # 100 m · 5 Hz / 2 m/s + 1
+    np.testing.assert_allclose(t.times_s, np.arange(251) / 5.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(t.positions_m[:, 0], 0.4 * np.arange(251), atol=1e-9)
+    assert np.all(t.heading_deg == 90.0)
+
+
+def test_survey_back_to_back_by_default_and_refuses_overlapping_pings():
+    sonar = se.Sonar(max_range_m=50.0)
+    t = se.Trajectory.survey([(0, 0, 10), (30, 0, 10)], speed_m_s=1.5, sonar=sonar)
+    prf = 1500.0 / (2 * 50.0)
+    np.testing.assert_allclose(np.diff(t.times_s), 1 / prf, rtol=1e-12)
+    np.testing.assert_allclose(np.diff(t.positions_m[:, 0]), 1.5 / prf, rtol=1e-9)
+    with pytest.raises(se.ConfigError, match="faster than the sonar's 15 Hz"):
+        se.Trajectory.survey([(0, 0, 10), (30, 0, 10)], speed_m_s=1.5, ping_rate_hz=16.0, sonar=sonar)
+    with pytest.raises(se.ConfigError, match="give ping_rate_hz or the sonar"):
+        se.Trajectory.survey([(0, 0, 10), (30, 0, 10)], speed_m_s=1.5)
+    with pytest.raises(se.ConfigError, match="speed_m_s"):
+        se.Trajectory.survey([(0, 0, 10), (30, 0, 10)], speed_m_s=0.0, ping_rate_hz=1.0)
+
+
+def test_survey_on_a_curved_path_spaces_pings_by_arc_length():
+    t = se.Trajectory.survey([(0, 0, 10), (20, 10, 10), (40, 0, 10), (60, 15, 10)], speed_m_s=2.0, ping_rate_hz=4.0)
+    step = np.linalg.norm(np.diff(t.positions_m, axis=0), axis=1)
+    np.testing.assert_allclose(step, 0.5, atol=2e-3)                # chords of 0.5 m arcs on a gentle curve
+    assert np.ptp(t.heading_deg) > 40.0
+
+
+@pytest.mark.parametrize("component, kwargs", [("yaw_deg", dict(yaw_rms_deg=2.0)),
+                                               ("heave_m", dict(heave_rms_m=0.3)),
+                                               ("roll_deg", dict(roll_rms_deg=1.5))])
+def test_jitter_has_the_rms_and_correlation_time_asked_for(component, kwargs):
+    from sonar_embree.motion import jitter
+
+    motion = se.Motion(correlation_s=2.0, **kwargs)
+    dt, n = 0.1, 40000
+    x = jitter(motion, np.arange(n) * dt, seed=11)[component]
+    sigma = next(iter(kwargs.values()))
+    assert np.std(x) == pytest.approx(sigma, rel=0.10)
+    lag = int(2.0 / dt)                                              # at Δt = T the correlation is 1/e
+    rho = np.corrcoef(x[:-lag], x[lag:])[0, 1]
+    assert -lag * dt / np.log(rho) == pytest.approx(2.0, rel=0.10)
+    rho1 = np.corrcoef(x[:-1], x[1:])[0, 1]
+    assert -dt / np.log(rho1) == pytest.approx(2.0, rel=0.10)
+
+
+def test_jitter_is_frozen_by_seed_and_applied_to_the_poses():
+    line = se.Trajectory.survey([(0, 0, 10), (50, 0, 10)], speed_m_s=2.0, ping_rate_hz=2.0)
+    motion = se.Motion(yaw_rms_deg=1.0, pitch_rms_deg=0.5, heave_rms_m=0.2, correlation_s=3.0)
+    a, b, c = line.with_motion(motion, seed=1), line.with_motion(motion, seed=1), line.with_motion(motion, seed=2)
+    assert a == b and a != c
+    from sonar_embree.motion import jitter
+
+    d = jitter(motion, line.times_s, seed=1)
+    np.testing.assert_array_equal(a.positions_m[:, 2], line.positions_m[:, 2] + d["heave_m"])
+    np.testing.assert_allclose(a.heading_deg, (90.0 + d["yaw_deg"]) % 360.0)
+    assert np.all(a.roll_deg == 0.0) and np.any(a.pitch_deg != 0.0)
+    only_heave = jitter(se.Motion(heave_rms_m=0.2, correlation_s=3.0), line.times_s, seed=1)["heave_m"]
+    np.testing.assert_array_equal(only_heave, d["heave_m"])              # one stream per component
+    with pytest.raises(se.ConfigError, match="correlation_s"):
+        se.Motion(correlation_s=0.0)
+    with pytest.raises(se.ConfigError, match="roll_rms_deg"):
+        se.Motion(roll_rms_deg=45.0)
