@@ -154,7 +154,7 @@ def nadir_altitude(caster: Caster, pos_local: np.ndarray, max_range_m: float):
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, time_per_m: float, want_points: bool = False,
-               timings: dict | None = None, frequency_hz: float = 0.0) -> BlockEchoes:
+               timings: dict | None = None, frequency_hz: float = 0.0, rx_shift: np.ndarray | None = None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
     Parameters
@@ -178,9 +178,13 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
         (placing rays and weighting echoes).
     frequency_hz : float
         The carrier, for scattering laws tabulated against frequency.
+    rx_shift : (pings,) float64, optional
+        Motion during the ping: the receive beam's along-track direction-cosine offset δ = 2·v_fwd/c
+        per ping (default: zeros, stop-and-hop; see :func:`kernels.fan_echoes`).
     """
     t0 = time.perf_counter()
     n_p = rot.shape[0]
+    rx_shift = np.zeros(n_p) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     # hits a little beyond the window still reach into it with their footprints; the splatting crops them
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
@@ -200,8 +204,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     c = caster.compiled
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, prim, tfar, c.vertices, c.faces,
-                       c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
+    kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, rx_shift, prim, tfar, c.vertices,
+                       c.faces, c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
                        max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts)
     apply_laws(c, frequency_hz, prim, cos_i, w, pts)
     if not plan.footprint:

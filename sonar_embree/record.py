@@ -142,6 +142,8 @@ class Record:
             extra.update({f"{ch}_complex": self.channel(ch, complex_=True) for ch in self.channels})
         if self.samples is not None:
             extra["samples"] = self.samples
+        if t.velocity_m_s is not None:
+            extra["velocity_m_s"] = t.velocity_m_s
         series = {ch: self.channel(ch) for ch in self.channels}
 
         def write(tmp):
@@ -164,7 +166,7 @@ class Record:
         except (OSError, ValueError, KeyError) as exc:
             raise ConfigError(f"{path}: not a sonar_embree record ({exc})") from None
         traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
-                          arrays["roll_deg"], arrays["times_s"])
+                          arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"))
         labels = None
         if "labels" in meta:
             shape = arrays["labels_kind"].shape  # files of format 1 have no echo truth

@@ -175,7 +175,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     while a < len(trajectory):
         b = min(a + block, len(trajectory))
         e, blk = run.front.cast(run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r, chain.speckle,
-                                labels, clock)
+                                labels, clock, rx_shift=run.rx_shift[a:b])
         run.altitude[a:b], run.n_rays[a:b] = blk.altitude_m, blk.n_rays
         if run.truth is not None:
             t = time.perf_counter()
@@ -242,6 +242,7 @@ class _Run:
     altitude: np.ndarray
     n_rays: np.ndarray
     n0: float | None = None  # receiver noise density, unit-source intensity per Hz
+    rx_shift: np.ndarray | None = None  # motion during the ping: δ = 2·v_fwd/c per ping
 
     @classmethod
     def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster) -> "_Run":
@@ -271,7 +272,8 @@ class _Run:
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), n0, kernel))
         truth = GroundTruth((n_p, n_ch, n_out), compiled, kernel) if labels else None
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, trajectory.rotations(), pos_local,
-                   max_r, n_out, np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0)
+                   max_r, n_out, np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0,
+                   2.0 * trajectory.forward_speed_m_s() / c)
 
 
 def _noise_density(sonar, chain: SignalChain) -> float | None:
@@ -326,7 +328,8 @@ def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str
              "start_time": start_iso,
              "intensity_unit": "unit source" if sonar.source_level_db is None else "uPa^2",
              "received_noise_db_per_hz": (None if run.n0 is None
-                                          else 10.0 * math.log10(run.n0 * sonar.level_scale))}
+                                          else 10.0 * math.log10(run.n0 * sonar.level_scale)),
+             "motion_during_ping": trajectory.velocity_m_s is not None}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = run.back.tables.carrier_factor * sonar.sample_rate_hz
     return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,

@@ -86,6 +86,9 @@ class Trajectory:
         Pitch (nose up +) and roll (starboard down +) in degrees.
     times_s : (n,) float or None
         Ping times in s, strictly increasing; ``None`` means one ping per second.
+    velocity_m_s : (n, 3) float or None
+        The vehicle's velocity at each ping, world m/s, when known (:meth:`survey` sets it): then
+        the sonar moves during each ping (docs/physics.md §16). ``None``: stop-and-hop.
     """
 
     positions_m: np.ndarray
@@ -93,6 +96,7 @@ class Trajectory:
     pitch_deg: np.ndarray = 0.0
     roll_deg: np.ndarray = 0.0
     times_s: np.ndarray | None = None
+    velocity_m_s: np.ndarray | None = None
 
     def __post_init__(self):
         pos = _as_float_array("positions_m", self.positions_m)
@@ -112,6 +116,11 @@ class Trajectory:
         if n > 1 and np.any(np.diff(t) <= 0):
             raise ConfigError("Trajectory.times_s must be strictly increasing")
         object.__setattr__(self, "times_s", t)
+        if self.velocity_m_s is not None:
+            v = _as_float_array("velocity_m_s", self.velocity_m_s)
+            if v.shape != (n, 3):
+                raise ConfigError(f"Trajectory.velocity_m_s must have shape ({n}, 3), got {v.shape}")
+            object.__setattr__(self, "velocity_m_s", v)
 
     def __len__(self) -> int:
         return self.positions_m.shape[0]
@@ -124,20 +133,22 @@ class Trajectory:
         if idx.size == 0:
             raise ConfigError(f"Trajectory slice {index} selects no ping of {len(self)}")
         return Trajectory(self.positions_m[idx], self.heading_deg[idx], self.pitch_deg[idx], self.roll_deg[idx],
-                          self.times_s[idx])
+                          self.times_s[idx], None if self.velocity_m_s is None else self.velocity_m_s[idx])
 
     @classmethod
     def concatenate(cls, parts) -> "Trajectory":
         """Consecutive pieces of one trajectory, joined."""
         parts = list(parts)
+        v = (np.concatenate([p.velocity_m_s for p in parts]) if all(p.velocity_m_s is not None for p in parts)
+             else None)
         return cls(*(np.concatenate([getattr(p, k) for p in parts])
-                     for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s")))
+                     for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s")), v)
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, Trajectory):
             return NotImplemented
         return all(np.array_equal(getattr(self, k), getattr(other, k))
-                   for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s"))
+                   for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s"))
 
     @property
     def n_pings(self) -> int:
@@ -221,8 +232,8 @@ class Trajectory:
         if n > 50_000_000:
             raise ConfigError(f"Trajectory.survey: {n} pings; split the path or lower the ping rate")
         t = np.arange(n) / prf
-        pos, heading = sample(t * speed_m_s)
-        return cls(pos, heading, pitch_deg, roll_deg, t if n > 1 else None)
+        pos, heading, tangent = sample(t * speed_m_s, True)
+        return cls(pos, heading, pitch_deg, roll_deg, t if n > 1 else None, speed_m_s * tangent)
 
     def with_motion(self, motion, seed: int = 0) -> "Trajectory":
         """This trajectory with the attitude and heave jitter of ``motion`` (:class:`~sonar_embree.Motion`)
@@ -233,7 +244,13 @@ class Trajectory:
         pos = self.positions_m.copy()
         pos[:, 2] += d["heave_m"]
         return Trajectory(pos, (self.heading_deg + d["yaw_deg"]) % 360.0, self.pitch_deg + d["pitch_deg"],
-                          self.roll_deg + d["roll_deg"], self.times_s)
+                          self.roll_deg + d["roll_deg"], self.times_s, self.velocity_m_s)
+
+    def forward_speed_m_s(self) -> np.ndarray:
+        """(n,) the velocity's component along each ping's forward axis, m/s (zeros when unknown)."""
+        if self.velocity_m_s is None:
+            return np.zeros(len(self))
+        return np.einsum("ij,ij->i", self.velocity_m_s, self.rotations()[:, :, 0])
 
     @classmethod
     def from_csv(cls, path) -> "Trajectory":
@@ -303,7 +320,8 @@ def _ping_rate(ping_rate_hz, sonar) -> float:
 
 
 def _path(waypoints_m, where: str, n_dense: int):
-    """(length m, sample(s) → (positions (k, 3), headings (k,) deg)) of the path through ``waypoints_m``."""
+    """(length m, sample(s[, tangent]) → (positions (k, 3), headings (k,) deg[, unit tangents (k, 3)])) of the path
+    through ``waypoints_m``."""
     from scipy.interpolate import CubicSpline
 
     w = _as_float_array("waypoints_m", waypoints_m)
@@ -314,20 +332,23 @@ def _path(waypoints_m, where: str, n_dense: int):
         raise ConfigError(f"Trajectory.{where}: two consecutive waypoints coincide")
     u = np.concatenate(([0.0], np.cumsum(chord)))
     if w.shape[0] == 2:  # straight: arc length is the parameter
-        def straight(s):
+        def straight(s, tangent=False):
             pos = w[0] + (np.asarray(s) / u[-1])[:, None] * (w[1] - w[0])
             d = w[1] - w[0]
-            return pos, np.full(pos.shape[0], math.degrees(math.atan2(d[0], d[1])) % 360.0)
+            heading = np.full(pos.shape[0], math.degrees(math.atan2(d[0], d[1])) % 360.0)
+            return (pos, heading, np.broadcast_to(d / u[-1], pos.shape)) if tangent else (pos, heading)
         return float(u[-1]), straight
     spline = CubicSpline(u, w, bc_type="natural")
     dense_u = np.linspace(0.0, u[-1], max(2000, n_dense))
     dense = spline(dense_u)
     arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(dense, axis=0), axis=1))))
 
-    def curved(s):
+    def curved(s, tangent=False):
         pu = np.interp(s, arc, dense_u)
         tan = spline(pu, 1)
-        return spline(pu), np.degrees(np.arctan2(tan[:, 0], tan[:, 1])) % 360.0
+        heading = np.degrees(np.arctan2(tan[:, 0], tan[:, 1])) % 360.0
+        unit = tan / np.linalg.norm(tan, axis=1)[:, None]
+        return (spline(pu), heading, unit) if tangent else (spline(pu), heading)
     return float(arc[-1]), curved
 
 

@@ -128,8 +128,11 @@ def fan_directions(s, beta, el_start, rot):
 
 
 def fan_echoes(s, ds, beta, dbeta, el_start, rot, pos, prim, vertices, faces, mu_face, k, lx, ly, tilt,
-               two_way, min_range, max_range, slope_cap, two_sided=None):
+               two_way, min_range, max_range, slope_cap, two_sided=None, rx_shift=None):
     """Range, footprint extent and intensity per ray, by plain vector algebra.
+
+    With ``rx_shift`` (pings,) the receiving membrane sees the along-track cosine s − δ of its ping
+    (motion during the ping): Γ_tx²·Γ_rx² instead of Γ⁴.
 
     The extent is the difference of the plane ranges at the two edges of the ray's
     elevation cell (a secant, where the kernel uses the tangent).
@@ -159,8 +162,10 @@ def fan_echoes(s, ds, beta, dbeta, el_start, rot, pos, prim, vertices, faces, mu
         if cpsi * np.cos(rel) <= 0:
             continue
         g = np.sinc(k * lx / 2 * ss[i] / np.pi) * np.sinc(k * ly / 2 * cpsi * np.sin(rel) / np.pi)
+        d_rx = 0.0 if rx_shift is None else rx_shift[ping[i]]
+        g_rx = np.sinc(k * lx / 2 * (ss[i] - d_rx) / np.pi) * np.sinc(k * ly / 2 * cpsi * np.sin(rel) / np.pi)
         rng[i] = R
-        w[i] = g ** 4 * mu_face[prim[i]] * cos_i * np.exp(-two_way * R) * ds * dbb[i] / max(R, min_range) ** 2
+        w[i] = g ** 2 * g_rx ** 2 * mu_face[prim[i]] * cos_i * np.exp(-two_way * R) * ds * dbb[i] / max(R, min_range) ** 2
         side = 1.0 if rows[i] % 2 else -1.0
         edge = [rot[ping[i]] @ np.array([ss[i], side * cpsi * np.cos(x), cpsi * np.sin(x)])
                 for x in (bb[i] - dbb[i] / 2, bb[i] + dbb[i] / 2)]

@@ -95,7 +95,7 @@ def _sinc(x):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar, vertices, faces, face_normals,
+def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, prim, tfar, vertices, faces, face_normals,
                face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,
                time_out, extent_out, weight_out, cos_out, points_out):
     """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
@@ -107,7 +107,11 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
     float32 distance where that is ill-conditioned). A ray of cell ds × dβ on a
     surface of normal n̂ returns
 
-        w = Γ⁴ · exp(−2α'R) · ds·dβ / max(R, R_min)²     (× σ(θi)/cos θi by the law)
+        w = Γ²_tx·Γ²_rx · exp(−2α'R) · ds·dβ / max(R, R_min)²     (× σ(θi)/cos θi by the law)
+
+    with Γ_rx the receiving membrane's gain at the along-track direction cosine s − δ of the
+    ping (motion during the ping: the receiver has moved on by v·τ, δ = 2·v_fwd/c; δ = 0 is
+    stop-and-hop, Γ_rx = Γ_tx and w carries Γ⁴ bit for bit),
 
     spread over the slant-range interval R ± ΔR/2 its cell covers on the plane,
     ΔR = R·|n̂·∂u/∂β| / cos θi · dβ (at most ``slope_cap_m_rad``·dβ). Misses, back
@@ -119,6 +123,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
     s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos
         The block's fan, as for :func:`fan_rays`; ``dbeta`` the cell width of each
         elevation ray, ``ds`` the azimuth spacing.
+    rx_shift : (pings,) float64
+        δ per ping: the receive beam's along-track direction-cosine offset (0: stop-and-hop).
     prim : (n,) int32
         Triangle hit by each ray, −1 for a miss.
     tfar : (n,) float32
@@ -153,6 +159,7 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
             sa = s[a]
             cpsi = math.sqrt(1.0 - sa * sa)
             g_az = _sinc(beam[0] * sa)
+            g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
             for j in range(n_el):
                 i = base + a * n_el + j
                 range_out[i] = math.inf
@@ -196,12 +203,14 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, prim, tfar,
                     continue
                 if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle
                     continue
-                g = g_az * _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))  # sin(β − δ)
+                g_el = _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))  # sin(β − δ)
+                g = g_az * g_el
+                g_rx = g_az_rx * g_el
                 g2 = g * g
                 rb = rr if rr > min_range_m else min_range_m
                 range_out[i] = rr
                 time_out[i] = rr * time_per_m
-                weight_out[i] = g2 * g2 * math.exp(-two_way_np_per_m * rr) * ds * dbeta[el_start[r] + j] / (rb * rb)
+                weight_out[i] = g2 * (g_rx * g_rx) * math.exp(-two_way_np_per_m * rr) * ds * dbeta[el_start[r] + j] / (rb * rb)
                 cos_out[i] = cos_i
                 slope = rr * abs(fn) / cos_i
                 if slope > slope_cap_m_rad:

@@ -127,8 +127,9 @@ class EchoSounderFrontEnd:
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
 
-    def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock):
-        """Echoes of a block of pings (one channel each); arguments as for the side-scan front end."""
+    def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
+        """Echoes of a block of pings (one channel each); arguments as for the side-scan front end (a nadir beam:
+        the receiver's motion during the ping, ``rx_shift``, is not modelled)."""
         n_p, n = rot.shape[0], self.body.shape[0]
         u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
         f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)

@@ -34,7 +34,7 @@ class SideScanFrontEnd:
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
 
     def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
-             want_ids: bool, clock: dict):
+             want_ids: bool, clock: dict, rx_shift: np.ndarray | None = None):
         """Echoes of a block of pings, and the block's fan (for ground truth).
 
         Parameters
@@ -50,6 +50,9 @@ class SideScanFrontEnd:
             Fill ``Echoes.point_m`` (speckle) and ``Echoes.object_id`` (ground truth).
         clock : dict
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
+        rx_shift : (pings,) float64, optional
+            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) of the direct
+            path of straight rays; curved rays and the sea-surface paths are stop-and-hop.
         """
         surface = self.sonar.environment.surface
         if self.sonar.environment.refracts:  # curved rays (never with a surface: Environment refuses both)
@@ -59,7 +62,7 @@ class SideScanFrontEnd:
             return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
                          2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
-                         timings=clock, frequency_hz=self.sonar.frequency_hz)
+                         timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift)
         ids = caster.compiled.face_object if want_ids else None
         if surface is None:
             return echoes_of(blk, ids), blk
