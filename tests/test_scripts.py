@@ -6,6 +6,7 @@ import sys
 
 import imageio.v3 as iio
 import numpy as np
+import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -167,3 +168,18 @@ def test_refraction_figure_ends_the_floor_at_the_ray_maps_shadow_edge(tmp_path):
         assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
     info = json.loads((tmp_path / "refraction.json").read_text())
     assert info["limiting_ray_s"] <= info["last_lit_s"] <= info["limiting_ray_s"] + info["pulse_s"] + 3 * info["sample_s"]
+
+
+def test_device_figure_shows_noise_where_the_unit_source_record_is_silent(tmp_path):
+    """Issue 16's figure: the unit-source image and the device's 16-bit codes of the same line; the device's water
+    column holds noise codes where the unit-source record is (numerically) zero."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "device_figure.py"), "-o", str(tmp_path),
+                           "--length", "1"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["device.json", "waterfalls.png"]
+    img = iio.imread(tmp_path / "waterfalls.png")
+    assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
+    info = json.loads((tmp_path / "device.json").read_text())
+    assert info["dtype"] == "uint16" and info["ping_rate_hz"] == pytest.approx(10.0)
+    assert info["median_code_water_column"] >= 1 and info["median_unit_source_water_column"] < 1e-20
+    assert 0 < info["clipped_share"] < 0.05
