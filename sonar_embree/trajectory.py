@@ -87,8 +87,9 @@ class Trajectory:
     times_s : (n,) float or None
         Ping times in s, strictly increasing; ``None`` means one ping per second.
     velocity_m_s : (n, 3) float or None
-        The vehicle's velocity at each ping, world m/s, when known (:meth:`survey` sets it): then
-        the sonar moves during each ping (docs/physics.md §16). ``None``: stop-and-hop.
+        The vehicle's velocity at each ping, world m/s, when known (:meth:`survey`, :meth:`line` and
+        :meth:`through_waypoints` set it from their speed): then the sonar moves during each ping
+        (docs/physics.md §16). ``None`` (a bare or CSV trajectory): stop-and-hop.
     """
 
     positions_m: np.ndarray
@@ -165,7 +166,7 @@ class Trajectory:
         """Evenly spaced pings on the straight line from ``start`` to ``end`` (m).
 
         The heading follows the line (90° for a line along +x) unless given;
-        ping times follow from ``speed_m_s``.
+        ping times and the velocity (motion during the ping, docs/physics.md §16) follow from ``speed_m_s``.
         """
         _check_n_pings("line", n_pings)
         if not (isinstance(speed_m_s, (int, float)) and math.isfinite(speed_m_s) and speed_m_s > 0):
@@ -184,10 +185,14 @@ class Trajectory:
                 heading_deg = math.degrees(math.atan2(d[0], d[1])) % 360.0
         u = np.linspace(0.0, 1.0, n_pings)
         pos = a[None, :] + u[:, None] * d[None, :]
-        times = u * np.linalg.norm(d) / speed_m_s
+        length = float(np.linalg.norm(d))
+        times = u * length / speed_m_s
+        velocity = None  # known only when the line has a length: the vehicle moves at speed_m_s along it
         if n_pings > 1 and times[-1] == 0.0:
             times = np.arange(n_pings, dtype=np.float64)
-        return cls(pos, heading_deg, pitch_deg, roll_deg, times)
+        elif n_pings > 1:
+            velocity = np.broadcast_to(d / length * speed_m_s, pos.shape)
+        return cls(pos, heading_deg, pitch_deg, roll_deg, times, velocity)
 
     @classmethod
     def through_waypoints(cls, waypoints_m, n_pings: int, *, speed_m_s: float = 2.0,
@@ -195,13 +200,15 @@ class Trajectory:
         """A smooth path through ``waypoints_m`` ((m, 3), m ≥ 2) sampled evenly in arc length.
 
         A cubic spline in chord-length parameter (straight for two waypoints); the
-        heading follows the horizontal tangent.
+        heading follows the horizontal tangent, the velocity is ``speed_m_s`` along the tangent.
         """
         _check_n_pings("through_waypoints", n_pings)
         length, sample = _path(waypoints_m, "through_waypoints", 20 * n_pings)
         s = np.linspace(0.0, length, n_pings)
-        pos, heading = sample(s)
-        return cls(pos, heading, pitch_deg, roll_deg, s / speed_m_s if n_pings > 1 else None)
+        pos, heading, tangent = sample(s, True)
+        if n_pings == 1:
+            return cls(pos, heading, pitch_deg, roll_deg, None)
+        return cls(pos, heading, pitch_deg, roll_deg, s / speed_m_s, speed_m_s * tangent)
 
     @classmethod
     def survey(cls, waypoints_m, speed_m_s: float, ping_rate_hz: float | None = None, *, sonar=None,
@@ -245,6 +252,11 @@ class Trajectory:
         pos[:, 2] += d["heave_m"]
         return Trajectory(pos, (self.heading_deg + d["yaw_deg"]) % 360.0, self.pitch_deg + d["pitch_deg"],
                           self.roll_deg + d["roll_deg"], self.times_s, self.velocity_m_s)
+
+    def stop_and_hop(self) -> "Trajectory":
+        """This trajectory without its velocity: the sonar stands still during each ping (the paper's model and
+        the closed forms of docs/physics.md §3; motion during the ping, §16, switched off)."""
+        return Trajectory(self.positions_m, self.heading_deg, self.pitch_deg, self.roll_deg, self.times_s)
 
     def forward_speed_m_s(self) -> np.ndarray:
         """(n,) the velocity's component along each ping's forward axis, m/s (zeros when unknown)."""

@@ -18,8 +18,8 @@ def flat_scene(**material):
 
 
 def line_along_x(n_pings=3, z=H, length=2.0):
-    """Pings heading +x (starboard towards −y) at altitude z."""
-    return se.Trajectory.line(start=(-length / 2, 0.0, z), end=(length / 2, 0.0, z), n_pings=n_pings)
+    """Pings heading +x (starboard towards −y) at altitude z, stop-and-hop (the model of the closed forms)."""
+    return se.Trajectory.line(start=(-length / 2, 0.0, z), end=(length / 2, 0.0, z), n_pings=n_pings).stop_and_hop()
 
 
 def box(extents, center):

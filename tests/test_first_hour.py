@@ -262,7 +262,7 @@ def _floor(size=60.0):
 
 
 def _line(z=10.0, x0=-1.0, x1=1.0, y=0.0, n=3):
-    return se.Trajectory.line((x0, y, z), (x1, y, z), n_pings=n)
+    return se.Trajectory.line((x0, y, z), (x1, y, z), n_pings=n).stop_and_hop()
 
 
 @pytest.mark.parametrize("scene, traj, sonar, message", [

@@ -87,7 +87,7 @@ def test_floor_snr_at_40_m_matches_the_sonar_equation():
     h, r, tau, sl = 10.0, 40.0, 200e-6, 210.0
     sonar = se.Sonar(max_range_m=45.0, source_level_db=sl, self_noise_db_per_hz=30.0,
                      environment=se.Environment(noise=se.AmbientNoise(wind_speed_m_s=10.0)))
-    rec = se.simulate(_floor(), se.Trajectory.line((0, 0, h), (0.2, 0, h), 2), sonar,
+    rec = se.simulate(_floor(), se.Trajectory.line((0, 0, h), (0.2, 0, h), 2).stop_and_hop(), sonar,
                       se.Pulse.cw(duration_s=tau, taper=0.0), start_time="2000-01-01")
     fs, c, alpha = rec.sonar.sample_rate_hz, 1500.0, rec.sonar.alpha_db_per_m
     noise = 10 ** ((coates_db(400e3, 10.0) - 10 * np.log10(4 * np.pi * 0.19 * 0.0038 / 0.00375 ** 2)) / 10)

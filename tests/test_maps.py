@@ -28,7 +28,7 @@ def _checker_obj(tmp_path):
 
 def _record(scene):
     sonar = se.Sonar(max_range_m=40.0, sample_rate_hz=FS)
-    traj = se.Trajectory.line((1.2, 0.0, H), (1.3, 0.0, H), 3)    # over the column x ∈ [0, 2.5] (i = 2)
+    traj = se.Trajectory.line((1.2, 0.0, H), (1.3, 0.0, H), 3).stop_and_hop()    # over the column x ∈ [0, 2.5] (i = 2)
     return se.simulate(scene, traj, sonar, se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
 
 

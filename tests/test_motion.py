@@ -107,3 +107,42 @@ def test_motion_during_the_ping_shifts_a_point_target_by_v_tau_over_2():
     tau, spacing = 2 * r_slant / 1500.0, v / prf
     assert cent["still"] == pytest.approx(0.0, abs=0.1 * spacing)
     assert cent["still"] - cent["moving"] == pytest.approx(v * tau / 2, abs=0.1 * spacing)
+
+
+def test_a_line_moves_during_the_ping_by_default_and_the_flat_floor_loses_the_beam_overlap():
+    """``Trajectory.line`` knows its speed, so its pings carry the velocity (motion during the ping is on);
+    ``stop_and_hop()`` drops it. Over a flat floor the moving record is the stop-and-hop one times the
+    along-track overlap of the transmit beam and the receive beam turned by δ = 2v/c (docs/physics.md §16):
+    ∫Γ²(u)Γ²(u − δ)du / ∫Γ⁴(u)du with Γ(u) = sinc(k·lx/2·u), u = sin ψ — quadrature here, within 0.03 dB."""
+    from conftest import flat_scene
+
+    v, h, sonar = 2.0, 10.0, se.Sonar(max_range_m=40.0)
+    line = se.Trajectory.line((-0.5, 0, h), (0.5, 0, h), 2, speed_m_s=v)
+    np.testing.assert_allclose(line.velocity_m_s, [[v, 0, 0], [v, 0, 0]], atol=1e-12)
+    still = line.stop_and_hop()
+    assert still.velocity_m_s is None and np.array_equal(still.positions_m, line.positions_m)
+    moving_rec, still_rec = (se.simulate(flat_scene(), t, sonar, se.Pulse.cw(100e-6, taper=0.0),
+                                         start_time="2000-01-01") for t in (line, still))
+    assert moving_rec.attrs["motion_during_ping"] and not still_rec.attrs["motion_during_ping"]
+    a = np.pi * sonar.frequency_hz * sonar.length_m / sonar.sound_speed_m_s          # k·lx/2
+    delta = 2 * v / sonar.sound_speed_m_s
+    u = np.linspace(-40 / a, 40 / a, 400_001)
+    gamma = lambda x: np.sinc(a * x / np.pi)                                         # noqa: E731
+    want_db = 10 * np.log10(np.trapezoid(gamma(u) ** 2 * gamma(u - delta) ** 2, u) / np.trapezoid(gamma(u) ** 4, u))
+    assert want_db < -0.1                                                             # a loss the test can see
+    band = (moving_rec.slant_range_m > 15.0) & (moving_rec.slant_range_m < 38.0)
+    for side in ("starboard", "port"):
+        got_db = 10 * np.log10(getattr(moving_rec, side)[:, band] / getattr(still_rec, side)[:, band])
+        np.testing.assert_allclose(got_db, want_db, atol=0.03)
+
+
+def test_motion_during_the_ping_in_toml(tmp_path):
+    """``[trajectory] motion_during_ping = false`` asks for stop-and-hop; anything but a boolean is refused."""
+    from sonar_embree.runs.runconfig import parse_trajectory
+
+    table = {"kind": "line", "start": [0, 0, 10], "end": [4, 0, 10], "n_pings": 3, "speed_m_s": 1.5}
+    assert parse_trajectory(table, "run.toml", str(tmp_path), "[trajectory]").velocity_m_s is not None
+    assert parse_trajectory({**table, "motion_during_ping": False}, "run.toml", str(tmp_path),
+                            "[trajectory]").velocity_m_s is None
+    with pytest.raises(se.ConfigError, match="run.toml: \\[trajectory\\] motion_during_ping must be true or false"):
+        parse_trajectory({**table, "motion_during_ping": "no"}, "run.toml", str(tmp_path), "[trajectory]")

@@ -32,7 +32,7 @@ def _record(surface=None, extra=None):
                            label="seafloor")
     for mesh, mat, label in extra or ():
         scene.add(mesh, material=mat, label=label)
-    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
     return se.simulate(scene, line, _sonar(surface), se.Pulse.cw(duration_s=TAU, taper=0.0),
                        start_time="2000-01-01")
 
@@ -179,7 +179,7 @@ def test_no_surface_runs_no_multipath_code_and_surface_errors(monkeypatch):
     from sonar_embree import multipath
 
     scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
-    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
     for name in ("image_echoes", "mixed_echoes", "merge"):      # model only what a scene needs
         monkeypatch.setattr(multipath, name, lambda *a, **k: pytest.fail("multipath ran without a surface"))
     timings = {}
@@ -335,7 +335,7 @@ def test_speckle_with_a_surface_averages_to_the_expected_four_paths(records):
     surface = se.SeaSurface(z_m=H + D)
     scene = se.Scene().add(se.seafloor.flat((400.0, 200.0)), material=se.Material(backscatter_db=MU_DB),
                            label="seafloor")
-    line = se.Trajectory.line((-4.0, 0.0, H), (4.0, 0.0, H), 41)
+    line = se.Trajectory.line((-4.0, 0.0, H), (4.0, 0.0, H), 41).stop_and_hop()
     rec = se.simulate(scene, line, _sonar(surface), se.Pulse.cw(duration_s=TAU, taper=0.0), speckle=True,
                       seed=5, start_time="2000-01-01")
     want = records["flat"].starboard.mean(axis=0)

@@ -68,7 +68,7 @@ def test_sediment_patches_shares_and_labels():
     scene = se.Scene().add_sediments(floor, {"fine sand": (sediments.FINE_SAND, 0.5), "mud": (sediments.MUD, 0.3),
                                              "rock": (sediments.ROCK, 0.2)}, patch_m=5.0, seed=2)
     assert scene.labels == ("seafloor/fine_sand", "seafloor/mud", "seafloor/rock")
-    rec = se.simulate(scene, se.Trajectory.line((0, 0, 10), (4, 0, 10), 5), se.Sonar(max_range_m=40.0),
+    rec = se.simulate(scene, se.Trajectory.line((0, 0, 10), (4, 0, 10), 5).stop_and_hop(), se.Sonar(max_range_m=40.0),
                       labels=True, start_time="2000-01-01")
     sc = rec.labels.seafloor_class()
     floor_samples = rec.labels.kind == 1

@@ -39,8 +39,8 @@ from ..waterfall import DISPLAY_DEFAULTS, check_display
 
 SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
 TRAJECTORY_KINDS = {
-    "line": ("start", "end", "n_pings", "speed_m_s", "pitch_deg", "roll_deg", "heading_deg"),
-    "waypoints": ("waypoints", "n_pings", "speed_m_s", "pitch_deg", "roll_deg"),
+    "line": ("start", "end", "n_pings", "speed_m_s", "pitch_deg", "roll_deg", "heading_deg", "motion_during_ping"),
+    "waypoints": ("waypoints", "n_pings", "speed_m_s", "pitch_deg", "roll_deg", "motion_during_ping"),
     "csv": ("path",),
 }
 TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
@@ -219,11 +219,16 @@ def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:
     if kind not in TRAJECTORY_KINDS:
         raise ConfigError(f"{source}: {where} kind must be one of {list(TRAJECTORY_KINDS)}, got {kind!r}")
     _check_keys(f"{where} (kind {kind!r})", traj_t, TRAJECTORY_KINDS[kind], source)
-    if kind == "line":
-        return _build(source, where, Trajectory.line, traj_t)
-    if kind == "waypoints":
-        return _build(source, where, Trajectory.through_waypoints,
-                      {"waypoints_m": traj_t.pop("waypoints", None), **traj_t})
+    moving = traj_t.pop("motion_during_ping", True)
+    if not isinstance(moving, bool):
+        raise ConfigError(f"{source}: {where} motion_during_ping must be true or false, got {moving!r}")
+    if kind in ("line", "waypoints"):
+        if kind == "line":
+            traj = _build(source, where, Trajectory.line, traj_t)
+        else:
+            traj = _build(source, where, Trajectory.through_waypoints,
+                          {"waypoints_m": traj_t.pop("waypoints", None), **traj_t})
+        return traj if moving else traj.stop_and_hop()
     try:
         return Trajectory.from_csv(_resolve(base, traj_t.get("path")))
     except ConfigError as exc:
