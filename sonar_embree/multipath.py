@@ -15,6 +15,9 @@ absorption, and each bounce multiplies the intensity by |R_s|² (Rayleigh roughn
 - S→X→S': from every direct echo, the leg X → S' through the surface point P,
   its weight w = Γ²(u1)·Γ²(u2)·σ(θi, θs, φ)·e^(−α'(r + r'))·|R_s|²·dΩ/(r'²·cos θi) and
   its travel-time extent from the footprint's motion along the ray cell.
+
+With motion during the ping (docs/physics.md §16) every receive beam, the image's included, is turned by
+δ = 2·v_fwd/c along track, so S→X→S' and S'→X→S differ: Γ²(u1)·Γ_rx²(u2) and Γ²(u2)·Γ_rx²(u1).
 """
 from __future__ import annotations
 
@@ -85,12 +88,16 @@ def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dis
         w[idx[:k][caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
 
 
-def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock) -> tuple[Echoes, BlockEchoes]:
-    """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked."""
+def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
+                 rx_shift=None) -> tuple[Echoes, BlockEchoes]:
+    """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked.
+
+    The image moves along track as the sonar does: ``rx_shift`` (pings,) δ = 2·v_fwd/c (None: stop-and-hop)."""
     s = front.sonar
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
     blk = cast_block(caster, front.plan, rot_i, pos_i, front.two_way_np_per_m, max_range_m,
-                     2.0 / s.sound_speed_m_s, want_points=True, timings=clock, frequency_hz=s.frequency_hz)
+                     2.0 / s.sound_speed_m_s, want_points=True, timings=clock, frequency_hz=s.frequency_hz,
+                     rx_shift=rx_shift)
     n, buf = blk.weight.shape[0], front.buffers
     w, up, leg = buf.take("image_w", n), buf.take("image_up", (n, 3)), buf.take("image_leg", n)
     w[:] = blk.weight
@@ -123,15 +130,17 @@ def _law_at(compiled, o: int, frequency_hz: float):
     return law.at_frequency(frequency_hz) if hasattr(law, "at_frequency") else law
 
 
-def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local) -> Echoes:
-    """S→X→S' and S'→X→S (one echo, twice the weight) of every direct echo of ``blk``, aligned with its rays."""
+def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
+    """S→X→S' and S'→X→S (one echo: twice the weight when stop-and-hop) of every direct echo of ``blk``, aligned
+    with its rays; ``rx_shift`` (pings,) δ = 2·v_fwd/c turns each path's receive beam (docs/physics.md §16)."""
+    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     s, plan, c = front.sonar, front.plan, caster.compiled
     n, buf = blk.range_m.shape[0], front.buffers
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
     kernels.mixed_legs(blk.ray_start, blk.el_start, blk.dbeta, blk.range_m, blk.point_m, blk.prim,
-                       np.ascontiguousarray(rot, dtype=np.float64), pos_local, z_s_local, c.face_normals,
+                       np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
                        s.sound_speed_m_s, _wave_kh(s), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
     lit = np.flatnonzero(w > 0)                                 # only lit echoes need σ, maps and their legs

@@ -288,14 +288,15 @@ def law_weights(prim, cos_i, face_object, object_law, law, params, weight, kind,
     return out
 
 
-def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m,
-               slope_cap_m_rad, c, wave_kh):
+def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m,
+               two_way_np_per_m, slope_cap_m_rad, c, wave_kh):
     """The one-bounce legs of every direct echo in NumPy (twin of kernels.mixed_legs): a dict of its outputs."""
-    def gain(u):
+    def gain(u, shift=0.0):
         e = np.einsum("nji,nj->ni", rot[ping], u)
         ct, st = np.cos(beam[2]), np.sin(beam[2])
         height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
-        return np.where(bore > 0, np.sinc(beam[0] * e[:, 0] / np.pi) * np.sinc(beam[1] * height / np.pi), 0.0)
+        along = np.sinc(beam[0] * (e[:, 0] - shift) / np.pi)
+        return np.where(bore > 0, along * np.sinc(beam[1] * height / np.pi), 0.0)
 
     s = pos[ping]
     u1 = (x - s) / r[:, None]
@@ -308,7 +309,8 @@ def mixed_legs(x, r, ping, side, dbeta, prim, rot, pos, z_s, face_normals, beam,
     u2 = to_p / leg2[:, None]
     n = face_normals[prim] * -np.sign(np.sum(face_normals[prim] * u1, axis=1))[:, None]
     cos_i, cos_s = -np.sum(n * u1, axis=1), np.sum(n * v, axis=1)
-    w = (2 * gain(u1) ** 2 * gain(u2) ** 2 * np.exp(-0.5 * two_way_np_per_m * (r + r2)) * ds * dbeta
+    d = rx_shift[ping]                                                    # S→X→S' receives along u2, S'→X→S along u1
+    w = ((gain(u1) ** 2 * gain(u2, d) ** 2 + gain(u2) ** 2 * gain(u1, d) ** 2) * np.exp(-0.5 * two_way_np_per_m * (r + r2)) * ds * dbeta
          / (np.maximum(r2, min_range_m) ** 2 * cos_i) * np.exp(-4 * wave_kh ** 2 * v[:, 2] ** 2))
     e = np.einsum("nji,nj->ni", rot[ping], u1)
     f = np.einsum("nij,nj->ni", rot[ping], np.stack([0 * r, -side * e[:, 2], side * e[:, 1]], axis=1))

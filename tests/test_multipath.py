@@ -27,43 +27,50 @@ def _sonar(surface=None, **kw):
     return se.Sonar(tilt_deg=TILT, height_m=LY, max_range_m=35.0, sample_rate_hz=FS, environment=env, **kw)
 
 
-def _record(surface=None, extra=None):
+def _record(surface=None, extra=None, moving_m_s=None):
     scene = se.Scene().add(se.seafloor.flat((400.0, 200.0)), material=se.Material(backscatter_db=MU_DB),
                            label="seafloor")
     for mesh, mat, label in extra or ():
         scene.add(mesh, material=mat, label=label)
-    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
+    line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2, speed_m_s=moving_m_s or 2.0)
+    line = line if moving_m_s else line.stop_and_hop()
     return se.simulate(scene, line, _sonar(surface), se.Pulse.cw(duration_s=TAU, taper=0.0),
                        start_time="2000-01-01")
 
 
-def _path_densities(rho, alpha_np, rs2=lambda sin_g: 1.0):
-    """φ-integrated intensity per unit ground distance of the three kinds of path, and their lengths L(ρ)."""
+def _path_densities(rho, alpha_np, rs2=lambda sin_g: 1.0, delta=0.0):
+    """φ-integrated intensity per unit ground distance of the three kinds of path, and their lengths L(ρ).
+
+    ``delta``: the receive beam's along-track cosine shifted by δ = 2v/c (motion during the ping, docs/physics.md
+    §16): each path's Γ²(tx)·Γ²(rx) becomes Γ²(tx)·Γ_rx²(rx), and S→X→S' and S'→X→S differ."""
     dense = np.linspace(-0.12, 0.12, 401)
     phi = np.unique(np.concatenate([dense, np.linspace(-np.pi / 2, np.pi / 2, 401)]))
     p, f = rho[:, None], phi[None, :]
     xy = np.stack([p * np.sin(f), -p * np.cos(f)], axis=-1)           # φ = 0: broadside starboard (−y)
     r, r2 = np.sqrt(rho ** 2 + H ** 2)[:, None], np.sqrt(rho ** 2 + (H + 2 * D) ** 2)[:, None]
 
-    def gamma(vx, vy, vz):                                            # starboard: side = −y, down = −z
-        return analytic.gamma_membrane(vx, -vy, -vz, ly=LY, tilt_deg=TILT)
+    def gamma(vx, vy, vz, shift=0.0):                                 # starboard: side = −y, down = −z
+        return analytic.gamma_membrane(vx - shift, -vy, -vz, ly=LY, tilt_deg=TILT)
 
     g1 = gamma(xy[..., 0] / r, xy[..., 1] / r, -H / r)
     g2 = gamma(xy[..., 0] / r2, xy[..., 1] / r2, (H + 2 * D) / r2)   # mirrored: the leg goes up
+    g1r = gamma(xy[..., 0] / r, xy[..., 1] / r, -H / r, delta)
+    g2r = gamma(xy[..., 0] / r2, xy[..., 1] / r2, (H + 2 * D) / r2, delta)
     mu, ci, cs = 10 ** (MU_DB / 10), H / r, (H + 2 * D) / r2
     sg = (H + 2 * D) / r2                                             # sin of the grazing angle at the surface
-    dens = {"direct": g1 ** 4 * mu * ci ** 2 * np.exp(-2 * alpha_np * r) / r ** 4,
-            "mixed": 2 * g1 ** 2 * g2 ** 2 * mu * ci * cs * rs2(sg) * np.exp(-alpha_np * (r + r2)) / (r * r2) ** 2,
-            "image": g2 ** 4 * mu * cs ** 2 * rs2(sg) ** 2 * np.exp(-2 * alpha_np * r2) / r2 ** 4}
+    dens = {"direct": g1 ** 2 * g1r ** 2 * mu * ci ** 2 * np.exp(-2 * alpha_np * r) / r ** 4,
+            "mixed": (g1 ** 2 * g2r ** 2 + g2 ** 2 * g1r ** 2) * mu * ci * cs * rs2(sg)
+            * np.exp(-alpha_np * (r + r2)) / (r * r2) ** 2,
+            "image": g2 ** 2 * g2r ** 2 * mu * cs ** 2 * rs2(sg) ** 2 * np.exp(-2 * alpha_np * r2) / r2 ** 4}
     lengths = {"direct": 2 * r[:, 0], "mixed": (r + r2)[:, 0], "image": 2 * r2[:, 0]}
     return {k: np.trapezoid(v, phi, axis=1) * rho for k, v in dens.items()}, lengths
 
 
-def quadrature(t, c, alpha_db_m, rs2=lambda sin_g: 1.0):
+def quadrature(t, c, alpha_db_m, rs2=lambda sin_g: 1.0, delta=0.0):
     """Expected intensity of each path at the sample times t (s): {path: (n,) float}."""
     rho = np.concatenate([np.linspace(0, 2, 1001)[:-1], np.linspace(2, 40, 3801)])
     alpha_np = alpha_db_m * np.log(10) / 10
-    dens, lengths = _path_densities(rho, alpha_np, rs2)
+    dens, lengths = _path_densities(rho, alpha_np, rs2, delta)
     out = {}
     for k, g in dens.items():
         cum = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(rho))])
@@ -109,6 +116,25 @@ def test_four_path_image_sum_matches_quadrature(records, flat_quadrature):
     direct_only = records["none"].starboard.mean(axis=0)
     lit = (q["direct"] > 1e-3 * q["direct"].max()) & ~_edges(rec.time_s, c, ("direct",))
     assert np.max(np.abs(10 * np.log10(direct_only[lit] / q["direct"][lit]))) < 0.5    # the reference itself
+
+
+def test_moving_during_the_ping_turns_every_path_s_receive_beam(records):
+    """Moving at 2 m/s, each path's record is the stop-and-hop one × its own beam-overlap loss (docs/physics.md
+    §16): the ratio moving/still of the four-path sum against the same ratio of the quadrature with δ = 2v/c,
+    within 0.03 dB where the surface paths carry at least half the intensity (there a receive beam left
+    unturned on them would miss by more than 0.05 dB)."""
+    still, v = records["flat"], 2.0
+    moving = _record(se.SeaSurface(z_m=H + D), moving_m_s=v)
+    c = still.sonar.sound_speed_m_s
+    q0, q1 = (quadrature(still.time_s, c, still.sonar.alpha_db_per_m, delta=d) for d in (0.0, 2 * v / c))
+    tot0, tot1 = (q["direct"] + q["mixed"] + q["image"] for q in (q0, q1))
+    multi = ((q0["mixed"] + q0["image"]) > 0.5 * tot0) & ~_edges(still.time_s, c) & (tot0 > 1e-6 * tot0.max())
+    assert multi.sum() > 100
+    want = 10 * np.log10(tot1[multi] / tot0[multi])
+    unturned = 10 * np.log10((q1["direct"] + q0["mixed"] + q0["image"])[multi] / tot0[multi])
+    assert np.min(np.abs(want - unturned)) > 0.05                     # the test tells the two apart
+    got = 10 * np.log10(moving.starboard.mean(axis=0)[multi] / still.starboard.mean(axis=0)[multi])
+    np.testing.assert_allclose(got, want, atol=0.03)
 
 
 def test_one_and_two_bounce_onsets(records, flat_quadrature):
@@ -232,7 +258,8 @@ def test_mixed_legs_kernel_matches_naive(rng):
     miss = rng.random(n) < 0.1                                        # rays without a direct echo
     r[miss] = np.inf
     beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
-    rest = (rot, pos, 15.0, normals, beam, 0.01, 0.0375, 0.044, 600.0, 1500.0, 0.3)
+    rx_shift = np.array([0.0, 2e-3, -5e-3])                          # stop-and-hop and moving pings (δ = 2v/c)
+    rest = (rot, pos, rx_shift, 15.0, normals, beam, 0.01, 0.0375, 0.044, 600.0, 1500.0, 0.3)
     out = {k: np.full(n, np.nan) for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")}
     v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     kernels.mixed_legs(ray_start, el_start, dbeta_cell, r, x, prim, *rest,

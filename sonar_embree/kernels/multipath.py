@@ -15,15 +15,20 @@ def _rotation(rot, b):
 
 
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
-def _gain(m, side, ux, uy, uz, beam, c, s):
-    """Γ of the channel's membrane (side −1 port, +1 starboard) for the world direction u; m the body → world
-    rotation (9-tuple, row-major), c and s the cosine and sine of the tilt."""
+def _gains(m, side, ux, uy, uz, beam, c, s, shift):
+    """(Γ, Γ_rx) of the channel's membrane (side −1 port, +1 starboard) for the world direction u; m the body →
+    world rotation (9-tuple, row-major), c and s the cosine and sine of the tilt. Γ_rx takes the along-track
+    cosine ``shift`` back (the receive beam moving during the ping, docs/physics.md §16); Γ_rx = Γ when 0."""
     e0 = m[0] * ux + m[3] * uy + m[6] * uz                    # body = mᵀ·u: forward, starboard, down
     e1 = m[1] * ux + m[4] * uy + m[7] * uz
     e2 = m[2] * ux + m[5] * uy + m[8] * uz
     if side * e1 * c + e2 * s <= 0.0:                         # cos ψ · cos(β − δ): behind the baffle
-        return 0.0
-    return _sinc(beam[0] * e0) * _sinc(beam[1] * (e2 * c - side * e1 * s))
+        return 0.0, 0.0
+    el = _sinc(beam[1] * (e2 * c - side * e1 * s))
+    g = _sinc(beam[0] * e0) * el
+    if shift == 0.0:
+        return g, g
+    return g, _sinc(beam[0] * (e0 - shift)) * el
 
 
 @njit(cache=True, nogil=True)
@@ -59,7 +64,7 @@ def _azimuth(n, u, v):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, z_s, face_normals, beam, ds, min_range_m,
+def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m,
                two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, time_out, extent_out, weight_out,
                cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
@@ -68,13 +73,15 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, z_s, face_norma
     (r' = |S' − X|), P = X + leg1·v the surface point and u2 the unit vector S → P
     (leg2 = |P − S|). Per echo:
 
-        w = 2·Γ²(u1)·Γ²(u2)·|R_s|²·e^(−α'(r + r'))·ds·dβ / (max(r', R_min)²·cos θi),
+        w = (Γ²(u1)·Γ_rx²(u2) + Γ²(u2)·Γ_rx²(u1))·|R_s|²·e^(−α'(r + r'))·ds·dβ / (max(r', R_min)²·cos θi),
         |R_s|² = exp(−4·(k·h_w)²·sin²θg)  (sin θg = v_z at the surface),
         t = (r + r')/c,  Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c,
 
     cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
     and v in the plane of n (the bistatic azimuth; 0 for backscatter). Rays without
-    a direct echo (r = inf) get w = 0, t = inf.
+    a direct echo (r = inf) get w = 0, t = inf. Γ_rx is Γ with the along-track cosine shifted by the
+    ping's ``rx_shift`` δ = 2·v_fwd/c (motion during the ping, docs/physics.md §16); with δ = 0 the weight is
+    2·Γ²(u1)·Γ²(u2) to the bit.
 
     Parameters
     ----------
@@ -86,6 +93,8 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, z_s, face_norma
         Direct slant ranges (m, inf: none), hit points (local frame, m) and triangles of the block's rays.
     rot : (pings, 3, 3) float64; pos : (pings, 3) float64
         Body-to-world rotations and sonar positions (local frame).
+    rx_shift : (pings,) float64
+        δ = 2·v_fwd/c of each ping (0: stop-and-hop).
     z_s : float
         Surface height in the local frame, m.
     face_normals : (f, 3) float64; beam : (4,) float64
@@ -104,6 +113,7 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, z_s, face_norma
         m = _rotation(rot, b)
         n_el = el_start[row + 1] - el_start[row]
         sx, sy, sz = pos[b, 0], pos[b, 1], pos[b, 2]
+        shift = rx_shift[b]
         for i in range(ray_start[row], ray_start[row + 1]):
             if not math.isfinite(r[i]):
                 weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
@@ -121,11 +131,12 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, z_s, face_norma
             flip = -1.0 if nx * u[0] + ny * u[1] + nz * u[2] > 0.0 else 1.0
             n = (flip * nx, flip * ny, flip * nz)
             cos_i = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2])
-            g1 = _gain(m, side, u[0], u[1], u[2], beam, ct, st)
-            g2 = _gain(m, side, px / leg2, py / leg2, pz / leg2, beam, ct, st)
+            g1, g1r = _gains(m, side, u[0], u[1], u[2], beam, ct, st, shift)
+            g2, g2r = _gains(m, side, px / leg2, py / leg2, pz / leg2, beam, ct, st, shift)
             rb2 = max(r2, min_range_m)
             att = math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2])
-            weight_out[i] = 2.0 * g1 * g1 * g2 * g2 * att * ds * db / (rb2 * rb2 * cos_i)
+            g = g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2          # = 2·g1²·g2², bit for bit, when δ = 0
+            weight_out[i] = g * att * ds * db / (rb2 * rb2 * cos_i)
             time_out[i] = (r[i] + r2) / sound_speed_m_s
             extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
             cos_i_out[i], cos_s_out[i] = cos_i, n[0] * v[0] + n[1] * v[1] + n[2] * v[2]

@@ -51,8 +51,8 @@ class SideScanFrontEnd:
         clock : dict
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
         rx_shift : (pings,) float64, optional
-            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) of the direct
-            path of straight rays; curved rays and the sea-surface paths are stop-and-hop.
+            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) of straight
+            rays, on the flat surface's paths too; curved rays and a swell's paths are stop-and-hop.
         """
         surface = self.sonar.environment.surface
         if self.sonar.environment.refracts:  # curved rays (never with a surface: Environment refuses both)
@@ -66,9 +66,10 @@ class SideScanFrontEnd:
         ids = caster.compiled.face_object if want_ids else None
         if surface is None:
             return echoes_of(blk, ids), blk
-        return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock), blk
+        return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
 
-    def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock) -> Echoes:
+    def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
+                      rx_shift=None) -> Echoes:
         """Direct, one-bounce and two-bounce echoes of the block, row by row (docs/physics.md §13)."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         direct = echoes_of(blk, ids)
@@ -76,8 +77,8 @@ class SideScanFrontEnd:
             mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock)
         else:
             z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
-            image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock)
-            mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s)
+            image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
+            mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s, rx_shift)
             if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
                 mixed = dataclasses.replace(mixed, object_id=direct.object_id)
                 image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
