@@ -124,7 +124,8 @@ def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffe
 
 
 def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
-                   sonar, want_points: bool, clock: dict, buffers: Buffers | None = None) -> BlockEchoes:
+                   sonar, want_points: bool, clock: dict, buffers: Buffers | None = None,
+                   rx_shift: np.ndarray | None = None) -> BlockEchoes:
     """:func:`~sonar_embree.fan.cast_block` for curved rays in ``environment.sound_speed``.
 
     Parameters
@@ -141,8 +142,11 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
         Seconds spent are added under ``"embree"`` and ``"rays"``.
     buffers : Buffers, optional
         Working arrays to reuse (a front end keeps one).
+    rx_shift : (pings,) float64, optional
+        Motion during the ping, δ = 2·v_fwd/c per ping (:func:`~sonar_embree.fan.cast_block`); None: stop-and-hop.
     """
     buffers = Buffers() if buffers is None else buffers
+    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     t0, before = time.perf_counter(), clock.get("embree", 0.0)
     c_nom = sonar.sound_speed_m_s
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
@@ -161,9 +165,9 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.arc_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, hit_prim, hit, ray, c.face_normals,
-                       c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max, plan.slope_cap_m_rad,
-                       c_nom, rng, t_s, ext, w, cos_i, pts)
+    kernels.arc_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray,
+                       c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
+                       plan.slope_cap_m_rad, c_nom, rng, t_s, ext, w, cos_i, pts)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

@@ -45,13 +45,14 @@ def surface_caster(caster, surface, max_range_m: float):
     return cache[key]
 
 
-def _gain(sonar, rot, side, u):
+def _gain(sonar, rot, side, u, shift=0.0):
     """Γ of the channel's membrane (:func:`beam.directivity`) for world directions u (n, 3), rot (n, 3, 3)
-    body → world, side −1 port, +1 starboard."""
+    body → world, side −1 port, +1 starboard; ``shift`` (n,) takes the along-track cosine back (the receive
+    beam moving during the ping, docs/physics.md §16)."""
     e = np.einsum("nji,nj->ni", rot, u)                              # body: forward, starboard, down
     ct, st = np.cos(sonar.tilt_rad), np.sin(sonar.tilt_rad)
-    return beam.directivity(e[:, 0], e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st,
-                            sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m)
+    return beam.directivity(e[:, 0] - shift, e[:, 2] * ct - side * e[:, 1] * st,
+                            side * e[:, 1] * ct + e[:, 2] * st, sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m)
 
 
 def _bounce(front, caster, swell, rot, pos_local, max_range_m, clock):
@@ -100,12 +101,14 @@ def _footprint(b, rot_i, n_x, cos_i):
     return b["R"][:, None] * (f_r + b["u_r"] * (nf / np.maximum(cos_i, 1e-12))[:, None])
 
 
-def _two_bounce(front, caster, b, rot, rs2, cos_i, dx):
-    """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied)."""
+def _two_bounce(front, caster, b, rot, rs2, cos_i, dx, shift=None):
+    """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied); ``shift`` (n,) δ of
+    each echo's ping when moving during the ping (None: stop-and-hop)."""
     plan, s = front.plan, front.sonar
     side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
     g = _gain(s, rot[b["row"] // 2], side, b["u"])
-    w = (g ** 4 * np.exp(-front.two_way_np_per_m * b["R"]) * rs2 ** 2 * plan.ds * b["dbeta"]
+    g4 = g ** 4 if shift is None else g ** 2 * _gain(s, rot[b["row"] // 2], side, b["u"], shift) ** 2
+    w = (g4 * np.exp(-front.two_way_np_per_m * b["R"]) * rs2 ** 2 * plan.ds * b["dbeta"]
          / np.maximum(b["R"], plan.min_range_m) ** 2)
     w = np.where(cos_i > 1e-9, w, 0.0)
     apply_laws(caster.compiled, s.frequency_hz, b["prim"], np.maximum(cos_i, 1e-9), w, b["x"])
@@ -113,8 +116,9 @@ def _two_bounce(front, caster, b, rot, rs2, cos_i, dx):
     return w, 2.0 * b["R"] / s.sound_speed_m_s, 2.0 * slope * b["dbeta"] / s.sound_speed_m_s
 
 
-def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local):
-    """S→P→X→S and S→X→P→S: the bounced ray in, the direct leg back, one echo of twice the weight."""
+def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local, shift=None):
+    """S→P→X→S and S→X→P→S: the bounced ray in, the direct leg back, one echo of twice the weight (each with its
+    own receive beam when moving during the ping: ``shift`` (n,) δ, None: stop-and-hop)."""
     plan, s, c = front.plan, front.sonar, caster.compiled
     side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
     rot = rot[b["row"] // 2]
@@ -131,8 +135,11 @@ def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local):
     lit = (cos_i > 1e-9) & (cos_s > 1e-9)
     sigma = np.zeros(r.shape[0])
     sigma[lit] = bistatic_sigma(c, s.frequency_hz, b["prim"][lit], cos_i[lit], cos_s[lit], phi[lit])
-    g2 = _gain(s, rot, side, b["u"]) ** 2 * _gain(s, rot, side, u_d) ** 2
-    w = (2.0 * g2 * sigma * rs2 * np.exp(-0.5 * front.two_way_np_per_m * (b["R"] + r)) * plan.ds * b["dbeta"]
+    g2 = 2.0 * _gain(s, rot, side, b["u"]) ** 2 * _gain(s, rot, side, u_d) ** 2
+    if shift is not None:
+        g2 = (_gain(s, rot, side, b["u"]) ** 2 * _gain(s, rot, side, u_d, shift) ** 2
+              + _gain(s, rot, side, u_d) ** 2 * _gain(s, rot, side, b["u"], shift) ** 2)
+    w = (g2 * sigma * rs2 * np.exp(-0.5 * front.two_way_np_per_m * (b["R"] + r)) * plan.ds * b["dbeta"]
          / (np.maximum(r, plan.min_range_m) ** 2 * np.maximum(cos_i, 1e-9)))
     for detail in (c.maps, c.textures):
         if detail is not None:
@@ -143,8 +150,9 @@ def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local):
     return w, (b["R"] + r) / s.sound_speed_m_s, slope * b["dbeta"] / s.sound_speed_m_s
 
 
-def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock):
-    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan."""
+def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
+    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan; ``rx_shift``
+    (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
     swell = surface_caster(caster, front.sonar.environment.surface, max_range_m)
     b = _bounce(front, caster, swell, rot, pos_local, max_range_m, clock)
     n_x = caster.compiled.face_normals[b["prim"]]
@@ -154,9 +162,10 @@ def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock):
     dx = _footprint(b, b["rot_i"], n_x, cos_i)
     start = row_starts(b["row"], b["ray_start"].shape[0] - 1)
     rot = np.asarray(rot, dtype=np.float64)
+    shift = None if rx_shift is None or not np.any(rx_shift) else np.asarray(rx_shift)[b["row"] // 2]
     out = []
-    for w, t, ext in (_one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local),
-                      _two_bounce(front, caster, b, rot, rs2, cos_i, dx)):
+    for w, t, ext in (_one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local, shift),
+                      _two_bounce(front, caster, b, rot, rs2, cos_i, dx, shift)):
         obj = np.zeros(0, np.int32) if ids is None else np.where(w > 0, ids[b["prim"]], -1).astype(np.int32)
         out.append(Echoes(2, start, t, ext, w, b["x"], obj))
     return out[0], out[1]

@@ -425,7 +425,7 @@ def arc_trace(theta0, depth0, xi, layers, planes, z0, s_max=300.0, n=30001):
 
 
 def arc_echoes(s, ds, beta, dbeta, el_start, rot, hit_prim, point, direction, T, L, area, shift_per_rad, c_hit,
-               face_normals, k, lx, ly, tilt, two_way, min_range, t_max, slope_cap, c_nom):
+               face_normals, k, lx, ly, tilt, two_way, min_range, t_max, slope_cap, c_nom, rx_shift=None):
     """Weights, times and extents of curved-ray hits by vector algebra (twin of kernels.arc_echoes).
 
     ``area`` (A_Ω) and ``shift_per_rad`` (|n̂·δ⊥| per dβ) are given per ray: the twin checks the beam, the
@@ -442,9 +442,12 @@ def arc_echoes(s, ds, beta, dbeta, el_start, rot, hit_prim, point, direction, T,
     cos_i = -np.sum(direction * nrm, axis=1)
     cpsi = np.sqrt(1 - ss ** 2)
     rel = bb - tilt
-    g = np.sinc(k * lx / 2 * ss / np.pi) * np.sinc(k * ly / 2 * cpsi * np.sin(rel) / np.pi)
+    g_el = np.sinc(k * ly / 2 * cpsi * np.sin(rel) / np.pi)
+    g = np.sinc(k * lx / 2 * ss / np.pi) * g_el
+    d = 0.0 if rx_shift is None else rx_shift[rows // 2]                 # the receive beam moved on (rows 2·ping + side)
+    g_rx = np.sinc(k * lx / 2 * (ss - d) / np.pi) * g_el
     ok = hit & (cos_i > 1e-9) & (T <= t_max) & (cpsi * np.cos(rel) > 0)
-    w[ok] = (g[ok] ** 4 * np.exp(-two_way * L[ok]) * ds * dbb[ok] / np.maximum(area[ok], min_range ** 2))
+    w[ok] = (g[ok] ** 2 * g_rx[ok] ** 2 * np.exp(-two_way * L[ok]) * ds * dbb[ok] / np.maximum(area[ok], min_range ** 2))
     t[ok] = 2 * T[ok]
     ext[ok] = 2 * np.minimum(shift_per_rad[ok] / cos_i[ok], slope_cap) * dbb[ok] / c_hit[ok]
     return w, t, ext, c_nom * T

@@ -398,6 +398,21 @@ def test_a_flat_swell_mesh_gives_the_four_path_quadrature(flat_quadrature, monke
     assert multi.sum() > 100 and np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
 
 
+def test_a_flat_swell_mesh_moves_during_the_ping_as_the_image_method_does(records):
+    """The swell's paths turn their receive beams as the flat surface's do: a 1 µm swell, moving at 2 m/s over
+    stop-and-hop, against the quadrature's moving/still ratio (as for the flat surface), within 0.05 dB."""
+    flat = se.SeaSurface(z_m=H + D, swell_height_m=1e-6, swell_length_m=20.0)
+    still, moving = _record(flat), _record(flat, moving_m_s=2.0)
+    c = still.sonar.sound_speed_m_s
+    q0, q1 = (quadrature(still.time_s, c, still.sonar.alpha_db_per_m, delta=d) for d in (0.0, 4.0 / c))
+    tot0, tot1 = (q["direct"] + q["mixed"] + q["image"] for q in (q0, q1))
+    multi = ((q0["mixed"] + q0["image"]) > 0.5 * tot0) & ~_edges(still.time_s, c) & (tot0 > 1e-6 * tot0.max())
+    want = 10 * np.log10(tot1[multi] / tot0[multi])
+    got = 10 * np.log10(moving.starboard.mean(axis=0)[multi] / still.starboard.mean(axis=0)[multi])
+    assert np.min(want) < -0.1
+    np.testing.assert_allclose(got, want, atol=0.05)
+
+
 def test_a_swell_runs_the_reflection_path_and_modulates_the_multipath_along_track(monkeypatch):
     """Over one swell length the one-bounce energy changes with the facets above the sonar (it is largest under
     a crest or trough, where they are level), where a flat surface gives the same energy at every ping."""

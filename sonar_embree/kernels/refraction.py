@@ -487,12 +487,12 @@ def _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, ray, face_normals, face_two_sided,
+def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray, face_normals, face_two_sided,
                beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom, range_out, time_out, extent_out,
                weight_out, cos_out, points_out):
     """Weights of the curved rays of a block (docs/physics.md §12); the law multiplies σ(θi)/cos θi afterwards.
 
-    w = Γ⁴(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
+    w = Γ²(launch)·Γ_rx²(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
 
     at two-way time 2T (apparent range c_nom·T), spread over the travel-time interval
     2·|n̂·δ⊥|·dβ / (c_h·cos θi) of its cell, δ⊥ the ray tube's sideways motion per dβ
@@ -502,6 +502,9 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
     baffle get w = 0. Arguments as for :func:`~sonar_embree.kernels.rays.fan_echoes`, plus
     ``hit_prim``, ``hit``, ``ray`` from :func:`arc_land` / :func:`arc_start`, ``t_max`` (one-way, s)
     and ``c_nom`` (the sonar's sound speed, m/s). Outputs as there; points are the hit points.
+    Γ_rx: the receive beam moved on during the ping, its along-track cosine shifted by ``rx_shift`` (pings,)
+    δ = 2·v_fwd/c (docs/physics.md §16; the horizontal slowness is conserved, so the ray reaching the moved
+    receiver leaves X with s − 2v·T/M ≈ s − 2v/c0); Γ_rx = Γ, bit for bit, when δ = 0.
     """
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
@@ -516,6 +519,7 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
             sa = s[a]
             cpsi = math.sqrt(1.0 - sa * sa)
             g_az = _sinc(beam[0] * sa)
+            g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
             for j in range(n_el):
                 i = base + a * n_el + j
                 range_out[i] = math.inf
@@ -541,8 +545,10 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, hit_prim, hit, r
                     continue
                 c0 = ray[i, 4]
                 area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
+                g_rx = g if rx_shift[b] == 0.0 else _membrane_gain(beam, cos_t, sin_t, g_az_rx, cpsi, cos_beta[e],
+                                                                    sin_beta[e])
                 g2 = g * g
-                weight_out[i] = (g2 * g2 * math.exp(-two_way_np_per_m * hit[i, 7]) * ds * dbeta[e]
+                weight_out[i] = (g2 * (g_rx * g_rx) * math.exp(-two_way_np_per_m * hit[i, 7]) * ds * dbeta[e]
                                  / max(area, min_range_m * min_range_m))
                 range_out[i] = c_nom * hit[i, 6]
                 time_out[i] = 2.0 * hit[i, 6]

@@ -127,9 +127,20 @@ class EchoSounderFrontEnd:
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
 
+    def _gain(self, rx_shift, n_p: int) -> np.ndarray:
+        """b⁴·dΩ of every ray of the block, (n_p·n,); moving during the ping (``rx_shift`` (n_p,) δ = 2·v_fwd/c, not
+        all 0) the receive factor b²(θ_rx) has sin θ_rx = |(u_fwd − δ, u_side)| (docs/physics.md §16)."""
+        if rx_shift is None or not np.any(rx_shift):
+            return np.tile(self.gain4 * self.d_omega, n_p)
+        fwd = self.body[None, :, 0] - np.asarray(rx_shift, dtype=np.float64)[:, None]
+        sin_rx = np.minimum(np.hypot(fwd, self.body[None, :, 1]), 1.0)
+        b_rx = self.sonar.directivity(np.arcsin(sin_rx))
+        b = self.sonar.directivity(self.theta)
+        return ((b * b * self.d_omega)[None, :] * b_rx * b_rx).reshape(-1)
+
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
-        """Echoes of a block of pings (one channel each); arguments as for the side-scan front end (a nadir beam:
-        the receiver's motion during the ping, ``rx_shift``, is not modelled)."""
+        """Echoes of a block of pings (one channel each); arguments as for the side-scan front end, ``rx_shift``
+        the receiver's motion during the ping (see :meth:`_gain`)."""
         n_p, n = rot.shape[0], self.body.shape[0]
         u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
         f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)
@@ -138,7 +149,7 @@ class EchoSounderFrontEnd:
         r = np.where(ok, hits.range_m, np.inf)
         cos_i = np.where(ok, hits.cos_inc, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            w = np.where(ok, np.tile(self.gain4 * self.d_omega, n_p) * np.exp(-self.two_way_np_per_m * r)
+            w = np.where(ok, self._gain(rx_shift, n_p) * np.exp(-self.two_way_np_per_m * r)
                          / np.maximum(r, self.sonar.wavelength_m) ** 2, 0.0)
             slope = np.abs(np.einsum("ij,ij->i", hits.normal, f)) * r / cos_i
         c = caster.compiled

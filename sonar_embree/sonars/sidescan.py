@@ -51,14 +51,13 @@ class SideScanFrontEnd:
         clock : dict
             Timings, as for :func:`~sonar_embree.fan.cast_block`.
         rx_shift : (pings,) float64, optional
-            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) of straight
-            rays, on the flat surface's paths too; curved rays and a swell's paths are stop-and-hop.
+            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) on every path.
         """
         surface = self.sonar.environment.surface
         if self.sonar.environment.refracts:  # curved rays (never with a surface: Environment refuses both)
             blk = refraction.cast_refracted(caster, self.plan, rot, pos_local, self.sonar.environment,
                                             self.two_way_np_per_m, max_range_m, self.sonar, want_points, clock,
-                                            self.buffers)
+                                            self.buffers, rx_shift)
             return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
                          2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
@@ -74,7 +73,7 @@ class SideScanFrontEnd:
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         direct = echoes_of(blk, ids)
         if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
-            mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock)
+            mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
         else:
             z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
             image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
