@@ -188,10 +188,10 @@ class Trajectory:
         length = float(np.linalg.norm(d))
         times = u * length / speed_m_s
         velocity = None  # known only when the line has a length: the vehicle moves at speed_m_s along it
-        if n_pings > 1 and times[-1] == 0.0:
-            times = np.arange(n_pings, dtype=np.float64)
-        elif n_pings > 1:
+        if length > 0.0:
             velocity = np.broadcast_to(d / length * speed_m_s, pos.shape)
+        elif n_pings > 1:
+            times = np.arange(n_pings, dtype=np.float64)
         return cls(pos, heading_deg, pitch_deg, roll_deg, times, velocity)
 
     @classmethod

@@ -121,6 +121,9 @@ def test_a_line_moves_during_the_ping_by_default_and_the_flat_floor_loses_the_be
     np.testing.assert_allclose(line.velocity_m_s, [[v, 0, 0], [v, 0, 0]], atol=1e-12)
     still = line.stop_and_hop()
     assert still.velocity_m_s is None and np.array_equal(still.positions_m, line.positions_m)
+    one = se.Trajectory.line((0, 0, h), (0, 3, h), 1, speed_m_s=1.5)               # one ping still knows its course
+    np.testing.assert_allclose(one.velocity_m_s, [[0, 1.5, 0]], atol=1e-12)
+    assert se.Trajectory.line((0, 0, h), (0, 0, h), 1).velocity_m_s is None      # no length: no course
     moving_rec, still_rec = (se.simulate(flat_scene(), t, sonar, se.Pulse.cw(100e-6, taper=0.0),
                                          start_time="2000-01-01") for t in (line, still))
     assert moving_rec.attrs["motion_during_ping"] and not still_rec.attrs["motion_during_ping"]
