@@ -7,6 +7,7 @@ heading, then pitch, then roll (intrinsic z-y-x). Body axes: forward, starboard,
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import os
 from dataclasses import dataclass
@@ -18,7 +19,12 @@ from .errors import ConfigError
 # World (east, north, up) from aerospace NED (north, east, down).
 _ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
 
-CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_deg")
+log = logging.getLogger(__name__)
+
+VELOCITY_COLUMNS = ("vx_m_s", "vy_m_s", "vz_m_s")
+CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_deg") + VELOCITY_COLUMNS
+#: Speed (m/s) above which a CSV trajectory's time stamps look like a unit slip: towfish and AUVs fly below 5 m/s.
+IMPLAUSIBLE_SPEED_M_S = 30.0
 
 
 def body_to_world(heading_deg, pitch_deg, roll_deg):
@@ -269,7 +275,11 @@ class Trajectory:
         """Read a trajectory from CSV with a header row.
 
         Columns (any order): ``x_m, y_m, z_m`` required; ``heading_deg``,
-        ``pitch_deg``, ``roll_deg`` (default 0) and ``time_s`` optional.
+        ``pitch_deg``, ``roll_deg`` (default 0), ``time_s`` and the velocity ``vx_m_s, vy_m_s, vz_m_s``
+        (all three or none) optional. Without velocity columns but with times, the velocity is the
+        positions' time derivative (second-order differences, ends included), so the sonar moves during each ping
+        (docs/physics.md §16); without times it stops for each ping. A speed above
+        :data:`IMPLAUSIBLE_SPEED_M_S` is warned about (time stamps not in seconds?).
         """
         path = os.fspath(path)
         try:
@@ -300,20 +310,42 @@ class Trajectory:
             raise ConfigError(f"{path}: every trajectory row needs {len(header)} values")
         col = {name: data[:, i] for i, name in enumerate(header)}
         try:
-            return cls(np.stack([col["x_m"], col["y_m"], col["z_m"]], axis=1),
+            traj = cls(np.stack([col["x_m"], col["y_m"], col["z_m"]], axis=1),
                        col.get("heading_deg", 0.0), col.get("pitch_deg", 0.0),
                        col.get("roll_deg", 0.0), col.get("time_s"))
+            v = _csv_velocity(col, traj, path)
+            return traj if v is None else cls(traj.positions_m, traj.heading_deg, traj.pitch_deg, traj.roll_deg,
+                                               traj.times_s, v)
         except ConfigError as exc:
             raise ConfigError(f"{path}: {exc}") from None
 
     def to_csv(self, path) -> None:
         """Write the trajectory as CSV with the columns of :meth:`from_csv`."""
-        data = np.column_stack([self.times_s, self.positions_m, self.heading_deg, self.pitch_deg, self.roll_deg])
+        cols = [self.times_s, self.positions_m, self.heading_deg, self.pitch_deg, self.roll_deg]
+        names = CSV_COLUMNS if self.velocity_m_s is not None else CSV_COLUMNS[:-len(VELOCITY_COLUMNS)]
+        data = np.column_stack(cols + ([self.velocity_m_s] if self.velocity_m_s is not None else []))
         tmp = os.fspath(path) + ".tmp"
         with open(tmp, "w", newline="") as fh:
-            fh.write(",".join(CSV_COLUMNS) + "\n")
+            fh.write(",".join(names) + "\n")
             np.savetxt(fh, data, delimiter=",", fmt="%.17g")
         os.replace(tmp, path)
+
+
+def _csv_velocity(col: dict, traj: "Trajectory", path: str):
+    """(n, 3) velocity of a CSV trajectory, m/s: its columns, else d(position)/dt where times are given, else None."""
+    given = [c for c in VELOCITY_COLUMNS if c in col]
+    if given and len(given) < len(VELOCITY_COLUMNS):
+        raise ConfigError(f"velocity needs all of {', '.join(VELOCITY_COLUMNS)}; got only {', '.join(given)}")
+    if given:
+        return np.stack([col[c] for c in VELOCITY_COLUMNS], axis=1)
+    if "time_s" not in col or len(traj) < 2:
+        return None
+    v = np.gradient(traj.positions_m, traj.times_s, axis=0, edge_order=2 if len(traj) > 2 else 1)
+    fastest = float(np.linalg.norm(v, axis=1).max())
+    if fastest > IMPLAUSIBLE_SPEED_M_S:
+        log.warning("%s: the vehicle moves at up to %.3g m/s between its time stamps; is time_s in seconds?",
+                    path, fastest)
+    return v
 
 
 def _ping_rate(ping_rate_hz, sonar) -> float:

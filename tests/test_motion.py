@@ -149,3 +149,9 @@ def test_motion_during_the_ping_in_toml(tmp_path):
                             "[trajectory]").velocity_m_s is None
     with pytest.raises(se.ConfigError, match="run.toml: \\[trajectory\\] motion_during_ping must be true or false"):
         parse_trajectory({**table, "motion_during_ping": "no"}, "run.toml", str(tmp_path), "[trajectory]")
+    (tmp_path / "nav.csv").write_text("time_s,x_m,y_m,z_m\n0,0,0,10\n1,1.5,0,10\n")  # a navigation log: 1.5 m/s
+    nav = {"kind": "csv", "path": "nav.csv"}
+    np.testing.assert_allclose(parse_trajectory(nav, "run.toml", str(tmp_path), "[trajectory]").velocity_m_s,
+                               [[1.5, 0, 0]] * 2)
+    assert parse_trajectory({**nav, "motion_during_ping": False}, "run.toml", str(tmp_path),
+                            "[trajectory]").velocity_m_s is None

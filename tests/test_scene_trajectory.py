@@ -86,7 +86,37 @@ def test_csv_round_trip(tmp_path):
     t = se.Trajectory([[0, 0, 10], [1, 2, 9.5]], heading_deg=[10, 20], pitch_deg=[1, 2], roll_deg=[-3, 4],
                       times_s=[0.0, 0.5])
     t.to_csv(tmp_path / "nav.csv")
-    assert se.Trajectory.from_csv(tmp_path / "nav.csv") == t
+    back = se.Trajectory.from_csv(tmp_path / "nav.csv")
+    assert back.stop_and_hop() == t                                      # the poses, bit for bit
+    np.testing.assert_allclose(back.velocity_m_s, [[2, 4, -1]] * 2)     # and the speed the time stamps give
+    moving = se.Trajectory.line((0, 0, 10), (3, 4, 10), 5, speed_m_s=1.5)
+    moving.to_csv(tmp_path / "moving.csv")
+    assert se.Trajectory.from_csv(tmp_path / "moving.csv") == moving   # velocity columns written and read
     (tmp_path / "bad.csv").write_text("x_m,y_m,z_m,speed\n0,0,0,1\n")
     with pytest.raises(se.ConfigError, match="'speed'"):
         se.Trajectory.from_csv(tmp_path / "bad.csv")
+
+
+def test_csv_velocity_columns_derivation_and_unit_slip(tmp_path, caplog):
+    """Velocity columns are used as given (all three or an error naming the missing ones); without them the
+    velocity is d(position)/dt by second-order differences (exact on a parabola, ends too); without times there is
+    none; a speed no vehicle flies warns of time stamps not in seconds."""
+    t = np.array([0.0, 0.5, 1.5, 2.0, 3.0])
+    x = 0.2 * t ** 2 + t                                                  # v = 0.4 t + 1
+    rows = "\n".join(f"{a},{b},0,10" for a, b in zip(t, x))
+    (tmp_path / "nav.csv").write_text("time_s,x_m,y_m,z_m\n" + rows + "\n")
+    v = se.Trajectory.from_csv(tmp_path / "nav.csv").velocity_m_s
+    np.testing.assert_allclose(v[:, 0], 0.4 * t + 1, rtol=1e-12)        # second order: exact, ends included
+    np.testing.assert_allclose(v[:, 1:], 0.0, atol=1e-12)
+    (tmp_path / "still.csv").write_text("x_m,y_m,z_m\n0,0,10\n1,0,10\n")
+    assert se.Trajectory.from_csv(tmp_path / "still.csv").velocity_m_s is None
+    (tmp_path / "given.csv").write_text("x_m,y_m,z_m,vx_m_s,vy_m_s,vz_m_s\n0,0,10,1,2,0\n1,0,10,1,2,0\n")
+    np.testing.assert_array_equal(se.Trajectory.from_csv(tmp_path / "given.csv").velocity_m_s, [[1, 2, 0]] * 2)
+    (tmp_path / "part.csv").write_text("x_m,y_m,z_m,vx_m_s\n0,0,10,1\n")
+    with pytest.raises(se.ConfigError, match="part.csv: velocity needs all of vx_m_s, vy_m_s, vz_m_s; got only vx_m_s"):
+        se.Trajectory.from_csv(tmp_path / "part.csv")
+    (tmp_path / "ms.csv").write_text("time_s,x_m,y_m,z_m\n0,0,0,10\n1,100,0,10\n")  # milliseconds, 2 m apart
+    with caplog.at_level("WARNING"):
+        se.Trajectory.from_csv(tmp_path / "ms.csv")
+    assert any("ms.csv: the vehicle moves at up to 100 m/s" in r.getMessage() and "seconds" in r.getMessage()
+               for r in caplog.records)

@@ -38,8 +38,9 @@ dataclasses (units in the key names):
                 tvg (false), noise_db_per_hz, lowpass_hz, speckle_cell_m, seed (0)
   [trajectory]  kind = "line": start, end, n_pings, speed_m_s, pitch_deg, roll_deg, heading_deg
                 kind = "waypoints": waypoints, n_pings, speed_m_s, pitch_deg, roll_deg
-                (both: motion_during_ping = true (default) | false for stop-and-hop)
-                kind = "csv": path (columns time_s,x_m,y_m,z_m,heading_deg,pitch_deg,roll_deg)
+                kind = "csv": path (columns time_s,x_m,y_m,z_m,heading_deg,pitch_deg,roll_deg,
+                optional vx_m_s,vy_m_s,vz_m_s; else the velocity from time_s)
+                (all: motion_during_ping = true (default) | false for stop-and-hop)
   [[objects]]   path = mesh file (OBJ/PLY/STL/GLB, metres; up_axis = "z" (default)
                 or "y" for a Y-up export; GLB/glTF are read y up as specified)  or
                 seafloor = "flat" | "perlin" | "ripples" and its arguments (size_m, ...);

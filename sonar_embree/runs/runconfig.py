@@ -41,7 +41,7 @@ SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seaflo
 TRAJECTORY_KINDS = {
     "line": ("start", "end", "n_pings", "speed_m_s", "pitch_deg", "roll_deg", "heading_deg", "motion_during_ping"),
     "waypoints": ("waypoints", "n_pings", "speed_m_s", "pitch_deg", "roll_deg", "motion_during_ping"),
-    "csv": ("path",),
+    "csv": ("path", "motion_during_ping"),
 }
 TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
 OUTPUT_KEYS = tuple(registry.FORMATS) + ("scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
@@ -230,9 +230,10 @@ def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:
                           {"waypoints_m": traj_t.pop("waypoints", None), **traj_t})
         return traj if moving else traj.stop_and_hop()
     try:
-        return Trajectory.from_csv(_resolve(base, traj_t.get("path")))
+        traj = Trajectory.from_csv(_resolve(base, traj_t.get("path")))
     except ConfigError as exc:
         raise ConfigError(f"{source}: {where}: {exc}") from None
+    return traj if moving else traj.stop_and_hop()
 
 
 def parse_law(law, source: str, where: str, base: str = ""):
