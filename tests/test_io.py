@@ -67,6 +67,7 @@ def test_xtf_speed_start_time_and_visible_samples(record, tmp_path):
     for i, p in enumerate(pings):
         assert p.SensorSpeed == pytest.approx(step[min(i, len(step) - 1)] / 0.514444, rel=0.2)
         assert p.SensorSpeed > 2.0  # knots, never 0
+        assert p.SensorSpeed == pytest.approx(1.5 / 0.514444, rel=1e-6)  # the velocity it carries, 1.5 m/s
         assert p.SensorDepth == 0.0  # no sea surface given: unknown depth, not -z
     start = np.datetime64(record.attrs["start_time"].replace("+00:00", ""), "ms")
     assert abs(pings[0].get_time() - start) <= np.timedelta64(10, "ms")

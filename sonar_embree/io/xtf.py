@@ -27,8 +27,8 @@ Conventions of what is written:
   ``surface_z_m``; without a surface (the default: scenes have none yet) the depth
   is unknown and written as 0, as devices without a pressure sensor do;
   SensorPrimaryAltitude = the record's nadir altitude (0 where none);
-  SensorSpeed and ShipSpeed in knots from the trajectory (distance over time
-  between pings); SensorHeading, SensorPitch, SensorRoll in degrees
+  SensorSpeed and ShipSpeed in knots from the trajectory (its velocity, else distance
+  over time between pings); SensorHeading, SensorPitch, SensorRoll in degrees
   (docs/physics.md §1 is the XTF convention).
 - SoundVelocity holds c/2 (the XTF convention); the channel header's SlantRange
   is the range window, TimeDuration its length, Frequency in kHz.
@@ -120,7 +120,10 @@ def sample_scale(record, scale="auto") -> float:
 
 
 def speed_m_s(trajectory) -> np.ndarray:
-    """(n,) speed of each ping from the distance to its neighbours over the time between them, m/s."""
+    """(n,) speed of each ping, m/s: its velocity's norm when the trajectory has one, else the distance to its
+    neighbours over the time between them."""
+    if trajectory.velocity_m_s is not None:
+        return np.linalg.norm(trajectory.velocity_m_s, axis=1)
     p, t = trajectory.positions_m, trajectory.times_s
     if len(t) < 2:
         return np.zeros(len(t))
