@@ -182,7 +182,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             run.truth.add_block(run.front, run.caster, blk, e, a, run.rots[a:b], run.pos_local[a:b], run.max_r)
             clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
-        run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock)
+        vel = None if trajectory.velocity_m_s is None else trajectory.velocity_m_s[a:b]
+        run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel)
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)

@@ -52,19 +52,21 @@ class ScattererLattice:
         self.caches = np.zeros((n_t, kernels.CACHE_WIDTH), dtype=np.int64)
 
     def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
-                   phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None):
+                   phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None, vel_rx=None):
         """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table.
 
-        ``pos_world`` transmits and ``pos_rx`` (default: the same) receives, world m per ping.
+        ``pos_world`` transmits and ``pos_rx`` (default: the same) receives, world m per ping, the receiver
+        moving at ``vel_rx`` (m/s per ping; default at rest) during the ping.
         """
         pos_world = np.ascontiguousarray(pos_world)
         pos_rx = pos_world if pos_rx is None else np.ascontiguousarray(pos_rx)
+        vel_rx = np.zeros_like(pos_world) if vel_rx is None else np.ascontiguousarray(vel_rx, dtype=np.float64)
         status = np.zeros(pos_world.shape[0], dtype=np.int64)
         if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
             self._alloc(self.slots.shape[0], self.slots.shape[1])
         while True:
             kernels.speckle_block(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
-                                  pos_world, pos_rx, self.seed, self.cell_m, wavelength_m, rate_hz,
+                                  pos_world, pos_rx, vel_rx, self.seed, self.cell_m, wavelength_m, rate_hz,
                                   phase_cycles_per_s, self.SUB_SCATTERERS, synth.table, synth.table_start,
                                   synth.table_rate, self.slots, self.epochs, self.nodes, self.node_key,
                                   self.caches, status, out)
@@ -130,8 +132,9 @@ class ExpectedSynthesis:
         self.out = np.zeros(shape)
         self.kernel, self.lead = echo_kernel
 
-    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict) -> None:
-        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey)."""
+    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None) -> None:
+        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey); the
+        velocity ``vel_world`` moves only speckle phases, so it is not needed here."""
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
         kernels.splat_rows(e.ray_start, e.travel_time_s * fs, e.extent_s * fs, e.weight,
@@ -160,17 +163,18 @@ class SpeckleSynthesis:
         coherent = chain.detection == "coherent"
         self.out = np.zeros(shape, dtype=np.complex128) if coherent else np.zeros(shape)
 
-    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict) -> None:
-        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise)."""
+    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None) -> None:
+        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise); the
+        vehicle moves at ``vel_world`` (pings, 3) m/s during them (None: at rest)."""
         s, chain, out = self.sonar, self.chain, self.out[a:a + e.n_pings]
         fs, f0 = s.sample_rate_hz, s.frequency_hz
         n_b, n_ch, n_s = out.shape
         if chain.band == "baseband":
-            self._lattice(e, origin_m, pos_world, fs, 0.0, out)  # coherent
+            self._lattice(e, origin_m, pos_world, fs, 0.0, out, vel_world)  # coherent
         else:
             m = self.tables.carrier_factor
             buf = np.zeros((n_b, n_ch, (n_s - 1) * m + 1), dtype=np.complex128)
-            self._lattice(e, origin_m, pos_world, m * fs, f0, buf)
+            self._lattice(e, origin_m, pos_world, m * fs, f0, buf, vel_world)
         t = time.perf_counter()
         for b in range(n_b):
             noise = None
@@ -186,17 +190,21 @@ class SpeckleSynthesis:
         clock["processing"] = clock.get("processing", 0.0) + dt
         clock["synthesis"] = clock.get("synthesis", 0.0) - dt
 
-    def _lattice(self, e: Echoes, origin_m, pos_world, rate_hz: float, phase_cycles_per_s: float, out) -> None:
-        """The lattice's echoes of every path: each its own gather and phase, the frozen scatterers shared."""
+    def _lattice(self, e: Echoes, origin_m, pos_world, rate_hz: float, phase_cycles_per_s: float, out,
+                 vel_world=None) -> None:
+        """The lattice's echoes of every path: each its own gather and phase, the frozen scatterers shared; the
+        receiver (or its image) moves at ``vel_world`` (or its mirror) during the ping."""
         s = self.sonar
         if e.path.shape[0] == 0:
             self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
-                                    out)
+                                    out, vel_rx=vel_world)
             return
         image = multipath.mirror(pos_world, s.environment.surface.z_m)
-        for p, (tx, rx) in enumerate(((pos_world, pos_world), (pos_world, image), (image, image))):
+        v, v_image = (None, None) if vel_world is None else (vel_world, vel_world * [1.0, 1.0, -1.0])
+        for p, (tx, rx, vr) in enumerate(((pos_world, pos_world, v), (pos_world, image, v_image),
+                                          (image, image, v_image))):
             self.lattice.synthesise(select(e, e.path == p), origin_m, tx, s.wavelength_m, rate_hz,
-                                    phase_cycles_per_s, self.tables, out, pos_rx=rx)
+                                    phase_cycles_per_s, self.tables, out, pos_rx=rx, vel_rx=vr)
 
     def finish(self):
         """Detected intensity (pings, channels, n_s) and the complex signal (coherent) or None."""

@@ -193,8 +193,10 @@ def splat_rows(ray_start, delay, width, weights, out, sub=4001):
 
 
 def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
-                  delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out, pos_rx=None):
-    """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table."""
+                  delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out, pos_rx=None,
+                  vel_rx=None):
+    """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table
+    (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in)."""
     for b in range(pos_world.shape[0]):
         lo, mid, hi = ray_start[2 * b], ray_start[2 * b + 1], ray_start[2 * b + 2]
         ch = np.where(np.arange(lo, hi) < mid, 0, 1)
@@ -207,6 +209,7 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
         sigma = np.sqrt(m2 / w)
         g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
         rx = pos_world[b] if pos_rx is None else pos_rx[b]
+        rx = rx + (0.0 if vel_rx is None else vel_rx[b] * r_mean[:, None])   # (nodes, 3)
         l_node = (np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
                   + np.linalg.norm(keys[:, 1:] * cell_m - rx, axis=1))            # 2R for the direct path
         base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))

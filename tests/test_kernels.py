@@ -250,13 +250,14 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     out = np.zeros((n_p, 2, 200), dtype=np.complex128)
     status = np.zeros(n_p, dtype=np.int64)
     rx = pos if n_tables != 2 else pos * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * (origin[2] + 15.0)]  # a surface image
-    args = (ray_start, pts, origin, w, r, ext, pos, rx, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0, 10.0)
+    vel = np.zeros((n_p, 3)) if n_tables == 1 else rng.uniform(-0.1, 0.1, (n_p, 3))  # receiver moving on (per unit r)
+    args = (ray_start, pts, origin, w, r, ext, pos, rx, vel, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0, 10.0)
     kernels.speckle_block(*args, *_speckle_tables(n_tables, 1 << 8), status, out)  # too small a table
     assert np.all(status == -1) and np.all(out == 0)  # says so, writes nothing
     status[:] = 0
     kernels.speckle_block(*args, *_speckle_tables(n_tables, 1 << 12), status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
-                              -2.0, 10.0, np.zeros_like(out), pos_rx=rx)
+                              -2.0, 10.0, np.zeros_like(out), pos_rx=rx, vel_rx=vel)
     assert np.abs(ref).max() > 0
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())

@@ -155,3 +155,28 @@ def test_motion_during_the_ping_in_toml(tmp_path):
                                [[1.5, 0, 0]] * 2)
     assert parse_trajectory({**nav, "motion_during_ping": False}, "run.toml", str(tmp_path),
                             "[trajectory]").velocity_m_s is None
+
+
+def test_speckle_phase_follows_the_moving_receiver():
+    """Speckle phases with motion during the ping: one echo on a lattice node X at two-way time t0, the receiver
+    moving at v. The synthesised signal is the stop-and-hop one times e^(−j2π·Δ/λ), Δ = |X − (p + v·t0)| − |X − p|
+    (the receiver where the echo arrives; docs/physics.md §16), to rounding."""
+    from sonar_embree.echoes import Echoes
+    from sonar_embree.synthesis import ScattererLattice, WaveformTables
+
+    cell, lam, c = 0.05, 1500.0 / 400e3, 1500.0
+    x = np.array([40, -600, -100]) * cell                                        # a lattice node, world m
+    p, v = np.zeros(3), np.array([2.0, 0.3, 0.0])
+    t0 = 2 * np.linalg.norm(x - p) / c
+    e = Echoes(2, np.array([0, 0, 1]), np.array([t0]), np.array([0.0]), np.array([1.0]), x[None], np.zeros(0, np.int32))
+    tables = WaveformTables(np.ones(3, dtype=complex), 0.0, 1.0)
+    out = {}
+    for name, vel in (("still", None), ("moving", v[None])):
+        out[name] = np.zeros((1, 2, 200), dtype=complex)
+        ScattererLattice(cell, seed=5, n_tables=1).synthesise(e, np.zeros(3), p[None], lam, 1.0 / (t0 / 100),
+                                                               0.0, tables, out[name], vel_rx=vel)
+    delta = np.linalg.norm(x - (p + v * t0)) - np.linalg.norm(x - p)
+    assert abs(2 * np.pi * delta / lam) > 1.0                                     # a phase the test can see
+    still, moving = out["still"][0, 1], out["moving"][0, 1]
+    assert np.abs(still).max() > 0 and np.all(out["moving"][0, 0] == 0)
+    np.testing.assert_allclose(moving, still * np.exp(-2j * np.pi * delta / lam), rtol=1e-9, atol=1e-12)

@@ -261,15 +261,17 @@ def _distance(ix, iy, iz, cell_m, pos):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node(node, key, pos_tx, pos_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table,
-               table_start, table_rate, row):
+def _emit_node(node, key, pos_tx, pos_rx, vel_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub,
+               table, table_start, table_rate, row):
     """Splat one node's ``n_sub`` frozen scatterers into its channel's row (see :func:`speckle_block`)."""
     w = node[0]
     sigma = math.sqrt(max(node[2] / w, 0.0))
     ix = key[1]
     iy = key[2]
     iz = key[3]
-    path = _distance(ix, iy, iz, cell_m, pos_tx) + _distance(ix, iy, iz, cell_m, pos_rx)
+    t_mean = node[1]  # the receiver has moved on by vel_rx·t̄ (0 when stop-and-hop: the same bits)
+    rx = (pos_rx[0] + vel_rx[0] * t_mean, pos_rx[1] + vel_rx[1] * t_mean, pos_rx[2] + vel_rx[2] * t_mean)
+    path = _distance(ix, iy, iz, cell_m, pos_tx) + _distance(ix, iy, iz, cell_m, rx)
     cycles = (path / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
     base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
     h = _node_hash(seed, ix, iy, iz)
@@ -285,9 +287,9 @@ def _emit_node(node, key, pos_tx, pos_rx, seed, cell_m, wavelength_m, rate_hz, p
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, pos_rx, seed, cell_m, wavelength_m,
-                  rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slots, epochs, nodes,
-                  node_key, caches, status, out):
+def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, pos_rx, vel_rx, seed, cell_m,
+                  wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slots, epochs,
+                  nodes, node_key, caches, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
 
     For each ping: :func:`gather_nodes` on the ping's echoes (channel by channel),
@@ -297,8 +299,9 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
         t = clip(t̄ + √3·σ·(2v − 1), t_min, t_max),  σ² = M2/W,
 
     with amplitude √(W/n_sub)·g·e^(−j2π·(L_node/λ mod 1))·e^(j2π·(φ·t mod 1)), L_node
-    the node's distance from the transmitter plus that to the receiver (2R for the
-    direct path) and φ = ``phase_cycles_per_s``; each adds
+    the node's distance from the transmitter plus that to the receiver where it is when the
+    node's echo arrives, rx + v·t̄ (2R for the direct path of a sonar at rest; motion during the
+    ping, docs/physics.md §16) and φ = ``phase_cycles_per_s``; each adds
     a·h(k − t·rate_hz) to its channel's row. Pings are split into one contiguous
     chunk per hash table; a ping's result depends only on its own rays, so the
     output does not depend on the number of tables or threads.
@@ -313,7 +316,9 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
         Expected intensity, two-way travel time (s) and its extent (s) of every echo.
     pos_world, pos_rx : (pings, 3) float64
         Transmitting and receiving position per ping, world m (the same for the direct path; the
-        mirror image in the sea surface for a surface leg): the node phase is (|X − tx| + |X − rx|)/λ.
+        mirror image in the sea surface for a surface leg): the node phase is (|X − tx| + |X − rx − v·t̄|)/λ.
+    vel_rx : (pings, 3) float64
+        The receiver's velocity per ping, world m per unit of ``times`` (zeros: stop-and-hop).
     seed : int; cell_m, wavelength_m : float
         Speckle seed, lattice spacing (m) and acoustic wavelength (m).
     rate_hz, phase_cycles_per_s : float
@@ -345,6 +350,7 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
                 status[b] = -1
                 continue
             for q in range(count):
-                _emit_node(nodes[t, q], node_key[t, q], pos_world[b], pos_rx[b], seed, cell_m, wavelength_m, rate_hz,
-                           phase_cycles_per_s, n_sub, table, table_start, table_rate, out[b, node_key[t, q, 0]])
+                _emit_node(nodes[t, q], node_key[t, q], pos_world[b], pos_rx[b], vel_rx[b], seed, cell_m,
+                           wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate,
+                           out[b, node_key[t, q, 0]])
             status[b] = 1
