@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
-from .validation import check_number, field_names
+from .validation import check_number, from_table
 
 
 @dataclass(frozen=True)
@@ -161,10 +161,7 @@ def _gain(value):
     cls = {"tvg": TVG, "agc": AGC}.get(kind)
     if cls is None:
         raise ConfigError(f"Receiver.gain: kind must be 'tvg' or 'agc', got {kind!r}")
-    unknown = sorted(set(value) - set(field_names(cls)))
-    if unknown:
-        raise ConfigError(f"Receiver.gain ({kind}): unknown key {unknown[0]!r}; one of {', '.join(field_names(cls))}")
-    return cls(**value)
+    return from_table(cls, value, f"Receiver.gain ({kind})")
 
 
 def receiver_of(value):
@@ -173,10 +170,7 @@ def receiver_of(value):
         return value
     if not isinstance(value, dict):
         raise ConfigError(f"Sonar.receiver must be a sonar_embree.Receiver or None, got {value!r}")
-    unknown = sorted(set(value) - set(field_names(Receiver)))
-    if unknown:
-        raise ConfigError(f"Sonar.receiver: unknown key {unknown[0]!r}; one of {', '.join(field_names(Receiver))}")
-    return Receiver(**value)
+    return from_table(Receiver, value, "Sonar.receiver")
 
 
 __all__ = ["AGC", "Receiver", "TVG"]

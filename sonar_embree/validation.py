@@ -36,6 +36,14 @@ def field_names(cls) -> tuple[str, ...]:
     return tuple(f.name for f in fields(cls) if f.init)
 
 
+def from_table(cls, table: dict, where: str):
+    """``cls(**table)`` after a one-line error naming the first key that is not one of its fields."""
+    unknown = sorted(set(table) - set(field_names(cls)))
+    if unknown:
+        raise ConfigError(f"{where}: unknown key {unknown[0]!r}; one of {', '.join(field_names(cls))}")
+    return cls(**table)
+
+
 def read_numeric_csv(path, required, optional=(), what="table", columns_hint=None):
     """A CSV with a header, as floats: (the columns read, (rows, columns) array).
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..errors import ConfigError
-from ..validation import check_number, field_names
+from ..validation import check_number, field_names, from_table
 from .ainslie_mccolm import ainslie_mccolm_db_per_m
 from .francois_garrison import francois_garrison_db_per_m
 from .noise import AmbientNoise
@@ -135,10 +135,7 @@ def _noise(value):
         return None if value is False else value
     if not isinstance(value, dict):
         raise ConfigError(f"Environment.noise must be a sonar_embree.AmbientNoise, None or false, got {value!r}")
-    unknown = sorted(set(value) - set(field_names(AmbientNoise)))
-    if unknown:
-        raise ConfigError(f"Environment.noise: unknown key {unknown[0]!r}; one of {', '.join(field_names(AmbientNoise))}")
-    return AmbientNoise(**value)
+    return from_table(AmbientNoise, value, "Environment.noise")
 
 
 def _profile(value):
