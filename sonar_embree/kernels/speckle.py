@@ -113,22 +113,21 @@ def _node_index(slots, epoch, ch, ix, iy, iz, nodes, node_key, count):
             node_key[count, 3] = iz
             return count, count + 1
         n = slots[si] & 0xFFFFFFFF
-        key = node_key[n]
-        if key[0] == ch and key[1] == ix and key[2] == iy and key[3] == iz:
+        if node_key[n, 0] == ch and node_key[n, 1] == ix and node_key[n, 2] == iy and node_key[n, 3] == iz:
             return n, count
         s = (s + np.uint64(1)) & mask
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _add_to_node(node, wb, rr, e2, r_lo, r_hi):
-    """Weighted Welford update of one node row with a share wb of an echo at range rr (no cancellation in σ²)."""
-    w_new = node[0] + wb
-    delta = rr - node[1]
-    node[1] += delta * (wb / w_new)
-    node[2] += wb * (delta * (rr - node[1]) + e2)
-    node[0] = w_new
-    node[3] = min(node[3], r_lo)
-    node[4] = max(node[4], r_hi)
+def _add_to_node(nodes, n, wb, rr, e2, r_lo, r_hi):
+    """Weighted Welford update of node row n with a share wb of an echo at range rr (no cancellation in σ²)."""
+    w_new = nodes[n, 0] + wb
+    delta = rr - nodes[n, 1]
+    nodes[n, 1] += delta * (wb / w_new)
+    nodes[n, 2] += wb * (delta * (rr - nodes[n, 1]) + e2)
+    nodes[n, 0] = w_new
+    nodes[n, 3] = min(nodes[n, 3], r_lo)
+    nodes[n, 4] = max(nodes[n, 4], r_hi)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -173,7 +172,7 @@ def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slots, epoch, nodes, node_ke
             if n < 0:
                 return -1
             cache[4 + c] = n
-        _add_to_node(nodes[n], w * b, rr, e2, rr - 0.5 * ext, rr + 0.5 * ext)
+        _add_to_node(nodes, n, w * b, rr, e2, rr - 0.5 * ext, rr + 0.5 * ext)
     return count
 
 
@@ -261,15 +260,21 @@ def _distance(ix, iy, iz, cell_m, pos):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node(node, key, pos_tx, pos_rx, vel_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s, n_sub,
-               table, table_start, table_rate, row):
-    """Splat one node's ``n_sub`` frozen scatterers into its channel's row (see :func:`speckle_block`)."""
-    w = node[0]
-    sigma = math.sqrt(max(node[2] / w, 0.0))
-    ix = key[1]
-    iy = key[2]
-    iz = key[3]
-    t_mean = node[1]  # the receiver has moved on by vel_rx·t̄ (0 when stop-and-hop: the same bits)
+def _emit_node(nodes, node_key, q, pos_tx, pos_rx, vel_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s,
+               n_sub, table, table_start, table_rate, out):
+    """Splat node q's ``n_sub`` frozen scatterers into its channel's row of ``out`` (see :func:`speckle_block`).
+
+    Reads rows by index, never through a row view (kernels/_numba.py: views contend for the reference count).
+    """
+    w = nodes[q, 0]
+    t_mean = nodes[q, 1]  # the receiver has moved on by vel_rx·t̄ (0 when stop-and-hop: the same bits)
+    sigma = math.sqrt(max(nodes[q, 2] / w, 0.0))
+    t_lo = nodes[q, 3]
+    t_hi = nodes[q, 4]
+    ch = node_key[q, 0]
+    ix = node_key[q, 1]
+    iy = node_key[q, 2]
+    iz = node_key[q, 3]
     rx = (pos_rx[0] + vel_rx[0] * t_mean, pos_rx[1] + vel_rx[1] * t_mean, pos_rx[2] + vel_rx[2] * t_mean)
     path = _distance(ix, iy, iz, cell_m, pos_tx) + _distance(ix, iy, iz, cell_m, rx)
     cycles = (path / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
@@ -278,12 +283,12 @@ def _emit_node(node, key, pos_tx, pos_rx, vel_rx, seed, cell_m, wavelength_m, ra
     spread = math.sqrt(3.0) * sigma
     for sub in range(n_sub):
         g, v = _frozen(h, sub, n_sub)
-        r_env = min(max(node[1] + spread * (2.0 * v - 1.0), node[3]), node[4])
+        r_env = min(max(t_mean + spread * (2.0 * v - 1.0), t_lo), t_hi)
         a = base * g
         if phase_cycles_per_s != 0.0:
             ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
             a = a * complex(math.cos(ph), math.sin(ph))
-        _splat_one(row, r_env * rate_hz, a, table, table_start, table_rate)
+        _splat_one(out, ch, r_env * rate_hz, a, table, table_start, table_rate)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -349,8 +354,8 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
             if count < 0:
                 status[b] = -1
                 continue
-            for q in range(count):
-                _emit_node(nodes[t, q], node_key[t, q], pos_world[b], pos_rx[b], vel_rx[b], seed, cell_m,
-                           wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate,
-                           out[b, node_key[t, q, 0]])
+            nodes_t, key_t, tx, rx, v_rx, out_b = nodes[t], node_key[t], pos_world[b], pos_rx[b], vel_rx[b], out[b]
+            for q in range(count):  # views made once per ping, not per node
+                _emit_node(nodes_t, key_t, q, tx, rx, v_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s,
+                           n_sub, table, table_start, table_rate, out_b)
             status[b] = 1

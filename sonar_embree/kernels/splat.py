@@ -38,15 +38,19 @@ def splat_table(channel, delay_samples, amplitude, table, table_start, table_rat
         ch = channel[i]
         if ch < 0 or ch >= n_ch:
             continue
-        _splat_one(out[ch], delay_samples[i], amplitude[i], table, table_start, table_rate)
+        _splat_one(out, ch, delay_samples[i], amplitude[i], table, table_start, table_rate)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _splat_one(row, x, a, table, table_start, table_rate):
-    """row[k] += a·h(k − x) for every k the tabulated waveform h covers (see :func:`splat_table`)."""
+def _splat_one(out, ch, x, a, table, table_start, table_rate):
+    """out[ch, k] += a·h(k − x) for every k the tabulated waveform h covers (see :func:`splat_table`).
+
+    Takes the whole accumulator and a row index: a row view per call would touch the array's shared
+    reference count, which the threads contend for (kernels/_numba.py).
+    """
     if not (abs(x) < math.inf):
         return
-    n = row.shape[0]
+    n = out.shape[1]
     m = table.shape[0]
     span = (m - 1) / table_rate
     lo = x + table_start
@@ -61,10 +65,10 @@ def _splat_one(row, x, a, table, table_start, table_rate):
         j = int(u)
         if j >= m - 1:
             if j == m - 1:
-                row[k] += a * table[m - 1]
+                out[ch, k] += a * table[m - 1]
             continue
         f = u - j
-        row[k] += a * (table[j] * (1.0 - f) + table[j + 1] * f)
+        out[ch, k] += a * (table[j] * (1.0 - f) + table[j + 1] * f)
 
 
 @njit(cache=True, nogil=True)
