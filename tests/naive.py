@@ -45,7 +45,8 @@ def _mix64(z):
 
 
 def frozen_scatterers(seed, ijk, n_sub):
-    """splitmix64 of (seed, i, j, k, s) → uniforms → Box–Muller and stratified positions, in NumPy uint64."""
+    """splitmix64 of (seed, i, j, k, s, draw) → uniforms → Marsaglia's polar method (pairs of draws 2, 3 / 4, 5 / …
+    until one falls inside the unit disc) and stratified positions (draw 1), in NumPy uint64."""
     ijk = np.asarray(ijk, dtype=np.int64).astype(np.uint64)
     with np.errstate(over="ignore"):
         h = _mix64(np.uint64(seed) + np.uint64(0x9E3779B97F4A7C15))
@@ -55,11 +56,22 @@ def frozen_scatterers(seed, ijk, n_sub):
         position = np.empty((ijk.shape[0], n_sub))
         for s in range(n_sub):
             hs = _mix64(h + np.uint64(s) * np.uint64(0x9E3779B97F4A7C15))
-            u1 = ((_mix64(hs ^ np.uint64(1)) >> np.uint64(11)).astype(float) + 1.0) * 2.0 ** -53
-            u2 = (_mix64(hs ^ np.uint64(2)) >> np.uint64(11)).astype(float) * 2.0 ** -53
-            u3 = (_mix64(hs ^ np.uint64(3)) >> np.uint64(11)).astype(float) * 2.0 ** -53
-            gain[:, s] = np.sqrt(-np.log(u1)) * np.exp(2j * np.pi * u2)
-            position[:, s] = (s + u3) / n_sub
+
+            def u(k, hs=hs):
+                return (_mix64(hs ^ np.uint64(k)) >> np.uint64(11)).astype(float) * 2.0 ** -53
+
+            a = np.full(ijk.shape[0], np.nan)
+            b = np.full(ijk.shape[0], np.nan)
+            todo, k = np.ones(ijk.shape[0], dtype=bool), 2
+            while todo.any():
+                ak, bk = 2 * u(k) - 1, 2 * u(k + 1) - 1
+                take = todo & (ak ** 2 + bk ** 2 < 1) & (ak ** 2 + bk ** 2 > 0)
+                a[take], b[take] = ak[take], bk[take]
+                todo &= ~take
+                k += 2
+            q = a ** 2 + b ** 2
+            gain[:, s] = (a + 1j * b) * np.sqrt(-np.log(q) / q)
+            position[:, s] = (s + u(1)) / n_sub
     return gain, position
 
 

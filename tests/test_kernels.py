@@ -1,5 +1,6 @@
 """Every Numba kernel against its naive NumPy twin (tests/naive.py)."""
 import numpy as np
+from scipy import stats
 import pytest
 
 import naive
@@ -74,6 +75,8 @@ def test_frozen_scatterers_match_naive_and_are_rayleigh():
     i = np.abs(out.ravel()) ** 2
     assert abs(i.mean() - 1) < 0.05 and abs(i.std() - 1) < 0.07           # exponential intensity
     assert abs(np.mean(out)) < 0.03                                        # uniform phase
+    assert stats.kstest(i, "expon").pvalue > 1e-3                          # the whole law, not two moments
+    assert stats.kstest(np.angle(out.ravel()), "uniform", args=(-np.pi, 2 * np.pi)).pvalue > 1e-3
     other = np.empty_like(out)
     kernels.frozen_scatterers(4, ijk, other, pos)
     assert abs(np.corrcoef(np.abs(out.ravel()), np.abs(other.ravel()))[0, 1]) < 0.05

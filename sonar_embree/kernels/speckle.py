@@ -30,25 +30,39 @@ def _node_hash(seed, ix, iy, iz):
 
 
 @njit(cache=True, nogil=True)
+def _uniform(hs, k):
+    """Uniform in [0, 1) with 53 bits from the k-th draw of scatterer hash hs."""
+    return float(_mix64(hs ^ np.uint64(k)) >> np.uint64(11)) * (1.0 / 9007199254740992.0)  # 2**-53
+
+
+@njit(cache=True, nogil=True)
 def _frozen(h, s, n_sub):
-    """Reflectivity g and stratified position v of scatterer s of the node with hash h."""
-    scale = 1.0 / 9007199254740992.0  # 2**-53
+    """Reflectivity g and stratified position v of scatterer s of the node with hash h (see
+    :func:`frozen_scatterers`): Marsaglia's polar method, no sine or cosine."""
     hs = _mix64(h + np.uint64(s) * _GOLDEN)
-    u1 = (float(_mix64(hs ^ np.uint64(1)) >> np.uint64(11)) + 1.0) * scale
-    u2 = float(_mix64(hs ^ np.uint64(2)) >> np.uint64(11)) * scale
-    u3 = float(_mix64(hs ^ np.uint64(3)) >> np.uint64(11)) * scale
-    r = math.sqrt(-math.log(u1))
-    return complex(r * math.cos(2.0 * math.pi * u2), r * math.sin(2.0 * math.pi * u2)), (s + u3) / n_sub
+    k = 2
+    while True:  # accepted with probability π/4 per pair; a 20th pair is needed once in 10¹³
+        a = 2.0 * _uniform(hs, k) - 1.0
+        b = 2.0 * _uniform(hs, k + 1) - 1.0
+        q = a * a + b * b
+        if 0.0 < q < 1.0:
+            break
+        k += 2
+    f = math.sqrt(-math.log(q) / q)
+    return complex(a * f, b * f), (s + _uniform(hs, 1)) / n_sub
 
 
 @njit(cache=True, nogil=True)
 def frozen_scatterers(seed, ijk, gain, position):
     """Reflectivity and position of each node's scatterers, a pure function of (seed, node, index).
 
-    g = √(−ln u₁) · e^(j2πu₂) and v = (s + u₃)/S with u₁ ∈ (0, 1], u₂, u₃ ∈ [0, 1)
-    from a splitmix64 hash of the seed, the integer node coordinates and the
-    scatterer index s, so E|g|² = 1, |g|² is exponential, the phase uniform and v
-    stratified-uniform on [0, 1): the same node gets the same values in every ping and run.
+    Uniforms u_k ∈ [0, 1) come from a splitmix64 hash of the seed, the integer node
+    coordinates, the scatterer index s and the draw k. Marsaglia's polar method (Marsaglia
+    and Bray, SIAM Review 6, 1964): (a, b) = (2u_k − 1, 2u_{k+1} − 1) for k = 2, 4, … until
+    0 < q = a² + b² < 1, then g = (a + jb)·√(−ln q / q). Since q is uniform on (0, 1) and
+    (a, b)/√q uniform on the circle, |g|² = −ln q is exponential with E|g|² = 1 and the phase
+    uniform: the complex Gaussian of Box–Muller without its sine and cosine. v = (s + u₁)/S
+    is stratified-uniform on [0, 1). The same node gets the same values in every ping and run.
 
     Parameters
     ----------
