@@ -112,7 +112,10 @@ def _wave_kh(sonar) -> float:
 
 
 def bistatic_sigma(compiled, frequency_hz, prim, cos_i, cos_s, phi):
-    """σ(θi, θs, φ) of each echo's object law (maps and texture are applied separately)."""
+    """σ(θi, θs, φ) of each echo's object law (maps and texture are applied separately); ``prim`` (the echoes'
+    triangles) may be None when every object has the same law."""
+    if prim is None:
+        return _law_at(compiled, 0, frequency_hz).sigma(cos_i, cos_s, phi)
     obj = compiled.face_object[prim]
     present = np.flatnonzero(np.bincount(obj, minlength=len(compiled.laws)))
     if present.shape[0] == 1:                                   # one law: no masks
@@ -120,7 +123,7 @@ def bistatic_sigma(compiled, frequency_hz, prim, cos_i, cos_s, phi):
     out = np.zeros(prim.shape[0])
     for o in present:
         k = obj == o
-        out[k] = _law_at(compiled, o, frequency_hz).sigma(cos_i[k], cos_s[k], phi[k])
+        out[k] = _law_at(compiled, o, frequency_hz).sigma(cos_i[k], cos_s[k], phi[k] if np.ndim(phi) else phi)
     return out
 
 
@@ -139,16 +142,17 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
+    want_phi = any(getattr(law, "uses_azimuth", True) for law in c.laws)  # φ costs an arccos per echo
     kernels.mixed_legs(blk.ray_start, blk.el_start, blk.dbeta, blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, _wave_kh(s), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
+                       s.sound_speed_m_s, _wave_kh(s), want_phi, t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
     lit = np.flatnonzero(w > 0)                                 # only lit echoes need σ, maps and their legs
-    x, prim = blk.point_m[lit], blk.prim[lit]
-    w_lit = w[lit] * bistatic_sigma(c, s.frequency_hz, prim, cos_i[lit], cos_s[lit], phi[lit])
-    for detail in (c.maps, c.textures):
-        if detail is not None:
-            detail.apply(c, prim, x, w_lit)
+    detail = [d for d in (c.maps, c.textures) if d is not None]
+    prim = blk.prim[lit] if detail or any(law != c.laws[0] for law in c.laws) else None  # one law: no gathers
+    w_lit = w[lit] * bistatic_sigma(c, s.frequency_hz, prim, cos_i[lit], cos_s[lit], phi[lit] if want_phi else 0.0)
+    for d in detail:
+        d.apply(c, prim, blk.point_m[lit], w_lit)
     w[lit] = w_lit
     block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w)
     block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w)

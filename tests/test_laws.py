@@ -62,6 +62,17 @@ def test_lambert_law_is_the_default_and_bistatic():
         se.Material(law="sand")
 
 
+def test_laws_say_whether_sigma_depends_on_the_bistatic_azimuth():
+    """The multipath front end computes φ (an arccos per echo) only for a scene with a law that reads it: each
+    declaration is checked against the law's own σ at two azimuths."""
+    ci, cs = np.array([0.9, 0.5]), np.array([0.8, 0.6])
+    table = Tabulated((0.0, 45.0, 90.0), (-40.0, -30.0, -20.0))
+    kirchhoff = Kirchhoff(0.5, 0.1)
+    for law in (Lambert(-30.0), table, kirchhoff, Lambert(-30.0) + table, Lambert(-30.0) + kirchhoff):
+        depends = not np.array_equal(law.sigma(ci, cs, 0.0), law.sigma(ci, cs, 0.7))
+        assert law.uses_azimuth == depends, law
+
+
 def test_kirchhoff_flat_floor_against_quadrature():
     """A Kirchhoff floor simulated speckle-free against eq. (2) with σ_K (docs/physics.md §3, §10)."""
     r0, s = 0.5, 0.5

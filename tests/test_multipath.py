@@ -260,11 +260,15 @@ def test_mixed_legs_kernel_matches_naive(rng):
     beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
     rx_shift = np.array([0.0, 2e-3, -5e-3])                          # stop-and-hop and moving pings (δ = 2v/c)
     rest = (rot, pos, rx_shift, 15.0, normals, beam, 0.01, 0.0375, 0.044, 600.0, 1500.0, 0.3)
-    out = {k: np.full(n, np.nan) for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")}
+    keys = ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")
+    out, no_phi = ({k: np.full(n, np.nan) for k in keys} for _ in range(2))
     v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
-    kernels.mixed_legs(ray_start, el_start, dbeta_cell, r, x, prim, *rest,
-                       *[out[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], v, out["leg1"], u2,
-                       out["leg2"])
+    for want_phi, o in ((True, out), (False, no_phi)):
+        kernels.mixed_legs(ray_start, el_start, dbeta_cell, r, x, prim, *rest, want_phi,
+                           *[o[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], v, o["leg1"], u2,
+                           o["leg2"])
+    for k in keys:                          # without φ (a scene of laws that ignore it): the rest to the bit
+        np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.full(n, np.nan), err_msg=k)
     hit = ~miss
     ref = naive.mixed_legs(x[hit], r[hit], ping[hit], side[hit], dbeta[hit], prim[hit], *rest)
     for k in out:

@@ -65,7 +65,7 @@ def _azimuth(n, u, v):
 
 @njit(cache=True, nogil=True, parallel=True)
 def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m,
-               two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, time_out, extent_out, weight_out,
+               two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, time_out, extent_out, weight_out,
                cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
 
@@ -78,7 +78,8 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
         t = (r + r')/c,  Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c,
 
     cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
-    and v in the plane of n (the bistatic azimuth; 0 for backscatter). Rays without
+    and v in the plane of n (the bistatic azimuth; 0 for backscatter; computed only when ``want_phi``, for a
+    law that depends on it, else left unwritten: an arccos per echo). Rays without
     a direct echo (r = inf) get w = 0, t = inf. Γ_rx is Γ with the along-track cosine shifted by the
     ping's ``rx_shift`` δ = 2·v_fwd/c (motion during the ping, docs/physics.md §16); with δ = 0 the weight is
     2·Γ²(u1)·Γ²(u2) to the bit.
@@ -103,6 +104,8 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
         Azimuth spacing, near-field bound, two-way absorption (Np/m), |dR/dβ| cap (m/rad), c (m/s).
     wave_kh : float
         k·h_w of the surface (0: a mirror).
+    want_phi : bool
+        Whether to write ``phi_out``.
     time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
     v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
         Written.
@@ -114,11 +117,13 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
         n_el = el_start[row + 1] - el_start[row]
         sx, sy, sz = pos[b, 0], pos[b, 1], pos[b, 2]
         shift = rx_shift[b]
+        j = n_el - 1  # elevation cell of ray i: (i − ray_start[row]) mod n_el, without an integer division per ray
         for i in range(ray_start[row], ray_start[row + 1]):
+            j = 0 if j == n_el - 1 else j + 1
             if not math.isfinite(r[i]):
                 weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
                 continue
-            db = dbeta[el_start[row] + (i - ray_start[row]) % n_el]
+            db = dbeta[el_start[row] + j]
             u = ((x[i, 0] - sx) / r[i], (x[i, 1] - sy) / r[i], (x[i, 2] - sz) / r[i])
             vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
             r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -140,7 +145,8 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
             time_out[i] = (r[i] + r2) / sound_speed_m_s
             extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
             cos_i_out[i], cos_s_out[i] = cos_i, n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
-            phi_out[i] = _azimuth(n, u, v)
+            if want_phi:
+                phi_out[i] = _azimuth(n, u, v)
             v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
             u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = px / leg2, py / leg2, pz / leg2
             leg1_out[i], leg2_out[i] = leg1, leg2

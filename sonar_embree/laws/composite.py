@@ -16,7 +16,13 @@ from ..errors import ConfigError
 
 
 class Summable:
-    """Mixin: ``law_a + law_b`` is a :class:`Composite`; ``terms()`` lists the simple laws."""
+    """Mixin: ``law_a + law_b`` is a :class:`Composite`; ``terms()`` lists the simple laws.
+
+    ``uses_azimuth``: whether ``sigma`` depends on the bistatic azimuth φ (the multipath front end computes φ
+    only for a scene with such a law); True unless a law says otherwise.
+    """
+
+    uses_azimuth = True
 
     def __add__(self, other):
         if not isinstance(other, Summable):
@@ -52,6 +58,11 @@ class Composite(Summable):
 
     def terms(self) -> tuple:
         return self.terms_
+
+    @property
+    def uses_azimuth(self) -> bool:
+        """Whether any term's σ depends on φ."""
+        return any(t.uses_azimuth for t in self.terms_)
 
     def at_frequency(self, frequency_hz: float) -> "Composite":
         """Each term at ``frequency_hz`` (for tabulated terms with a frequency axis)."""

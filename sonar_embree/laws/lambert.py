@@ -65,6 +65,7 @@ class Lambert(Summable):
 
     backscatter_db: float = -27.0
 
+    uses_azimuth = False  # σ depends on θi and θs only
     kernel = staticmethod(lambert_weights)
 
     def __post_init__(self):

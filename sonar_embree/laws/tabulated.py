@@ -94,6 +94,7 @@ class Tabulated(Summable):
     backscatter_db: tuple
     frequency_hz: tuple | None = None
 
+    uses_azimuth = False  # σ depends on θi and θs only
     kernel = staticmethod(tabulated_weights)
 
     def __post_init__(self):
