@@ -143,7 +143,8 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
     want_phi = any(getattr(law, "uses_azimuth", True) for law in c.laws)  # φ costs an arccos per echo
-    kernels.mixed_legs(blk.ray_start, blk.el_start, blk.dbeta, blk.range_m, blk.point_m, blk.prim,
+    kernels.mixed_legs(blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta), np.sin(blk.beta), blk.dbeta,
+                       blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
                        s.sound_speed_m_s, _wave_kh(s), want_phi, t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)

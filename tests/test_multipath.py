@@ -244,18 +244,25 @@ def test_mixed_legs_kernel_matches_naive(rng):
     normals = rng.normal(size=(7, 3)) * [0.3, 0.3, 1.0]
     normals /= np.linalg.norm(normals, axis=1)[:, None]
     n_el = rng.integers(5, 20, 2 * n_p)                               # elevation cells per row
-    n_az = rng.integers(3, 8, 2 * n_p)                                # azimuth rays per row
+    n_az = 5                                                          # azimuth rays per row (the fan's)
+    s_az = rng.uniform(-0.3, 0.3, n_az)
     el_start = np.concatenate(([0], np.cumsum(n_el))).astype(np.int64)
-    ray_start = np.concatenate(([0], np.cumsum(n_el * n_az))).astype(np.int64)
+    ray_start = n_az * el_start
     n = int(ray_start[-1])
     row = np.repeat(np.arange(2 * n_p), n_el * n_az)
     j = np.arange(n) - ray_start[row]
     dbeta_cell = rng.uniform(1e-4, 1e-2, el_start[-1])
-    ping, side, dbeta = row // 2, np.where(row % 2 == 1, 1.0, -1.0), dbeta_cell[el_start[row] + j % n_el[row]]
+    beta_cell = rng.uniform(0.05, 1.4, el_start[-1])                  # depressions, down from the sonar
+    beta_cell[::7] = 2.0                                              # 115° − 20° tilt: behind the baffle
+    ping, side = row // 2, np.where(row % 2 == 1, 1.0, -1.0)
+    cell, a = el_start[row] + j % n_el[row], j // n_el[row]
+    dbeta = dbeta_cell[cell]
     prim = rng.integers(0, 7, n).astype(np.int32)
-    x = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-1, 2, n)])
-    r = np.linalg.norm(x - pos[ping], axis=1)
-    miss = rng.random(n) < 0.1                                        # rays without a direct echo
+    cpsi = np.sqrt(1 - s_az[a] ** 2)                                  # the fan ray's body direction → world
+    e = np.column_stack([s_az[a], side * cpsi * np.cos(beta_cell[cell]), cpsi * np.sin(beta_cell[cell])])
+    r = rng.uniform(5, 60, n)
+    x = pos[ping] + r[:, None] * np.einsum("nij,nj->ni", rot[ping], e)
+    miss = (rng.random(n) < 0.1) | (beta_cell[cell] == 2.0)           # no direct echo (fan_echoes: r = inf)
     r[miss] = np.inf
     beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
     rx_shift = np.array([0.0, 2e-3, -5e-3])                          # stop-and-hop and moving pings (δ = 2v/c)
@@ -264,7 +271,8 @@ def test_mixed_legs_kernel_matches_naive(rng):
     out, no_phi = ({k: np.full(n, np.nan) for k in keys} for _ in range(2))
     v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
     for want_phi, o in ((True, out), (False, no_phi)):
-        kernels.mixed_legs(ray_start, el_start, dbeta_cell, r, x, prim, *rest, want_phi,
+        kernels.mixed_legs(ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, r, x, prim,
+                           *rest, want_phi,
                            *[o[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], v, o["leg1"], u2,
                            o["leg2"])
     for k in keys:                          # without φ (a scene of laws that ignore it): the rest to the bit

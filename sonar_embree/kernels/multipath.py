@@ -64,9 +64,9 @@ def _azimuth(n, u, v):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m,
-               two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, time_out, extent_out, weight_out,
-               cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out):
+def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals,
+               beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, time_out,
+               extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
@@ -79,7 +79,10 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
 
     cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
     and v in the plane of n (the bistatic azimuth; 0 for backscatter; computed only when ``want_phi``, for a
-    law that depends on it, else left unwritten: an arccos per echo). Rays without
+    law that depends on it, else left unwritten: an arccos per echo). Γ(u1) and Γ_rx(u1) are the fan ray's
+    own, from its grid direction (azimuth sine s, depression β) as :func:`fan_echoes` computes them, so the
+    direct and the mixed paths share their bits and a ray costs one sinc there instead of three (a ray behind
+    the baffle has no direct echo: fan_echoes left its r = inf). Rays without
     a direct echo (r = inf) get w = 0, t = inf. Γ_rx is Γ with the along-track cosine shifted by the
     ping's ``rx_shift`` δ = 2·v_fwd/c (motion during the ping, docs/physics.md §16); with δ = 0 the weight is
     2·Γ²(u1)·Γ²(u2) to the bit.
@@ -87,9 +90,12 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
     Parameters
     ----------
     ray_start, el_start : (rows + 1,) int64
-        The block's rows (row = 2·ping + side, port 0) of rays and of elevation cells.
-    dbeta : (el_start[-1],) float64
-        Elevation cell widths, rad.
+        The block's rows (row = 2·ping + side, port 0) of rays and of elevation cells; a row's rays are
+        azimuth-major over its elevation cells, as :func:`fan_rays` casts them.
+    s_az : (n_az,) float64
+        The fan's azimuth sines.
+    cos_beta, sin_beta, dbeta : (el_start[-1],) float64
+        cos β, sin β (as passed to :func:`fan_echoes`) and the width of each elevation cell, rad.
     r : (n,) float64; x : (n, 3) float64; prim : (n,) int32
         Direct slant ranges (m, inf: none), hit points (local frame, m) and triangles of the block's rays.
     rot : (pings, 3, 3) float64; pos : (pings, 3) float64
@@ -117,13 +123,22 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
         n_el = el_start[row + 1] - el_start[row]
         sx, sy, sz = pos[b, 0], pos[b, 1], pos[b, 2]
         shift = rx_shift[b]
-        j = n_el - 1  # elevation cell of ray i: (i − ray_start[row]) mod n_el, without an integer division per ray
+        j, az = n_el - 1, -1  # elevation cell and azimuth of ray i, counted (no integer division per ray)
+        g_az, g_az_rx, cpsi = 0.0, 0.0, 0.0
         for i in range(ray_start[row], ray_start[row + 1]):
-            j = 0 if j == n_el - 1 else j + 1
+            if j == n_el - 1:
+                j, az = 0, az + 1
+                cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
+                g_az, g_az_rx = _sinc(beam[0] * s_az[az]), _sinc(beam[0] * (s_az[az] - shift))
+            else:
+                j += 1
             if not math.isfinite(r[i]):
                 weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
                 continue
-            db = dbeta[el_start[row] + j]
+            cell = el_start[row] + j
+            db = dbeta[cell]
+            g_el = _sinc(beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st))  # fan_echoes' Γ(u1), Γ_rx(u1)
+            g1, g1r = g_az * g_el, g_az_rx * g_el
             u = ((x[i, 0] - sx) / r[i], (x[i, 1] - sy) / r[i], (x[i, 2] - sz) / r[i])
             vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
             r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -136,7 +151,6 @@ def mixed_legs(ray_start, el_start, dbeta, r, x, prim, rot, pos, rx_shift, z_s, 
             flip = -1.0 if nx * u[0] + ny * u[1] + nz * u[2] > 0.0 else 1.0
             n = (flip * nx, flip * ny, flip * nz)
             cos_i = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2])
-            g1, g1r = _gains(m, side, u[0], u[1], u[2], beam, ct, st, shift)
             g2, g2r = _gains(m, side, px / leg2, py / leg2, pz / leg2, beam, ct, st, shift)
             rb2 = max(r2, min_range_m)
             att = math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2])
