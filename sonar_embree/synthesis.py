@@ -91,6 +91,8 @@ class WaveformTables:
         f0, fs = sonar.frequency_hz, sonar.sample_rate_hz
         if chain.band == "baseband":
             table, rate = pulses.envelope_table(pulse, f0, fs)
+            if not np.any(table.imag):  # a real envelope (CW): the splat multiplies by reals, with the same bits
+                table = np.ascontiguousarray(table.real)
             return cls(table, 0.0, float(rate))
         f_hi = pulse.frequency_span_hz(f0)[1]
         factor = max(int(math.ceil(4.0 * f_hi / fs)), 2)

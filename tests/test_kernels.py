@@ -5,7 +5,7 @@ import pytest
 
 import naive
 import sonar_embree as se
-from sonar_embree import kernels
+from sonar_embree import kernels, synthesis
 
 
 def _splat_inputs(rng, n=4000, n_s=300):
@@ -264,3 +264,11 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
                               -2.0, 10.0, np.zeros_like(out), pos_rx=rx, vel_rx=vel)
     assert np.abs(ref).max() > 0
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
+    real_env = np.hanning(101) + 0j                      # a real envelope given as complex, and as reals (CW):
+    same = [np.zeros_like(out) for _ in range(2)]        # WaveformTables passes the reals, for the same bits
+    for tab, o in zip((real_env, np.ascontiguousarray(real_env.real)), same):
+        kernels.speckle_block(*args[:15], tab, *args[16:], *_speckle_tables(n_tables, 1 << 12),
+                              np.zeros(n_p, dtype=np.int64), o)
+    assert np.abs(same[0]).max() > 0 and np.array_equal(same[0].view(np.uint64), same[1].view(np.uint64))
+    sonar, chain = se.Sonar().for_pulse(se.Pulse.cw()), se.SignalChain(speckle=True)
+    assert synthesis.WaveformTables.build(sonar, se.Pulse.cw(), chain).table.dtype == np.float64
