@@ -45,14 +45,16 @@ def surface_caster(caster, surface, max_range_m: float):
     return cache[key]
 
 
-def _gain(sonar, rot, side, u, shift=0.0):
-    """Γ of the channel's membrane (:func:`beam.directivity`) for world directions u (n, 3), rot (n, 3, 3)
-    body → world, side −1 port, +1 starboard; ``shift`` (n,) takes the along-track cosine back (the receive
-    beam moving during the ping, docs/physics.md §16)."""
+def _gains(sonar, rot, side, u, shift=None):
+    """(Γ, Γ_rx) of the channel's membrane (:func:`beam.directivity`) for world directions u (n, 3), rot (n, 3, 3)
+    body → world, side −1 port, +1 starboard; Γ_rx takes the along-track cosine ``shift`` (n,) back (the receive
+    beam moving during the ping, docs/physics.md §16), and is Γ itself when ``shift`` is None (stop-and-hop)."""
     e = np.einsum("nji,nj->ni", rot, u)                              # body: forward, starboard, down
     ct, st = np.cos(sonar.tilt_rad), np.sin(sonar.tilt_rad)
-    return beam.directivity(e[:, 0] - shift, e[:, 2] * ct - side * e[:, 1] * st,
-                            side * e[:, 1] * ct + e[:, 2] * st, sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m)
+    height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
+    k, lx, ly = sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m
+    g = beam.directivity(e[:, 0], height, bore, k, lx, ly)
+    return g, (g if shift is None else beam.directivity(e[:, 0] - shift, height, bore, k, lx, ly))
 
 
 def _bounce(front, caster, swell, rot, pos_local, max_range_m, clock):
@@ -64,29 +66,29 @@ def _bounce(front, caster, swell, rot, pos_local, max_range_m, clock):
     max_range_m = 2.0 * (max_range_m * (1.0 + 1e-3) + 0.05)
     el_start, beta, dbeta, _, t_probe = probe_rows(caster, plan, rot_i, pos_i, max_range_m)
     n_az, rows = plan.s.shape[0], el_start.shape[0] - 1
-    n = n_az * int(el_start[-1])
+    n, per_row = n_az * int(el_start[-1]), n_az * np.diff(el_start)
     dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
     kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot_i), pos_i, dirs, org)
-    row = np.repeat(np.arange(rows), n_az * np.diff(el_start))
-    j = np.arange(n) - n_az * el_start[row]
+    dirs[:, 2] *= -1.0                                                # the real, upward ray (negation: exact)
+    s_org32 = np.repeat(pos_local.astype(np.float32)[np.arange(rows) // 2], per_row, axis=0)
+    prim_s, t1 = swell.cast_raw(s_org32, dirs, max_range_m)
+    up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))            # per-ray bookkeeping only for these
+    row = np.searchsorted(n_az * el_start, up, side="right") - 1
+    u, s_org = dirs[up].astype(np.float64), pos_local[row // 2]
+    t1 = t1[up].astype(np.float64)
+    seen = ~occluded(caster, s_org, u, t1)                            # S→P through the scene
+    up, row, u, s_org, t1 = up[seen], row[seen], u[seen], s_org[seen], t1[seen]
+    j = up - n_az * el_start[row]
     n_el = np.diff(el_start)[row]
     cell = el_start[row] + j % n_el
-    u = dirs.astype(np.float64) * [1.0, 1.0, -1.0]                   # the real, upward ray
-    s_org = pos_local[row // 2]
-    prim_s, t1 = swell.cast_raw(s_org.astype(np.float32), u.astype(np.float32), max_range_m)
-    up = np.flatnonzero((prim_s >= 0) & (u[:, 2] > 0))
-    t1 = t1[up].astype(np.float64)
-    seen = ~occluded(caster, s_org[up], u[up], t1)                    # S→P through the scene
-    up, t1 = up[seen], t1[seen]
     n_p = swell.compiled.face_normals[prim_s[up]]
-    u_r = u[up] - 2.0 * np.sum(u[up] * n_p, axis=1)[:, None] * n_p
-    p = s_org[up] + t1[:, None] * u[up]
+    u_r = u - 2.0 * np.sum(u * n_p, axis=1)[:, None] * n_p
+    p = s_org + t1[:, None] * u
     prim, t2 = caster.cast_raw((p + LEG_EPSILON_M * u_r).astype(np.float32), u_r.astype(np.float32), max_range_m)
     hit = (prim >= 0) & (t1 + t2 + LEG_EPSILON_M <= max_range_m)
-    k = up[hit]
     clock["embree"] = clock.get("embree", 0.0) + t_probe
-    return dict(ray=k, row=row[k], s=plan.s[(j // n_el)[k]], beta=beta[cell[k]], dbeta=dbeta[cell[k]],
-                u=u[k], n_p=n_p[hit], u_r=u_r[hit], R=(t1 + LEG_EPSILON_M + t2)[hit], prim=prim[hit],
+    return dict(ray=up[hit], row=row[hit], s=plan.s[(j // n_el)[hit]], beta=beta[cell[hit]], dbeta=dbeta[cell[hit]],
+                u=u[hit], n_p=n_p[hit], u_r=u_r[hit], R=(t1 + LEG_EPSILON_M + t2)[hit], prim=prim[hit],
                 x=p[hit] + (LEG_EPSILON_M + t2[hit])[:, None] * u_r[hit], ray_start=n_az * el_start, rot_i=rot_i)
 
 
@@ -101,13 +103,13 @@ def _footprint(b, rot_i, n_x, cos_i):
     return b["R"][:, None] * (f_r + b["u_r"] * (nf / np.maximum(cos_i, 1e-12))[:, None])
 
 
-def _two_bounce(front, caster, b, rot, rs2, cos_i, dx, shift=None):
-    """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied); ``shift`` (n,) δ of
-    each echo's ping when moving during the ping (None: stop-and-hop)."""
+def _two_bounce(front, caster, b, g_u, rs2, cos_i, dx, shift=None):
+    """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied); ``g_u`` (Γ, Γ_rx) of the
+    launch directions (:func:`_gains`), ``shift`` (n,) δ of each echo's ping when moving during the ping (None:
+    stop-and-hop)."""
     plan, s = front.plan, front.sonar
-    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
-    g = _gain(s, rot[b["row"] // 2], side, b["u"])
-    g4 = g ** 4 if shift is None else g ** 2 * _gain(s, rot[b["row"] // 2], side, b["u"], shift) ** 2
+    g, g_rx = g_u
+    g4 = g ** 4 if shift is None else g ** 2 * g_rx ** 2
     w = (g4 * np.exp(-front.two_way_np_per_m * b["R"]) * rs2 ** 2 * plan.ds * b["dbeta"]
          / np.maximum(b["R"], plan.min_range_m) ** 2)
     w = np.where(cos_i > 1e-9, w, 0.0)
@@ -116,29 +118,32 @@ def _two_bounce(front, caster, b, rot, rs2, cos_i, dx, shift=None):
     return w, 2.0 * b["R"] / s.sound_speed_m_s, 2.0 * slope * b["dbeta"] / s.sound_speed_m_s
 
 
-def _one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local, shift=None):
+def _azimuth(u_in, u_out, n_x, cos_i, cos_s):
+    """Bistatic azimuth φ: the angle between −u_in and −u_out projected on the facet (0 when either is along n_x)."""
+    bb = -u_in - cos_i[:, None] * n_x
+    tt = -u_out - cos_s[:, None] * n_x
+    nb, nt = np.linalg.norm(bb, axis=1), np.linalg.norm(tt, axis=1)
+    ok = (nb > 1e-12) & (nt > 1e-12)
+    return np.where(ok, np.arccos(np.clip(np.sum(bb * tt, axis=1) / np.where(ok, nb * nt, 1.0), -1, 1)), 0.0)
+
+
+def _one_bounce(front, caster, b, rot, side, g_u, rs2, cos_i, dx, pos_local, shift=None):
     """S→P→X→S and S→X→P→S: the bounced ray in, the direct leg back, one echo of twice the weight (each with its
-    own receive beam when moving during the ping: ``shift`` (n,) δ, None: stop-and-hop)."""
+    own receive beam when moving during the ping: ``shift`` (n,) δ, None: stop-and-hop); ``rot`` (n, 3, 3) and
+    ``side`` (n,) of each echo's ping and channel, ``g_u`` (Γ, Γ_rx) of its launch direction."""
     plan, s, c = front.plan, front.sonar, caster.compiled
-    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
-    rot = rot[b["row"] // 2]
     d = b["x"] - pos_local[b["row"] // 2]
     r = np.linalg.norm(d, axis=1)
     u_d = d / r[:, None]
     n_x = c.face_normals[b["prim"]]
     cos_s = -np.sum(n_x * u_d, axis=1)
-    bb = -b["u_r"] - cos_i[:, None] * n_x
-    tt = -u_d - cos_s[:, None] * n_x
-    nb, nt = np.linalg.norm(bb, axis=1), np.linalg.norm(tt, axis=1)
-    ok = (nb > 1e-12) & (nt > 1e-12)
-    phi = np.where(ok, np.arccos(np.clip(np.sum(bb * tt, axis=1) / np.where(ok, nb * nt, 1.0), -1, 1)), 0.0)
     lit = (cos_i > 1e-9) & (cos_s > 1e-9)
+    phi = _azimuth(b["u_r"], u_d, n_x, cos_i, cos_s)[lit] if any(getattr(law, "uses_azimuth", True)
+                                                                 for law in c.laws) else 0.0
     sigma = np.zeros(r.shape[0])
-    sigma[lit] = bistatic_sigma(c, s.frequency_hz, b["prim"][lit], cos_i[lit], cos_s[lit], phi[lit])
-    g2 = 2.0 * _gain(s, rot, side, b["u"]) ** 2 * _gain(s, rot, side, u_d) ** 2
-    if shift is not None:
-        g2 = (_gain(s, rot, side, b["u"]) ** 2 * _gain(s, rot, side, u_d, shift) ** 2
-              + _gain(s, rot, side, u_d) ** 2 * _gain(s, rot, side, b["u"], shift) ** 2)
+    sigma[lit] = bistatic_sigma(c, s.frequency_hz, b["prim"][lit], cos_i[lit], cos_s[lit], phi)
+    (g, g_rx), (gd, gd_rx) = g_u, _gains(s, rot, side, u_d, shift)
+    g2 = 2.0 * g ** 2 * gd ** 2 if shift is None else g ** 2 * gd_rx ** 2 + gd ** 2 * g_rx ** 2
     w = (g2 * sigma * rs2 * np.exp(-0.5 * front.two_way_np_per_m * (b["R"] + r)) * plan.ds * b["dbeta"]
          / (np.maximum(r, plan.min_range_m) ** 2 * np.maximum(cos_i, 1e-9)))
     for detail in (c.maps, c.textures):
@@ -161,11 +166,13 @@ def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shif
                                                                front.sonar.wavenumber_rad_m)
     dx = _footprint(b, b["rot_i"], n_x, cos_i)
     start = row_starts(b["row"], b["ray_start"].shape[0] - 1)
-    rot = np.asarray(rot, dtype=np.float64)
+    rot = np.asarray(rot, dtype=np.float64)[b["row"] // 2]
+    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
     shift = None if rx_shift is None or not np.any(rx_shift) else np.asarray(rx_shift)[b["row"] // 2]
+    g_u = _gains(front.sonar, rot, side, b["u"], shift)              # the launch direction's, shared by both paths
     out = []
-    for w, t, ext in (_one_bounce(front, caster, b, rot, rs2, cos_i, dx, pos_local, shift),
-                      _two_bounce(front, caster, b, rot, rs2, cos_i, dx, shift)):
+    for w, t, ext in (_one_bounce(front, caster, b, rot, side, g_u, rs2, cos_i, dx, pos_local, shift),
+                      _two_bounce(front, caster, b, g_u, rs2, cos_i, dx, shift)):
         obj = np.zeros(0, np.int32) if ids is None else np.where(w > 0, ids[b["prim"]], -1).astype(np.int32)
         out.append(Echoes(2, start, t, ext, w, b["x"], obj))
     return out[0], out[1]
