@@ -220,8 +220,19 @@ def write_report(path, flat, ship, ship_ref, thr_flat, thr_ship, long, ship_info
               "floor, refined on steep faces and objects, nearly none in the water column or beyond the window.", ""]
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     with open(path + ".tmp", "w") as f:
-        f.write("\n".join(lines))
+        f.write("\n".join(lines) + _kept_sections(path))
     os.replace(path + ".tmp", path)
+
+
+def _kept_sections(path: str) -> str:
+    """The sections of an existing report after the ones this script writes (other benchmarks' records)."""
+    if not os.path.exists(path):
+        return ""
+    with open(path) as f:
+        text = f.read()
+    start = text.find("## What the quality setting does")
+    nxt = text.find("\n## ", start + 1) if start >= 0 else -1
+    return "" if nxt < 0 else text[nxt:]
 
 
 def main(argv=None) -> int:

@@ -27,6 +27,9 @@ def test_paper_modes_script_writes_every_mode(tmp_path):
 
 
 def test_bench_script_writes_report_and_plot(tmp_path):
+    # sections other benchmarks recorded after the generated ones survive a re-run; the stale ones do not
+    (tmp_path / "benchmarks.md").write_text("# old\n\n## Flat floor\nstale row\n\n## What the quality setting "
+                                            "does\nold text\n\n## Issue 99: before and after\nkept row\n")
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_speed_vs_error.py"), "--quick",
                            "-o", str(tmp_path)], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr
@@ -34,6 +37,8 @@ def test_bench_script_writes_report_and_plot(tmp_path):
     md = (tmp_path / "benchmarks.md").read_text()
     for needle in ("Flat floor", "Shipwreck", "per 100 000 rays", "pings/s", "| footprint | 1 |"):
         assert needle in md
+    assert "stale row" not in md and "old text" not in md
+    assert md.endswith("\n## Issue 99: before and after\nkept row\n") and md.count("## What the quality") == 1
     assert iio.imread(tmp_path / "speed_vs_error.png").shape[0] > 100
 
 
