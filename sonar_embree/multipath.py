@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
+from .buffers import Buffers
 from .echoes import Echoes, row_of, row_starts
 from .fan import BlockEchoes, cast_block
 
@@ -160,11 +161,12 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 
-def merge(parts, points: bool) -> Echoes:
+def merge(parts, points: bool, buf: Buffers | None = None) -> Echoes:
     """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path.
 
     Within a row, each part's echoes in their order, part by part. The hit points are kept when ``points``
-    (speckle, maps), the object ids when every part has them.
+    (speckle, maps), the object ids when every part has them. With ``buf`` the result lives in its kept arrays
+    (valid until the front end's next block).
     """
     rows = parts[0].ray_start.shape[0] - 1
     starts = tuple(e.ray_start for e in parts)
@@ -174,9 +176,11 @@ def merge(parts, points: bool) -> Echoes:
     start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
     m = int(start[-1])
     with_ids = all(e.object_id.shape[0] == e.weight.shape[0] for e in parts)
-    t, ext, w, path = np.empty(m), np.empty(m), np.empty(m), np.empty(m, dtype=np.int8)
-    pts = np.empty((m if points else 0, 3))
-    ids = np.empty(m if with_ids else 0, dtype=np.int32)
+    take = (lambda name, shape, dtype=np.float64: np.empty(shape, dtype)) if buf is None else buf.take
+    t, ext, w, path = (take("merged_t", m), take("merged_ext", m), take("merged_w", m),
+                       take("merged_path", m, np.int8))
+    pts = take("merged_pts", (m if points else 0, 3))
+    ids = take("merged_ids", m if with_ids else 0, np.int32)
     kernels.merge_lit(starts, tuple(e.travel_time_s for e in parts), tuple(e.extent_s for e in parts), weights,
                       tuple(_points(e) for e in parts), tuple(_ids(e) for e in parts), start, t, ext, w, pts,
                       ids, path)

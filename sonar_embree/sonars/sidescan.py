@@ -84,7 +84,7 @@ class SideScanFrontEnd:
         parts = [direct, mixed, image]
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
-        return multipath.merge(parts, want_points)
+        return multipath.merge(parts, want_points, self.buffers)
 
 
 def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:
