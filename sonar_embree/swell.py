@@ -15,16 +15,19 @@ is meshed (:meth:`SeaSurface.mesh`) and the rays bounce on it:
   (r²·cos θi), r = |X − S|, with the direct leg checked for visibility.
 
 Speckle phases of the surface paths use the mean plane's image (statistics, not the exact pattern, hold).
+The per-ray arithmetic between and after the casts is :mod:`sonar_embree.kernels.swell`.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
-from . import beam, kernels
-from .echoes import Echoes, row_starts
-from .fan import probe_rows
+from . import kernels
+from .echoes import Echoes
+from .fan import elevation_rows
 from .laws import apply_laws
-from .multipath import LEG_EPSILON_M, bistatic_sigma, mirror_pose, occluded
+from .multipath import LEG_EPSILON_M, _below_top, _wave_kh, bistatic_sigma, block_legs, mirror_pose
 
 
 def surface_caster(caster, surface, max_range_m: float):
@@ -45,134 +48,110 @@ def surface_caster(caster, surface, max_range_m: float):
     return cache[key]
 
 
-def _gains(sonar, rot, side, u, shift=None):
-    """(Γ, Γ_rx) of the channel's membrane (:func:`beam.directivity`) for world directions u (n, 3), rot (n, 3, 3)
-    body → world, side −1 port, +1 starboard; Γ_rx takes the along-track cosine ``shift`` (n,) back (the receive
-    beam moving during the ping, docs/physics.md §16), and is Γ itself when ``shift`` is None (stop-and-hop)."""
-    e = np.einsum("nji,nj->ni", rot, u)                              # body: forward, starboard, down
-    ct, st = np.cos(sonar.tilt_rad), np.sin(sonar.tilt_rad)
-    height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
-    k, lx, ly = sonar.wavenumber_rad_m, sonar.length_m, sonar.height_m
-    g = beam.directivity(e[:, 0], height, bore, k, lx, ly)
-    return g, (g if shift is None else beam.directivity(e[:, 0] - shift, height, bore, k, lx, ly))
+def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
+    """Probe the image fan (rays from the image transducer, the mean surface a mirror) and place its elevation rays
+    where the two-bounce range R or the one-bounce range (R + r)/2 lies in the window and changes fast.
+
+    ``window_m``: the window with the swell's slack; ``max_range_m``: the farthest R probed. Returns
+    (el_start, beta, dbeta, seconds in the caster), as :func:`sonar_embree.fan.probe_rows`."""
+    dirs = np.matmul(plan.probe_body, rot_i.transpose(0, 2, 1))     # (pings, probes, 3)
+    org = np.repeat(pos_i, plan.probe_body.shape[0], axis=0)
+    t = time.perf_counter()
+    prim, tfar = caster.cast_raw(org.astype(np.float32), dirs.reshape(-1, 3).astype(np.float32), max_range_m)
+    t_embree = time.perf_counter() - t
+    big_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(dirs.shape[:2])
+    r = np.linalg.norm(pos_i[:, None, :] + big_r[..., None] * dirs - pos_local[:, None, :], axis=2)
+    lines = [np.where(v <= window_m, v, np.nan).reshape(2 * dirs.shape[0], -1) for v in (big_r, 0.5 * (big_r + r))]
+    return (*elevation_rows(plan, np.concatenate(lines, axis=1)), t_embree)
 
 
-def _bounce(front, caster, swell, rot, pos_local, max_range_m, clock):
-    """The image fan's rays bounced on the swell: a dict of per-ray arrays of the rays that reach the scene."""
-    plan = front.plan
-    z_s = front.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
+def _image_fan(front, swell, caster, rot, pos_local, max_range_m, clock):
+    """The image fan's rays cast up from the sonar to the swell: a dict of the fan and of the rays that reached it.
+
+    A one-bounce echo at range (R + r)/2 in the window may have travelled R up to twice the range on its bounce
+    (r ≤ R): the fan is cast out to that (``max_range_m`` of the result), its rays placed densely only where one of
+    its paths lies within the window (:func:`_image_rows`)."""
+    plan, surface = front.plan, front.sonar.environment.surface
+    z_s = surface.z_m - float(caster.compiled.origin_m[2])
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s)
-    # a one-bounce echo at range (R + r)/2 in the window may have travelled R up to twice the range on its bounce
+    window_m = max_range_m * (1.0 + 1e-3) + 0.05 + 2.0 * surface.swell_height_m   # a wave moves a path by < 2H
     max_range_m = 2.0 * (max_range_m * (1.0 + 1e-3) + 0.05)
-    el_start, beta, dbeta, _, t_probe = probe_rows(caster, plan, rot_i, pos_i, max_range_m)
-    n_az, rows = plan.s.shape[0], el_start.shape[0] - 1
-    n, per_row = n_az * int(el_start[-1]), n_az * np.diff(el_start)
-    dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    el_start, beta, dbeta, t_probe = _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m)
+    clock["embree"] = clock.get("embree", 0.0) + t_probe
+    n_az, buf = plan.s.shape[0], front.buffers
+    ray_start = n_az * el_start
+    n = int(ray_start[-1])
+    dirs, org = buf.take("swell_dirs", (n, 3), np.float32), buf.take("swell_org", (n, 3), np.float32)
     kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot_i), pos_i, dirs, org)
     dirs[:, 2] *= -1.0                                                # the real, upward ray (negation: exact)
-    s_org32 = np.repeat(pos_local.astype(np.float32)[np.arange(rows) // 2], per_row, axis=0)
-    prim_s, t1 = swell.cast_raw(s_org32, dirs, max_range_m)
-    up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))            # per-ray bookkeeping only for these
-    row = np.searchsorted(n_az * el_start, up, side="right") - 1
-    u, s_org = dirs[up].astype(np.float64), pos_local[row // 2]
-    t1 = t1[up].astype(np.float64)
-    seen = ~occluded(caster, s_org, u, t1)                            # S→P through the scene
-    up, row, u, s_org, t1 = up[seen], row[seen], u[seen], s_org[seen], t1[seen]
-    j = up - n_az * el_start[row]
-    n_el = np.diff(el_start)[row]
-    cell = el_start[row] + j % n_el
-    n_p = swell.compiled.face_normals[prim_s[up]]
-    u_r = u - 2.0 * np.sum(u * n_p, axis=1)[:, None] * n_p
-    p = s_org + t1[:, None] * u
-    prim, t2 = caster.cast_raw((p + LEG_EPSILON_M * u_r).astype(np.float32), u_r.astype(np.float32), max_range_m)
-    hit = (prim >= 0) & (t1 + t2 + LEG_EPSILON_M <= max_range_m)
-    clock["embree"] = clock.get("embree", 0.0) + t_probe
-    return dict(ray=up[hit], row=row[hit], s=plan.s[(j // n_el)[hit]], beta=beta[cell[hit]], dbeta=dbeta[cell[hit]],
-                u=u[hit], n_p=n_p[hit], u_r=u_r[hit], R=(t1 + LEG_EPSILON_M + t2)[hit], prim=prim[hit],
-                x=p[hit] + (LEG_EPSILON_M + t2[hit])[:, None] * u_r[hit], ray_start=n_az * el_start, rot_i=rot_i)
+    org[:] = np.repeat(pos_local.astype(np.float32), 2, axis=0).repeat(np.diff(ray_start), axis=0)
+    prim_s, t1 = swell.cast_raw(org, dirs, max_range_m)
+    up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
+    return dict(el_start=el_start, ray_start=ray_start, beta=beta, dbeta=dbeta, dirs=dirs, prim_s=prim_s, t1=t1,
+                up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m)
 
 
-def _footprint(b, rot_i, n_x, cos_i):
-    """dX/dβ of each bounced ray on the surface it hit, (n, 3) m/rad (the facet's image is a straight ray)."""
-    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
-    cpsi = np.sqrt(1.0 - b["s"] ** 2)
-    f_body = np.stack([0.0 * cpsi, -side * cpsi * np.sin(b["beta"]), cpsi * np.cos(b["beta"])], axis=1)
-    f = np.einsum("nij,nj->ni", rot_i[b["row"] // 2], f_body) * [1.0, 1.0, -1.0]   # ∂u/∂β of the real ray
-    f_r = f - 2.0 * np.sum(f * b["n_p"], axis=1)[:, None] * b["n_p"]
-    nf = np.sum(n_x * f_r, axis=1)
-    return b["R"][:, None] * (f_r + b["u_r"] * (nf / np.maximum(cos_i, 1e-12))[:, None])
+def _bounce(front, caster, swell, fan, pos_local):
+    """The rays that reached the swell, mirrored on their facets and cast through the scene (the leg S → P
+    checked too): a dict of per-entry arrays, aligned with ``fan["up"]``."""
+    m, buf = fan["up"].shape[0], front.buffers
+    u, p, ur = (buf.take(k, (m, 3)) for k in ("swell_u", "swell_p", "swell_ur"))
+    org, dr = buf.take("swell_borg", (m, 3), np.float32), buf.take("swell_bdir", (m, 3), np.float32)
+    kernels.swell_launch(fan["up_start"], fan["up"], fan["dirs"], fan["t1"], fan["prim_s"], pos_local,
+                         swell.compiled.face_normals, LEG_EPSILON_M, u, p, ur, org, dr)
+    seen = buf.take("swell_seen", m)
+    seen[:] = 1.0
+    if m and _below_top(caster, float(pos_local[:, 2].min())):      # S → P through the scene
+        block_legs(caster, buf, fan["up_start"], p, pos_local, True, u, fan["t1"][fan["up"]].astype(np.float64),
+                   seen)
+    prim, t2 = caster.cast_raw(org, dr, fan["max_range_m"])
+    return dict(u=u, p=p, ur=ur, prim=prim, t2=t2, seen=seen)
 
 
-def _two_bounce(front, caster, b, g_u, rs2, cos_i, dx, shift=None):
-    """S→P→X→P→S: the flat image path's weight with the unfolded range R (law applied); ``g_u`` (Γ, Γ_rx) of the
-    launch directions (:func:`_gains`), ``shift`` (n,) δ of each echo's ping when moving during the ping (None:
-    stop-and-hop)."""
-    plan, s = front.plan, front.sonar
-    g, g_rx = g_u
-    g4 = g ** 4 if shift is None else g ** 2 * g_rx ** 2
-    w = (g4 * np.exp(-front.two_way_np_per_m * b["R"]) * rs2 ** 2 * plan.ds * b["dbeta"]
-         / np.maximum(b["R"], plan.min_range_m) ** 2)
-    w = np.where(cos_i > 1e-9, w, 0.0)
-    apply_laws(caster.compiled, s.frequency_hz, b["prim"], np.maximum(cos_i, 1e-9), w, b["x"])
-    slope = np.minimum(np.abs(np.sum(b["u_r"] * dx, axis=1)), plan.slope_cap_m_rad)   # |dR/dβ|, R unfolded
-    return w, 2.0 * b["R"] / s.sound_speed_m_s, 2.0 * slope * b["dbeta"] / s.sound_speed_m_s
+def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
+    """kernels.swell_paths over the bounced rays: a dict of its outputs (the one bounce without σ and legs)."""
+    s, plan, c, buf = front.sonar, front.plan, caster.compiled, front.buffers
+    m = fan["up"].shape[0]
+    o = {k: buf.take("swell_" + k, m) for k in ("w1", "t1", "e1", "w2", "t2", "e2", "cos_i", "cos_s", "phi", "r")}
+    o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
+    o["want_phi"] = any(getattr(law, "uses_azimuth", True) for law in c.laws)  # φ costs an arccos per echo
+    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
+    kernels.swell_paths(fan["up_start"], fan["up"], fan["ray_start"], fan["el_start"], plan.s, np.cos(fan["beta"]),
+                        np.sin(fan["beta"]), fan["dbeta"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"], b["prim"],
+                        b["t2"], b["seen"], swell.compiled.face_normals, c.face_normals,
+                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, plan.beam, plan.ds,
+                        plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad, s.sound_speed_m_s, _wave_kh(s),
+                        fan["max_range_m"], LEG_EPSILON_M, o["want_phi"], o["x"], o["w1"], o["t1"], o["e1"], o["w2"],
+                        o["t2"], o["e2"], o["cos_i"], o["cos_s"], o["phi"], o["leg"], o["r"])
+    return o
 
 
-def _azimuth(u_in, u_out, n_x, cos_i, cos_s):
-    """Bistatic azimuth φ: the angle between −u_in and −u_out projected on the facet (0 when either is along n_x)."""
-    bb = -u_in - cos_i[:, None] * n_x
-    tt = -u_out - cos_s[:, None] * n_x
-    nb, nt = np.linalg.norm(bb, axis=1), np.linalg.norm(tt, axis=1)
-    ok = (nb > 1e-12) & (nt > 1e-12)
-    return np.where(ok, np.arccos(np.clip(np.sum(bb * tt, axis=1) / np.where(ok, nb * nt, 1.0), -1, 1)), 0.0)
-
-
-def _one_bounce(front, caster, b, rot, side, g_u, rs2, cos_i, dx, pos_local, shift=None):
-    """S→P→X→S and S→X→P→S: the bounced ray in, the direct leg back, one echo of twice the weight (each with its
-    own receive beam when moving during the ping: ``shift`` (n,) δ, None: stop-and-hop); ``rot`` (n, 3, 3) and
-    ``side`` (n,) of each echo's ping and channel, ``g_u`` (Γ, Γ_rx) of its launch direction."""
-    plan, s, c = front.plan, front.sonar, caster.compiled
-    d = b["x"] - pos_local[b["row"] // 2]
-    r = np.linalg.norm(d, axis=1)
-    u_d = d / r[:, None]
-    n_x = c.face_normals[b["prim"]]
-    cos_s = -np.sum(n_x * u_d, axis=1)
-    lit = (cos_i > 1e-9) & (cos_s > 1e-9)
-    phi = _azimuth(b["u_r"], u_d, n_x, cos_i, cos_s)[lit] if any(getattr(law, "uses_azimuth", True)
-                                                                 for law in c.laws) else 0.0
-    sigma = np.zeros(r.shape[0])
-    sigma[lit] = bistatic_sigma(c, s.frequency_hz, b["prim"][lit], cos_i[lit], cos_s[lit], phi)
-    (g, g_rx), (gd, gd_rx) = g_u, _gains(s, rot, side, u_d, shift)
-    g2 = 2.0 * g ** 2 * gd ** 2 if shift is None else g ** 2 * gd_rx ** 2 + gd ** 2 * g_rx ** 2
-    w = (g2 * sigma * rs2 * np.exp(-0.5 * front.two_way_np_per_m * (b["R"] + r)) * plan.ds * b["dbeta"]
-         / (np.maximum(r, plan.min_range_m) ** 2 * np.maximum(cos_i, 1e-9)))
-    for detail in (c.maps, c.textures):
-        if detail is not None:
-            detail.apply(c, b["prim"], b["x"], w)
-    on = np.flatnonzero(w > 0)
-    w[on[occluded(caster, b["x"][on], -u_d[on], r[on])]] = 0.0        # the direct leg X→S
-    slope = np.minimum(np.abs(np.sum((b["u_r"] + u_d) * dx, axis=1)), 2.0 * plan.slope_cap_m_rad)
-    return w, (b["R"] + r) / s.sound_speed_m_s, slope * b["dbeta"] / s.sound_speed_m_s
+def _one_bounce_laws(front, caster, prim, o) -> None:
+    """σ(θi, θs, φ), maps and texture on the lit one-bounce weights ``o["w1"]`` (in place)."""
+    c, s = caster.compiled, front.sonar
+    lit = np.flatnonzero(o["w1"] > 0)
+    detail = [d for d in (c.maps, c.textures) if d is not None]
+    at = prim[lit] if detail or any(law != c.laws[0] for law in c.laws) else None   # one law: no gathers
+    w = o["w1"][lit] * bistatic_sigma(c, s.frequency_hz, at, o["cos_i"][lit], o["cos_s"][lit],
+                                      o["phi"][lit] if o["want_phi"] else 0.0)
+    for d in detail:
+        d.apply(c, at, o["x"][lit], w)
+    o["w1"][lit] = w
 
 
 def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
     """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan; ``rx_shift``
     (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
     swell = surface_caster(caster, front.sonar.environment.surface, max_range_m)
-    b = _bounce(front, caster, swell, rot, pos_local, max_range_m, clock)
-    n_x = caster.compiled.face_normals[b["prim"]]
-    cos_i = -np.sum(n_x * b["u_r"], axis=1)
-    rs2 = front.sonar.environment.surface.reflection_intensity(np.abs(np.sum(b["u"] * b["n_p"], axis=1)),
-                                                               front.sonar.wavenumber_rad_m)
-    dx = _footprint(b, b["rot_i"], n_x, cos_i)
-    start = row_starts(b["row"], b["ray_start"].shape[0] - 1)
-    rot = np.asarray(rot, dtype=np.float64)[b["row"] // 2]
-    side = np.where(b["row"] % 2 == 1, 1.0, -1.0)
-    shift = None if rx_shift is None or not np.any(rx_shift) else np.asarray(rx_shift)[b["row"] // 2]
-    g_u = _gains(front.sonar, rot, side, b["u"], shift)              # the launch direction's, shared by both paths
+    fan = _image_fan(front, swell, caster, rot, pos_local, max_range_m, clock)
+    b = _bounce(front, caster, swell, fan, pos_local)
+    o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
+    _one_bounce_laws(front, caster, b["prim"], o)
+    block_legs(caster, front.buffers, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"])  # X → S
+    apply_laws(caster.compiled, front.sonar.frequency_hz, b["prim"], o["cos_i"], o["w2"], o["x"])
     out = []
-    for w, t, ext in (_one_bounce(front, caster, b, rot, side, g_u, rs2, cos_i, dx, pos_local, shift),
-                      _two_bounce(front, caster, b, g_u, rs2, cos_i, dx, shift)):
-        obj = np.zeros(0, np.int32) if ids is None else np.where(w > 0, ids[b["prim"]], -1).astype(np.int32)
-        out.append(Echoes(2, start, t, ext, w, b["x"], obj))
+    for w, t, ext in ((o["w1"], o["t1"], o["e1"]), (o["w2"], o["t2"], o["e2"])):
+        obj = np.zeros(0, np.int32) if ids is None else np.where(w > 0, ids[np.maximum(b["prim"], 0)], -1).astype(
+            np.int32)
+        out.append(Echoes(2, fan["up_start"], t, ext, w, o["x"], obj))
     return out[0], out[1]

@@ -376,6 +376,58 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps)
             length[i].astype(np.float32))
 
 
+def swell_launch(ping, dirs, t1, prim_s, pos, surface_normals, eps):
+    """The upward rays mirrored on the swell's facets in NumPy (twin of kernels.swell_launch): (u, P, u_r, float32
+    origin and direction of the bounced ray); ``ping`` (m,) of each entry, the other arrays already gathered."""
+    u = dirs.astype(np.float64)
+    n = surface_normals[prim_s]
+    ur = u - 2 * np.sum(u * n, axis=1)[:, None] * n
+    p = pos[ping] + t1.astype(np.float64)[:, None] * u
+    return u, p, ur, (p + eps * ur).astype(np.float32), ur.astype(np.float32)
+
+
+def swell_paths(s_az, beta, dbeta, u, p, ur, t1, n_p, prim, t2, seen, face_normals, rot, pos, ping, side, shift,
+                beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, c, wave_kh, max_range_m, eps):
+    """The swell's one- and two-bounce paths in NumPy (twin of kernels.swell_paths), every array gathered per entry
+    (s_az, beta, dbeta of its fan direction, n_p its facet's normal, ping, side and δ of its ping): a dict of the
+    outputs, NaN-free only where they are written (w1, w2 and times everywhere)."""
+    def gain(v, d=0.0):
+        e = np.einsum("nji,nj->ni", rot[ping], v)
+        ct, st = np.cos(beam[2]), np.sin(beam[2])
+        height, bore = e[:, 2] * ct - side * e[:, 1] * st, side * e[:, 1] * ct + e[:, 2] * st
+        return np.where(bore > 0, np.sinc(beam[0] * (e[:, 0] - d) / np.pi) * np.sinc(beam[1] * height / np.pi), 0.0)
+
+    big_r = t1.astype(np.float64) + eps + t2.astype(np.float64)
+    x = p + (eps + t2.astype(np.float64))[:, None] * ur
+    n_x = face_normals[np.maximum(prim, 0)]
+    cos_i = -np.sum(n_x * ur, axis=1)
+    reach = (prim >= 0) & (seen > 0) & (big_r <= max_range_m)
+    ok = reach & (cos_i > 1e-9)
+    rs2 = np.exp(-4 * wave_kh ** 2 * np.sum(u * n_p, axis=1) ** 2)
+    cpsi = np.sqrt(1 - s_az ** 2)                                   # ∂u/∂β in the body, then the world, mirrored
+    f = np.einsum("nij,nj->ni", rot[ping], np.stack([0 * cpsi, -side * cpsi * np.sin(beta), cpsi * np.cos(beta)], 1))
+    f_r = f - 2 * np.sum(f * n_p, axis=1)[:, None] * n_p
+    dx = big_r[:, None] * (f_r + ur * (np.sum(n_x * f_r, axis=1) / np.maximum(cos_i, 1e-12))[:, None])
+    g, g_rx = gain(u), gain(u, shift)
+    w2 = g ** 2 * g_rx ** 2 * np.exp(-two_way_np_per_m * big_r) * rs2 ** 2 * ds * dbeta / np.maximum(big_r, min_range_m) ** 2
+    d = x - pos[ping]
+    r = np.linalg.norm(d, axis=1)
+    ud = d / r[:, None]
+    cos_s = -np.sum(n_x * ud, axis=1)
+    w1 = ((g ** 2 * gain(ud, shift) ** 2 + gain(ud) ** 2 * g_rx ** 2) * rs2 * np.exp(-0.5 * two_way_np_per_m * (big_r + r))
+          * ds * dbeta / (np.maximum(r, min_range_m) ** 2 * cos_i))
+    bb, tt = -ur - cos_i[:, None] * n_x, -ud - cos_s[:, None] * n_x
+    nb, nt = np.linalg.norm(bb, axis=1), np.linalg.norm(tt, axis=1)
+    phi = np.arccos(np.clip(np.sum(bb * tt, axis=1) / (nb * nt), -1, 1))
+    s1 = np.minimum(np.abs(np.sum((ur + ud) * dx, axis=1)), 2 * slope_cap_m_rad)
+    s2 = np.minimum(np.abs(np.sum(ur * dx, axis=1)), slope_cap_m_rad)
+    lit1 = ok & (cos_s > 1e-9)
+    return dict(ok=ok, lit1=lit1, x=np.where(reach[:, None], x, p), w1=np.where(lit1, w1, 0.0), w2=np.where(ok, w2, 0.0),
+                time1=np.where(ok, (big_r + r) / c, np.inf), time2=np.where(ok, 2 * big_r / c, np.inf),
+                ext1=np.where(ok, s1 * dbeta / c, 0.0), ext2=np.where(ok, 2 * s2 * dbeta / c, 0.0),
+                cos_i=np.where(ok, cos_i, 1.0), cos_s=cos_s, phi=phi, leg=-ud, r=r)
+
+
 def arc_start(s, beta, el_start, rot, pos, layers, z0):
     """Launch of every ray in a profile (twin of kernels.arc_start): horizontal direction, ξ, θ0, c0 per ray."""
     u = fan_directions(s, beta, el_start, rot)

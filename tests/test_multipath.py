@@ -292,6 +292,78 @@ def test_mixed_legs_kernel_matches_naive(rng):
     assert np.count_nonzero(out["weight"]) > n // 4 and np.count_nonzero(out["weight"][hit] == 0) > 0  # both ways
 
 
+def test_swell_kernels_match_naive(rng):
+    """kernels.swell_launch and kernels.swell_paths against their NumPy twins: upward fan rays of random attitudes
+    on random facets, bounced onto random scene faces, some missed, blocked or beyond the range, both sides."""
+    import naive
+    from scipy.spatial.transform import Rotation
+
+    from sonar_embree import kernels
+
+    n_p, n_az, eps = 3, 5, 1e-3
+    rot = Rotation.from_euler("xyz", rng.uniform(-0.2, 0.2, (n_p, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
+    pos = np.column_stack([rng.uniform(-5, 5, (n_p, 2)), rng.uniform(8, 12, n_p)])
+    n_el = rng.integers(5, 20, 2 * n_p)
+    el_start = np.concatenate(([0], np.cumsum(n_el))).astype(np.int64)
+    ray_start = n_az * el_start
+    n = int(ray_start[-1])
+    row = np.repeat(np.arange(2 * n_p), n_el * n_az)
+    j = np.arange(n) - ray_start[row]
+    ping, side = row // 2, np.where(row % 2 == 1, 1.0, -1.0)
+    s_az = rng.uniform(-0.3, 0.3, n_az)
+    beta_cell, dbeta_cell = rng.uniform(-1.3, -0.05, el_start[-1]), rng.uniform(1e-4, 1e-2, el_start[-1])
+    beta_cell[::9] = -2.0                                            # behind the baffle (20° tilt): Γ = 0
+    cell, a = el_start[row] + j % n_el[row], j // n_el[row]
+    cpsi = np.sqrt(1 - s_az[a] ** 2)                                 # the launch direction from the fan grid
+    e = np.column_stack([s_az[a], side * cpsi * np.cos(beta_cell[cell]), cpsi * np.sin(beta_cell[cell])])
+    dirs = np.einsum("nij,nj->ni", rot[ping], e).astype(np.float32)
+    surf = rng.normal(size=(9, 3)) * [0.2, 0.2, 1.0]
+    surf /= np.linalg.norm(surf, axis=1)[:, None]
+    prim_s = np.where(rng.random(n) < 0.1, -1, rng.integers(0, 9, n)).astype(np.int32)
+    t1 = np.abs((15.0 - pos[ping, 2]) / dirs[:, 2]).astype(np.float32)
+    up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
+    up_start = np.searchsorted(up, ray_start).astype(np.int64)
+    m = up.shape[0]
+    u, p, ur = (np.full((m, 3), np.nan) for _ in range(3))
+    org, dr = np.full((m, 3), np.nan, np.float32), np.full((m, 3), np.nan, np.float32)
+    kernels.swell_launch(up_start, up, dirs, t1, prim_s, pos, surf, eps, u, p, ur, org, dr)
+    ref = naive.swell_launch(ping[up], dirs[up], t1[up], prim_s[up], pos, surf, eps)
+    for got, want in zip((u, p, ur, org, dr), ref):
+        np.testing.assert_allclose(got, want, rtol=1e-6 if got.dtype == np.float32 else 1e-12, atol=1e-12)
+
+    normals = rng.normal(size=(7, 3)) * [0.3, 0.3, 1.0]
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    normals[:, 2] = np.abs(normals[:, 2]) * [1, 1, 1, 1, 1, 1, -1]   # faces up, one down (cos θi < 0)
+    prim = np.where(rng.random(m) < 0.1, -1, rng.integers(0, 7, m)).astype(np.int32)
+    t2 = rng.uniform(1.0, 60.0, m).astype(np.float32)
+    seen = np.where(rng.random(m) < 0.1, 0.0, 1.0)
+    rx_shift = np.array([0.0, 2e-3, -5e-3])
+    beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
+    consts = (beam, 0.01, 0.0375, 0.044, 600.0, 1500.0, 0.3, 90.0, eps)
+    keys = ("w1", "time1", "ext1", "w2", "time2", "ext2", "cos_i", "cos_s", "phi", "r")
+    out, no_phi = ({k: np.full(m, np.nan) for k in keys} for _ in range(2))
+    x, leg = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
+    for want_phi, o in ((True, out), (False, no_phi)):
+        kernels.swell_paths(up_start, up, ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell,
+                            u, p, ur, t1, prim_s, prim, t2, seen, surf, normals, rot, pos, rx_shift, *consts, want_phi,
+                            x, *[o[k] for k in keys[:-1]], leg, o["r"])
+    for k in keys:                        # without φ (laws that ignore it): the rest to the bit, φ left at 0
+        np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.zeros(m), err_msg=k)
+    pu, cu = ping[up], cell[up]
+    ref = naive.swell_paths(s_az[a[up]], beta_cell[cu], dbeta_cell[cu], u, p, ur, t1[up], surf[prim_s[up]], prim, t2,
+                            seen, normals, rot, pos, pu, side[up], rx_shift[pu], *consts)
+    for k in ("w1", "time1", "ext1", "w2", "time2", "ext2", "cos_i"):
+        np.testing.assert_allclose(out[k], ref[k], rtol=1e-5, atol=1e-14, err_msg=k)   # Γ(u): grid vs float32 u
+    ok, lit1 = ref["ok"], ref["lit1"]
+    np.testing.assert_allclose(x, ref["x"], rtol=1e-12, atol=1e-12)
+    for k in ("cos_s", "r"):
+        np.testing.assert_allclose(out[k][ok], ref[k][ok], rtol=1e-12, atol=1e-14, err_msg=k)
+    np.testing.assert_allclose(leg[ok], ref["leg"][ok], rtol=1e-12, atol=1e-14)
+    np.testing.assert_allclose(out["phi"][lit1], ref["phi"][lit1], rtol=1e-9, atol=1e-9)
+    assert 0 < lit1.sum() < ok.sum() < m and np.count_nonzero(out["w1"]) > m // 4   # every branch is taken
+    assert np.count_nonzero((out["w2"] == 0) & ok) > 0 and np.count_nonzero(rx_shift[pu][ok] != 0) > 0
+
+
 def _block(rng, n_p=3):
     """A random side-scan block layout: ray_start over 2·n_p rows, and each ray's ping."""
     counts = rng.integers(0, 40, 2 * n_p)

@@ -1,0 +1,183 @@
+"""Front-end kernels, a swell: the bounced rays of the image fan and their one- and two-bounce paths.
+
+The rays are cast by :mod:`sonar_embree.swell` (against the surface mesh, then through the scene); these
+kernels do the per-ray arithmetic between and after the casts (docs/physics.md §13).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._numba import njit, prange
+from .multipath import _azimuth, _gains, _rotation
+from .rays import _sinc
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def swell_launch(up_start, up, dirs, t1, prim_s, pos, surface_normals, eps, u_out, p_out, ur_out, org_out, dir_out):
+    """The upward rays that reached the surface: launch direction, surface point and mirrored direction.
+
+    Ray i = up[k] left the sonar of its row's ping along u (float32 ``dirs``, made float64) and hit the
+    surface facet ``prim_s[i]`` (normal n_P) at t1: P = S + t1·u, u_r = u − 2(u·n_P)·n_P, and the
+    bounced ray for the scene cast starts eps along u_r (float32).
+
+    Parameters
+    ----------
+    up_start : (rows + 1,) int64
+        Offsets of each row's entries in ``up`` (row = 2·ping + side).
+    up : (m,) int64
+        Image-fan ray of each entry.
+    dirs : (n, 3) float32; t1 : (n,) float32; prim_s : (n,) int32
+        Upward directions, surface distances (m) and surface triangles of the image fan's rays.
+    pos : (pings, 3) float64
+        Sonar positions, local frame, m.
+    surface_normals : (f, 3) float64
+        Face normals of the surface mesh.
+    eps : float
+        Offset of the bounced ray's origin along u_r, m.
+    u_out, p_out, ur_out : (m, 3) float64; org_out, dir_out : (m, 3) float32
+        Written.
+    """
+    for row in prange(up_start.shape[0] - 1):
+        b = row // 2
+        for k in range(up_start[row], up_start[row + 1]):
+            i = up[k]
+            q = prim_s[i]
+            ux, uy, uz = np.float64(dirs[i, 0]), np.float64(dirs[i, 1]), np.float64(dirs[i, 2])
+            nx, ny, nz = surface_normals[q, 0], surface_normals[q, 1], surface_normals[q, 2]
+            un = 2.0 * (ux * nx + uy * ny + uz * nz)
+            rx, ry, rz = ux - un * nx, uy - un * ny, uz - un * nz
+            t = np.float64(t1[i])
+            px, py, pz = pos[b, 0] + t * ux, pos[b, 1] + t * uy, pos[b, 2] + t * uz
+            u_out[k, 0], u_out[k, 1], u_out[k, 2] = ux, uy, uz
+            p_out[k, 0], p_out[k, 1], p_out[k, 2] = px, py, pz
+            ur_out[k, 0], ur_out[k, 1], ur_out[k, 2] = rx, ry, rz
+            org_out[k, 0], org_out[k, 1], org_out[k, 2] = px + eps * rx, py + eps * ry, pz + eps * rz
+            dir_out[k, 0], dir_out[k, 1], dir_out[k, 2] = rx, ry, rz
+
+
+@njit(cache=True, nogil=True)
+def _footprint(m, side, cpsi, cb, sb, nx, ny, nz, ur, n_x, cos_i, big_r):
+    """dX/dβ of a bounced ray, (3,) m/rad: ∂u/∂β = rot·(0, −side·cos ψ·sin β, cos ψ·cos β) mirrored in the facet
+    (normal n), then carried to the plane of X (normal n_x) over the unfolded range R."""
+    f1, f2 = -side * cpsi * sb, cpsi * cb
+    fx, fy, fz = m[1] * f1 + m[2] * f2, m[4] * f1 + m[5] * f2, m[7] * f1 + m[8] * f2
+    fn = 2.0 * (fx * nx + fy * ny + fz * nz)
+    fx, fy, fz = fx - fn * nx, fy - fn * ny, fz - fn * nz
+    k = (n_x[0] * fx + n_x[1] * fy + n_x[2] * fz) / max(cos_i, 1e-12)
+    return big_r * (fx + ur[0] * k), big_r * (fy + ur[1] * k), big_r * (fz + ur[2] * k)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p, ur, t1, prim_s, prim, t2,
+                seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m, two_way_np_per_m,
+                slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, x_out, w1_out, time1_out,
+                ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, leg_out, r_out):
+    """The one- and two-bounce paths of every bounced ray, without σ, maps or the direct leg's visibility.
+
+    A ray reached the scene at X = P + (eps + t2)·u_r (triangle ``prim``, normal n): unfolded range
+    R = t1 + eps + t2 (the facet is a mirror: a straight ray from S's image), r = |X − S|, u_d = (X − S)/r,
+    cos θi = −n·u_r, cos θs = −n·u_d, sin θg = |u·n_P| at the surface, |R_s|² = exp(−4(k·h_w)² sin²θg):
+
+        S→P→X→P→S:  w2 = Γ²(u)·Γ_rx²(u)·|R_s|⁴·e^(−α'R)·ds·dβ / max(R, R_min)²       (× σ(θi)/cos θi by the law)
+                    t = 2R/c,  Δt = 2·min(|u_r·dX/dβ|, cap)·dβ/c
+        S→P→X→S and S→X→P→S (one echo):
+                    w1 = (Γ²(u)·Γ_rx²(u_d) + Γ²(u_d)·Γ_rx²(u))·|R_s|²·e^(−α'(R + r)/2)·ds·dβ / (max(r, R_min)²·cos θi)
+                    (× σ(θi, θs, φ) afterwards), t = (R + r)/c,  Δt = min(|(u_r + u_d)·dX/dβ|, 2·cap)·dβ/c
+
+    with Γ(u) of the launch direction from its fan grid direction, Γ(u_d) of the direct leg, Γ_rx the receive
+    beam turned by the ping's δ (motion during the ping, docs/physics.md §16; δ = 0: Γ_rx = Γ and the one-bounce
+    gain is 2·Γ²(u)·Γ²(u_d) to the bit). w2 = 0 unless cos θi > 1e-9, w1 = 0 unless cos θs > 1e-9 too; rays not
+    ``seen`` (S→P blocked), missing the scene or with R beyond ``max_range_m`` get w1 = w2 = 0, t = inf.
+
+    Parameters
+    ----------
+    up_start, up : as for :func:`swell_launch`.
+    ray_start, el_start : (rows + 1,) int64
+        The image fan's rows of rays and of elevation cells (azimuth-major rays over a row's cells).
+    s_az : (n_az,) float64; cos_beta, sin_beta, dbeta : (el_start[-1],) float64
+        The fan's azimuth sines, and cos β, sin β and width (rad) of each elevation cell.
+    u, p, ur : (m, 3) float64
+        From :func:`swell_launch`.
+    t1 : (n,) float32; prim_s : (n,) int32
+        The image fan's surface distances (m) and triangles.
+    prim : (m,) int32; t2 : (m,) float32
+        The bounced rays' scene triangles (−1: none) and distances from their origins, m.
+    seen : (m,) float64
+        > 0 where the leg S → P is clear.
+    surface_normals, face_normals : (f, 3) float64
+        The surface mesh's and the scene's normals.
+    rot : (pings, 3, 3) float64; pos : (pings, 3) float64; rx_shift : (pings,) float64
+        Body-to-world rotations, sonar positions (local frame, m) and δ = 2·v_fwd/c of each ping.
+    beam : (4,) float64
+        k·lx/2, k·ly/2, tilt (rad), 0.
+    ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps : float
+        Azimuth spacing, near-field bound (m), two-way absorption (Np/m), |dR/dβ| cap (m/rad), c (m/s), k·h_w,
+        longest unfolded range R (m) and the bounced rays' origin offset (m).
+    want_phi : bool
+        Whether to write ``phi_out`` (the bistatic azimuth: an arccos per ray).
+    x_out : (m, 3) float64
+    w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, r_out : (m,) float64
+    leg_out : (m, 3) float64
+        Written; ``leg_out`` = −u_d and ``r_out`` = r are the direct leg X → S for the visibility check.
+    """
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
+    for row in prange(up_start.shape[0] - 1):
+        b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
+        m = _rotation(rot, b)
+        n_el = el_start[row + 1] - el_start[row]
+        shift = rx_shift[b]
+        a_now, g_az, g_az_rx, cpsi = -1, 0.0, 0.0, 0.0      # the launch gain's azimuth factors, per azimuth
+        for k in range(up_start[row], up_start[row + 1]):
+            w1_out[k], w2_out[k], time1_out[k], time2_out[k], ext1_out[k], ext2_out[k] = (0.0, 0.0, math.inf,
+                                                                                         math.inf, 0.0, 0.0)
+            cos_i_out[k], cos_s_out[k], phi_out[k], r_out[k] = 1.0, 1.0, 0.0, 0.0
+            x_out[k, 0], x_out[k, 1], x_out[k, 2] = p[k, 0], p[k, 1], p[k, 2]
+            big_r = np.float64(t1[up[k]]) + eps + np.float64(t2[k])
+            if prim[k] < 0 or not seen[k] > 0.0 or big_r > max_range_m:
+                continue
+            ray = up[k] - ray_start[row]
+            a = ray // n_el
+            cell = el_start[row] + ray - a * n_el
+            urk = (ur[k, 0], ur[k, 1], ur[k, 2])
+            d = eps + np.float64(t2[k])
+            x = (p[k, 0] + d * urk[0], p[k, 1] + d * urk[1], p[k, 2] + d * urk[2])
+            x_out[k, 0], x_out[k, 1], x_out[k, 2] = x
+            q = prim[k]
+            n_x = (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2])
+            cos_i = -(n_x[0] * urk[0] + n_x[1] * urk[1] + n_x[2] * urk[2])
+            if not cos_i > 1e-9:
+                continue
+            qs = prim_s[up[k]]
+            nx, ny, nz = surface_normals[qs, 0], surface_normals[qs, 1], surface_normals[qs, 2]
+            sg = u[k, 0] * nx + u[k, 1] * ny + u[k, 2] * nz
+            half = math.exp(-0.5 * two_way_np_per_m * big_r - 4.0 * wave_kh * wave_kh * sg * sg)  # e^(−α'R/2)·|R_s|²
+            if a != a_now:
+                a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
+                g_az, g_az_rx = _sinc(beam[0] * s_az[a]), _sinc(beam[0] * (s_az[a] - shift))
+            g_el = 0.0                                       # Γ(u) from the fan grid: the mirror maps the image
+            if cos_beta[cell] * ct + sin_beta[cell] * st > 0.0:   # ray onto u; 0 behind the baffle
+                g_el = _sinc(beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st))
+            g, g_rx = g_az * g_el, g_az_rx * g_el
+            dx = _footprint(m, side, cpsi, cos_beta[cell], sin_beta[cell], nx, ny, nz, urk, n_x, cos_i, big_r)
+            db = dbeta[cell]
+            w2_out[k] = g * g * g_rx * g_rx * half * half * ds * db / max(big_r, min_range_m) ** 2
+            slope = min(abs(urk[0] * dx[0] + urk[1] * dx[1] + urk[2] * dx[2]), slope_cap_m_rad)
+            time2_out[k], ext2_out[k] = 2.0 * big_r / sound_speed_m_s, 2.0 * slope * db / sound_speed_m_s
+            cos_i_out[k] = cos_i
+            vx, vy, vz = x[0] - pos[b, 0], x[1] - pos[b, 1], x[2] - pos[b, 2]
+            r = math.sqrt(vx * vx + vy * vy + vz * vz)
+            ud = (vx / r, vy / r, vz / r)
+            cos_s = -(n_x[0] * ud[0] + n_x[1] * ud[1] + n_x[2] * ud[2])
+            leg_out[k, 0], leg_out[k, 1], leg_out[k, 2], r_out[k], cos_s_out[k] = -ud[0], -ud[1], -ud[2], r, cos_s
+            time1_out[k] = (big_r + r) / sound_speed_m_s
+            slope = abs((urk[0] + ud[0]) * dx[0] + (urk[1] + ud[1]) * dx[1] + (urk[2] + ud[2]) * dx[2])
+            ext1_out[k] = min(slope, 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
+            if not cos_s > 1e-9:
+                continue
+            gd, gd_rx = _gains(m, side, ud[0], ud[1], ud[2], beam, ct, st, shift)
+            w1_out[k] = ((g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * half * math.exp(-0.5 * two_way_np_per_m * r)
+                         * ds * db / (max(r, min_range_m) ** 2 * cos_i))
+            if want_phi:
+                phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
