@@ -26,6 +26,10 @@ from ..validation import check_number
 #: Standard gravity, m/s².
 G_M_S2 = 9.80665
 
+#: A swell's mesh strips are cut along the crests every this many strip widths (Λ/24): long thin triangles,
+#: far fewer than a square grid's (3 M → 50 k over a 520 m × 320 m survey at Λ = 8 m).
+CREST_CUT = 64
+
 
 @dataclass(frozen=True)
 class SeaSurface:
@@ -86,20 +90,29 @@ class SeaSurface:
         return self.z_m + 0.5 * self.swell_height_m * np.sin(phase / self.swell_length_m)
 
     def mesh(self, x_range_m, y_range_m, origin_m=(0.0, 0.0, 0.0)):
-        """The swell as a triangle mesh over world x and y ranges (m), in the frame shifted by ``origin_m``.
+        """The swell as a triangle mesh covering world x and y ranges (m), in the frame shifted by ``origin_m``.
 
-        A grid of Λ/24 spacing (the sinusoid's chords stand off it by < 1 % of H), normals up.
+        Strips along the crests (the height is constant along a crest, so the strips are exact there), Λ/24 wide
+        across them (the sinusoid's chords stand off it by < 1 % of H), cut every ``CREST_CUT`` strip widths
+        along the crests; normals up.
         """
         import trimesh
 
         step = self.swell_length_m / 24.0
-        xs = np.arange(x_range_m[0], x_range_m[1] + step, step)
-        ys = np.arange(y_range_m[0], y_range_m[1] + step, step)
-        gx, gy = np.meshgrid(xs, ys)
-        v = np.stack([gx, gy, self.height_at(gx, gy)], axis=-1).reshape(-1, 3) - np.asarray(origin_m, float)
-        nx = xs.size
-        i = (np.arange(ys.size - 1)[:, None] * nx + np.arange(nx - 1)[None, :]).ravel()
-        faces = np.concatenate([np.stack([i, i + 1, i + nx + 1], 1), np.stack([i, i + nx + 1, i + nx], 1)])
+        psi = math.radians(self.swell_direction_deg)
+        k, c = np.array([math.cos(psi), math.sin(psi)]), np.array([-math.sin(psi), math.cos(psi)])
+        corners = np.array([[x, y] for x in x_range_m for y in y_range_m], dtype=float)
+        a_lo, a_hi = (corners @ k).min(), (corners @ k).max()     # across the crests (the phase), along them
+        b_lo, b_hi = (corners @ c).min(), (corners @ c).max()
+        a = np.arange(math.floor(a_lo / step), math.ceil(a_hi / step) + 1) * step
+        b = np.linspace(b_lo, b_hi, max(2, math.ceil((b_hi - b_lo) / (CREST_CUT * step)) + 1))
+        ga, gb = np.meshgrid(a, b)
+        xy = ga[..., None] * k + gb[..., None] * c
+        z = self.z_m + 0.5 * self.swell_height_m * np.sin(2.0 * math.pi * ga / self.swell_length_m)
+        v = np.concatenate([xy, z[..., None]], axis=-1).reshape(-1, 3) - np.asarray(origin_m, float)
+        na = a.size
+        i = (np.arange(b.size - 1)[:, None] * na + np.arange(na - 1)[None, :]).ravel()
+        faces = np.concatenate([np.stack([i, i + 1, i + na + 1], 1), np.stack([i, i + na + 1, i + na], 1)])
         return trimesh.Trimesh(v, faces, process=False)
 
     @property
