@@ -165,8 +165,10 @@ class Record:
                 arrays = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, KeyError) as exc:
             raise ConfigError(f"{path}: not a sonar_embree record ({exc})") from None
+        attrs = meta.get("attrs", {})
         traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
-                          arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"))
+                          arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"), attrs.get("crs"),
+                          attrs.get("start_time"))
         labels = None
         if "labels" in meta:
             shape = arrays["labels_kind"].shape  # files of format 1 have no echo truth

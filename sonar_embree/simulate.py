@@ -136,7 +136,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         Show a progress bar over pings (tqdm, on stderr).
     start_time : datetime or str, optional
         Time of the trajectory's time 0 (a ``datetime``, naive taken as UTC, or an
-        ISO 8601 string); default: now. Stored as ``Record.attrs["start_time"]``
+        ISO 8601 string); default: the trajectory's ``start_time`` (navigation logs), else now. Stored as
+        ``Record.attrs["start_time"]``
         (ISO 8601 UTC) and used for the ping times of XTF and Zarr outputs.
     timings : dict, optional
         If given, seconds spent are added under ``"setup"`` (BVH build and tables),
@@ -193,7 +194,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     t = time.perf_counter()
     intensity, cplx, samples = _process(run, keep_complex)
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
-    return _record(run, intensity, cplx, samples, trajectory, fan, iso_utc(start_time))
+    return _record(run, intensity, cplx, samples, trajectory, fan,
+                   iso_utc(start_time if start_time is not None else trajectory.start_time))
 
 
 def _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset, chain_kwargs):
@@ -330,7 +332,7 @@ def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str
              "intensity_unit": "unit source" if sonar.source_level_db is None else "uPa^2",
              "received_noise_db_per_hz": (None if run.n0 is None
                                           else 10.0 * math.log10(run.n0 * sonar.level_scale)),
-             "motion_during_ping": trajectory.velocity_m_s is not None}
+             "motion_during_ping": trajectory.velocity_m_s is not None, "crs": trajectory.crs}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = run.back.tables.carrier_factor * sonar.sample_rate_hz
     return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,

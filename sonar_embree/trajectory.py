@@ -7,6 +7,7 @@ heading, then pitch, then roll (intrinsic z-y-x). Body axes: forward, starboard,
 from __future__ import annotations
 
 import csv
+import dataclasses
 import logging
 import math
 import os
@@ -15,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
+from .validation import iso_utc  # noqa: F401 (re-exported: its old home)
 
 # World (east, north, up) from aerospace NED (north, east, down).
 _ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -23,6 +25,8 @@ log = logging.getLogger(__name__)
 
 VELOCITY_COLUMNS = ("vx_m_s", "vy_m_s", "vz_m_s")
 CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_deg") + VELOCITY_COLUMNS
+#: Columns of a navigation log in geographic coordinates and real time (:meth:`Trajectory.from_csv`).
+GEO_CSV_COLUMNS = ("time", "lat_deg", "lon_deg", "depth_m")
 #: Speed (m/s) above which a CSV trajectory's time stamps look like a unit slip: towfish and AUVs fly below 5 m/s.
 IMPLAUSIBLE_SPEED_M_S = 30.0
 
@@ -96,6 +100,12 @@ class Trajectory:
         The vehicle's velocity at each ping, world m/s, when known (:meth:`survey`, :meth:`line` and
         :meth:`through_waypoints` set it from their speed): then the sonar moves during each ping
         (docs/physics.md §16). ``None`` (a bare or CSV trajectory): stop-and-hop.
+    crs : int or str or None
+        The projected CRS of the positions (an EPSG code or a CRS string, metres; :mod:`sonar_embree.geo`),
+        stored as "EPSG:…"; ``None``: local metres.
+    start_time : datetime or str or None
+        The UTC time of ``times_s`` = 0 (ISO 8601), when known (navigation logs): :func:`~sonar_embree.simulate`
+        takes it as the record's start time unless given one.
     """
 
     positions_m: np.ndarray
@@ -104,6 +114,8 @@ class Trajectory:
     roll_deg: np.ndarray = 0.0
     times_s: np.ndarray | None = None
     velocity_m_s: np.ndarray | None = None
+    crs: str | None = None
+    start_time: str | None = None
 
     def __post_init__(self):
         pos = _as_float_array("positions_m", self.positions_m)
@@ -128,6 +140,12 @@ class Trajectory:
             if v.shape != (n, 3):
                 raise ConfigError(f"Trajectory.velocity_m_s must have shape ({n}, 3), got {v.shape}")
             object.__setattr__(self, "velocity_m_s", v)
+        if self.crs is not None:
+            from .geo import crs_name
+
+            object.__setattr__(self, "crs", crs_name(self.crs))
+        if self.start_time is not None:
+            object.__setattr__(self, "start_time", iso_utc(self.start_time))
 
     def __len__(self) -> int:
         return self.positions_m.shape[0]
@@ -140,22 +158,27 @@ class Trajectory:
         if idx.size == 0:
             raise ConfigError(f"Trajectory slice {index} selects no ping of {len(self)}")
         return Trajectory(self.positions_m[idx], self.heading_deg[idx], self.pitch_deg[idx], self.roll_deg[idx],
-                          self.times_s[idx], None if self.velocity_m_s is None else self.velocity_m_s[idx])
+                          self.times_s[idx], None if self.velocity_m_s is None else self.velocity_m_s[idx],
+                          self.crs, self.start_time)
 
     @classmethod
     def concatenate(cls, parts) -> "Trajectory":
         """Consecutive pieces of one trajectory, joined."""
         parts = list(parts)
+        if len({(p.crs, p.start_time) for p in parts}) > 1:
+            raise ConfigError("Trajectory.concatenate: the pieces differ in CRS or start time")
         v = (np.concatenate([p.velocity_m_s for p in parts]) if all(p.velocity_m_s is not None for p in parts)
              else None)
         return cls(*(np.concatenate([getattr(p, k) for p in parts])
-                     for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s")), v)
+                     for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s")), v,
+                   parts[0].crs, parts[0].start_time)
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, Trajectory):
             return NotImplemented
-        return all(np.array_equal(getattr(self, k), getattr(other, k))
-                   for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s"))
+        return (self.crs, self.start_time) == (other.crs, other.start_time) and all(
+            np.array_equal(getattr(self, k), getattr(other, k))
+            for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s"))
 
     @property
     def n_pings(self) -> int:
@@ -256,13 +279,13 @@ class Trajectory:
         d = jitter(motion, self.times_s, seed)
         pos = self.positions_m.copy()
         pos[:, 2] += d["heave_m"]
-        return Trajectory(pos, (self.heading_deg + d["yaw_deg"]) % 360.0, self.pitch_deg + d["pitch_deg"],
-                          self.roll_deg + d["roll_deg"], self.times_s, self.velocity_m_s)
+        return dataclasses.replace(self, positions_m=pos, heading_deg=(self.heading_deg + d["yaw_deg"]) % 360.0,
+                                   pitch_deg=self.pitch_deg + d["pitch_deg"], roll_deg=self.roll_deg + d["roll_deg"])
 
     def stop_and_hop(self) -> "Trajectory":
         """This trajectory without its velocity: the sonar stands still during each ping (the paper's model and
         the closed forms of docs/physics.md §3; motion during the ping, §16, switched off)."""
-        return Trajectory(self.positions_m, self.heading_deg, self.pitch_deg, self.roll_deg, self.times_s)
+        return dataclasses.replace(self, velocity_m_s=None)
 
     def forward_speed_m_s(self) -> np.ndarray:
         """(n,) the velocity's component along each ping's forward axis, m/s (zeros when unknown)."""
@@ -271,53 +294,55 @@ class Trajectory:
         return np.einsum("ij,ij->i", self.velocity_m_s, self.rotations()[:, :, 0])
 
     @classmethod
-    def from_csv(cls, path) -> "Trajectory":
+    def from_csv(cls, path, crs=None) -> "Trajectory":
         """Read a trajectory from CSV with a header row.
 
-        Columns (any order): ``x_m, y_m, z_m`` required; ``heading_deg``,
-        ``pitch_deg``, ``roll_deg`` (default 0), ``time_s`` and the velocity ``vx_m_s, vy_m_s, vz_m_s``
-        (all three or none) optional. Without velocity columns but with times, the velocity is the
-        positions' time derivative (second-order differences, ends included), so the sonar moves during each ping
-        (docs/physics.md §16); without times it stops for each ping. A speed above
-        :data:`IMPLAUSIBLE_SPEED_M_S` is warned about (time stamps not in seconds?).
+        Columns (any order): the position as ``x_m, y_m`` (world metres, in ``crs`` when given) or as
+        ``lat_deg, lon_deg`` (WGS 84, projected into ``crs``; default the UTM zone of the first fix,
+        :func:`sonar_embree.geo.utm_crs`), and its height as ``z_m`` (up) or ``depth_m`` (down from z = 0, the
+        vertical datum of a DEM); ``heading_deg``, ``pitch_deg``, ``roll_deg`` (default 0); the ping times as
+        ``time_s`` (s) or ``time`` (ISO 8601, e.g. 2026-05-01T12:00:00.25Z: ``times_s`` from the first, which
+        becomes ``start_time``); the velocity ``vx_m_s, vy_m_s, vz_m_s`` (all three or none). Without velocity
+        columns but with times, the velocity is the positions' time derivative (second-order differences,
+        ends included), so the sonar moves during each ping (docs/physics.md §16); without times it stops for
+        each ping. A speed above :data:`IMPLAUSIBLE_SPEED_M_S` is warned about (time stamps not in seconds?).
         """
         path = os.fspath(path)
+        header, rows = _csv_rows(path)
+        col = _csv_columns(path, header, rows)
         try:
-            with open(path, newline="", encoding="utf-8-sig") as fh:
-                rows = list(csv.reader(fh))
-        except OSError as exc:
-            raise ConfigError(f"{path}: cannot read trajectory CSV ({exc.strerror or exc})") from None
-        except UnicodeDecodeError as exc:
-            raise ConfigError(f"{path}: not a UTF-8 text file (byte 0x{exc.object[exc.start]:02x} at offset "
-                              f"{exc.start}); save the trajectory CSV as UTF-8") from None
-        rows = [r for r in rows if r and any(c.strip() for c in r)]
-        if not rows:
-            raise ConfigError(f"{path}: empty trajectory CSV")
-        header = [c.strip() for c in rows[0]]
-        unknown = [c for c in header if c not in CSV_COLUMNS]
-        if unknown:
-            raise ConfigError(f"{path}: unknown trajectory column {unknown[0]!r} (allowed: {', '.join(CSV_COLUMNS)})")
-        for req in ("x_m", "y_m", "z_m"):
-            if req not in header:
-                raise ConfigError(f"{path}: trajectory CSV lacks column {req!r}")
-        if len(rows) < 2:
-            raise ConfigError(f"{path}: trajectory needs at least one pose, got 0")
-        try:
-            data = np.array([[float(c) for c in r] for r in rows[1:]], dtype=np.float64)
-        except ValueError as exc:
-            raise ConfigError(f"{path}: non-numeric trajectory value ({exc})") from None
-        if data.ndim != 2 or data.shape[1] != len(header):
-            raise ConfigError(f"{path}: every trajectory row needs {len(header)} values")
-        col = {name: data[:, i] for i, name in enumerate(header)}
-        try:
-            traj = cls(np.stack([col["x_m"], col["y_m"], col["z_m"]], axis=1),
-                       col.get("heading_deg", 0.0), col.get("pitch_deg", 0.0),
-                       col.get("roll_deg", 0.0), col.get("time_s"))
+            xyz, crs = _csv_position(col, crs)
+            times, start = _csv_times(col)
+            traj = cls(xyz, col.get("heading_deg", 0.0), col.get("pitch_deg", 0.0), col.get("roll_deg", 0.0),
+                       times, None, crs, start)
             v = _csv_velocity(col, traj, path)
-            return traj if v is None else cls(traj.positions_m, traj.heading_deg, traj.pitch_deg, traj.roll_deg,
-                                               traj.times_s, v)
+            return traj if v is None else dataclasses.replace(traj, velocity_m_s=v)
         except ConfigError as exc:
             raise ConfigError(f"{path}: {exc}") from None
+
+    @classmethod
+    def from_xtf(cls, path, crs=None) -> "Trajectory":
+        """The poses of an XTF file's sonar pings (pyxtf reads it; :func:`sonar_embree.io.xtf.read_navigation`).
+
+        Latitude/longitude navigation (NavUnits 3) is projected into ``crs`` (default: the UTM zone of the first
+        ping); metres are taken as world x and y (in ``crs`` when given). z = −SensorDepth (depth below the sea
+        surface at z = 0), attitude from the Sensor fields, ``times_s`` from the first ping's time, which becomes
+        ``start_time``. The velocity is not read (stop-and-hop unless set from the times, as for CSV).
+        """
+        from .geo import from_lonlat, utm_crs
+        from .io.xtf import NAV_UNITS_LATLON, read_navigation
+
+        nav = read_navigation(path)
+        x, y = nav["x"], nav["y"]
+        try:
+            if nav["nav_units"] == NAV_UNITS_LATLON:
+                crs = crs if crs is not None else utm_crs(float(x[0]), float(y[0]))
+                x, y = from_lonlat(crs, x, y)
+            t = np.array([(w - nav["times"][0]).total_seconds() for w in nav["times"]])
+            return cls(np.stack([x, y, -nav["depth_m"]], axis=1), nav["heading_deg"] % 360.0, nav["pitch_deg"],
+                       nav["roll_deg"], t, None, crs, nav["times"][0].isoformat())
+        except ConfigError as exc:
+            raise ConfigError(f"{os.fspath(path)}: {exc}") from None
 
     def to_csv(self, path) -> None:
         """Write the trajectory as CSV with the columns of :meth:`from_csv`."""
@@ -331,6 +356,73 @@ class Trajectory:
         os.replace(tmp, path)
 
 
+def _csv_rows(path: str):
+    """(header, data rows) of a CSV file, blank rows dropped."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read trajectory CSV ({exc.strerror or exc})") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{path}: not a UTF-8 text file (byte 0x{exc.object[exc.start]:02x} at offset "
+                          f"{exc.start}); save the trajectory CSV as UTF-8") from None
+    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    if not rows:
+        raise ConfigError(f"{path}: empty trajectory CSV")
+    return [c.strip() for c in rows[0]], rows[1:]
+
+
+def _csv_columns(path: str, header, rows) -> dict:
+    """The CSV's columns by name: float64 arrays, the ISO ``time`` column as strings."""
+    unknown = [c for c in header if c not in CSV_COLUMNS + GEO_CSV_COLUMNS]
+    if unknown:
+        raise ConfigError(f"{path}: unknown trajectory column {unknown[0]!r} (allowed: "
+                          f"{', '.join(CSV_COLUMNS + GEO_CSV_COLUMNS)})")
+    for pair in (("x_m", "lat_deg"), ("y_m", "lon_deg"), ("z_m", "depth_m"), ("time_s", "time")):
+        if all(c in header for c in pair):
+            raise ConfigError(f"{path}: give {pair[0]!r} or {pair[1]!r}, not both")
+    for req in (("x_m", "lat_deg"), ("y_m", "lon_deg"), ("z_m", "depth_m")):
+        if not any(c in header for c in req):
+            raise ConfigError(f"{path}: trajectory CSV lacks column {req[0]!r} (or {req[1]!r})")
+    if not rows:
+        raise ConfigError(f"{path}: trajectory needs at least one pose, got 0")
+    if any(len(r) != len(header) for r in rows):
+        raise ConfigError(f"{path}: every trajectory row needs {len(header)} values")
+    col = {}
+    for i, name in enumerate(header):
+        cells = [r[i].strip() for r in rows]
+        if name == "time":
+            col[name] = cells
+            continue
+        try:
+            col[name] = np.array([float(c) for c in cells], dtype=np.float64)
+        except ValueError as exc:
+            raise ConfigError(f"{path}: non-numeric trajectory value in column {name!r} ({exc})") from None
+    return col
+
+
+def _csv_position(col: dict, crs):
+    """((n, 3) positions in metres, CRS or None) from x/y or lat/lon columns and z or depth."""
+    z = col["z_m"] if "z_m" in col else -col["depth_m"]
+    if "lat_deg" not in col:
+        return np.stack([col["x_m"], col["y_m"], z], axis=1), crs
+    from .geo import from_lonlat, utm_crs
+
+    crs = crs if crs is not None else utm_crs(float(col["lon_deg"][0]), float(col["lat_deg"][0]))
+    x, y = from_lonlat(crs, col["lon_deg"], col["lat_deg"])
+    return np.stack([x, y, z], axis=1), crs
+
+
+def _csv_times(col: dict):
+    """(times_s or None, start time or None) from a ``time_s`` or an ISO 8601 ``time`` column."""
+    if "time" not in col:
+        return col.get("time_s"), None
+    import datetime as dt
+
+    stamps = [dt.datetime.fromisoformat(iso_utc(t)) for t in col["time"]]
+    return np.array([(t - stamps[0]).total_seconds() for t in stamps]), stamps[0].isoformat()
+
+
 def _csv_velocity(col: dict, traj: "Trajectory", path: str):
     """(n, 3) velocity of a CSV trajectory, m/s: its columns, else d(position)/dt where times are given, else None."""
     given = [c for c in VELOCITY_COLUMNS if c in col]
@@ -338,7 +430,7 @@ def _csv_velocity(col: dict, traj: "Trajectory", path: str):
         raise ConfigError(f"velocity needs all of {', '.join(VELOCITY_COLUMNS)}; got only {', '.join(given)}")
     if given:
         return np.stack([col[c] for c in VELOCITY_COLUMNS], axis=1)
-    if "time_s" not in col or len(traj) < 2:
+    if ("time_s" not in col and "time" not in col) or len(traj) < 2:
         return None
     v = np.gradient(traj.positions_m, traj.times_s, axis=0, edge_order=2 if len(traj) > 2 else 1)
     fastest = float(np.linalg.norm(v, axis=1).max())
@@ -394,27 +486,3 @@ def _path(waypoints_m, where: str, n_dense: int):
         unit = tan / np.linalg.norm(tan, axis=1)[:, None]
         return (spline(pu), heading, unit) if tangent else (spline(pu), heading)
     return float(arc[-1]), curved
-
-
-def iso_utc(value=None) -> str:
-    """A time as an ISO 8601 UTC string: ``None`` is now; a naive datetime is taken as UTC.
-
-    Accepts a ``datetime.datetime``, a ``datetime.date`` (midnight) or an ISO 8601 string.
-    """
-    import datetime as dt
-
-    if value is None:
-        value = dt.datetime.now(dt.timezone.utc)
-    elif isinstance(value, str):
-        try:
-            value = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
-        except ValueError:
-            raise ConfigError(f"start time {value!r} is not an ISO 8601 date-time "
-                              "(e.g. 2026-05-01T12:00:00Z)") from None
-    elif isinstance(value, dt.date) and not isinstance(value, dt.datetime):
-        value = dt.datetime(value.year, value.month, value.day)
-    if not isinstance(value, dt.datetime):
-        raise ConfigError(f"start time must be a datetime or an ISO 8601 string, got {value!r}")
-    if value.tzinfo is None:
-        value = value.replace(tzinfo=dt.timezone.utc)
-    return value.astimezone(dt.timezone.utc).isoformat()

@@ -67,3 +67,27 @@ def read_numeric_csv(path, required, optional=(), what="table", columns_hint=Non
         except (TypeError, ValueError):
             raise ConfigError(f"{path}: row {i + 2} is not numeric: {r}") from None
     return cols, np.array(vals)
+
+
+def iso_utc(value=None) -> str:
+    """A time as an ISO 8601 UTC string: ``None`` is now; a naive datetime is taken as UTC.
+
+    Accepts a ``datetime.datetime``, a ``datetime.date`` (midnight) or an ISO 8601 string.
+    """
+    import datetime as dt
+
+    if value is None:
+        value = dt.datetime.now(dt.timezone.utc)
+    elif isinstance(value, str):
+        try:
+            value = dt.datetime.fromisoformat(value.replace("Z", "+00:00"))
+        except ValueError:
+            raise ConfigError(f"start time {value!r} is not an ISO 8601 date-time "
+                              "(e.g. 2026-05-01T12:00:00Z)") from None
+    elif isinstance(value, dt.date) and not isinstance(value, dt.datetime):
+        value = dt.datetime(value.year, value.month, value.day)
+    if not isinstance(value, dt.datetime):
+        raise ConfigError(f"start time must be a datetime or an ISO 8601 string, got {value!r}")
+    if value.tzinfo is None:
+        value = value.replace(tzinfo=dt.timezone.utc)
+    return value.astimezone(dt.timezone.utc).isoformat()

@@ -21,11 +21,13 @@ Conventions of what is written:
 - **Sample order**: starboard runs from time 0 (nadir) outwards; port runs from far
   range to nadir (its last sample is time 0), the XTF convention readers such as
   pyxtf assume, so ``hstack([port, starboard])`` is the waterfall.
-- Navigation in metres (NavUnits 0): SensorXcoordinate = world x (east),
-  SensorYcoordinate = world y (north) as float64, also in the Ship fields;
+- Navigation of a trajectory with a CRS (:mod:`sonar_embree.geo`) in latitude and longitude (NavUnits 3):
+  SensorXcoordinate = longitude, SensorYcoordinate = latitude, WGS 84 degrees as float64, also in the Ship
+  fields; otherwise in metres (NavUnits 0): world x (east) and y (north).
   SensorDepth = surface_z_m − z, positive down from the sea surface at world height
-  ``surface_z_m``; without a surface (the default: scenes have none yet) the depth
-  is unknown and written as 0, as devices without a pressure sensor do;
+  ``surface_z_m``; without a surface given the depth of a georeferenced trajectory is −z (its vertical
+  datum, z = 0, taken as the sea surface) when it lies below z = 0, otherwise unknown and written as 0, as
+  devices without a pressure sensor do;
   SensorPrimaryAltitude = the record's nadir altitude (0 where none);
   SensorSpeed and ShipSpeed in knots from the trajectory (its velocity, else distance
   over time between pings); SensorHeading, SensorPitch, SensorRoll in degrees
@@ -103,6 +105,7 @@ PORT_CHANNEL, STARBOARD_CHANNEL = 1, 2  # XTF TypeOfChannel
 SAMPLE_FORMAT_FLOAT32 = 5
 SAMPLE_FORMAT = {np.dtype(np.uint16): 3, np.dtype(np.uint8): 8}  # XTF word, byte
 KNOT_M_S = 1852.0 / 3600.0
+NAV_UNITS_METRES, NAV_UNITS_LATLON = 0, 3  # XTF file header NavUnits
 
 
 def sample_scale(record, scale="auto") -> float:
@@ -141,7 +144,7 @@ def _file_header(record, factor: float, ints) -> np.ndarray:
     h["SonarName"] = b"sonar_embree"
     h["NoteString"] = (f"simulated side-scan, unit-source intensity x {factor:.6g}" if ints is None else
                        f"simulated side-scan, {record.sonar.receiver.adc_bits}-bit ADC codes").encode()[:64]
-    h["NavUnits"] = 0
+    h["NavUnits"] = NAV_UNITS_LATLON if record.trajectory.crs is not None else NAV_UNITS_METRES
     h["NumberOfSonarChannels"] = 2
     s = record.sonar
     beam_deg = math.degrees(s.wavelength_m / s.length_m)  # first-null to first-null / 2, along track
@@ -161,7 +164,7 @@ def _file_header(record, factor: float, ints) -> np.ndarray:
 
 
 def _start(record, start) -> dt.datetime:
-    from ..trajectory import iso_utc
+    from ..validation import iso_utc
 
     if start is None:
         start = record.attrs.get("start_time")
@@ -245,9 +248,14 @@ def _packets(record, when, surface_z_m, ints) -> np.ndarray:
     h["PingNumber"] = np.arange(n_p)
     h["EventNumber"] = np.arange(n_p)
     h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
+    x, y = t.positions_m[:, 0], t.positions_m[:, 1]
+    if t.crs is not None:
+        from ..geo import to_lonlat
+
+        x, y = to_lonlat(t.crs, x, y)
+        surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
     for prefix in ("Sensor", "Ship"):
-        h[f"{prefix}Xcoordinate"] = t.positions_m[:, 0]
-        h[f"{prefix}Ycoordinate"] = t.positions_m[:, 1]
+        h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
         h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
     h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
     h["SensorPrimaryAltitude"] = np.nan_to_num(record.altitude_m, nan=0.0)
@@ -266,3 +274,39 @@ def _packets(record, when, surface_z_m, ints) -> np.ndarray:
         for name, value in codes.items():
             c[name] = value
     return packet
+
+
+def read_navigation(path) -> dict:
+    """The navigation and attitude of every sonar ping of an XTF file, read by pyxtf.
+
+    Returns
+    -------
+    dict
+        ``nav_units`` (the file header's NavUnits: 3 latitude/longitude, else metres), ``x`` and ``y`` (n,)
+        (longitude and latitude in degrees for NavUnits 3, else easting and northing in m), ``depth_m``,
+        ``heading_deg``, ``pitch_deg``, ``roll_deg`` and ``speed_m_s`` (n,) from the ping headers' Sensor
+        fields, and ``times`` (n,) UTC datetimes from their date and time (hundredths of seconds).
+    """
+    import pyxtf
+
+    path = str(path)
+    try:
+        header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise ConfigError(f"{path}: cannot read XTF navigation ({exc})") from None
+    pings = packets.get(pyxtf.XTFHeaderType.sonar, [])
+    if not pings:
+        raise ConfigError(f"{path}: the XTF file holds no sonar pings")
+    pings = [p[0] if isinstance(p, list) else p for p in pings]      # one header per ping (pyxtf: per channel)
+
+    def field(name):
+        return np.array([float(getattr(p, name)) for p in pings])
+
+    try:
+        times = [dt.datetime(p.Year, p.Month, p.Day, p.Hour, p.Minute, p.Second, 10000 * p.HSeconds,
+                             tzinfo=dt.timezone.utc) for p in pings]
+    except ValueError as exc:
+        raise ConfigError(f"{path}: a ping has an invalid date or time ({exc})") from None
+    return dict(nav_units=int(header.NavUnits), x=field("SensorXcoordinate"), y=field("SensorYcoordinate"),
+                depth_m=field("SensorDepth"), heading_deg=field("SensorHeading"), pitch_deg=field("SensorPitch"),
+                roll_deg=field("SensorRoll"), speed_m_s=field("SensorSpeed") * KNOT_M_S, times=times)

@@ -294,7 +294,7 @@ def _input_files(base: str, data: dict) -> list:
 
 def _start_time(value, src) -> str:
     """``[sweep] start_time`` (TOML datetime or ISO 8601 string) as an ISO 8601 UTC string."""
-    from ..trajectory import iso_utc
+    from ..validation import iso_utc
 
     try:
         return iso_utc(value)

@@ -1,0 +1,75 @@
+"""Coordinate reference systems: the only module that imports pyproj (docs/physics.md §15).
+
+The world frame of a georeferenced scene or trajectory is a projected CRS in metres (x east, y north,
+z up; e.g. a UTM zone, EPSG 326zz north / 327zz south), held in float64 around a local origin as for any
+scene. Latitude and longitude (WGS 84, EPSG:4326, degrees) go in and out through pyproj's transformations,
+always in (longitude, latitude) = (x, y) order.
+"""
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from .errors import ConfigError
+
+#: Geographic coordinates in and out: WGS 84 longitude/latitude, degrees.
+LONLAT = "EPSG:4326"
+
+
+@functools.lru_cache(maxsize=64)
+def _crs(value):
+    import pyproj
+
+    try:
+        return pyproj.CRS.from_user_input(value)
+    except pyproj.exceptions.CRSError as exc:
+        raise ConfigError(f"unknown CRS {value!r} ({exc})") from None
+
+
+def crs_name(value) -> str:
+    """The canonical name of a projected CRS in metres ("EPSG:32632" for 32632, "epsg:32632", a WKT or PROJ string
+    of a known code); a geographic CRS or one in other units is refused (the world frame is in metres)."""
+    if isinstance(value, (bool, float)) or value is None:
+        raise ConfigError(f"CRS must be an EPSG code or a CRS string, got {value!r}")
+    crs = _crs(int(value) if isinstance(value, (int, np.integer)) else str(value))
+    if not crs.is_projected:
+        raise ConfigError(f"CRS {value!r} is not projected: the world frame needs one in metres (e.g. a UTM zone)")
+    units = {a.unit_name for a in crs.axis_info[:2]}
+    if units != {"metre"}:
+        raise ConfigError(f"CRS {value!r} is in {', '.join(sorted(units))}, not metres")
+    code = crs.to_epsg()
+    return f"EPSG:{code}" if code is not None else crs.to_wkt()
+
+
+@functools.lru_cache(maxsize=64)
+def _transformer(src: str, dst: str):
+    import pyproj
+
+    return pyproj.Transformer.from_crs(_crs(src), _crs(dst), always_xy=True)
+
+
+def from_lonlat(crs, lon_deg, lat_deg):
+    """Project WGS 84 longitude and latitude (degrees, any matching shapes) into ``crs``: (x, y) in metres."""
+    lon, lat = np.asarray(lon_deg, dtype=np.float64), np.asarray(lat_deg, dtype=np.float64)
+    if np.any(np.abs(lat) > 90.0) or np.any(np.abs(lon) > 360.0):
+        bad = float(lat.flat[np.argmax(np.abs(lat))]) if np.any(np.abs(lat) > 90.0) else float(
+            lon.flat[np.argmax(np.abs(lon))])
+        raise ConfigError(f"latitude/longitude {bad:g} out of range (degrees expected; are these metres?)")
+    return _transformer(LONLAT, crs_name(crs)).transform(lon, lat)
+
+
+def to_lonlat(crs, x_m, y_m):
+    """Unproject world (x, y) in metres of ``crs`` to WGS 84 (longitude, latitude) in degrees."""
+    return _transformer(crs_name(crs), LONLAT).transform(np.asarray(x_m, dtype=np.float64),
+                                                          np.asarray(y_m, dtype=np.float64))
+
+
+def utm_crs(lon_deg: float, lat_deg: float) -> str:
+    """The WGS 84 UTM zone holding a point: "EPSG:326zz" north of the equator, "EPSG:327zz" south (plain 6° zones,
+    without the Norway and Svalbard exceptions)."""
+    if not abs(lat_deg) <= 84.0:
+        raise ConfigError(f"latitude {lat_deg:g} lies outside UTM (|lat| ≤ 84°)")
+    zone = int(math.floor(((lon_deg + 180.0) % 360.0) / 6.0)) + 1
+    return f"EPSG:{(32600 if lat_deg >= 0 else 32700) + min(zone, 60)}"
