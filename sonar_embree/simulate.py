@@ -80,6 +80,9 @@ def _check_inputs(scene, trajectory, sonar, pulse, fan):
             raise ConfigError(f"simulate: {name} must be a {names}, got {type(value).__name__}")
     if not scene.objects:
         raise ConfigError("simulate: the scene is empty; add a mesh or a seafloor")
+    if scene.crs is not None and trajectory.crs is not None and scene.crs != trajectory.crs:
+        raise ConfigError(f"simulate: the trajectory's CRS {trajectory.crs} differs from the scene's {scene.crs}; "
+                          f"read the navigation with crs={scene.crs!r}")
 
 
 def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, pulse: Pulse | None = None, *,
@@ -168,6 +171,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
                                              matched_filter=matched_filter, tvg=tvg, noise_db_per_hz=noise_db_per_hz,
                                              lowpass_hz=lowpass_hz, speckle_cell_m=speckle_cell_m, seed=seed))
     _check_inputs(scene, trajectory, sonar, pulse, fan)
+    if trajectory.crs is None and scene.crs is not None:  # its metres are the scene's (a DEM's)
+        trajectory = dataclasses.replace(trajectory, crs=scene.crs)
     run = _Run.setup(scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster)
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start

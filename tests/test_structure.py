@@ -66,7 +66,8 @@ def test_no_module_imports_a_module_that_imports_it():
 @pytest.mark.parametrize("dependency, owner", [("embreex", "sonar_embree.raycast.embree"),
                                                 ("numba", "sonar_embree.kernels._numba"),
                                                 ("pyproj", "sonar_embree.geo"),
-                                                ("pyxtf", "sonar_embree.io.xtf")])
+                                                ("pyxtf", "sonar_embree.io.xtf"),
+                                                ("rasterio", "sonar_embree.io.geotiff")])
 def test_one_owner_per_dependency(dependency, owner):
     users = set()
     for name, _, tree in _modules():

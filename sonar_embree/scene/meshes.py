@@ -315,6 +315,7 @@ class Scene:
 
     def __init__(self):
         self._objects: list[SceneObject] = []
+        self._crs: str | None = None
         self._compiled: dict = {}  # origin (x, y, z) -> CompiledScene, the last COMPILED_CACHE
 
     @classmethod
@@ -400,6 +401,7 @@ class Scene:
         unknown = set(materials) - {lab for lab, _, _ in items}
         if unknown:
             raise SceneError(f"materials name unknown object {sorted(unknown)[0]!r}")
+        crs = self._crs_of(items)
         new = []
         taken = set(self.labels)
         for lab, mesh, source in items:
@@ -412,7 +414,25 @@ class Scene:
             new.append(SceneObject(lab, v, f, materials.get(lab, material), floor, bmap, uv))
         self._objects.extend(new)
         self._compiled = {}
+        self._crs = crs
         return self
+
+    def _crs_of(self, items) -> str | None:
+        """The scene's CRS with meshes ``items`` added: theirs (``mesh.metadata["crs"]``, as
+        :func:`~sonar_embree.seafloor.from_dem` sets it) must agree with the scene's."""
+        crs = self._crs
+        for _, mesh, source in items:
+            own = getattr(mesh, "metadata", {}).get("crs")
+            if own is not None and crs is not None and own != crs:
+                raise SceneError(f"{source}: its CRS {own} differs from the scene's {crs}")
+            crs = own if own is not None else crs
+        return crs
+
+    @property
+    def crs(self) -> str | None:
+        """The projected CRS of the scene's world metres ("EPSG:…"), from the meshes that carry one (a DEM);
+        None: local metres."""
+        return self._crs
 
     def add_sediments(self, mesh: trimesh.Trimesh, sediments: dict, patch_m: float = 20.0, seed: int = 0,
                       label: str = "seafloor") -> "Scene":

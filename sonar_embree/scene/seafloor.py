@@ -1,10 +1,12 @@
-"""Procedural seafloors as ``trimesh.Trimesh`` (world metres, z up, normals up).
+"""Seafloors as ``trimesh.Trimesh`` (world metres, z up, normals up): procedural ones, and measured ones from a
+DEM raster (:func:`from_dem`) or an ASCII XYZ grid (:func:`from_xyz`).
 
-All are centred on ``center_m`` (default the origin) and deterministic for a seed.
+The procedural ones are centred on ``center_m`` (default the origin) and deterministic for a seed.
 """
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import trimesh
@@ -84,6 +86,104 @@ def from_heights(heights_m, spacing_m=1.0, origin_m=(0.0, 0.0)) -> trimesh.Trime
     # counter-clockwise seen from above: normals point up
     f = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
     return trimesh.Trimesh(v, f, process=False)
+
+
+def from_dem(path, band: int = 1) -> trimesh.Trimesh:
+    """A seafloor from a digital elevation model raster (GeoTIFF, or anything GDAL reads; rasterio opens it).
+
+    Vertices at the pixel centres (x = c + (j + ½)·a, y = f + (i + ½)·e of the raster's transform, so a
+    north-up raster's first row is its northernmost), z the band's value in m (elevation up: the seabed
+    below a sea-level datum is negative); nodata pixels are holes (no triangle touches them). The raster's
+    CRS, when it has one, is kept in ``mesh.metadata["crs"]`` and becomes the scene's (:attr:`Scene.crs`); it
+    must be projected, in metres.
+    """
+    from ..io.geotiff import read_grid
+
+    grid = read_grid(path, band)
+    crs = None
+    if grid.crs is not None:
+        from ..geo import crs_name
+
+        try:
+            crs = crs_name(grid.crs)
+        except ConfigError as exc:
+            raise ConfigError(f"{os.fspath(path)}: {exc}") from None
+    mesh = grid_mesh(grid.x_m, grid.y_m, grid.values, where=os.fspath(path))
+    mesh.metadata["crs"] = crs
+    return mesh
+
+
+def from_xyz(path, crs=None) -> trimesh.Trimesh:
+    """A seafloor from an ASCII XYZ grid: one "x y z" point per line (blanks, commas or semicolons between
+    them; lines that are not three numbers, such as a header, are skipped), the points on a regular grid in
+    any order, missing grid points as holes. ``crs``: the CRS of x and y (kept as for :func:`from_dem`)."""
+    path = os.fspath(path)
+    pts = _xyz_points(path)
+    xs, ys = np.unique(pts[:, 0]), np.unique(pts[:, 1])
+    for name, axis in (("x", xs), ("y", ys)):
+        step = np.diff(axis)
+        if axis.size < 2 or np.ptp(step) > 1e-6 * max(step.min(), 1e-12) + 1e-9:
+            raise ConfigError(f"{path}: the points are not on a regular grid in {name} (spacings "
+                              f"{step.min() if step.size else 0:g} to {step.max() if step.size else 0:g} m)")
+    z = np.full((ys.size, xs.size), np.nan)
+    z[np.searchsorted(ys, pts[:, 1]), np.searchsorted(xs, pts[:, 0])] = pts[:, 2]
+    mesh = grid_mesh(xs, ys[::-1], z[::-1], where=path)    # rows north first, as a raster's: the same triangles
+    if crs is not None:
+        from ..geo import crs_name
+
+        crs = crs_name(crs)
+    mesh.metadata["crs"] = crs
+    return mesh
+
+
+def _xyz_points(path: str) -> np.ndarray:
+    """(n, 3) points of an ASCII XYZ file."""
+    try:
+        with open(path, encoding="utf-8-sig") as fh:
+            lines = fh.read().replace(",", " ").replace(";", " ").splitlines()
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read XYZ grid ({exc.strerror or exc})") from None
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text XYZ grid") from None
+    rows = []
+    for line in lines:
+        parts = line.split()
+        try:
+            if len(parts) == 3:
+                rows.append([float(v) for v in parts])
+        except ValueError:
+            continue
+    if len(rows) < 4:
+        raise ConfigError(f"{path}: an XYZ grid needs at least 4 points of three numbers, found {len(rows)}")
+    pts = np.array(rows)
+    if not np.all(np.isfinite(pts)):
+        raise ConfigError(f"{path}: the XYZ grid holds NaN or inf")
+    return pts
+
+
+def grid_mesh(x_m, y_m, z_m, where: str = "grid") -> trimesh.Trimesh:
+    """A height-field mesh over the grid x (nx,) × y (ny,) with heights z (ny, nx); NaN heights are holes.
+
+    Each grid cell is two triangles, kept where all three of their corners have a height; normals up whatever
+    the order of x and y; vertices no triangle uses are dropped.
+    """
+    z = np.asarray(z_m, dtype=np.float64)
+    ny, nx = z.shape
+    if min(ny, nx) < 2:
+        raise ConfigError(f"{where}: a grid needs at least 2x2 points, got {nx}x{ny}")
+    xx, yy = np.meshgrid(np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64))
+    v = np.column_stack([xx.ravel(), yy.ravel(), z.ravel()])
+    idx = np.arange(nx * ny).reshape(ny, nx)
+    a, b = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel()
+    c, d = idx[1:, 1:].ravel(), idx[1:, :-1].ravel()
+    f = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    if (x_m[1] - x_m[0]) * (y_m[1] - y_m[0]) < 0:                      # x or y decreasing: turn the faces up
+        f = f[:, ::-1]
+    f = f[np.all(np.isfinite(v[f, 2]), axis=1)]
+    if f.shape[0] == 0:
+        raise ConfigError(f"{where}: no cell has heights at all its corners (all nodata?)")
+    used, f = np.unique(f, return_inverse=True)
+    return trimesh.Trimesh(v[used], f.reshape(-1, 3), process=False)
 
 
 def perlin_noise(shape, cells, seed: int = 0, octaves: int = 4, persistence: float = 0.5):

@@ -1,0 +1,82 @@
+"""GeoTIFF rasters in and out: the only module that imports rasterio (docs/physics.md §15).
+
+A raster's affine transform maps pixel (column, row) corners to projected coordinates; pixel centres lie at
+half pixels (x = c + (j + ½)·a, y = f + (i + ½)·e). North-up rasters (e < 0) hold their first row at the
+largest northing. Rotated or sheared rasters are refused. The CRS is kept as "EPSG:…" where it has a code.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from .files import atomic_write
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A regular grid of heights or values.
+
+    Attributes
+    ----------
+    values : (ny, nx) float64
+        One value per pixel, NaN where the raster has none (nodata).
+    x_m : (nx,) float64
+        Pixel-centre eastings (world x), m.
+    y_m : (ny,) float64
+        Pixel-centre northings (world y) of each row, m (decreasing for a north-up raster).
+    crs : str or None
+        The raster's CRS ("EPSG:…" or WKT), None when it has none.
+    """
+
+    values: np.ndarray
+    x_m: np.ndarray
+    y_m: np.ndarray
+    crs: str | None
+
+
+def read_grid(path, band: int = 1) -> Grid:
+    """One band of a GeoTIFF (or any raster GDAL reads) as a :class:`Grid`, nodata as NaN."""
+    import rasterio
+    from rasterio.errors import RasterioIOError
+
+    path = os.fspath(path)
+    try:
+        with rasterio.open(path) as src:
+            if not 1 <= band <= src.count:
+                raise ConfigError(f"{path}: band {band} does not exist (the raster has {src.count})")
+            t = src.transform
+            values = src.read(band, masked=True).astype(np.float64).filled(np.nan)
+            crs = None if src.crs is None else (f"EPSG:{src.crs.to_epsg()}" if src.crs.to_epsg() else src.crs.to_wkt())
+    except RasterioIOError as exc:
+        raise ConfigError(f"{path}: cannot read raster ({exc})") from None
+    if t.b != 0.0 or t.d != 0.0:
+        raise ConfigError(f"{path}: rotated or sheared raster (transform {tuple(t)[:6]}); warp it north-up first")
+    if t.a == 0.0 or t.e == 0.0:
+        raise ConfigError(f"{path}: raster without a pixel size (transform {tuple(t)[:6]})")
+    ny, nx = values.shape
+    x = t.c + (np.arange(nx) + 0.5) * t.a
+    y = t.f + (np.arange(ny) + 0.5) * t.e
+    return Grid(values, x, y, crs)
+
+
+def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None, nodata: float = np.nan) -> None:
+    """Write a north-up single-band float32 GeoTIFF (atomic): ``values[i, j]`` at the pixel whose upper-left
+    corner is (x0 + j·pixel, y0 − i·pixel), NaN written as ``nodata``."""
+    import rasterio
+    from rasterio.transform import Affine
+
+    v = np.asarray(values, dtype=np.float32)
+    if v.ndim != 2:
+        raise ConfigError(f"GeoTIFF values must be 2-D, got shape {v.shape}")
+    profile = dict(driver="GTiff", width=v.shape[1], height=v.shape[0], count=1, dtype="float32",
+                   transform=Affine(pixel_m, 0.0, x0_m, 0.0, -pixel_m, y0_m), nodata=nodata,
+                   crs=None if crs is None else rasterio.crs.CRS.from_user_input(crs))
+
+    def write(tmp):
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(v, 1)
+
+    atomic_write(path, write, suffix=".tif")
