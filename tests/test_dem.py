@@ -1,7 +1,7 @@
 """Bathymetry from a DEM (issue: real surveys; docs/physics.md §15): GeoTIFF and XYZ grids in a CRS.
 
-The GeoTIFF is written here with rasterio directly, north-up with a known transform; a cone's apex sits on
-one pixel centre, so a half-pixel or a flipped-row mistake moves it by metres.
+The GeoTIFF is written here with rasterio directly, north-up with a known transform; a Gaussian mound's top sits
+on one pixel centre, so a half-pixel or a flipped-row mistake moves it by metres (and its height by 0.17 m).
 """
 import numpy as np
 import pytest
@@ -11,7 +11,7 @@ from rasterio.transform import Affine
 import sonar_embree as se
 
 CRS, PIXEL, X0, Y0 = "EPSG:32632", 1.0, 532000.0, 6017100.0      # upper-left corner of the raster
-NX, NY, FLOOR, APEX, SLOPE = 80, 60, -60.0, -35.0, 2.5
+NX, NY, FLOOR, APEX, SIGMA = 80, 60, -60.0, -48.0, 3.0
 I_APEX, J_APEX = 17, 41                                            # row (from the north), column of the apex
 NODATA = -9999.0
 
@@ -25,7 +25,7 @@ def _heights():
     y = Y0 - (np.arange(NY) + 0.5) * PIXEL
     xa, ya = _apex_xy()
     rho = np.hypot(x[None, :] - xa, y[:, None] - ya)
-    z = np.maximum(FLOOR, APEX - SLOPE * rho)
+    z = FLOOR + (APEX - FLOOR) * np.exp(-0.5 * (rho / SIGMA) ** 2)
     z[50:, :10] = NODATA                                           # a hole in the south-west corner
     return z
 
@@ -45,7 +45,7 @@ def test_dem_vertices_sit_on_pixel_centres_north_up_with_holes_and_crs(tmp_path)
     np.testing.assert_allclose(top, (*_apex_xy(), APEX), atol=1e-6)
     hole = (v[:, 0] < X0 + 10 * PIXEL) & (v[:, 1] < Y0 - 50 * PIXEL)
     assert not hole.any() and v.shape[0] == NX * NY - 10 * 10      # nodata pixels are no vertex
-    assert np.all(mesh.face_normals[:, 2] > 0) and v[:, 2].min() == FLOOR
+    assert np.all(mesh.face_normals[:, 2] > 0) and abs(v[:, 2].min() - FLOOR) < 1e-6
     assert se.Scene().add(mesh, label="seafloor").crs == CRS
 
 
@@ -67,11 +67,12 @@ def test_xyz_grid_gives_the_same_floor(tmp_path):
 
 
 def test_pass_over_the_mound_gives_its_altitude_and_first_return(tmp_path):
-    """A line east over the apex: the ping above it measures the altitude to the apex, and its record's first
-    echo (the nearest point of the cone is its apex) lies at 2·altitude/c, within one sample."""
+    """A line east over the top: the ping above it measures the altitude to the top, and its record's first
+    echo (the nearest point: the top is curved more tightly, σ²/h = 0.75 m, than the 8 m range) lies at
+    2·altitude/c, within one sample."""
     scene = se.Scene().add(se.seafloor.from_dem(_write_dem(tmp_path / "dem.tif")), label="seafloor")
     xa, ya = _apex_xy()
-    z = -20.0
+    z = -40.0
     line = se.Trajectory.line((xa - 4.0, ya, z), (xa + 4.0, ya, z), 5).stop_and_hop()
     rec = se.simulate(scene, line, se.Sonar(max_range_m=40.0))
     assert rec.attrs["crs"] == CRS and rec.trajectory.crs == CRS    # the trajectory takes the scene's CRS
@@ -82,7 +83,8 @@ def test_pass_over_the_mound_gives_its_altitude_and_first_return(tmp_path):
     for side in (rec.port[2], rec.starboard[2]):
         first = rec.time_s[np.flatnonzero(side > 0)[0]]
         assert abs(first - 2 * altitude / c) <= dt * (1 + 1e-9)
-    assert abs(rec.altitude_m[0] - (z - (APEX - SLOPE * 4.0))) < c * dt / 2   # 4 m west, on the flank
+    flank = FLOOR + (APEX - FLOOR) * np.exp(-0.5 * (4.0 / SIGMA) ** 2)     # 4 m west, on the flank
+    assert abs(rec.altitude_m[0] - (z - flank)) < 0.05                    # (between pixel centres)
 
 
 def test_dem_errors_name_the_file(tmp_path):
@@ -98,6 +100,39 @@ def test_dem_errors_name_the_file(tmp_path):
     with pytest.raises(se.ConfigError, match="ragged.xyz: .*not on a regular grid in x"):
         se.seafloor.from_xyz(ragged)
     scene = se.Scene().add(se.seafloor.from_dem(_write_dem(tmp_path / "dem.tif")), label="seafloor")
-    line = se.Trajectory(np.array([[X0 + 40.0, Y0 - 30.0, -20.0]]), crs="EPSG:25832")
+    line = se.Trajectory(np.array([[X0 + 40.0, Y0 - 30.0, -40.0]]), crs="EPSG:25832")
     with pytest.raises(se.ConfigError, match="CRS EPSG:25832 differs from the scene's EPSG:32632"):
         se.simulate(scene, line)
+
+
+def test_mosaic_places_the_mound_where_it_is_and_truth_resamples_the_dem(tmp_path):
+    """Two lines east, 18 m south and 18 m north of the mound, with labels; the mosaic GeoTIFF (read back with
+    rasterio) has the DEM's CRS and a 1 m north-up transform; the placed seafloor heights peak at the top's
+    pixel (within one pixel), the brightest echoes lie on the mound's flanks facing the lines, and the truth
+    GeoTIFF is the DEM at the pixel centres (the mosaic grid is the raster's)."""
+    dem = _write_dem(tmp_path / "dem.tif")
+    scene = se.Scene().add(se.seafloor.from_dem(dem), label="seafloor")
+    xa, ya = _apex_xy()
+    recs = [se.simulate(scene, se.Trajectory.line((xa - 12.0, ya + dy, -48.0), (xa + 12.0, ya + dy, -48.0), 25),
+                        se.Sonar(max_range_m=40.0), labels=True) for dy in (-18.0, 18.0)]
+    grid = se.mosaic.mosaic(recs, pixel_m=PIXEL, bounds_m=(X0, Y0 - NY * PIXEL, X0 + NX * PIXEL, Y0))
+    grid.to_geotiff(tmp_path / "mosaic.tif")
+    se.mosaic.write_truth(tmp_path / "truth.tif", scene, grid)
+    with rasterio.open(tmp_path / "mosaic.tif") as src:
+        assert src.crs.to_epsg() == 32632 and src.count == 2 and src.descriptions == ("intensity", "height_m")
+        assert tuple(src.transform)[:6] == (PIXEL, 0.0, X0, 0.0, -PIXEL, Y0)
+        intensity, height = src.read(1), src.read(2)
+        apex_row, apex_col = src.index(xa, ya)
+    assert (apex_row, apex_col) == (I_APEX, J_APEX)
+    peak = np.unravel_index(np.nanargmax(height), height.shape)
+    assert abs(peak[0] - I_APEX) <= 1 and abs(peak[1] - J_APEX) <= 1, (peak, height[I_APEX, J_APEX])
+    yy, xx = np.mgrid[0:NY, 0:NX]
+    rho = np.hypot(xx - J_APEX, yy - I_APEX) * PIXEL
+    bright = np.argsort(np.nan_to_num(intensity, nan=-1.0), axis=None)[-20:]     # the 20 brightest pixels
+    assert np.all(rho.ravel()[bright] < 3 * SIGMA)                              # on the mound
+    with rasterio.open(tmp_path / "truth.tif") as src:
+        z = src.read(1)
+        assert src.crs.to_epsg() == 32632 and tuple(src.transform)[:6] == (PIXEL, 0.0, X0, 0.0, -PIXEL, Y0)
+    dem_z = _heights()
+    valid = (dem_z != NODATA) & np.isfinite(z)
+    np.testing.assert_allclose(z[valid], dem_z[valid], atol=1e-3)    # vertices sit on the pixel centres

@@ -62,21 +62,28 @@ def read_grid(path, band: int = 1) -> Grid:
     return Grid(values, x, y, crs)
 
 
-def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None, nodata: float = np.nan) -> None:
-    """Write a north-up single-band float32 GeoTIFF (atomic): ``values[i, j]`` at the pixel whose upper-left
-    corner is (x0 + j·pixel, y0 − i·pixel), NaN written as ``nodata``."""
+def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None, nodata: float = np.nan,
+               names=None) -> None:
+    """Write a north-up float32 GeoTIFF (atomic): ``values`` (ny, nx) or (bands, ny, nx), ``values[…, i, j]`` at
+    the pixel whose upper-left corner is (x0 + j·pixel, y0 − i·pixel), NaN written as ``nodata``; ``names``
+    (one per band) become the band descriptions."""
     import rasterio
     from rasterio.transform import Affine
 
     v = np.asarray(values, dtype=np.float32)
-    if v.ndim != 2:
-        raise ConfigError(f"GeoTIFF values must be 2-D, got shape {v.shape}")
-    profile = dict(driver="GTiff", width=v.shape[1], height=v.shape[0], count=1, dtype="float32",
+    v = v[None] if v.ndim == 2 else v
+    if v.ndim != 3:
+        raise ConfigError(f"GeoTIFF values must be 2-D or 3-D (bands, rows, columns), got shape {v.shape}")
+    if not np.isnan(nodata):
+        v = np.where(np.isnan(v), np.float32(nodata), v)
+    profile = dict(driver="GTiff", width=v.shape[2], height=v.shape[1], count=v.shape[0], dtype="float32",
                    transform=Affine(pixel_m, 0.0, x0_m, 0.0, -pixel_m, y0_m), nodata=nodata,
                    crs=None if crs is None else rasterio.crs.CRS.from_user_input(crs))
 
     def write(tmp):
         with rasterio.open(tmp, "w", **profile) as dst:
-            dst.write(v, 1)
+            dst.write(v)
+            for i, name in enumerate(names or ()):
+                dst.set_band_description(i + 1, name)
 
     atomic_write(path, write, suffix=".tif")
