@@ -73,3 +73,8 @@ def utm_crs(lon_deg: float, lat_deg: float) -> str:
         raise ConfigError(f"latitude {lat_deg:g} lies outside UTM (|lat| ≤ 84°)")
     zone = int(math.floor(((lon_deg + 180.0) % 360.0) / 6.0)) + 1
     return f"EPSG:{(32600 if lat_deg >= 0 else 32700) + min(zone, 60)}"
+
+
+def crs_wkt(value) -> str:
+    """The WKT (2019) of a CRS, as CF's ``crs_wkt`` attribute holds it."""
+    return _crs(crs_name(value)).to_wkt()

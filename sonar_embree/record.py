@@ -134,6 +134,7 @@ class Record:
         if type(self.sonar).__name__ != "Sonar" or self.channels != ("port", "starboard"):
             meta["sonar_type"], meta["channels"] = type(self.sonar).__name__, list(self.channels)
         t = self.trajectory
+        meta["trajectory"] = {"crs": t.crs, "start_time": t.start_time}
         extra = {}
         if self.labels is not None:
             meta["labels"] = {"names": list(self.labels.names), "is_seafloor": list(self.labels.is_seafloor)}
@@ -165,10 +166,10 @@ class Record:
                 arrays = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, KeyError) as exc:
             raise ConfigError(f"{path}: not a sonar_embree record ({exc})") from None
-        attrs = meta.get("attrs", {})
+        geo = meta.get("trajectory", {})
         traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
-                          arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"), attrs.get("crs"),
-                          attrs.get("start_time"))
+                          arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"), geo.get("crs"),
+                          geo.get("start_time"))
         labels = None
         if "labels" in meta:
             shape = arrays["labels_kind"].shape  # files of format 1 have no echo truth

@@ -123,6 +123,7 @@ def test_record_file_keeps_the_crs(tmp_path):
     rec = _georeferenced_record()
     rec.save(tmp_path / "r.npz")
     back = se.Record.load(tmp_path / "r.npz")
+    assert back.trajectory == rec.trajectory
     assert back.trajectory.crs == UTM32N and back.trajectory.start_time == "2026-05-01T12:00:00+00:00"
 
 
@@ -146,3 +147,22 @@ def test_bad_navigation_csv_names_the_problem(tmp_path):
     bad_time.write_text("time,x_m,y_m,z_m\n12:00,0,0,0\n")
     with pytest.raises(se.ConfigError, match="time.csv: .*ISO 8601"):
         se.Trajectory.from_csv(bad_time)
+
+
+def test_zarr_and_netcdf_carry_the_crs_and_lat_lon(tmp_path):
+    """CF grid mapping: a ``crs`` variable whose WKT pyproj reads back as the record's CRS, channels naming it,
+    per-ping longitude/latitude as pyproj inverts the positions; the same through NetCDF."""
+    import xarray as xr
+
+    rec = _georeferenced_record()
+    rec.to_zarr(tmp_path / "line.zarr")
+    rec.to_xarray().to_netcdf(tmp_path / "line.nc")
+    back = pyproj.Transformer.from_crs(UTM32N, "EPSG:4326", always_xy=True)
+    lon, lat = back.transform(rec.trajectory.positions_m[:, 0], rec.trajectory.positions_m[:, 1])
+    for ds in (xr.open_zarr(tmp_path / "line.zarr"), xr.open_dataset(tmp_path / "line.nc")):
+        assert pyproj.CRS.from_wkt(ds["crs"].attrs["crs_wkt"]).to_epsg() == 32632
+        assert ds["starboard"].attrs["grid_mapping"] == "crs"
+        np.testing.assert_allclose(ds["lon"].values, lon, atol=1e-9)
+        np.testing.assert_allclose(ds["lat"].values, lat, atol=1e-9)
+        assert ds["lat"].attrs["standard_name"] == "latitude"
+        ds.close()

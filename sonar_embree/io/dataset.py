@@ -78,7 +78,24 @@ def _ping_coords(record) -> dict:
         stamp = start.replace("+00:00", "")
         coords["ping_time"] = (("ping",), t.times_s, {"units": f"seconds since {stamp}", "calendar": "standard",
                                                       "standard_name": "time", "long_name": "ping time (UTC)"})
+    if t.crs is not None:
+        from ..geo import to_lonlat
+
+        lon, lat = to_lonlat(t.crs, t.positions_m[:, 0], t.positions_m[:, 1])
+        coords["lon"] = (("ping",), lon, {"units": "degrees_east", "standard_name": "longitude",
+                                          "long_name": "sonar longitude (WGS 84)"})
+        coords["lat"] = (("ping",), lat, {"units": "degrees_north", "standard_name": "latitude",
+                                          "long_name": "sonar latitude (WGS 84)"})
     return coords
+
+
+def _crs_variable(crs: str) -> tuple:
+    """The CF grid-mapping variable of a projected CRS (its WKT, which GDAL and pyproj read back)."""
+    from ..geo import crs_wkt
+
+    wkt = crs_wkt(crs)
+    return ((), np.int32(0), {"crs_wkt": wkt, "spatial_ref": wkt, "long_name": f"coordinate reference system {crs}",
+                              "epsg_code": crs})
 
 
 def to_xarray(record):
@@ -91,7 +108,8 @@ def to_xarray(record):
     ``label_height_m``, ``label_ground_range_m`` (side, ping, sample). Coordinates
     ``time_s`` and ``slant_range_m`` (sample); per ping ``x_m``, ``y_m``, ``z_m``,
     ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``ping_time_s`` and ``ping_time``
-    (CF time, seconds since the record's start time); ``side``. Every variable has
+    (CF time, seconds since the record's start time), and ``lon``, ``lat`` (WGS 84) with a ``crs`` grid-mapping
+    variable (its WKT) when the trajectory has a CRS; ``side``. Every variable has
     ``units`` and ``long_name``, and a CF ``standard_name`` where one exists.
     Attributes: ``Conventions``, every sonar, pulse and signal-chain setting that is
     set (``sonar.*``, ``pulse.*``, ``simulation.*`` including the seed; booleans as
@@ -127,6 +145,10 @@ def to_xarray(record):
               **_ping_coords(record)}
     attrs = _flat_attrs(record)
     attrs["channels"] = " ".join(record.channels)
+    if record.trajectory.crs is not None:  # CF: data on projected x, y name their grid mapping
+        data["crs"] = _crs_variable(record.trajectory.crs)
+        for ch in record.channels:
+            data[ch][2]["grid_mapping"] = "crs"
     if record.labels is not None:
         _label_variables(record.labels, data, coords, attrs)
     return xr.Dataset(data, coords=coords, attrs=attrs)
