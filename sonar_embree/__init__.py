@@ -9,7 +9,7 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 from ._version import __version__
 
-from . import assets, devices, geo, laws, mosaic, raycast, sediments
+from . import assets, devices, geo, laws, mosaic, planning, raycast, sediments, stream
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
 from .errors import ConfigError, SceneError, SonarEmbreeError
@@ -26,5 +26,5 @@ from .sonars import EchoSounder
 from .trajectory import Trajectory
 
 __all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError",
-           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "geo", "laws", "mosaic", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "geo", "laws", "mosaic", "planning", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -204,6 +204,19 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         Write the device's integer samples when the record has them (default); False:
         the float intensities.
     """
+    header, packets = xtf_bytes(record, start, scale=scale, surface_z_m=surface_z_m, samples=samples)
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            fh.write(header)
+            fh.write(packets)
+
+    atomic_write(path, write, suffix=".xtf")
+
+
+def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0):
+    """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
+    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.stream`)."""
     if tuple(record.channels) != ("port", "starboard"):
         raise ConfigError(f"to_xtf: XTF holds side-scan records (port and starboard); this record's channels are "
                           f"{', '.join(record.channels)}")
@@ -218,19 +231,15 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
             raise ConfigError(f"to_xtf: the sonar rises to z = {t.positions_m[:, 2].max():.2f} m, above the sea "
                               f"surface at surface_z_m = {surface_z_m} m")
     packet = _packets(record, when, surface_z_m, ints)
+    packet["head"]["PingNumber"] += first_ping
+    packet["head"]["EventNumber"] += first_ping
     if ints is None:
         packet["port"] = record.port[:, ::-1] * factor
         packet["stbd"] = record.starboard * factor
     else:
         packet["port"] = ints[:, 0, ::-1]
         packet["stbd"] = ints[:, 1]
-
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            fh.write(_file_header(record, factor, ints).tobytes())
-            fh.write(packet.tobytes())
-
-    atomic_write(path, write, suffix=".xtf")
+    return _file_header(record, factor, ints).tobytes(), packet.tobytes()
 
 
 def _packets(record, when, surface_z_m, ints) -> np.ndarray:
