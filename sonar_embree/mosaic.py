@@ -56,73 +56,142 @@ class Mosaic:
                    names=("intensity", "height_m"))
 
 
-def sample_positions(record):
-    """World (x, y) of every sample of a side-scan record with labels, (2, pings, samples) each (port, starboard),
-    NaN where the sample has no seafloor point (water column)."""
-    if record.labels is None:
-        raise ConfigError("mosaic: the record has no ground truth; simulate it with labels=True")
-    if tuple(record.channels) != ("port", "starboard"):
-        raise ConfigError(f"mosaic: side-scan records only (channels {', '.join(record.channels)})")
-    t = record.trajectory
-    side = t.rotations()[:, :2, 1]                                  # body starboard axis, horizontal part
+def _placed(t_pos, rot, ground_range, heights, port, starboard):
+    """(x, y, value, height) of the samples of a block of pings that have a seafloor point, flat arrays: each at
+    its ground range along its side's horizontal direction. ``rot`` (pings, 3, 3), the rest (2, pings, samples)
+    or (pings, samples) for the channels."""
+    side = rot[:, :2, 1]                                            # body starboard axis, horizontal part
     norm = np.linalg.norm(side, axis=1)
     if np.any(norm < 1e-6):
         raise ConfigError("mosaic: a ping is rolled 90°: its sides have no horizontal direction")
     side = side / norm[:, None]
-    g = record.labels.ground_range_m.astype(np.float64)             # (2, pings, samples)
+    g = np.asarray(ground_range, dtype=np.float64)
     sign = np.array([-1.0, 1.0])[:, None, None]
-    x = t.positions_m[None, :, 0, None] + sign * g * side[None, :, 0, None]
-    y = t.positions_m[None, :, 1, None] + sign * g * side[None, :, 1, None]
-    return x, y
+    x = t_pos[None, :, 0, None] + sign * g * side[None, :, 0, None]
+    y = t_pos[None, :, 1, None] + sign * g * side[None, :, 1, None]
+    ok = np.isfinite(x) & np.isfinite(y)
+    return x[ok], y[ok], np.stack([port, starboard])[ok], np.asarray(heights, dtype=np.float64)[ok]
+
+
+def sample_positions(record):
+    """World (x, y) of every sample of a side-scan record with labels, (2, pings, samples) each (port, starboard),
+    NaN where the sample has no seafloor point (water column)."""
+    _check(record)
+    t = record.trajectory
+    side = t.rotations()[:, :2, 1]
+    side = side / np.linalg.norm(side, axis=1)[:, None]
+    g = record.labels.ground_range_m.astype(np.float64)
+    sign = np.array([-1.0, 1.0])[:, None, None]
+    return (t.positions_m[None, :, 0, None] + sign * g * side[None, :, 0, None],
+            t.positions_m[None, :, 1, None] + sign * g * side[None, :, 1, None])
+
+
+def _check(record) -> None:
+    if record.labels is None:
+        raise ConfigError("mosaic: the record has no ground truth; simulate it with labels=True")
+    if tuple(record.channels) != ("port", "starboard"):
+        raise ConfigError(f"mosaic: side-scan records only (channels {', '.join(record.channels)})")
+
+
+def _blocks(source, block: int = 1000):
+    """Blocks of placed samples of a Record, or of a streamed line's Zarr store (a path or an xarray Dataset
+    with labels), read a block of pings at a time."""
+    if hasattr(source, "trajectory"):
+        _check(source)
+        t, lab = source.trajectory, source.labels
+        yield _placed(t.positions_m, t.rotations(), lab.ground_range_m, lab.height_m, source.port, source.starboard)
+        return
+    from .trajectory import body_to_world
+
+    ds = _dataset(source)
+    for a in range(0, ds.sizes["ping"], block):
+        d = ds.isel(ping=slice(a, a + block))
+        pos = np.column_stack([d["x_m"].values, d["y_m"].values, d["z_m"].values])
+        rot = body_to_world(d["heading_deg"].values, d["pitch_deg"].values, d["roll_deg"].values)
+        yield _placed(pos, rot, d["label_ground_range_m"].values, d["label_height_m"].values, d["port"].values,
+                      d["starboard"].values)
+
+
+def _dataset(source):
+    import xarray as xr
+
+    ds = source if isinstance(source, xr.Dataset) else xr.open_zarr(source)
+    if "label_ground_range_m" not in ds:
+        raise ConfigError("mosaic: the store has no ground truth; stream it with labels=True")
+    return ds
+
+
+def _crs_of(source):
+    if hasattr(source, "trajectory"):
+        return source.trajectory.crs
+    ds = _dataset(source)
+    return ds["crs"].attrs.get("epsg_code") if "crs" in ds else None
 
 
 def mosaic(records, pixel_m: float = 0.5, bounds_m=None) -> Mosaic:
-    """Average the samples of one or more side-scan records (with labels) onto a north-up grid.
+    """Average the samples of one or more side-scan lines (with labels) onto a north-up grid.
 
     Parameters
     ----------
-    records : Record or sequence of Record
-        Survey lines, simulated with ``labels=True``, in one CRS.
+    records : Record, Zarr store path or xarray Dataset, or a sequence of them
+        Survey lines simulated with ``labels=True`` (stores streamed by :func:`sonar_embree.stream.render_line`
+        are read a block of pings at a time), in one CRS.
     pixel_m : float
         Pixel size, m.
     bounds_m : (xmin, ymin, xmax, ymax), optional
-        The mosaic's extent in world metres; default: every placed sample, snapped out to whole pixels.
+        The mosaic's extent in world metres; default: every placed sample, snapped out to whole pixels (this
+        reads the lines twice).
     """
     records = [records] if not isinstance(records, (list, tuple)) else list(records)
     if not records:
         raise ConfigError("mosaic: no records")
     if not (isinstance(pixel_m, (int, float)) and 0 < pixel_m < 1e4):
         raise ConfigError(f"mosaic: pixel_m must be a positive size in m, got {pixel_m!r}")
-    crs = {r.trajectory.crs for r in records}
+    crs = {_crs_of(r) for r in records}
     if len(crs) > 1:
         raise ConfigError(f"mosaic: the records are in different CRSs ({', '.join(sorted(map(str, crs)))})")
-    placed = []
+    if bounds_m is None:
+        lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+        for r in records:
+            for x, y, _, _ in _blocks(r):
+                if x.size:
+                    lo, hi = np.minimum(lo, [x.min(), y.min()]), np.maximum(hi, [x.max(), y.max()])
+        if not np.all(np.isfinite(lo)):
+            raise ConfigError("mosaic: no sample of the records has a seafloor point")
+        bounds_m = (lo[0], lo[1], hi[0], hi[1])
+    acc = _Accumulator(bounds_m, float(pixel_m))
     for r in records:
-        x, y = sample_positions(r)
-        values = np.stack([r.port, r.starboard])
-        ok = np.isfinite(x) & np.isfinite(y)
-        placed.append((x[ok], y[ok], values[ok], r.labels.height_m[ok].astype(np.float64)))
-    x, y, v, z = (np.concatenate(c) for c in zip(*placed))
-    if x.size == 0:
-        raise ConfigError("mosaic: no sample of the records has a seafloor point")
-    return _grid(x, y, v, z, float(pixel_m), bounds_m, crs.pop())
+        for block in _blocks(r):
+            acc.add(*block)
+    return acc.result(crs.pop())
 
 
-def _grid(x, y, v, z, pixel, bounds, crs) -> Mosaic:
-    """Bin placed samples into pixels: sums and counts by np.bincount."""
-    if bounds is None:
-        bounds = (x.min(), y.min(), x.max(), y.max())
-    x0, y1 = np.floor(bounds[0] / pixel) * pixel, np.ceil(bounds[3] / pixel) * pixel
-    nx = max(1, int(np.ceil((bounds[2] - x0) / pixel)))
-    ny = max(1, int(np.ceil((y1 - bounds[1]) / pixel)))
-    col, row = np.floor((x - x0) / pixel).astype(np.int64), np.floor((y1 - y) / pixel).astype(np.int64)
-    inside = (col >= 0) & (col < nx) & (row >= 0) & (row < ny)
-    cell = row[inside] * nx + col[inside]
-    count = np.bincount(cell, minlength=nx * ny)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = [np.where(count > 0, np.bincount(cell, w[inside], nx * ny) / count, np.nan).reshape(ny, nx)
-                for w in (v, z)]
-    return Mosaic(mean[0], mean[1], count.reshape(ny, nx), float(x0), float(y1), pixel, crs)
+class _Accumulator:
+    """Sums and counts of placed samples per pixel of a north-up grid (np.bincount)."""
+
+    def __init__(self, bounds, pixel: float):
+        self.pixel = pixel
+        self.x0, self.y0 = np.floor(bounds[0] / pixel) * pixel, np.ceil(bounds[3] / pixel) * pixel
+        self.nx = max(1, int(np.ceil((bounds[2] - self.x0) / pixel)))
+        self.ny = max(1, int(np.ceil((self.y0 - bounds[1]) / pixel)))
+        self.sums = np.zeros((3, self.nx * self.ny))                # count, value, height
+
+    def add(self, x, y, v, z) -> None:
+        col = np.floor((x - self.x0) / self.pixel).astype(np.int64)
+        row = np.floor((self.y0 - y) / self.pixel).astype(np.int64)
+        inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.ny)
+        cell = row[inside] * self.nx + col[inside]
+        size = self.nx * self.ny
+        self.sums[0] += np.bincount(cell, minlength=size)
+        self.sums[1] += np.bincount(cell, np.asarray(v, dtype=np.float64)[inside], size)
+        self.sums[2] += np.bincount(cell, z[inside], size)
+
+    def result(self, crs) -> Mosaic:
+        count = self.sums[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = [np.where(count > 0, s / count, np.nan).reshape(self.ny, self.nx) for s in self.sums[1:]]
+        return Mosaic(mean[0], mean[1], count.astype(np.int64).reshape(self.ny, self.nx), float(self.x0),
+                      float(self.y0), self.pixel, crs)
 
 
 def truth(scene, grid: Mosaic, caster=None) -> np.ndarray:

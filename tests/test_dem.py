@@ -136,3 +136,21 @@ def test_mosaic_places_the_mound_where_it_is_and_truth_resamples_the_dem(tmp_pat
     dem_z = _heights()
     valid = (dem_z != NODATA) & np.isfinite(z)
     np.testing.assert_allclose(z[valid], dem_z[valid], atol=1e-3)    # vertices sit on the pixel centres
+
+
+def test_mosaic_of_streamed_stores_equals_the_in_memory_one(tmp_path):
+    """Lines streamed to Zarr with labels mosaic (read a block of pings at a time) as their in-memory records."""
+    scene = se.Scene().add(se.seafloor.from_dem(_write_dem(tmp_path / "dem.tif")), label="seafloor")
+    xa, ya = _apex_xy()
+    lines = [se.Trajectory.line((xa - 6.0, ya + dy, -48.0), (xa + 6.0, ya + dy, -48.0), 9) for dy in (-15.0, 15.0)]
+    sonar = se.Sonar(max_range_m=30.0)
+    recs = [se.simulate(scene, ln, sonar, labels=True, start_time="2026-05-01T12:00:00Z") for ln in lines]
+    stores = [se.stream.render_line(scene, ln, tmp_path / f"l{k}.zarr", sonar, block_pings=4, labels=True,
+                                    start_time="2026-05-01T12:00:00Z") for k, ln in enumerate(lines)]
+    a, b = se.mosaic.mosaic(recs, pixel_m=1.0), se.mosaic.mosaic(stores, pixel_m=1.0)
+    assert (a.x0_m, a.y0_m, a.count.shape, a.crs) == (b.x0_m, b.y0_m, b.count.shape, b.crs) and a.crs == CRS
+    np.testing.assert_array_equal(a.count, b.count)
+    np.testing.assert_allclose(a.intensity, b.intensity, rtol=1e-12)
+    np.testing.assert_allclose(a.height_m, b.height_m, rtol=1e-12)
+    with pytest.raises(se.ConfigError, match="no ground truth"):
+        se.mosaic.mosaic([se.simulate(scene, lines[0], sonar)])
