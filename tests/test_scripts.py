@@ -188,3 +188,25 @@ def test_device_figure_shows_noise_where_the_unit_source_record_is_silent(tmp_pa
     assert info["dtype"] == "uint16" and info["ping_rate_hz"] == pytest.approx(10.0)
     assert info["median_code_water_column"] >= 1 and info["median_unit_source_water_column"] < 1e-20
     assert 0 < info["clipped_share"] < 0.05
+
+
+def test_survey_script_writes_georeferenced_lines_mosaic_and_truth(tmp_path):
+    import pyxtf
+    import rasterio
+    import xarray as xr
+
+    out = tmp_path / "survey"
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "survey_from_dem.py"), "--quick", "-o",
+                           str(out)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads((out / "survey.json").read_text())
+    assert summary["crs"] == "EPSG:32632" and summary["lines"] >= 2
+    for name in ("mosaic.tif", "truth.tif", "dem.tif"):
+        with rasterio.open(out / name) as src:
+            assert src.crs.to_epsg() == 32632
+    header, packets = pyxtf.xtf_read(str(out / "lines" / "line_00.xtf"))
+    assert header.NavUnits == 3 and 9.0 < packets[pyxtf.XTFHeaderType.sonar][0].SensorXcoordinate < 10.0
+    ds = xr.open_zarr(out / "lines" / "line_00.zarr")
+    assert "crs" in ds and ds.sizes["ping"] == len(packets[pyxtf.XTFHeaderType.sonar])
+    assert abs(summary["placed_height_error_m"]["median"]) < 0.1 and summary["placed_height_error_m"]["p95_abs"] < 0.5
+    assert iio.imread(out / "survey.png").shape[0] > 100
