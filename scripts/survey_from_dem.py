@@ -1,6 +1,7 @@
 """A DEM to a planned, streamed survey: XTF + Zarr per line, a GeoTIFF mosaic and its bathymetry truth.
 
     python scripts/survey_from_dem.py -o out/survey                       # a synthetic DEM made here
+    python scripts/survey_from_dem.py -o out/survey --figure docs/survey/survey.png   # + the README's figure
     python scripts/survey_from_dem.py -o out/survey --dem my_dem.tif      # your own GeoTIFF (projected CRS, m)
 
 Steps: the DEM (by default a 480 m × 320 m synthetic GeoTIFF at 1 m in UTM 32N, 40 m deep: smooth relief, two
@@ -118,8 +119,14 @@ def main(argv=None) -> int:
     p.add_argument("-o", "--output", default=os.path.join("out", "survey"))
     p.add_argument("--dem", help="a GeoTIFF DEM in a projected CRS (default: a synthetic one)")
     p.add_argument("--quick", action="store_true", help="a small DEM and short lines (smoke test)")
+    p.add_argument("--figure", help="also copy survey.png here")
     args = p.parse_args(argv)
     print(json.dumps(survey(args.output, args.dem, args.quick), indent=2))
+    if args.figure:
+        import shutil
+
+        os.makedirs(os.path.dirname(os.path.abspath(args.figure)), exist_ok=True)
+        shutil.copyfile(os.path.join(args.output, "survey.png"), args.figure)
     return 0
 
 

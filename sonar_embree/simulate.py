@@ -27,7 +27,7 @@ from .errors import ConfigError
 from .labels import GroundTruth
 from .raycast import Caster, RayCaster
 from .record import Record
-from .scene import Scene, survey_origin
+from .scene import Scene, TiledDEM, survey_origin
 from .synthesis import ExpectedSynthesis, SpeckleSynthesis
 from .trajectory import Trajectory, iso_utc
 
@@ -72,6 +72,11 @@ def _check_memory(n_pings, n_samples, chain, labels, keep_complex, n_channels) -
                           "or render them as a batch (sonar-embree batch) that writes each job to disk")
 
 
+def tile_reach_m(sonar) -> float:
+    """How far from the sonar a DEM's tiles are needed: the range window with a margin, m."""
+    return 1.05 * sonar.max_range_m + 1.0
+
+
 def _check_inputs(scene, trajectory, sonar, pulse, fan):
     for name, value, cls in (("scene", scene, Scene), ("trajectory", trajectory, Trajectory),
                              ("sonar", sonar, sonars.SONAR_TYPES), ("pulse", pulse, Pulse), ("fan", fan, FanSettings)):
@@ -97,8 +102,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
 
     Parameters
     ----------
-    scene : Scene
-        Geometry and materials (world metres).
+    scene : Scene or TiledDEM
+        Geometry and materials (world metres); a :class:`TiledDEM` gives the scene of its tiles within reach
+        of the trajectory.
     trajectory : Trajectory
         One pose per ping.
     sonar : Sonar or EchoSounder, optional
@@ -170,6 +176,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
                                         dict(speckle=speckle, band=band, detection=detection,
                                              matched_filter=matched_filter, tvg=tvg, noise_db_per_hz=noise_db_per_hz,
                                              lowpass_hz=lowpass_hz, speckle_cell_m=speckle_cell_m, seed=seed))
+    if isinstance(scene, TiledDEM):  # the tiles within reach of the whole trajectory
+        scene = scene.scene_around(trajectory.positions_m, tile_reach_m(sonar))
     _check_inputs(scene, trajectory, sonar, pulse, fan)
     if trajectory.crs is None and scene.crs is not None:  # its metres are the scene's (a DEM's)
         trajectory = dataclasses.replace(trajectory, crs=scene.crs)

@@ -25,7 +25,9 @@ PROGRESS = "stream.json"
 def _fingerprint(scene, trajectory, sonar, pulse, kwargs) -> str:
     """A digest of everything that decides the output's bytes."""
     h = hashlib.sha256()
-    for obj in scene.objects:
+    if hasattr(scene, "fingerprint"):                               # a TiledDEM: its file and tiling
+        h.update(scene.fingerprint().encode())
+    for obj in getattr(scene, "objects", ()):
         h.update(obj.label.encode())
         h.update(np.ascontiguousarray(obj.vertices).tobytes())
         h.update(np.ascontiguousarray(obj.faces).tobytes())
@@ -124,7 +126,8 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     Parameters
     ----------
     scene, trajectory, sonar, pulse
-        As for :func:`~sonar_embree.simulate`; every other keyword of it (speckle, labels, seed, …) goes through
+        As for :func:`~sonar_embree.simulate` (a :class:`~sonar_embree.TiledDEM`: each block gets the tiles within
+        reach of its pings, so memory follows the swath); every other keyword of it (speckle, labels, seed, …) goes through
         ``simulate_kwargs`` (not ``ping_offset``, set per block, nor ``keep_complex``).
     path : str or PathLike
         The Zarr store (``xarray.open_zarr`` opens it, lazily).
@@ -161,7 +164,8 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     a = 0 if progress is None else progress["pings_done"]
     while a < n:
         b = min(a + int(block_pings), n)
-        rec = simulate(scene, trajectory[a:b], sonar, pulse, ping_offset=a, **simulate_kwargs)
+        rec = simulate(_block_scene(scene, trajectory[a:b], sonar), trajectory[a:b], sonar, pulse, ping_offset=a,
+                       **simulate_kwargs)
         if progress is None:
             progress = _start(path, rec, n, int(block_pings), key, xtf_path, xtf_scale)
         _write_block(path, rec, a, progress, xtf_path)
@@ -171,6 +175,19 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     if bar is not None:
         bar.close()
     return path
+
+
+def _block_scene(scene, block, sonar):
+    """The scene of a block: a :class:`~sonar_embree.TiledDEM`'s tiles within reach of its pings (kept while
+    the next blocks need the same tiles), else the scene itself."""
+    from .scene import TiledDEM
+    from .simulate import tile_reach_m
+
+    if not isinstance(scene, TiledDEM):
+        return scene
+    from .config import Sonar
+
+    return scene.scene_around(block.positions_m, tile_reach_m(sonar or Sonar()))
 
 
 def _bar(show: bool, total: int, done: int):

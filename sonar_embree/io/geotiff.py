@@ -52,14 +52,60 @@ def read_grid(path, band: int = 1) -> Grid:
             crs = None if src.crs is None else (f"EPSG:{src.crs.to_epsg()}" if src.crs.to_epsg() else src.crs.to_wkt())
     except RasterioIOError as exc:
         raise ConfigError(f"{path}: cannot read raster ({exc})") from None
-    if t.b != 0.0 or t.d != 0.0:
-        raise ConfigError(f"{path}: rotated or sheared raster (transform {tuple(t)[:6]}); warp it north-up first")
-    if t.a == 0.0 or t.e == 0.0:
-        raise ConfigError(f"{path}: raster without a pixel size (transform {tuple(t)[:6]})")
+    _check_transform(path, t)
     ny, nx = values.shape
     x = t.c + (np.arange(nx) + 0.5) * t.a
     y = t.f + (np.arange(ny) + 0.5) * t.e
     return Grid(values, x, y, crs)
+
+
+@dataclass(frozen=True)
+class RasterInfo:
+    """A raster's size and georeferencing, read without its pixels: ``shape`` (ny, nx), the pixel-centre
+    coordinates ``x_m`` (nx,) and ``y_m`` (ny,), and the CRS (as :class:`Grid`)."""
+
+    path: str
+    shape: tuple
+    x_m: np.ndarray
+    y_m: np.ndarray
+    crs: str | None
+
+
+def raster_info(path, band: int = 1) -> RasterInfo:
+    """The size and georeferencing of a raster (no pixels read)."""
+    import rasterio
+    from rasterio.errors import RasterioIOError
+
+    path = os.fspath(path)
+    try:
+        with rasterio.open(path) as src:
+            if not 1 <= band <= src.count:
+                raise ConfigError(f"{path}: band {band} does not exist (the raster has {src.count})")
+            t, shape = src.transform, (src.height, src.width)
+            crs = None if src.crs is None else (f"EPSG:{src.crs.to_epsg()}" if src.crs.to_epsg() else src.crs.to_wkt())
+    except RasterioIOError as exc:
+        raise ConfigError(f"{path}: cannot read raster ({exc})") from None
+    _check_transform(path, t)
+    return RasterInfo(path, shape, t.c + (np.arange(shape[1]) + 0.5) * t.a, t.f + (np.arange(shape[0]) + 0.5) * t.e,
+                      crs)
+
+
+def read_window(info: RasterInfo, rows: slice, cols: slice, band: int = 1) -> np.ndarray:
+    """The values (NaN for nodata) of pixel rows × columns of a raster, as float64: a window read, so memory
+    follows the window, not the raster."""
+    import rasterio
+    from rasterio.windows import Window
+
+    win = Window(cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start)
+    with rasterio.open(info.path) as src:
+        return src.read(band, window=win, masked=True).astype(np.float64).filled(np.nan)
+
+
+def _check_transform(path: str, t) -> None:
+    if t.b != 0.0 or t.d != 0.0:
+        raise ConfigError(f"{path}: rotated or sheared raster (transform {tuple(t)[:6]}); warp it north-up first")
+    if t.a == 0.0 or t.e == 0.0:
+        raise ConfigError(f"{path}: raster without a pixel size (transform {tuple(t)[:6]})")
 
 
 def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None, nodata: float = np.nan,
