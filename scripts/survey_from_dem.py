@@ -39,7 +39,7 @@ def synthetic_dem(path, size_m=(480.0, 320.0), pixel_m=1.0) -> str:
     y = (np.arange(ny) + 0.5) * pixel_m                            # metres south of the top edge
     xx, yy = np.meshgrid(x, y)
     z = -40.0 + 1.5 * se.seafloor.perlin_noise((ny, nx), (3, 4), seed=7)
-    for cx, cy, h, s in ((0.3, 0.4, 6.0, 12.0), (0.7, 0.6, 4.0, 8.0)):
+    for cx, cy, h, s in ((0.3, 0.5, 6.0, 12.0), (0.7, 0.68, 4.0, 8.0)):       # between the planned lines
         z += h * np.exp(-0.5 * ((xx - cx * size_m[0]) ** 2 + (yy - cy * size_m[1]) ** 2) / s ** 2)
     z += 2.5 * np.exp(-0.5 * ((yy - 0.2 * size_m[1]) - 0.3 * (xx - 0.5 * size_m[0])) ** 2 / 4.0 ** 2)
     write_grid(path, z, X0, Y0, pixel_m, CRS)
@@ -95,7 +95,8 @@ def _figure(out, grid, truth, trajs) -> None:
     import matplotlib.pyplot as plt
 
     ny, nx = grid.count.shape
-    ext = (grid.x0_m, grid.x0_m + nx * grid.pixel_m, grid.y0_m - ny * grid.pixel_m, grid.y0_m)
+    e0, n0 = grid.x0_m, grid.y0_m - ny * grid.pixel_m              # axes in metres from the south-west corner
+    ext = (0.0, nx * grid.pixel_m, 0.0, ny * grid.pixel_m)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2), constrained_layout=True)
     db = 10 * np.log10(np.where(grid.intensity > 0, grid.intensity, np.nan))
     lo = np.nanpercentile(db, 2) if np.isfinite(db).any() else 0.0
@@ -106,10 +107,10 @@ def _figure(out, grid, truth, trajs) -> None:
         im = ax.imshow(img, extent=ext, **kw)
         fig.colorbar(im, ax=ax, shrink=0.8)
         ax.set_title(title)
-        ax.set_xlabel(f"easting ({grid.crs}), m")
+        ax.set_xlabel(f"easting − {e0:.0f} m ({grid.crs})")
         for t in trajs:
-            ax.plot(t.positions_m[:, 0], t.positions_m[:, 1], "r-", lw=0.6)
-    axes[0].set_ylabel("northing, m")
+            ax.plot(t.positions_m[:, 0] - e0, t.positions_m[:, 1] - n0, "r-", lw=0.6)
+    axes[0].set_ylabel(f"northing − {n0:.0f} m")
     fig.savefig(os.path.join(out, "survey.png"), dpi=110)
     plt.close(fig)
 
