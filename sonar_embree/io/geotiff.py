@@ -39,24 +39,9 @@ class Grid:
 
 def read_grid(path, band: int = 1) -> Grid:
     """One band of a GeoTIFF (or any raster GDAL reads) as a :class:`Grid`, nodata as NaN."""
-    import rasterio
-    from rasterio.errors import RasterioIOError
-
-    path = os.fspath(path)
-    try:
-        with rasterio.open(path) as src:
-            if not 1 <= band <= src.count:
-                raise ConfigError(f"{path}: band {band} does not exist (the raster has {src.count})")
-            t = src.transform
-            values = src.read(band, masked=True).astype(np.float64).filled(np.nan)
-            crs = None if src.crs is None else (f"EPSG:{src.crs.to_epsg()}" if src.crs.to_epsg() else src.crs.to_wkt())
-    except RasterioIOError as exc:
-        raise ConfigError(f"{path}: cannot read raster ({exc})") from None
-    _check_transform(path, t)
-    ny, nx = values.shape
-    x = t.c + (np.arange(nx) + 0.5) * t.a
-    y = t.f + (np.arange(ny) + 0.5) * t.e
-    return Grid(values, x, y, crs)
+    info = raster_info(path, band)
+    ny, nx = info.shape
+    return Grid(read_window(info, slice(0, ny), slice(0, nx), band), info.x_m, info.y_m, info.crs)
 
 
 @dataclass(frozen=True)
