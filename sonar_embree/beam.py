@@ -112,10 +112,10 @@ def azimuth_samples(wavelength_m: float, length_m: float, oversample: float, n_n
     return s[~on_null], ds
 
 
-def elevation_span_rad(wavelength_m: float, height_m: float, tilt_rad: float):
-    """Depression interval [β_lo, β_hi] of the fan: boresight ± the elevation first null
-    (or ± 90° when the membrane is smaller than λ), inside the baffled half-space."""
-    half = first_null_rad(height_m, wavelength_m)
+def elevation_span_rad(wavelength_m: float, height_m: float, tilt_rad: float, n_nulls: int = 1):
+    """Depression interval [β_lo, β_hi] of the fan: boresight ± the elevation pattern's ``n_nulls``-th null
+    (sin θ = n·λ/ly; ± 90° when there is none), inside the baffled half-space."""
+    half = first_null_rad(height_m / n_nulls, wavelength_m)
     half = min(half, 0.5 * math.pi - 1e-6)
     return tilt_rad - half, tilt_rad + half
 

@@ -47,13 +47,16 @@ class FanPlan:
     beam: np.ndarray         # (4,) k·lx/2, k·ly/2, tilt (rad), 0
     min_range_m: float       # near-field bound on R in the weights
     footprint: bool          # spread echoes over their cells' range intervals (else point echoes)
+    sides: tuple = (True, True)  # which sides get rays (port, starboard); a side without has empty rows
 
     @classmethod
-    def build(cls, sonar: Sonar, fan: FanSettings) -> "FanPlan":
+    def build(cls, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1) -> "FanPlan":
+        """The fan of ``sonar``: rays on the ``sides`` (port, starboard) that have them, in elevation out to the
+        ``elevation_nulls``-th null of the membrane's vertical pattern (the baffle at most)."""
         fan = fan.resolved()
         s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
                                      fan.azimuth_nulls)
-        lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad)
+        lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad, elevation_nulls)
         m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
         probe = np.linspace(lo, hi, m)
         lines = PROBE_LINES * np.abs(s).max()
@@ -62,7 +65,7 @@ class FanPlan:
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side,
                    np.array([0.5 * k * sonar.length_m, 0.5 * k * sonar.height_m, sonar.tilt_rad, 0.0]),
-                   sonar.wavelength_m, fan.footprint)
+                   sonar.wavelength_m, fan.footprint, tuple(bool(x) for x in sides))
 
     @property
     def n_probe(self) -> int:
@@ -116,6 +119,8 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     dens = np.ascontiguousarray(dens.reshape(rows, -1, m - 1).max(axis=1))  # the densest line per cell
     total = dens @ np.diff(plan.probe_beta)
     counts = np.clip(np.ceil(total - 1e-9), 1, plan.max_rays).astype(np.int64)
+    if not all(plan.sides):                                         # a one-sided fan: the other side's rows empty
+        counts[~np.tile(np.asarray(plan.sides), rows // 2)] = 0
     el_start = np.concatenate(([0], np.cumsum(counts)))
     beta, dbeta = np.empty(el_start[-1]), np.empty(el_start[-1])
     kernels.place_rows(plan.probe_beta, np.ascontiguousarray(dens), el_start, beta, dbeta)

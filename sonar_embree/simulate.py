@@ -181,7 +181,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     _check_inputs(scene, trajectory, sonar, pulse, fan)
     if trajectory.crs is None and scene.crs is not None:  # its metres are the scene's (a DEM's)
         trajectory = dataclasses.replace(trajectory, crs=scene.crs)
-    run = _Run.setup(scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster)
+    run = _Run.setup(scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster, ping_offset)
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
     bar = _progress_bar(progress, len(trajectory))
@@ -259,9 +259,11 @@ class _Run:
     n_rays: np.ndarray
     n0: float | None = None  # receiver noise density, unit-source intensity per Hz
     rx_shift: np.ndarray | None = None  # motion during the ping: δ = 2·v_fwd/c per ping
+    first_ping: int = 0  # the trajectory's first ping within a longer survey (ping_offset)
 
     @classmethod
-    def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster) -> "_Run":
+    def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster,
+              ping_offset: int = 0) -> "_Run":
         front = sonars.front_end(sonar, fan)
         n_p, n_ch, n_out = len(trajectory), len(front.channels), sonar.n_samples
         # The compressed sample at t needs echoes up to t + τ: synthesise a pulse length past the window.
@@ -287,9 +289,26 @@ class _Run:
         back = (SpeckleSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), n0) if chain.speckle
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), n0, kernel))
         truth = GroundTruth((n_p, n_ch, n_out), compiled, kernel) if labels else None
-        return cls(sonar, pulse, chain, compiled, caster, front, back, truth, trajectory.rotations(), pos_local,
-                   max_r, n_out, np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0,
-                   2.0 * trajectory.forward_speed_m_s() / c)
+        rots = _mounted(front, trajectory, ping_offset)
+        return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
+                   np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * _forward_speed(trajectory, rots) / c,
+                   ping_offset)
+
+
+def _mounted(front, trajectory, ping_offset: int) -> np.ndarray:
+    """Each ping's body-to-world rotation of the transducer: the vehicle's, turned by the front end's mount
+    (an MSIS head's bearing at the ping's index) when it has one."""
+    rots = trajectory.rotations()
+    if hasattr(front, "mount"):
+        rots = front.mount(rots, ping_offset + np.arange(len(trajectory)))
+    return rots
+
+
+def _forward_speed(trajectory, rots) -> np.ndarray:
+    """(pings,) the velocity along each transducer's forward axis, m/s (0 when unknown: stop-and-hop)."""
+    if trajectory.velocity_m_s is None:
+        return np.zeros(len(trajectory))
+    return np.einsum("ij,ij->i", trajectory.velocity_m_s, rots[:, :, 0])
 
 
 def _noise_density(sonar, chain: SignalChain) -> float | None:
@@ -345,7 +364,8 @@ def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str
              "intensity_unit": "unit source" if sonar.source_level_db is None else "uPa^2",
              "received_noise_db_per_hz": (None if run.n0 is None
                                           else 10.0 * math.log10(run.n0 * sonar.level_scale)),
-             "motion_during_ping": trajectory.velocity_m_s is not None, "crs": trajectory.crs}
+             "motion_during_ping": trajectory.velocity_m_s is not None, "crs": trajectory.crs,
+             "first_ping": int(run.first_ping)}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = run.back.tables.carrier_factor * sonar.sample_rate_hz
     return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,

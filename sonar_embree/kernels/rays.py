@@ -19,7 +19,7 @@ def place_rows(edges, density, el_start, beta, dbeta):
     density : (rows, m − 1) float64
         Wanted rays per radian in each cell.
     el_start : (rows + 1,) int64
-        Row r gets n = el_start[r + 1] − el_start[r] ≥ 1 rays (fewer than the density
+        Row r gets n = el_start[r + 1] − el_start[r] ≥ 0 rays (0: a side without rays; fewer than the density
         asks for scales it down uniformly).
     beta, dbeta : (el_start[-1],) float64
         Written with each ray's depression (the middle of its cell) and cell width, rad.

@@ -9,10 +9,11 @@ from __future__ import annotations
 from ..config import Sonar
 from ..errors import ConfigError
 from .echosounder import EchoSounder, EchoSounderFrontEnd
+from .msis import MSIS, MSISFrontEnd
 from .sidescan import SideScanFrontEnd
 
 #: The front end of each sonar configuration class.
-FRONT_ENDS = {Sonar: SideScanFrontEnd, EchoSounder: EchoSounderFrontEnd}
+FRONT_ENDS = {Sonar: SideScanFrontEnd, EchoSounder: EchoSounderFrontEnd, MSIS: MSISFrontEnd}
 
 SONAR_TYPES = tuple(FRONT_ENDS)
 
@@ -26,4 +27,4 @@ def front_end(sonar, fan):
                       f"got {type(sonar).__name__}")
 
 
-__all__ = ["EchoSounder", "FRONT_ENDS", "SONAR_TYPES", "front_end"]
+__all__ = ["EchoSounder", "FRONT_ENDS", "MSIS", "SONAR_TYPES", "front_end"]

@@ -26,9 +26,9 @@ class SideScanFrontEnd:
     channels = ("port", "starboard")
     supports_labels = True
 
-    def __init__(self, sonar: Sonar, fan: FanSettings):
+    def __init__(self, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1):
         self.sonar = sonar
-        self.plan = FanPlan.build(sonar, fan)
+        self.plan = FanPlan.build(sonar, fan, sides, elevation_nulls)  # sides: which of port, starboard get rays
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         env = sonar.environment
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
