@@ -119,3 +119,23 @@ def test_msis_record_round_trips_and_exports():
     assert back.sonar == rec.sonar and np.array_equal(back.data, rec.data)
     ds = rec.to_xarray()
     assert "beam" in ds and ds["beam"].dims == ("ping", "sample")
+
+
+def test_toml_sonar_type_msis_renders(tmp_path):
+    """[sonar] type = "msis" with its own keys (the shipped config, shortened); unknown types and a side-scan key
+    in an MSIS table are refused naming them."""
+    from sonar_embree.runs import runconfig
+
+    cfg = runconfig.load_run_config("asset:msis_harbour.toml")
+    assert isinstance(cfg.sonar, se.MSIS) and cfg.sonar.step_deg == 1.8 and len(cfg.trajectory) == 200
+    rec = se.simulate(cfg.scene, cfg.trajectory[:3], cfg.sonar, cfg.pulse, chain=cfg.chain)
+    assert rec.channels == ("beam",) and rec.data.shape[:2] == (3, 1)
+    bad = tmp_path / "bad.toml"
+    text = (runconfig.assets.path("asset:msis_harbour.toml") and
+            open(runconfig.assets.path("asset:msis_harbour.toml")).read())
+    bad.write_text(text.replace('type = "msis"', 'type = "sector_scanner"'))
+    with pytest.raises(se.ConfigError, match="unknown sonar type 'sector_scanner'"):
+        runconfig.load_run_config(bad)
+    bad.write_text(text.replace("step_deg = 1.8", "step_deg = 1.8\nlength_m = 0.2"))
+    with pytest.raises(se.ConfigError, match="length_m"):
+        runconfig.load_run_config(bad)

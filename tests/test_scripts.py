@@ -210,3 +210,12 @@ def test_survey_script_writes_georeferenced_lines_mosaic_and_truth(tmp_path):
     assert "crs" in ds and ds.sizes["ping"] == len(packets[pyxtf.XTFHeaderType.sonar])
     assert abs(summary["placed_height_error_m"]["median"]) < 0.1 and summary["placed_height_error_m"]["p95_abs"] < 0.5
     assert iio.imread(out / "survey.png").shape[0] > 100
+
+
+def test_msis_figure_script_draws_both_scans(tmp_path):
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "msis_figure.py"), "-o", str(tmp_path),
+                           "--pings", "20"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    stats = json.loads((tmp_path / "scan.json").read_text())
+    assert set(stats) == {"still", "moving at 0.2 m/s"} and all(v["rays_per_ping"] > 1000 for v in stats.values())
+    assert iio.imread(tmp_path / "polar.png").shape[0] > 100

@@ -34,6 +34,7 @@ from .. import sediments
 from ..laws import LAWS, Composite, KTexture, Tabulated
 from ..laws.maps import BackscatterMap
 from ..scene import Scene, seafloor
+from ..sonars import MSIS, EchoSounder
 from ..trajectory import Trajectory
 from ..waterfall import DISPLAY_DEFAULTS, check_display
 
@@ -119,11 +120,25 @@ def _build(source: str, where: str, fn, kwargs):
         raise ConfigError(f"{source}: {where}: {exc}") from None
 
 
+#: ``[sonar] type`` → the sonar type's configuration class.
+SONAR_TYPES = {"sidescan": Sonar, "msis": MSIS, "echosounder": EchoSounder}
+
+
 def table_keys(cls) -> tuple:
     """The keys a TOML table of ``cls`` may hold: its fields (``[sonar]``: also the medium's old keys)."""
     if cls is Sonar:
-        return tuple(k for k in field_names(Sonar) if k != "environment") + LEGACY_MEDIUM_KEYS + ("preset",)
+        return tuple(k for k in field_names(Sonar) if k != "environment") + LEGACY_MEDIUM_KEYS + ("preset", "type")
+    if cls in SONAR_TYPES.values():
+        return tuple(k for k in field_names(cls) if k != "environment") + ("type",)
     return field_names(cls)
+
+
+def sonar_class(source: str, where: str, sonar_table: dict):
+    """The sonar type a ``[sonar]`` table asks for (``type``, default "sidescan")."""
+    kind = sonar_table.get("type", "sidescan")
+    if kind not in SONAR_TYPES:
+        raise ConfigError(f"{source}: {where}: unknown sonar type {kind!r} (one of {', '.join(SONAR_TYPES)})")
+    return SONAR_TYPES[kind]
 
 
 def _dataclass_table(data, name, cls, source):
@@ -133,12 +148,18 @@ def _dataclass_table(data, name, cls, source):
 
 
 def build_sonar(source: str, where: str, sonar_table: dict, environment: Environment) -> Sonar:
-    """``Sonar`` from a ``[sonar]`` table in ``environment``; the medium's old ``[sonar]`` keys are mapped into it."""
+    """The sonar of a ``[sonar]`` table (its ``type``) in ``environment``; the medium's old ``[sonar]`` keys are
+    mapped into a side-scan's."""
+    cls = sonar_class(source, where, sonar_table)
+    _check_keys(where, sonar_table, table_keys(cls), source)
+    if cls is not Sonar:
+        return _build(source, where, cls, {**{k: v for k, v in sonar_table.items() if k != "type"},
+                                           "environment": environment})
     both = [k for k in LEGACY_MEDIUM_KEYS if k in sonar_table and getattr(environment, k) != getattr(Environment(), k)]
     if both:
         raise ConfigError(f"{source}: {where}: {both[0]!r} is given in both [sonar] and [environment]; "
                           "keep it in [environment]")
-    kwargs = {k: v for k, v in sonar_table.items() if k != "preset"}
+    kwargs = {k: v for k, v in sonar_table.items() if k not in ("preset", "type")}
     if "preset" in sonar_table:  # a device's sonar; the table's other keys override it
         return _build(source, where, lambda **kw: Sonar.preset(sonar_table["preset"], **kw),
                       {**kwargs, "environment": environment})
@@ -179,7 +200,6 @@ def load_run_config(path) -> RunConfig:
         profile["csv"] = _resolve(base, profile["csv"])
     environment = _dataclass_table(data, "environment", Environment, source)
     sonar_table = data.get("sonar", {})
-    _check_keys("[sonar]", sonar_table, table_keys(Sonar), source)
     sonar = build_sonar(source, "[sonar]", sonar_table, environment)
     pulse = _dataclass_table(data, "pulse", Pulse, source)
     if "preset" in sonar_table and "pulse" not in data:  # the device's own pulse

@@ -368,7 +368,7 @@ def _settings(data, src, keep_complex):
     base_tables = {}
     for t, cls in TABLES.items():
         table = data.get(t, {})
-        runconfig._check_keys(f"[{t}]", table, runconfig.table_keys(cls), src)
+        runconfig._check_keys(f"[{t}]", table, _keys(t), src)  # a sonar's against its type when built
         base_tables[t] = dict(table)
     if "seed" in base_tables["simulation"]:
         raise ConfigError(f"{src}: [simulation] seed is set per job by [sweep] seeds; remove it")
@@ -378,7 +378,7 @@ def _settings(data, src, keep_complex):
         raise ConfigError(f"{src}: [vary] must be a table")
     for key, values in vary.items():
         table, _, fld = key.partition(".")
-        if (table not in TABLES or fld not in runconfig.table_keys(TABLES[table])
+        if (table not in TABLES or fld not in _keys(table)
                 or (table, fld) == ("simulation", "seed")):
             raise ConfigError(f"{src}: [vary] key {key!r} must be 'table.field' with table one of "
                               f"{list(TABLES)} and a field of it (seed comes from [sweep] seeds)")
@@ -386,6 +386,13 @@ def _settings(data, src, keep_complex):
             raise ConfigError(f"{src}: [vary] {key!r} must be a non-empty list of values")
     combos = [tuple(zip(vary, c)) for c in itertools.product(*vary.values())] if vary else [()]
     return combos, [_build_combo(base_tables, combo, src, keep_complex) for combo in combos]
+
+
+def _keys(table: str) -> tuple:
+    """The keys a setting table may hold; ``[sonar]``: those of every sonar type (``type`` picks one)."""
+    if table == "sonar":
+        return tuple(dict.fromkeys(k for cls in runconfig.SONAR_TYPES.values() for k in runconfig.table_keys(cls)))
+    return runconfig.table_keys(TABLES[table])
 
 
 def _build_combo(base_tables, combo, src, keep_complex) -> dict:
