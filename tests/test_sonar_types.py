@@ -1,0 +1,83 @@
+"""The same physics verdicts on every scanning sonar type (issue: other scanning sonars): speckle statistics,
+the scattering law's scale, absorption, a sea surface's multipath and the source level, each checked against
+its closed form, parametrised over the side-scan and the MSIS (whose ping is the side-scan's fan on a head).
+"""
+import dataclasses
+
+import numpy as np
+import pytest
+
+import sonar_embree as se
+
+H = 10.0
+
+
+def _floor(mu_db=-20.0):
+    return se.Scene().add(se.seafloor.flat((300.0, 300.0)), material=se.Material(backscatter_db=mu_db),
+                          label="seafloor")
+
+
+def _case(kind, n=40, **kw):
+    """(sonar, trajectory): independent pings over the floor (side-scan: 2 m apart; MSIS: a still head turning
+    9° per ping, its beam on new floor each ping)."""
+    if kind == "sidescan":
+        return (se.Sonar(max_range_m=30.0, **kw),
+                se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), n).stop_and_hop())
+    return (se.MSIS(step_deg=9.0, max_range_m=30.0, **kw),
+            se.Trajectory(np.tile([[0.0, 0.0, H]], (n, 1)), times_s=np.arange(float(n))))
+
+
+KINDS = ["sidescan", "msis"]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_speckle_is_fully_developed(kind):
+    sonar, traj = _case(kind)
+    expected = se.simulate(_floor(), traj, sonar)
+    speckled = se.simulate(_floor(), traj, sonar, speckle=True, seed=3)
+    band = (expected.slant_range_m > 12.0) & (expected.slant_range_m < 28.0)
+    ratio = speckled.data[:, :, band] / expected.data[:, :, band]
+    assert ratio.size > 20_000
+    assert abs(ratio.mean() - 1) < 0.05 and abs(ratio.std() / ratio.mean() - 1) < 0.1   # exponential: contrast 1
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_law_scale_and_absorption(kind):
+    """A Lambert floor 10 dB weaker gives the record × 0.1; absorption α (dB/m) takes 2αR off each sample."""
+    sonar, traj = _case(kind, n=3)
+    quiet = dataclasses.replace(sonar, environment=se.Environment(absorption_db_per_m=0.0))
+    lossy = dataclasses.replace(sonar, environment=se.Environment(absorption_db_per_m=0.2))
+    base = se.simulate(_floor(), traj, quiet)
+    weak = se.simulate(_floor(-30.0), traj, quiet)
+    lit = base.data > 1e-6 * base.data.max()
+    np.testing.assert_allclose(weak.data[lit], 0.1 * base.data[lit], rtol=1e-9)
+    damped = se.simulate(_floor(), traj, lossy)
+    r = base.slant_range_m[None, None, :] * np.ones_like(base.data)
+    loss_db = 10 * np.log10(damped.data[lit] / base.data[lit])
+    c_tau = 0.5 * base.sonar.sound_speed_m_s * base.pulse.duration_s          # ranges within a sample's pulse
+    assert np.all(np.abs(loss_db + 2 * 0.2 * r[lit]) <= 2 * 0.2 * c_tau + 1e-6)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_sea_surface_adds_multipath_only_after_its_onset(kind):
+    """A flat surface 4 m above the sonar: nothing changes before the one-bounce onset (2h + 2d)/c, energy is
+    added after it (never taken away: the paths add in power)."""
+    sonar, traj = _case(kind, n=3)
+    wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=H + 4.0)))
+    dry, moist = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, wet)
+    onset = (2 * H + 2 * 4.0) / sonar.sound_speed_m_s
+    before = dry.time_s < onset - sonar.for_pulse(dry.pulse).sample_rate_hz ** -1
+    np.testing.assert_allclose(moist.data[:, :, before], dry.data[:, :, before], rtol=1e-9, atol=0)
+    after = dry.time_s > onset + dry.pulse.duration_s
+    added = moist.data[:, :, after] - dry.data[:, :, after]
+    assert np.all(added >= -1e-12 * dry.data.max()) and added.sum() > 5e-3 * dry.data[:, :, after].sum()
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_source_level_scales_the_record(kind):
+    """With a source level SL and a silent sea, the record is the unit-source record × 10^(SL/10) (µPa²)."""
+    sonar, traj = _case(kind, n=2)
+    loud = dataclasses.replace(sonar, source_level_db=210.0, environment=se.Environment(noise=None))
+    unit, db = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, loud)
+    np.testing.assert_allclose(db.data, unit.data * 10 ** 21.0, rtol=1e-9, atol=0)
+    assert db.attrs["intensity_unit"] == "uPa^2"
