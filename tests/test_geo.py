@@ -166,3 +166,26 @@ def test_zarr_and_netcdf_carry_the_crs_and_lat_lon(tmp_path):
         np.testing.assert_allclose(ds["lat"].values, lat, atol=1e-9)
         assert ds["lat"].attrs["standard_name"] == "latitude"
         ds.close()
+
+
+@pytest.mark.filterwarnings("ignore")  # pandas deprecations inside the reader
+def test_pingmapper_reader_reads_the_lat_lon_xtf(tmp_path):
+    """PINGMapper reads XTF through pingverter's xtf class: on our lat/lon XTF it finds NavUnits 3, projects to
+    the same UTM zone, and its eastings, northings, speed and depth are ours (1 cm, float32 knots)."""
+    from pingverter.xtf_class import xtf
+
+    rec = _georeferenced_record()
+    rec.to_xtf(tmp_path / "line.xtf")
+    reader = xtf(str(tmp_path / "line.xtf"))
+    reader.metaDir, reader.tempC = str(tmp_path), 10.0                # what PINGMapper sets before parsing
+    reader._getFileLen()
+    reader._parseFileHeader()
+    reader._parsePingHeader()
+    df = reader.header_dat
+    assert reader.nav_units == 3 and reader.humDat["epsg"] == UTM32N
+    for beam in (2, 3):                                                 # port and starboard
+        d = df[df["beam"] == beam]
+        np.testing.assert_allclose(d["e"], rec.trajectory.positions_m[:, 0], atol=0.01, rtol=0)
+        np.testing.assert_allclose(d["n"], rec.trajectory.positions_m[:, 1], atol=0.01, rtol=0)
+        np.testing.assert_allclose(d["speed_ms"], 2.0, rtol=1e-5)
+        np.testing.assert_allclose(d["inst_dep_m"], 20.0)
