@@ -139,3 +139,20 @@ def test_toml_sonar_type_msis_renders(tmp_path):
     bad.write_text(text.replace("step_deg = 1.8", "step_deg = 1.8\nlength_m = 0.2"))
     with pytest.raises(se.ConfigError, match="length_m"):
         runconfig.load_run_config(bad)
+
+
+def test_polar_png_output_is_the_msis_display(tmp_path):
+    """The "polar" output writes the polar display of an MSIS record (8-bit, black outside the scan), and refuses
+    other sonar types naming the need."""
+    from sonar_embree.io import registry
+
+    rec = se.simulate(_floor(), _still(40), se.MSIS(step_deg=9.0, max_range_m=15.0))
+    (path,) = registry.write_each(rec, str(tmp_path), ["polar"])
+    import imageio.v3 as iio
+
+    img = iio.imread(path)
+    assert img.dtype == np.uint8 and img.shape == (400, 400)
+    assert img[0, 0] == 0 and img[200, 200] == 0 and img[200, 200 + 150].max() > 0   # corner, centre, the floor
+    side = se.simulate(_floor(), _still(2), se.Sonar(max_range_m=15.0))
+    with pytest.raises(se.ConfigError, match="an MSIS record is needed"):
+        registry.write_each(side, str(tmp_path), ["polar"])

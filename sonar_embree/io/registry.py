@@ -63,6 +63,12 @@ def _zarr(rec, path, o):
     to_zarr(rec, path)
 
 
+def _polar(rec, path, o):
+    from ..sonars.msis import save_polar_png
+
+    save_polar_png(rec, path)
+
+
 def _xtf(rec, path, o):
     from .xtf import to_xtf
 
@@ -85,6 +91,7 @@ FORMATS = {f.name: f for f in (
     OutputFormat("zarr", "record.zarr", _zarr, description="CF-style Zarr store (xarray, NetCDF-writable)"),
     OutputFormat("xtf", "record.xtf", _xtf, description="eXtended Triton Format, pyxtf-readable"),
     OutputFormat("png", "waterfall.png", _png, description="8-bit waterfall image"),
+    OutputFormat("polar", "polar.png", _polar, description="8-bit polar display of an MSIS scan (MSIS only)"),
     OutputFormat("labels", "labels.png", _labels, needs_labels=True, description="per-pixel class image"),
     OutputFormat("coco", "coco.json", _coco, needs_labels=True, description="COCO boxes and masks"),
     OutputFormat("npz", "record.npz", _npz, description="the whole record (Record.load)"),

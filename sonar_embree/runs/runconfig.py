@@ -56,6 +56,7 @@ class OutputOptions:
     (the display keywords of :func:`~sonar_embree.waterfall.waterfall_image`, checked here)."""
 
     png: bool = True
+    polar: bool = False
     npz: bool = True
     zarr: bool = False
     xtf: bool = False

@@ -219,3 +219,22 @@ def _nearest_ping(sorted_az: np.ndarray, theta: np.ndarray) -> np.ndarray:
     d_lo = np.abs(np.angle(np.exp(1j * (theta - sorted_az[lo]))))
     d_hi = np.abs(np.angle(np.exp(1j * (theta - sorted_az[hi]))))
     return np.where(d_hi <= d_lo, hi, lo)
+
+
+def save_polar_png(record, path, pixel_m: float | None = None, dynamic_range_db: float = 40.0) -> None:
+    """Write :func:`polar_image` as an 8-bit PNG (atomic): display TVG R², dB, white at the 99.9th percentile,
+    ``dynamic_range_db`` below it black (and outside the scan)."""
+    import imageio.v3 as iio
+
+    from ..io.files import atomic_write
+
+    img, ext = polar_image(record, pixel_m)
+    n = img.shape[0]
+    c = (np.arange(n) + 0.5 - n / 2) * (ext[1] - ext[0]) / n
+    r2 = np.add.outer(c ** 2, c ** 2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = 10.0 * np.log10(img * r2)
+    top = np.nanpercentile(db[np.isfinite(db)], 99.9) if np.isfinite(db).any() else 0.0
+    grey = np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0.0, 1.0)
+    out = np.nan_to_num(np.rint(255 * grey), nan=0.0).astype(np.uint8)
+    atomic_write(path, lambda tmp: iio.imwrite(tmp, out, extension=".png"), suffix=".png")
