@@ -345,14 +345,30 @@ class Trajectory:
             raise ConfigError(f"{os.fspath(path)}: {exc}") from None
 
     def to_csv(self, path) -> None:
-        """Write the trajectory as CSV with the columns of :meth:`from_csv`."""
+        """Write the trajectory as CSV with the columns of :meth:`from_csv` (atomic): a trajectory with a CRS
+        as ``lat_deg, lon_deg`` (WGS 84), one with a start time with ISO 8601 ``time`` stamps, so that
+        :meth:`from_csv` (given the same ``crs`` unless it is the first fix's UTM zone) reads it back."""
+        names = list(CSV_COLUMNS if self.velocity_m_s is not None else CSV_COLUMNS[:-len(VELOCITY_COLUMNS)])
         cols = [self.times_s, self.positions_m, self.heading_deg, self.pitch_deg, self.roll_deg]
-        names = CSV_COLUMNS if self.velocity_m_s is not None else CSV_COLUMNS[:-len(VELOCITY_COLUMNS)]
         data = np.column_stack(cols + ([self.velocity_m_s] if self.velocity_m_s is not None else []))
+        text = [[f"{v:.17g}" for v in row] for row in data]
+        if self.crs is not None:
+            from .geo import to_lonlat
+
+            lon, lat = to_lonlat(self.crs, self.positions_m[:, 0], self.positions_m[:, 1])
+            names[1:3] = ["lat_deg", "lon_deg"]
+            for row, a, o in zip(text, lat, lon):
+                row[1:3] = [f"{a:.17g}", f"{o:.17g}"]
+        if self.start_time is not None:
+            import datetime as dt
+
+            t0 = dt.datetime.fromisoformat(self.start_time)
+            names[0] = "time"
+            for row, t in zip(text, self.times_s):
+                row[0] = (t0 + dt.timedelta(seconds=float(t))).isoformat()
         tmp = os.fspath(path) + ".tmp"
         with open(tmp, "w", newline="") as fh:
-            fh.write(",".join(names) + "\n")
-            np.savetxt(fh, data, delimiter=",", fmt="%.17g")
+            fh.write(",".join(names) + "\n" + "".join(",".join(row) + "\n" for row in text))
         os.replace(tmp, path)
 
 

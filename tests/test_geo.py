@@ -189,3 +189,22 @@ def test_pingmapper_reader_reads_the_lat_lon_xtf(tmp_path):
         np.testing.assert_allclose(d["n"], rec.trajectory.positions_m[:, 1], atol=0.01, rtol=0)
         np.testing.assert_allclose(d["speed_ms"], 2.0, rtol=1e-5)
         np.testing.assert_allclose(d["inst_dep_m"], 20.0)
+
+
+def test_georeferenced_trajectory_csv_round_trip(tmp_path):
+    """to_csv writes lat/lon and ISO times for a trajectory with a CRS and a start time; from_csv reads it back
+    in the same (UTM) CRS to 1 mm and 1 µs."""
+    traj = se.Trajectory.line((532000.0, 6017000.0, -20.0), (532040.0, 6017010.0, -20.0), 9)
+    traj = se.Trajectory(traj.positions_m, traj.heading_deg, times_s=traj.times_s + 0.25,
+                         velocity_m_s=traj.velocity_m_s, crs=UTM32N, start_time="2026-05-01T12:00:00Z")
+    traj.to_csv(tmp_path / "nav.csv")
+    header = (tmp_path / "nav.csv").read_text().splitlines()[0]
+    assert header.startswith("time,lat_deg,lon_deg,z_m")
+    back = se.Trajectory.from_csv(tmp_path / "nav.csv")
+    assert back.crs == UTM32N and back.start_time == "2026-05-01T12:00:00.250000+00:00"
+    np.testing.assert_allclose(back.positions_m, traj.positions_m, atol=1e-3, rtol=0)
+    np.testing.assert_allclose(back.times_s + 0.25, traj.times_s, atol=1e-6)
+    np.testing.assert_allclose(back.velocity_m_s, traj.velocity_m_s, atol=1e-9)
+    plain = se.Trajectory.line((0.0, 0.0, 10.0), (4.0, 0.0, 10.0), 3)
+    plain.to_csv(tmp_path / "plain.csv")
+    assert se.Trajectory.from_csv(tmp_path / "plain.csv") == plain
