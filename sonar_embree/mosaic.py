@@ -56,10 +56,9 @@ class Mosaic:
                    names=("intensity", "height_m"))
 
 
-def _placed(t_pos, rot, ground_range, heights, port, starboard):
-    """(x, y, value, height) of the samples of a block of pings that have a seafloor point, flat arrays: each at
-    its ground range along its side's horizontal direction. ``rot`` (pings, 3, 3), the rest (2, pings, samples)
-    or (pings, samples) for the channels."""
+def _side_xy(t_pos, rot, ground_range):
+    """World (x, y), each (2, pings, samples), of samples at ``ground_range`` (2, pings, samples) along each side's
+    horizontal direction (the body's starboard axis, negated for port) from the pings' positions ``t_pos``."""
     side = rot[:, :2, 1]                                            # body starboard axis, horizontal part
     norm = np.linalg.norm(side, axis=1)
     if np.any(norm < 1e-6):
@@ -67,8 +66,13 @@ def _placed(t_pos, rot, ground_range, heights, port, starboard):
     side = side / norm[:, None]
     g = np.asarray(ground_range, dtype=np.float64)
     sign = np.array([-1.0, 1.0])[:, None, None]
-    x = t_pos[None, :, 0, None] + sign * g * side[None, :, 0, None]
-    y = t_pos[None, :, 1, None] + sign * g * side[None, :, 1, None]
+    return (t_pos[None, :, 0, None] + sign * g * side[None, :, 0, None],
+            t_pos[None, :, 1, None] + sign * g * side[None, :, 1, None])
+
+
+def _placed(t_pos, rot, ground_range, heights, port, starboard):
+    """(x, y, value, height) of the samples of a block of pings that have a seafloor point, flat arrays."""
+    x, y = _side_xy(t_pos, rot, ground_range)
     ok = np.isfinite(x) & np.isfinite(y)
     return x[ok], y[ok], np.stack([port, starboard])[ok], np.asarray(heights, dtype=np.float64)[ok]
 
@@ -78,12 +82,7 @@ def sample_positions(record):
     NaN where the sample has no seafloor point (water column)."""
     _check(record)
     t = record.trajectory
-    side = t.rotations()[:, :2, 1]
-    side = side / np.linalg.norm(side, axis=1)[:, None]
-    g = record.labels.ground_range_m.astype(np.float64)
-    sign = np.array([-1.0, 1.0])[:, None, None]
-    return (t.positions_m[None, :, 0, None] + sign * g * side[None, :, 0, None],
-            t.positions_m[None, :, 1, None] + sign * g * side[None, :, 1, None])
+    return _side_xy(t.positions_m, t.rotations(), record.labels.ground_range_m)
 
 
 def _check(record) -> None:
