@@ -116,7 +116,8 @@ def test_mosaic_places_the_mound_where_it_is_and_truth_resamples_the_dem(tmp_pat
     recs = [se.simulate(scene, se.Trajectory.line((xa - 12.0, ya + dy, -48.0), (xa + 12.0, ya + dy, -48.0), 25),
                         se.Sonar(max_range_m=40.0), labels=True) for dy in (-18.0, 18.0)]
     x, y = se.mosaic.sample_positions(recs[0])                       # port north of the southern line
-    assert x.shape == (2,) + recs[0].port.shape and np.nanmin(y[0]) > ya - 18.0 > np.nanmax(y[1])
+    assert x.shape == (2,) + recs[0].port.shape and np.nanmin(y[0]) >= ya - 18.0 >= np.nanmax(y[1])
+    assert np.nanmax(y[0]) > ya - 18.0 + 20.0 > ya - 18.0 - 20.0 > np.nanmin(y[1])   # 20 m out on each side
     grid = se.mosaic.mosaic(recs, pixel_m=PIXEL, bounds_m=(X0, Y0 - NY * PIXEL, X0 + NX * PIXEL, Y0))
     grid.to_geotiff(tmp_path / "mosaic.tif")
     se.mosaic.write_truth(tmp_path / "truth.tif", scene, grid)
