@@ -139,15 +139,21 @@ def probe_rows(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     seconds : float
         Time spent in the caster.
     """
-    n_p = rot.shape[0]
-    probe_dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1)).reshape(-1, 3)
-    probe_org = np.repeat(pos_local, plan.probe_body.shape[0], axis=0)
-    t = time.perf_counter()
-    prim, tfar = caster.cast_raw(probe_org.astype(np.float32), probe_dirs.astype(np.float32), max_range_m)
-    t_embree = time.perf_counter() - t
-    probe_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(2 * n_p, -1)
+    probe_r, _, t_embree = probe_ranges(caster, plan, rot, pos_local, max_range_m)
     altitude, t_nadir = nadir_altitude(caster, pos_local, max_range_m)
-    return (*elevation_rows(plan, probe_r), altitude, t_embree + t_nadir)
+    return (*elevation_rows(plan, probe_r.reshape(2 * rot.shape[0], -1)), altitude, t_embree + t_nadir)
+
+
+def probe_ranges(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float):
+    """The probe rays of a block of pings cast from ``pos_local`` (pings, 3) with attitudes ``rot``: (ranges
+    (pings, probes) float64, NaN for nothing within ``max_range_m``; world directions (pings, probes, 3);
+    seconds in the caster). Probes per ping: :attr:`FanPlan.probe_body`, port then starboard."""
+    dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1))
+    org = np.repeat(pos_local, plan.probe_body.shape[0], axis=0)
+    t = time.perf_counter()
+    prim, tfar = caster.cast_raw(org.astype(np.float32), dirs.reshape(-1, 3).astype(np.float32), max_range_m)
+    t_embree = time.perf_counter() - t
+    return np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(dirs.shape[:2]), dirs, t_embree
 
 
 def nadir_altitude(caster: Caster, pos_local: np.ndarray, max_range_m: float):

@@ -128,6 +128,25 @@ def bistatic_sigma(compiled, frequency_hz, prim, cos_i, cos_s, phi):
     return out
 
 
+def wants_azimuth(compiled) -> bool:
+    """Whether any law of the scene reads the bistatic azimuth φ (it costs an arccos per echo)."""
+    return any(getattr(law, "uses_azimuth", True) for law in compiled.laws)
+
+
+def apply_bistatic(compiled, frequency_hz, prim, points, w, cos_i, cos_s, phi=None) -> None:
+    """Multiply the lit weights ``w`` (n,) of bistatic echoes by σ(θi, θs, φ), the maps and the texture, in place;
+    ``prim`` (n,) their triangles, ``points`` (n, 3) their scattering points, ``phi`` None when no law reads it.
+    Only lit echoes are gathered; with one law and no maps, not even their triangles."""
+    c = compiled
+    lit = np.flatnonzero(w > 0)
+    detail = [d for d in (c.maps, c.textures) if d is not None]
+    at = prim[lit] if detail or any(law != c.laws[0] for law in c.laws) else None   # one law: no gathers
+    w_lit = w[lit] * bistatic_sigma(c, frequency_hz, at, cos_i[lit], cos_s[lit], 0.0 if phi is None else phi[lit])
+    for d in detail:
+        d.apply(c, at, points[lit], w_lit)
+    w[lit] = w_lit
+
+
 def _law_at(compiled, o: int, frequency_hz: float):
     """Object o's scattering law at the carrier."""
     law = compiled.laws[o]
@@ -143,19 +162,13 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
-    want_phi = any(getattr(law, "uses_azimuth", True) for law in c.laws)  # φ costs an arccos per echo
+    want_phi = wants_azimuth(c)
     kernels.mixed_legs(blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta), np.sin(blk.beta), blk.dbeta,
                        blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
                        s.sound_speed_m_s, _wave_kh(s), want_phi, t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
-    lit = np.flatnonzero(w > 0)                                 # only lit echoes need σ, maps and their legs
-    detail = [d for d in (c.maps, c.textures) if d is not None]
-    prim = blk.prim[lit] if detail or any(law != c.laws[0] for law in c.laws) else None  # one law: no gathers
-    w_lit = w[lit] * bistatic_sigma(c, s.frequency_hz, prim, cos_i[lit], cos_s[lit], phi[lit] if want_phi else 0.0)
-    for d in detail:
-        d.apply(c, prim, blk.point_m[lit], w_lit)
-    w[lit] = w_lit
+    apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)
     block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w)
     block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w)
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))

@@ -9,6 +9,7 @@ reaches the polygon's corners; turns between lines are not surveyed, so each lin
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -117,7 +118,6 @@ def line_trajectories(lines, z_m: float, speed_m_s: float, ping_rate_hz: float, 
     1/``ping_rate_hz`` s (the last ping at or before the line's end; lines shorter than one ping's advance are
     left out); line k starts when line k − 1 ended (the turns take no time: they are not surveyed)."""
     from .trajectory import Trajectory
-    from .validation import iso_utc
 
     if not (speed_m_s > 0 and ping_rate_hz > 0):
         raise ConfigError(f"line_trajectories: speed_m_s and ping_rate_hz must be > 0, got {speed_m_s}, {ping_rate_hz}")
@@ -129,7 +129,6 @@ def line_trajectories(lines, z_m: float, speed_m_s: float, ping_rate_hz: float, 
         end = np.asarray(line.start_m) + (n - 1) * speed_m_s / ping_rate_hz * (
             np.subtract(line.end_m, line.start_m) / max(line.length_m, 1e-12))
         traj = Trajectory.line((*line.start_m, z_m), (*end, z_m), n, speed_m_s=speed_m_s)
-        out.append(Trajectory(traj.positions_m, traj.heading_deg, traj.pitch_deg, traj.roll_deg, traj.times_s + t0,
-                              traj.velocity_m_s, crs, None if start_time is None else iso_utc(start_time)))
+        out.append(dataclasses.replace(traj, times_s=traj.times_s + t0, crs=crs, start_time=start_time))
         t0 += traj.times_s[-1] + 1.0 / ping_rate_hz
     return out

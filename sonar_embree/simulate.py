@@ -184,7 +184,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     run = _Run.setup(scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster, ping_offset)
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
-    bar = _progress_bar(progress, len(trajectory))
+    bar = progress_bar(progress, len(trajectory))
     a, block = 0, FIRST_BLOCK_PINGS
     while a < len(trajectory):
         b = min(a + block, len(trajectory))
@@ -291,7 +291,7 @@ class _Run:
         truth = GroundTruth((n_p, n_ch, n_out), compiled, kernel) if labels else None
         rots = _mounted(front, trajectory, ping_offset)
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
-                   np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * _forward_speed(trajectory, rots) / c,
+                   np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,
                    ping_offset)
 
 
@@ -304,12 +304,6 @@ def _mounted(front, trajectory, ping_offset: int) -> np.ndarray:
     return rots
 
 
-def _forward_speed(trajectory, rots) -> np.ndarray:
-    """(pings,) the velocity along each transducer's forward axis, m/s (0 when unknown: stop-and-hop)."""
-    if trajectory.velocity_m_s is None:
-        return np.zeros(len(trajectory))
-    return np.einsum("ij,ij->i", trajectory.velocity_m_s, rots[:, :, 0])
-
 
 def _noise_density(sonar, chain: SignalChain) -> float | None:
     """Receiver noise N0 in unit-source intensity per Hz (the back end adds it before the source level scales the
@@ -320,12 +314,13 @@ def _noise_density(sonar, chain: SignalChain) -> float | None:
     return n0 if n0 > 0.0 else None
 
 
-def _progress_bar(progress: bool, n_pings: int):
+def progress_bar(progress: bool, n_pings: int, done: int = 0):
+    """A tqdm bar over pings (on stderr) when ``progress``, starting at ``done``; else None."""
     if not progress:
         return None
     from tqdm.auto import tqdm
 
-    return tqdm(total=n_pings, desc="pings", unit="ping")
+    return tqdm(total=n_pings, initial=done, desc="pings", unit="ping")
 
 
 def _process(run: _Run, keep_complex: bool):

@@ -144,7 +144,7 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     str
         ``path``.
     """
-    from .simulate import simulate
+    from .simulate import progress_bar as pings_bar, simulate
 
     path = os.fspath(path)
     if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
@@ -160,7 +160,7 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         raise ConfigError(f"{path}: holds a streamed line of other inputs; remove it or pass resume=False")
     if progress is not None and xtf_path is not None and not os.path.exists(xtf_path):
         progress = None                                              # the XTF is gone: start over
-    bar = _bar(progress_bar, n, 0 if progress is None else progress["pings_done"])
+    bar = pings_bar(progress_bar, n, 0 if progress is None else progress["pings_done"])
     a = 0 if progress is None else progress["pings_done"]
     while a < n:
         b = min(a + int(block_pings), n)
@@ -188,11 +188,3 @@ def _block_scene(scene, block, sonar):
     from .config import Sonar
 
     return scene.scene_around(block.positions_m, tile_reach_m(sonar or Sonar()))
-
-
-def _bar(show: bool, total: int, done: int):
-    if not show:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=total, initial=done, unit="ping", desc="streaming")

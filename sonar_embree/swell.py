@@ -19,15 +19,13 @@ The per-ray arithmetic between and after the casts is :mod:`sonar_embree.kernels
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from . import kernels
 from .echoes import Echoes
-from .fan import elevation_rows
+from .fan import elevation_rows, probe_ranges
 from .laws import apply_laws
-from .multipath import LEG_EPSILON_M, _below_top, _wave_kh, bistatic_sigma, block_legs, mirror_pose
+from .multipath import LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, mirror_pose, wants_azimuth
 
 
 def surface_caster(caster, surface, max_range_m: float):
@@ -54,12 +52,7 @@ def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
 
     ``window_m``: the window with the swell's slack; ``max_range_m``: the farthest R probed. Returns
     (el_start, beta, dbeta, seconds in the caster), as :func:`sonar_embree.fan.probe_rows`."""
-    dirs = np.matmul(plan.probe_body, rot_i.transpose(0, 2, 1))     # (pings, probes, 3)
-    org = np.repeat(pos_i, plan.probe_body.shape[0], axis=0)
-    t = time.perf_counter()
-    prim, tfar = caster.cast_raw(org.astype(np.float32), dirs.reshape(-1, 3).astype(np.float32), max_range_m)
-    t_embree = time.perf_counter() - t
-    big_r = np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(dirs.shape[:2])
+    big_r, dirs, t_embree = probe_ranges(caster, plan, rot_i, pos_i, max_range_m)
     r = np.linalg.norm(pos_i[:, None, :] + big_r[..., None] * dirs - pos_local[:, None, :], axis=2)
     lines = [np.where(v <= window_m, v, np.nan).reshape(2 * dirs.shape[0], -1) for v in (big_r, 0.5 * (big_r + r))]
     return (*elevation_rows(plan, np.concatenate(lines, axis=1)), t_embree)
@@ -114,7 +107,7 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
     m = fan["up"].shape[0]
     o = {k: buf.take("swell_" + k, m) for k in ("w1", "t1", "e1", "w2", "t2", "e2", "cos_i", "cos_s", "phi", "r")}
     o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
-    o["want_phi"] = any(getattr(law, "uses_azimuth", True) for law in c.laws)  # φ costs an arccos per echo
+    o["want_phi"] = wants_azimuth(c)
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     kernels.swell_paths(fan["up_start"], fan["up"], fan["ray_start"], fan["el_start"], plan.s, np.cos(fan["beta"]),
                         np.sin(fan["beta"]), fan["dbeta"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"], b["prim"],
@@ -126,19 +119,6 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
     return o
 
 
-def _one_bounce_laws(front, caster, prim, o) -> None:
-    """σ(θi, θs, φ), maps and texture on the lit one-bounce weights ``o["w1"]`` (in place)."""
-    c, s = caster.compiled, front.sonar
-    lit = np.flatnonzero(o["w1"] > 0)
-    detail = [d for d in (c.maps, c.textures) if d is not None]
-    at = prim[lit] if detail or any(law != c.laws[0] for law in c.laws) else None   # one law: no gathers
-    w = o["w1"][lit] * bistatic_sigma(c, s.frequency_hz, at, o["cos_i"][lit], o["cos_s"][lit],
-                                      o["phi"][lit] if o["want_phi"] else 0.0)
-    for d in detail:
-        d.apply(c, at, o["x"][lit], w)
-    o["w1"][lit] = w
-
-
 def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
     """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan; ``rx_shift``
     (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
@@ -146,7 +126,8 @@ def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shif
     fan = _image_fan(front, swell, caster, rot, pos_local, max_range_m, clock)
     b = _bounce(front, caster, swell, fan, pos_local)
     o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
-    _one_bounce_laws(front, caster, b["prim"], o)
+    apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
+                   o["phi"] if o["want_phi"] else None)
     block_legs(caster, front.buffers, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"])  # X → S
     apply_laws(caster.compiled, front.sonar.frequency_hz, b["prim"], o["cos_i"], o["w2"], o["x"])
     out = []

@@ -287,11 +287,13 @@ class Trajectory:
         the closed forms of docs/physics.md §3; motion during the ping, §16, switched off)."""
         return dataclasses.replace(self, velocity_m_s=None)
 
-    def forward_speed_m_s(self) -> np.ndarray:
-        """(n,) the velocity's component along each ping's forward axis, m/s (zeros when unknown)."""
+    def forward_speed_m_s(self, rotations: np.ndarray | None = None) -> np.ndarray:
+        """(n,) the velocity's component along each ping's forward axis, m/s (zeros when unknown); ``rotations``
+        (n, 3, 3): the transducer's body frames when they are not the vehicle's (an MSIS head's)."""
         if self.velocity_m_s is None:
             return np.zeros(len(self))
-        return np.einsum("ij,ij->i", self.velocity_m_s, self.rotations()[:, :, 0])
+        rot = self.rotations() if rotations is None else rotations
+        return np.einsum("ij,ij->i", self.velocity_m_s, rot[:, :, 0])
 
     @classmethod
     def from_csv(cls, path, crs=None) -> "Trajectory":
