@@ -85,10 +85,11 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
     progress = {"fingerprint": fingerprint, "pings_done": 0, "n_pings": n_pings, "block_pings": block,
                 "xtf": None}
     if xtf_path is not None:
-        header, _ = xtf_bytes(first, scale=xtf_scale)
+        scale = _scale_of(first, xtf_scale)                          # fixed by the first block for the line
+        header, _ = xtf_bytes(first, scale=scale)
         with open(xtf_path, "wb") as fh:
             fh.write(header)
-        progress["xtf"] = {"header_bytes": len(header), "scale": _scale_of(first, xtf_scale)}
+        progress["xtf"] = {"header_bytes": len(header), "scale": scale}
     _save_progress(path, progress)
     return progress
 
