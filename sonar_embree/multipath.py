@@ -89,6 +89,48 @@ def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dis
         w[idx[:k][caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
 
 
+def surface_caster(caster, surface, max_range_m: float):
+    """An Embree caster of the sea surface (a swell's mesh, or two triangles for a flat one) over the scene's
+    extent ± the range, in the scene's local frame, two-sided, with the surface line's law (Lambert −27 dB
+    where it has none: never read then).
+
+    Kept with the scene's compiled arrays (built once per scene, surface and range).
+    """
+    from .config import Material
+    from .raycast import RayCaster
+    from .scene import Scene
+
+    c = caster.compiled
+    cache = c.__dict__.setdefault("_swell_casters", {})
+    key = (surface, round(max_range_m, 6))
+    if key not in cache:  # reflection points lie between the sonar and the scene: within its extent ± the range
+        lo, hi = c.bounds_local[0, :2] + c.origin_m[:2], c.bounds_local[1, :2] + c.origin_m[:2]
+        mesh = surface.mesh((lo[0] - max_range_m, hi[0] + max_range_m), (lo[1] - max_range_m, hi[1] + max_range_m))
+        law = surface.backscatter_law
+        material = Material(two_sided=True) if law is None else Material(two_sided=True, scattering=law)
+        cache[key] = RayCaster(Scene().add(mesh, material=material, label="sea surface").compiled(c.origin_m))
+    return cache[key]
+
+
+def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None) -> Echoes:
+    """The sea surface's own backscatter S→P→S (the surface line): the fan cast at the surface with its law, each
+    echo's leg S→P checked against the scene; object id −1 (water, not a scene object)."""
+    s = front.sonar
+    surf = surface_caster(caster, s.environment.surface, max_range_m)
+    blk = cast_block(surf, front.plan, rot, pos_local, front.two_way_np_per_m, max_range_m, 2.0 / s.sound_speed_m_s,
+                     want_points=True, timings=clock, frequency_hz=s.frequency_hz, rx_shift=rx_shift)
+    w = blk.weight
+    if _below_top(caster, float(pos_local[:, 2].min())):                # something of the scene above the sonar
+        lit = np.flatnonzero(w > 0)
+        pos = np.repeat(pos_local, np.diff(blk.ray_start[::2]), axis=0)
+        dirs = np.zeros((w.shape[0], 3))
+        dirs[lit] = (blk.point_m[lit] - pos[lit]) / blk.range_m[lit, None]
+        block_legs(caster, front.buffers, blk.ray_start, blk.point_m, pos_local, True, dirs, blk.range_m, w)
+    ids = np.full(w.shape[0] if want_ids else 0, -1, dtype=np.int32)
+    return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m if want_points else np.zeros((0, 3)),
+                  ids)
+
+
 def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
                  rx_shift=None) -> tuple[Echoes, BlockEchoes]:
     """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked.
@@ -174,8 +216,9 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 
-def merge(parts, points: bool, buf: Buffers | None = None) -> Echoes:
-    """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path.
+def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes:
+    """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path
+    (its index in ``parts``, or ``paths[index]``: the surface line is a direct path).
 
     Within a row, each part's echoes in their order, part by part. The hit points are kept when ``points``
     (speckle, maps), the object ids when every part has them. With ``buf`` the result lives in its kept arrays
@@ -197,6 +240,8 @@ def merge(parts, points: bool, buf: Buffers | None = None) -> Echoes:
     kernels.merge_lit(starts, tuple(e.travel_time_s for e in parts), tuple(e.extent_s for e in parts), weights,
                       tuple(_points(e) for e in parts), tuple(_ids(e) for e in parts), start, t, ext, w, pts,
                       ids, path)
+    if paths is not None:
+        path[:] = np.asarray(paths, dtype=np.int8)[path]
     return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids, path)
 
 

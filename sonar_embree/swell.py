@@ -25,25 +25,8 @@ from . import kernels
 from .echoes import Echoes
 from .fan import elevation_rows, probe_ranges
 from .laws import apply_laws
-from .multipath import LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, mirror_pose, wants_azimuth
-
-
-def surface_caster(caster, surface, max_range_m: float):
-    """An Embree caster of the swell's mesh over the scene's extent ± the range, in the scene's local frame.
-
-    Kept with the scene's compiled arrays (built once per scene, surface and range).
-    """
-    from .raycast import RayCaster
-    from .scene import Scene
-
-    c = caster.compiled
-    cache = c.__dict__.setdefault("_swell_casters", {})
-    key = (surface, round(max_range_m, 6))
-    if key not in cache:  # reflection points lie between the sonar and the scene: within its extent ± the range
-        lo, hi = c.bounds_local[0, :2] + c.origin_m[:2], c.bounds_local[1, :2] + c.origin_m[:2]
-        mesh = surface.mesh((lo[0] - max_range_m, hi[0] + max_range_m), (lo[1] - max_range_m, hi[1] + max_range_m))
-        cache[key] = RayCaster(Scene().add(mesh, label="sea surface").compiled(c.origin_m))
-    return cache[key]
+from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, mirror_pose, surface_caster,
+                        wants_azimuth)
 
 
 def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):

@@ -12,6 +12,8 @@ with u1 = (X − S)/r, u2 the mirror of (X − S')/r' (the upward leg as the tra
 cos θs = (h + 2d)/r'. A rectangular pulse of length τ makes the sample at t the integral over
 c(t − τ) < L ≤ ct. The integrals over the floor are done here on a polar grid, without the simulator's code.
 """
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -525,3 +527,99 @@ def test_a_swell_runs_the_reflection_path_and_modulates_the_multipath_along_trac
     with pytest.raises(se.ConfigError, match="lowest z"):
         se.simulate(scene, line, _sonar(se.SeaSurface(z_m=H + 0.2, swell_height_m=0.6, swell_length_m=length)),
                     start_time="2000-01-01")
+
+
+# --- the surface line: the surface's own backscatter S→P→S (docs/physics.md §13) ---
+MU_S_DB = -25.0
+
+
+def line_quadrature(t, c, alpha_db_m, law_db=lambda sin_g: MU_S_DB + 20 * np.log10(sin_g)):
+    """Expected intensity of the surface line at times t: the surface a distance D above the sonar, a surface point
+    at ground distance ρ at r_s = √(ρ² + D²), seen along the upward u = (X − S)/r_s, grazing sin θg = D/r_s;
+    Γ⁴(u)·σ(θg)·e^(−2α'r_s)/r_s⁴ per unit area with σ/cos θi = 10^(law_db/10)/sin θg, at L = 2r_s. ``law_db``: the
+    monostatic strength in dB at sin θg (default Lambert: μ·sin²θg)."""
+    rho = np.concatenate([np.linspace(0, 2, 1001)[:-1], np.linspace(2, 40, 3801)])
+    dense = np.linspace(-0.12, 0.12, 401)
+    phi = np.unique(np.concatenate([dense, np.linspace(-np.pi / 2, np.pi / 2, 401)]))
+    p, f = rho[:, None], phi[None, :]
+    r = np.sqrt(rho ** 2 + D ** 2)[:, None]
+    g = analytic.gamma_membrane(p * np.sin(f) / r, p * np.cos(f) / r, -D / r, ly=LY, tilt_deg=TILT)
+    sin_g = D / r
+    alpha_np = alpha_db_m * np.log(10) / 10
+    dens = np.trapezoid(g ** 4 * 10 ** (law_db(sin_g) / 10) * np.exp(-2 * alpha_np * r) / r ** 4, phi, axis=1) * rho
+    cum = np.concatenate([[0.0], np.cumsum(0.5 * (dens[1:] + dens[:-1]) * np.diff(rho))])
+    L = 2 * r[:, 0]
+    return np.interp(c * t, L, cum, left=0.0, right=cum[-1]) - np.interp(c * (t - TAU), L, cum, left=0.0,
+                                                                          right=cum[-1])
+
+
+@pytest.fixture(scope="module")
+def line_record():
+    return _record(se.SeaSurface(z_m=H + D, backscatter=MU_S_DB))
+
+
+def test_surface_line_matches_quadrature_and_starts_at_2d_over_c(records, flat_quadrature, line_record):
+    rec, q = line_record, flat_quadrature
+    c, t = rec.sonar.sound_speed_m_s, rec.time_s
+    q_line = line_quadrature(t, c, rec.sonar.alpha_db_per_m)
+    total = q["direct"] + q["mixed"] + q["image"] + q_line
+    got = rec.starboard.mean(axis=0)
+    near = np.zeros(t.shape, dtype=bool)
+    for edge in (2 * D / c, 2 * D / c + TAU):
+        near |= np.abs(t - edge) <= 1.5 / FS
+    carries = (q_line > 0.1 * total) & ~near & ~_edges(t, c, ("direct", "one", "two"))
+    assert carries.sum() > 100                                            # between 2d/c and the floor's 2h/c
+    err = 10 * np.log10(got[carries] / total[carries])
+    assert np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
+    first = t[np.flatnonzero(got > 1e-12 * got.max())[0]]
+    assert abs(first - 2 * D / c) <= 1.0 / FS                             # the surface line's onset
+    np.testing.assert_array_equal(got[t > 2 * H / c + 2 * TAU] >= records["flat"].starboard.mean(axis=0)[
+        t > 2 * H / c + 2 * TAU], True)                                   # it adds to the four paths, never less
+
+
+def test_surface_line_of_a_swell_and_its_shadow(line_record):
+    """A 1 µm swell's surface line (the fan cast on its mesh) matches the flat one's; a plate just above the
+    sonar over starboard darkens the starboard line and leaves port's."""
+    import trimesh
+
+    c = line_record.sonar.sound_speed_m_s
+    alone = (line_record.time_s > 2 * D / c + 2 * TAU) & (line_record.time_s < 2 * H / c - 2 * TAU)
+    swell = _record(se.SeaSurface(z_m=H + D, swell_height_m=1e-6, swell_length_m=20.0, backscatter=MU_S_DB))
+    np.testing.assert_allclose(swell.starboard.mean(axis=0)[alone], line_record.starboard.mean(axis=0)[alone],
+                               rtol=0.12)
+    plate = trimesh.creation.box(extents=(80.0, 39.9, 0.05))
+    plate.apply_translation((0.0, -20.0, H + 0.5))                      # y < −0.05: starboard's upward rays
+    shaded = _record(se.SeaSurface(z_m=H + D, backscatter=MU_S_DB), [(plate, se.Material(backscatter_db=-150.0),
+                                                                          "plate")])
+    assert line_record.starboard[:, alone].min() > 0
+    assert shaded.starboard[:, alone].max() < 1e-6 * line_record.starboard[:, alone].max()
+    np.testing.assert_allclose(shaded.port[:, alone], line_record.port[:, alone], rtol=1e-9)
+
+
+def test_chapman_harris_law_and_surface_backscatter_settings(tmp_path):
+    """ChapmanHarris against Chapman and Harris (1962) written here, S_s = 3.3β·log10(θ/30) − 42.4·log10 β + 2.6,
+    β = 158·(v·f^(1/3))^(−0.58), v in knots (1 kn = 1852/3600 m/s); the surface line's settings."""
+    law = se.laws.ChapmanHarris(wind_speed_m_s=7.0)
+    v_kn, f = 7.0 * 3600 / 1852, 200e3
+    beta = 158 * (v_kn * f ** (1 / 3)) ** -0.58
+    for g in (2.0, 10.0, 30.0, 60.0):
+        want = 3.3 * beta * np.log10(g / 30) - 42.4 * np.log10(beta) + 2.6
+        assert float(law.at_frequency(f).backscatter_strength_db(g)) == pytest.approx(want, abs=1e-3)
+        assert float(law.backscatter_strength_db(g, f)) == pytest.approx(want, abs=1e-12)
+    s = se.SeaSurface(z_m=0.0, wind_speed_m_s=7.0, backscatter="chapman-harris")
+    assert se.Environment(surface={"z_m": 0.0, "wind_speed_m_s": 7.0, "backscatter": "chapman-harris"}).surface == s
+    assert s.backscatter_law == law and se.SeaSurface(z_m=0.0, backscatter=-30).backscatter_law == se.laws.Lambert(-30.0)
+    for bad, needle in ((dict(backscatter="apl"), "'chapman-harris'"), (dict(backscatter="chapman-harris"),
+                                                                         "needs wind_speed_m_s"),
+                        (dict(backscatter=40.0), "backscatter")):
+        with pytest.raises(se.ConfigError, match=needle):
+            se.SeaSurface(z_m=0.0, **bad)
+    with pytest.raises(se.ConfigError, match="wind_speed_m_s"):
+        se.laws.ChapmanHarris(wind_speed_m_s=40.0)
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    s = dataclasses.replace(s, z_m=9.0)
+    rec = se.simulate(scene, se.Trajectory.line((-0.5, 0.0, 6.0), (0.5, 0.0, 6.0), 2),
+                      se.Sonar(max_range_m=20.0, environment=se.Environment(surface=s)), start_time="2000-01-01")
+    assert rec.starboard[:, rec.slant_range_m < 5.9].max() > 0                 # the line, before the floor at 6 m
+    rec.save(tmp_path / "r.npz")
+    assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == s

@@ -12,6 +12,10 @@ A swell makes the surface wavy: one long-crested sinusoidal (linear, Airy) wave 
 trough) and length Λ travelling towards ψ, z = z_s + (H/2)·sin(2π(x cos ψ + y sin ψ)/Λ), meshed and
 reflected by Embree (:mod:`sonar_embree.multipath`); waves steeper than H/Λ = 1/7 break (Michell's limit;
 Holthuijsen, *Waves in Oceanic and Coastal Waters*, Cambridge University Press, 2007, ch. 7) and are refused.
+
+The surface also scatters back (the "surface line" of side-scan records, from 2d/c for a sonar d below it):
+``backscatter`` gives its scattering strength, Chapman and Harris's wind-driven fit
+(:class:`~sonar_embree.laws.ChapmanHarris`) or a Lambert level.
 """
 from __future__ import annotations
 
@@ -21,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
+from ..laws import ChapmanHarris, Lambert
 from ..validation import check_number
 
 #: Standard gravity, m/s².
@@ -50,6 +55,10 @@ class SeaSurface:
         Its wavelength Λ, m.
     swell_direction_deg : float
         The direction it travels, degrees counterclockwise from +x.
+    backscatter : str or float or None
+        The surface's own backscatter (the surface line): ``"chapman-harris"`` (Chapman and Harris 1962, needs
+        ``wind_speed_m_s``), a number (Lambert's law with μ in dB, σ = μ·cos θi·cos θs, θ from the vertical),
+        or None (default: no surface line).
     """
 
     z_m: float
@@ -58,6 +67,7 @@ class SeaSurface:
     swell_height_m: float = 0.0
     swell_length_m: float = 40.0
     swell_direction_deg: float = 0.0
+    backscatter: str | float | None = None
 
     def __post_init__(self):
         check_number("SeaSurface", "z_m", self.z_m)
@@ -72,6 +82,23 @@ class SeaSurface:
         if self.swell_height_m > self.swell_length_m / 7.0:
             raise ConfigError(f"SeaSurface: a swell of height {self.swell_height_m:g} m and length "
                               f"{self.swell_length_m:g} m is steeper than 1/7 and would break")
+        self.backscatter_law  # validates ``backscatter``
+
+    @property
+    def backscatter_law(self):
+        """The scattering law of the surface line (a :mod:`sonar_embree.laws` law), or None without one."""
+        b = self.backscatter
+        if b is None:
+            return None
+        if isinstance(b, str):
+            if b != "chapman-harris":
+                raise ConfigError(f"SeaSurface.backscatter must be 'chapman-harris', a Lambert level in dB or None, "
+                                  f"got {b!r}")
+            if self.wind_speed_m_s is None:
+                raise ConfigError("SeaSurface: backscatter 'chapman-harris' needs wind_speed_m_s")
+            return ChapmanHarris(self.wind_speed_m_s)
+        check_number("SeaSurface", "backscatter", b, lo=-300.0, hi=30.0)
+        return Lambert(float(b))
 
     @property
     def is_flat(self) -> bool:
@@ -98,6 +125,9 @@ class SeaSurface:
         """
         import trimesh
 
+        if self.is_flat:                                             # two triangles
+            v = np.array([[x, y, self.z_m] for x in x_range_m for y in y_range_m]) - np.asarray(origin_m, float)
+            return trimesh.Trimesh(v, [[0, 2, 3], [0, 3, 1]], process=False)
         step = self.swell_length_m / 24.0
         psi = math.radians(self.swell_direction_deg)
         k, c = np.array([math.cos(psi), math.sin(psi)]), np.array([-math.sin(psi), math.cos(psi)])

@@ -21,6 +21,7 @@ has them: a scene of one law pays for one pass.
 from __future__ import annotations
 
 
+from .chapman_harris import ChapmanHarris
 from .composite import Composite, Summable
 from .kirchhoff import Kirchhoff
 from .lambert import Lambert
@@ -29,7 +30,7 @@ from .tabulated import Tabulated
 from .texture import KTexture
 
 #: The laws by the name a TOML ``scattering = { kind = "…", … }`` table gives.
-LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff, "tabulated": Tabulated}
+LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff, "tabulated": Tabulated, "chapman-harris": ChapmanHarris}
 
-__all__ = ["Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
+__all__ = ["ChapmanHarris", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
            "apply_laws", "law_table"]

@@ -81,10 +81,14 @@ class SideScanFrontEnd:
             if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
                 mixed = dataclasses.replace(mixed, object_id=direct.object_id)
                 image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
-        parts = [direct, mixed, image]
-        cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the image fan's, counted there
+        parts, paths = [direct, mixed, image], None
+        if self.sonar.environment.surface.backscatter is not None:  # the surface line: a direct path
+            parts.append(multipath.surface_line(self, caster, rot, pos_local, max_range_m, want_points, ids is not None,
+                                                clock, rx_shift))
+            paths = (0, 1, 2, 0)
+        cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
-        return multipath.merge(parts, want_points, self.buffers)
+        return multipath.merge(parts, want_points, self.buffers, paths)
 
 
 def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:
