@@ -2,6 +2,7 @@
 
     python scripts/bench_multipath.py            # prints one JSON line
     python scripts/bench_multipath.py --no-swell # the direct and flat-surface cases only (a third of the time)
+    python scripts/bench_multipath.py --line     # also the flat surface with its surface line (backscatter −40 dB)
 
 Cases: the flat floor (10 m altitude, 60 m range) and the shipwreck pass, each without a surface and with a flat
 surface 5 m above the sonar, and with a swell (H = 0.4 m, Λ = 8 m: the meshed surface, one Embree reflection per
@@ -48,8 +49,12 @@ def main() -> int:
         wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=z)))
         swell = se.SeaSurface(z_m=z, swell_height_m=0.4, swell_length_m=8.0)
         wavy = dataclasses.replace(sonar, environment=se.Environment(surface=swell))
+        lined = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=z, backscatter=-40.0)))
         out[name] = {"direct": _best(scene, traj, sonar), "surface": _best(scene, traj, wet)}
         out[name]["ratio"] = round(out[name]["surface"]["total"] / out[name]["direct"]["total"], 2)
+        if "--line" in sys.argv:
+            out[name]["line"] = _best(scene, traj, lined)
+            out[name]["line_ratio"] = round(out[name]["line"]["total"] / out[name]["direct"]["total"], 2)
         if "--no-swell" not in sys.argv:
             out[name]["swell"] = _best(scene, traj, wavy)
             out[name]["swell_ratio"] = round(out[name]["swell"]["total"] / out[name]["direct"]["total"], 2)

@@ -5,13 +5,14 @@
 - waterfalls.png  a box on a flat fine-sand floor in shallow water (6 m altitude, surface 3 m above the
                   sonar, 30 m range, a broad 10°-tilted beam that reaches the surface), speckle-free:
                   without a surface, with a flat one, with a rough one (h_w = 0.5 mm) and under a swell
-                  (meshed, one Embree reflection per ray), on one common grey scale (display TVG, 50 dB)
-- ping.png        one starboard ping of each against slant range ct/2, with the one-bounce (h + d) and
-                  two-bounce (h + 2d) onsets marked
+                  (meshed, one Embree reflection per ray), and a flat surface with its own backscatter (the
+                  surface line, a Lambert −40 dB level), on one common grey scale (display TVG, 50 dB)
+- ping.png        one starboard ping of each against slant range ct/2, with the surface line (d), one-bounce
+                  (h + d) and two-bounce (h + 2d) onsets marked
 - multipath.json  the first sample where the surface record departs from the direct one, against the
                   one-bounce onset (2h + 2d)/c (later by the angle the baffle hides straight up)
 
-Needs matplotlib (the plots extra). The surface's own backscatter (the surface line) is not modelled yet.
+Needs matplotlib (the plots extra).
 """
 from __future__ import annotations
 
@@ -42,7 +43,8 @@ def records(se, pings):
     surfaces = {"no surface": None, f"flat surface {D:g} m above": se.SeaSurface(z_m=H + D),
                 "rough surface (h_w = 0.5 mm)": se.SeaSurface(z_m=H + D, rms_wave_height_m=0.5e-3),
                 "swell (H = 0.4 m, Λ = 8 m, along track)": se.SeaSurface(z_m=H + D, swell_height_m=0.4,
-                                                                        swell_length_m=8.0)}
+                                                                        swell_length_m=8.0),
+                "flat surface and its surface line (−40 dB)": se.SeaSurface(z_m=H + D, backscatter=-40.0)}
     out = {}
     for name, surf in surfaces.items():
         sonar = se.Sonar(max_range_m=30.0, tilt_deg=10.0, height_m=0.0019, environment=se.Environment(surface=surf))
@@ -72,10 +74,10 @@ def ping_panel(recs):
     with np.errstate(divide="ignore"):
         lines = [(name, 10 * np.log10(rec.starboard[i])) for name, rec in recs.items()]
     top = max(np.nanmax(y[np.isfinite(y)]) for _, y in lines)
-    xlabel = "ct/2 (m): first return h, one bounce h + d, two bounces h + 2d"
+    xlabel = "ct/2 (m): surface line d, floor h, one bounce h + d, two bounces h + 2d"
     return {"x": first.slant_range_m, "lines": lines, "xlabel": xlabel, "ylabel": "intensity (dB, unit source)",
             "ylim": (top - 60, top + 5), "title": "middle ping, starboard",
-            "vlines": [(H, "h"), (H + D, "h + d"), (H + 2 * D, "h + 2d")]}
+            "vlines": [(D, "d"), (H, "h"), (H + D, "h + d"), (H + 2 * D, "h + 2d")]}
 
 
 def onset(recs) -> dict:
