@@ -112,9 +112,10 @@ def surface_caster(caster, surface, max_range_m: float):
     return cache[key]
 
 
-def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None) -> Echoes:
+def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_ids, clock,
+                 rx_shift=None) -> tuple[Echoes, BlockEchoes]:
     """The sea surface's own backscatter S→P→S (the surface line): the fan cast at the surface with its law, each
-    echo's leg S→P checked against the scene; object id −1 (water, not a scene object)."""
+    echo's leg S→P checked against the scene; object id −1 (water, not a scene object). Also the fan's block."""
     s = front.sonar
     surf = surface_caster(caster, s.environment.surface, max_range_m)
     blk = cast_block(surf, front.plan, rot, pos_local, front.two_way_np_per_m, max_range_m, 2.0 / s.sound_speed_m_s,
@@ -128,7 +129,7 @@ def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_i
         block_legs(caster, front.buffers, blk.ray_start, blk.point_m, pos_local, True, dirs, blk.range_m, w)
     ids = np.full(w.shape[0] if want_ids else 0, -1, dtype=np.int32)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m if want_points else np.zeros((0, 3)),
-                  ids)
+                  ids), blk
 
 
 def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,

@@ -265,13 +265,17 @@ class _Run:
     def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster,
               ping_offset: int = 0) -> "_Run":
         front = sonars.front_end(sonar, fan)
-        n_p, n_ch, n_out = len(trajectory), len(front.channels), sonar.n_samples
+        # channels synthesised: the record's, or a beamformer's inputs (forward-looking: one per azimuth line)
+        n_p, n_ch, n_out = len(trajectory), getattr(front, "n_synth_channels", len(front.channels)), sonar.n_samples
         # The compressed sample at t needs echoes up to t + τ: synthesise a pulse length past the window.
         n_s = n_out + (int(math.ceil(pulse.duration_s * sonar.sample_rate_hz)) if chain.matched_filter else 0)
         _check_memory(n_p, n_s, chain, labels, keep_complex, n_ch)
         if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
             raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
                               "(the complex signal exists only there)")
+        if hasattr(front, "beamform") and chain.speckle and (chain.band, chain.detection) != ("baseband", "coherent"):
+            raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from coherent baseband signals; "
+                              "speckle needs band='baseband' and detection='coherent'")
         if labels and not front.supports_labels:
             raise ConfigError(f"simulate: labels are made for side-scan sonars, not {type(sonar).__name__}")
         compiled = scene.compiled(survey_origin(trajectory.positions_m))  # the frame where the rays are
@@ -286,8 +290,9 @@ class _Run:
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
         kernel = (pulses.expected_kernel(pulse, sonar.frequency_hz, fs, chain.matched_filter)
                   if labels or not chain.speckle else None)
-        back = (SpeckleSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), n0) if chain.speckle
-                else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), n0, kernel))
+        back_n0 = None if hasattr(front, "beamform") else n0  # a beamformer adds the noise to its beams
+        back = (SpeckleSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0) if chain.speckle
+                else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0, kernel))
         truth = GroundTruth((n_p, n_ch, n_out), compiled, kernel) if labels else None
         rots = _mounted(front, trajectory, ping_offset)
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
@@ -328,6 +333,8 @@ def _process(run: _Run, keep_complex: bool):
     (pings, channels, n_out), complex and the device's integer samples (or None)."""
     sonar, chain, n_out = run.sonar, run.chain, run.n_out
     intensity, cplx = run.back.finish()
+    if hasattr(run.front, "beamform"):
+        intensity, cplx = run.front.beamform(intensity, cplx, None if run.n0 is None else run.back.noise_source(run))
     intensity = intensity[..., :n_out]
     cplx = cplx[..., :n_out] if keep_complex else None
     if sonar.source_level_db is not None:  # unit source → µPa²: one scale, after the noise went in (scaled down)

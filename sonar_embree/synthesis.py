@@ -145,12 +145,19 @@ class ExpectedSynthesis:
     def finish(self):
         """Detected intensity (pings, channels, n_s) and no complex signal."""
         intensity = convolve_time(self.out, self.kernel, self.lead)
-        if self.n0 is not None:  # mean intensity of the noise after the matched filter
-            f0, fs = self.sonar.frequency_hz, self.sonar.sample_rate_hz
-            gain = (1.0 / np.sum(np.abs(pulses.replica(self.pulse, f0, fs)) ** 2) if self.chain.matched_filter
-                    else 1.0)
-            intensity += self.n0 * fs * gain
+        if self.n0 is not None:
+            intensity += self._noise_mean(self.n0)
         return intensity, None
+
+    def _noise_mean(self, n0: float) -> float:
+        """Mean intensity of receiver noise of density ``n0`` after the matched filter."""
+        f0, fs = self.sonar.frequency_hz, self.sonar.sample_rate_hz
+        gain = 1.0 / np.sum(np.abs(pulses.replica(self.pulse, f0, fs)) ** 2) if self.chain.matched_filter else 1.0
+        return n0 * fs * gain
+
+    def noise_source(self, run):
+        """For a beamformer: noise(shape, complex_) of the run's density on its outputs (the mean intensity)."""
+        return lambda shape, complex_: np.full(shape, self._noise_mean(run.n0))
 
 
 class SpeckleSynthesis:
@@ -207,6 +214,20 @@ class SpeckleSynthesis:
                                           (image, image, v_image))):
             self.lattice.synthesise(select(e, e.path == p), origin_m, tx, s.wavelength_m, rate_hz,
                                     phase_cycles_per_s, self.tables, out, pos_rx=rx, vel_rx=vr)
+
+    def noise_source(self, run):
+        """For a beamformer: noise(shape, complex_) of the run's density on its outputs (pings, beams, n_s), each
+        ping from its own stream keyed by its survey index (as :meth:`add_block`'s), matched-filtered as the
+        signal was."""
+        def noise(shape, complex_):
+            fs, out = self.sonar.sample_rate_hz, np.empty(shape, dtype=np.complex128)
+            for b in range(shape[0]):
+                rng = np.random.default_rng([self.chain.seed, 0xBEA4F0, run.first_ping + b])
+                out[b] = processing.complex_noise(rng, shape[1:], run.n0 * fs)
+            if self.chain.matched_filter:
+                out = processing.matched_filter(out, pulses.replica(self.pulse, self.sonar.frequency_hz, fs))
+            return out
+        return noise
 
     def finish(self):
         """Detected intensity (pings, channels, n_s) and the complex signal (coherent) or None."""

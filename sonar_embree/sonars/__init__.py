@@ -9,11 +9,13 @@ from __future__ import annotations
 from ..config import Sonar
 from ..errors import ConfigError
 from .echosounder import EchoSounder, EchoSounderFrontEnd
+from .forward_looking import ForwardLooking, ForwardLookingFrontEnd
 from .msis import MSIS, MSISFrontEnd
 from .sidescan import SideScanFrontEnd
 
 #: The front end of each sonar configuration class.
-FRONT_ENDS = {Sonar: SideScanFrontEnd, EchoSounder: EchoSounderFrontEnd, MSIS: MSISFrontEnd}
+FRONT_ENDS = {Sonar: SideScanFrontEnd, EchoSounder: EchoSounderFrontEnd, MSIS: MSISFrontEnd,
+              ForwardLooking: ForwardLookingFrontEnd}
 
 SONAR_TYPES = tuple(FRONT_ENDS)
 
@@ -27,4 +29,4 @@ def front_end(sonar, fan):
                       f"got {type(sonar).__name__}")
 
 
-__all__ = ["EchoSounder", "FRONT_ENDS", "MSIS", "SONAR_TYPES", "front_end"]
+__all__ = ["EchoSounder", "FRONT_ENDS", "ForwardLooking", "MSIS", "SONAR_TYPES", "front_end"]

@@ -58,13 +58,13 @@ class SideScanFrontEnd:
             blk = refraction.cast_refracted(caster, self.plan, rot, pos_local, self.sonar.environment,
                                             self.two_way_np_per_m, max_range_m, self.sonar, want_points, clock,
                                             self.buffers, rx_shift)
-            return echoes_of(blk, caster.compiled.face_object if want_ids else None), blk
+            return self._rows(echoes_of(blk, caster.compiled.face_object if want_ids else None), blk.el_start), blk
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
                          2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
                          timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift)
         ids = caster.compiled.face_object if want_ids else None
         if surface is None:
-            return echoes_of(blk, ids), blk
+            return self._rows(echoes_of(blk, ids), blk.el_start), blk
         return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
 
     def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
@@ -74,6 +74,7 @@ class SideScanFrontEnd:
         direct = echoes_of(blk, ids)
         if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
             mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
+            layouts = [blk.el_start, None, None]                      # the swell's paths: its own fan's up rays
         else:
             z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
             image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
@@ -81,14 +82,21 @@ class SideScanFrontEnd:
             if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
                 mixed = dataclasses.replace(mixed, object_id=direct.object_id)
                 image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
+            layouts = [blk.el_start, blk.el_start, iblk.el_start]
         parts, paths = [direct, mixed, image], None
         if self.sonar.environment.surface.backscatter is not None:  # the surface line: a direct path
-            parts.append(multipath.surface_line(self, caster, rot, pos_local, max_range_m, want_points, ids is not None,
-                                                clock, rx_shift))
-            paths = (0, 1, 2, 0)
+            line, lblk = multipath.surface_line(self, caster, rot, pos_local, max_range_m, want_points,
+                                                ids is not None, clock, rx_shift)
+            parts, layouts, paths = parts + [line], layouts + [lblk.el_start], (0, 1, 2, 0)
+        parts = [self._rows(e, el) for e, el in zip(parts, layouts)]
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
         return multipath.merge(parts, want_points, self.buffers, paths)
+
+    def _rows(self, e: Echoes, el_start) -> Echoes:
+        """A path's echoes in this type's rows (the side-scan's: two per ping, as cast); ``el_start`` the layout
+        of the fan they are aligned with (None: not aligned with one)."""
+        return e
 
 
 def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:

@@ -1,0 +1,230 @@
+"""A forward-looking multibeam imaging sonar (FLS): a wide transmit fan, N receive beams from a line array.
+
+The receive array is a uniform line of M elements, spacing d, lying across the vehicle; each element (and the
+transmitter) is a baffled rectangular membrane d wide and h high (docs/physics.md §2), so one element's fan is
+wide horizontally (d ≈ λ/2) and ``vertical_beamwidth_deg`` high, depressed by ``tilt_deg``. Beam k is the array
+steered to θ_k (degrees to starboard, uniform over the field of view) with the line array's closed form
+
+    AF_k(u) = sin(M·ψ/2) / (M·sin(ψ/2)),   ψ = k·d·(u − u_k),   u_k = sin θ_k
+
+(uniform weights; Urick, *Principles of Underwater Sound*, 3rd ed., 1983, §3.4; Van Trees, *Optimum Array
+Processing*, 2002, ch. 2), u the direction cosine along the array. The expected intensity of beam k is
+Σ_rays w·AF_k(u)², w the ray's echo weight with the elements' two-way pattern (§3).
+
+The rays are the side-scan's fan (§7) turned a quarter round so that its along-track axis is the array's axis
+and its starboard side looks forward: its azimuth lines are then lines of constant u, which the fan already
+samples finely enough to integrate a band-limited pattern exactly (ds = λ/(2·M·d)/oversample over the whole
+visible |u| < 1). Every azimuth line is synthesised as a channel of its own (the side-scan's back ends, laws,
+environment, speckle and pulses, unchanged), and the beams are formed from those channels afterwards: a matrix
+AF² on the expected intensities, or AF on the coherent complex signals (speckle then correlates between
+neighbouring beams as a real beamformer's does). Receiver noise is added per beam after beamforming.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import beam
+from ..config import FanSettings, Sonar, Transducer
+from ..echoes import Echoes
+from ..environment import Environment
+from ..errors import ConfigError
+from ..receiver import Receiver
+from ..validation import check_number
+from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN
+from .sidescan import SideScanFrontEnd
+
+#: Probe lines across the fan, at least (the side-scan probes three: a wide fan needs them everywhere): one per
+#: receive beam's null-to-null half width λ/(M·d) in u, at least this many.
+MIN_PROBE_LINES = 33
+#: Largest |u| of the fan (grazing along the array axis).
+U_MAX = 0.999
+
+
+@dataclass(frozen=True)
+class ForwardLooking(Transducer):
+    """A forward-looking multibeam imaging sonar.
+
+    Parameters
+    ----------
+    frequency_hz : float
+        Carrier frequency, Hz.
+    n_beams : int
+        Receive beams, steered uniformly in angle over the field of view.
+    field_of_view_deg : float
+        Horizontal span of the beams' steering angles, degrees (at most 170).
+    n_elements : int
+        Elements M of the receive line array.
+    element_spacing_m : float or None
+        Their spacing d, m (default λ/2; grating lobes inside the field of view are refused).
+    vertical_beamwidth_deg : float
+        One-way −3 dB vertical width of the elements' (and the transmitter's) fan, degrees.
+    tilt_deg : float
+        Depression of the fan's axis below the vehicle's horizontal plane, degrees.
+    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver
+        As for :class:`~sonar_embree.Sonar`.
+    """
+
+    frequency_hz: float = 900e3
+    n_beams: int = 256
+    field_of_view_deg: float = 130.0
+    n_elements: int = 128
+    element_spacing_m: float | None = None
+    vertical_beamwidth_deg: float = 20.0
+    tilt_deg: float = 10.0
+    max_range_m: float = 40.0
+    sample_rate_hz: float | None = None
+    environment: Environment = Environment()
+    source_level_db: float | None = None
+    self_noise_db_per_hz: float | None = None
+    receiver: Receiver | None = None
+
+    def __post_init__(self):
+        if isinstance(self.environment, dict):  # from a saved record's metadata
+            object.__setattr__(self, "environment", Environment(**self.environment))
+        for name, lo, hi in (("n_beams", 1, 4096), ("n_elements", 2, 4096)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+                raise ConfigError(f"ForwardLooking.{name} must be an integer in [{lo}, {hi}], got {v!r}")
+        check_number("ForwardLooking", "frequency_hz", self.frequency_hz, positive=True)
+        check_number("ForwardLooking", "field_of_view_deg", self.field_of_view_deg, positive=True, hi=170.0)
+        check_number("ForwardLooking", "vertical_beamwidth_deg", self.vertical_beamwidth_deg, positive=True, hi=90.0)
+        check_number("ForwardLooking", "tilt_deg", self.tilt_deg, lo=-89.0, hi=89.0)
+        check_number("ForwardLooking", "max_range_m", self.max_range_m, positive=True)
+        if self.sample_rate_hz is not None:
+            check_number("ForwardLooking", "sample_rate_hz", self.sample_rate_hz, positive=True)
+        if not isinstance(self.environment, Environment):
+            raise ConfigError(f"ForwardLooking.environment must be a sonar_embree.Environment, got {self.environment!r}")
+        if self.element_spacing_m is not None:
+            check_number("ForwardLooking", "element_spacing_m", self.element_spacing_m, positive=True)
+        u_edge = math.sin(math.radians(0.5 * self.field_of_view_deg))
+        if self.spacing_m * (1.0 + u_edge) >= self.wavelength_m:
+            raise ConfigError(f"ForwardLooking.element_spacing_m = {self.spacing_m:g} m puts grating lobes inside the "
+                              f"field of view (needs d < λ/(1 + sin(fov/2)) = "
+                              f"{self.wavelength_m / (1.0 + u_edge):.4g} m)")
+        self._check_levels("ForwardLooking")
+
+    @property
+    def spacing_m(self) -> float:
+        """Element spacing d, m (λ/2 unless given)."""
+        return self.wavelength_m / 2.0 if self.element_spacing_m is None else float(self.element_spacing_m)
+
+    @property
+    def channels(self) -> tuple:
+        """The record's channels: one per beam, ``beam000`` … (port to starboard)."""
+        return tuple(f"beam{k:03d}" for k in range(self.n_beams))
+
+    def beam_angles_deg(self) -> np.ndarray:
+        """(n_beams,) steering angle θ_k of each beam, degrees to starboard of the vehicle's forward axis."""
+        half = 0.5 * self.field_of_view_deg
+        return np.linspace(-half, half, self.n_beams) if self.n_beams > 1 else np.zeros(1)
+
+    def array_factor(self, u) -> np.ndarray:
+        """(n_beams, n) AF_k(u) of the uniform line array at direction cosines ``u`` (n,) to starboard (real: phase
+        referred to the array's centre; 1 on the steering direction)."""
+        u = np.asarray(u, dtype=np.float64)
+        u_k = np.sin(np.radians(self.beam_angles_deg()))
+        psi = self.wavenumber_rad_m * self.spacing_m * (u[None, :] - u_k[:, None])
+        m = self.n_elements
+        num, den = np.sin(0.5 * m * psi), m * np.sin(0.5 * psi)
+        small = np.abs(den) < 1e-12 * m
+        with np.errstate(divide="ignore", invalid="ignore"):
+            af = np.where(small, np.cos(0.5 * m * psi) / np.cos(0.5 * psi), num / den)   # ψ = 2πn: the limit
+        return af
+
+    def as_sidescan(self) -> Sonar:
+        """The side-scan sonar whose starboard fan is one element's (d wide, h high), turned to look forward."""
+        return Sonar(frequency_hz=self.frequency_hz, length_m=self.spacing_m,
+                     height_m=beam.membrane_size_for_beamwidth(math.radians(self.vertical_beamwidth_deg),
+                                                               self.wavelength_m),
+                     tilt_deg=self.tilt_deg, max_range_m=self.max_range_m, sample_rate_hz=self.sample_rate_hz,
+                     environment=self.environment, source_level_db=self.source_level_db,
+                     self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver)
+
+    # what the back ends and the receiver read of a sonar: the element's side-scan's
+    @property
+    def n_samples(self) -> int:
+        return self.as_sidescan().n_samples
+
+    @property
+    def range_bin_m(self) -> float:
+        return self.as_sidescan().range_bin_m
+
+    @property
+    def default_speckle_cell_m(self) -> float:
+        return self.as_sidescan().default_speckle_cell_m
+
+    @property
+    def directivity_index_db(self) -> float:
+        """A beam's receiving DI: the element's (Urick §3.6) plus the array gain 10·log10 M against isotropic
+        noise (elements at λ/2, Urick §3.4), dB."""
+        return self.as_sidescan().directivity_index_db + 10.0 * math.log10(self.n_elements)
+
+    @property
+    def tilt_rad(self) -> float:
+        return math.radians(self.tilt_deg)
+
+
+def array_samples(sonar: ForwardLooking, oversample: float):
+    """Direction cosines u of the fan's azimuth lines, along the side-scan's x axis (= −u to starboard), and
+    their spacing: ds = λ/(2·M·d)/oversample over |u| ≤ :data:`U_MAX`, one line on boresight."""
+    ds = sonar.wavelength_m / (2.0 * sonar.n_elements * sonar.spacing_m) / oversample
+    m = int(math.floor(U_MAX / ds + 1e-9))
+    return np.arange(-m, m + 1, dtype=np.float64) * ds, ds
+
+
+class ForwardLookingFrontEnd(SideScanFrontEnd):
+    """Poses → echoes for a :class:`ForwardLooking`: one element's fan looking forward, one channel per azimuth
+    line; :meth:`beamform` turns those into the beams."""
+
+    supports_labels = False
+
+    def __init__(self, sonar: ForwardLooking, fan: FanSettings):
+        if sonar.environment.surface is not None and not sonar.environment.surface.is_flat:
+            raise ConfigError("ForwardLooking: a swell is modelled for side-scan and MSIS sonars; give a flat "
+                              "surface (rms_wave_height_m for roughness)")
+        super().__init__(sonar.as_sidescan(), fan, sides=(False, True), elevation_nulls=ELEVATION_NULLS)
+        s, ds = array_samples(sonar, fan.resolved().azimuth_oversample)
+        n_lines = max(MIN_PROBE_LINES, int(math.ceil(2.0 * s[-1] * sonar.n_elements * sonar.spacing_m
+                                                     / sonar.wavelength_m)) + 1)
+        lines = np.linspace(-s[-1], s[-1], n_lines)
+        body = np.concatenate([beam.fan_body(lines, self.plan.probe_beta, side) for side in (-1, +1)])
+        self.plan = dataclasses.replace(self.plan, s=s, ds=ds, probe_body=body)
+        self.fls, self.channels = sonar, sonar.channels
+        self.n_synth_channels = s.shape[0]
+        self.af = sonar.array_factor(-s)                           # u to starboard = −s (HEAD_FROM_SIDESCAN)
+
+    def mount(self, rot: np.ndarray, pings: np.ndarray) -> np.ndarray:
+        """Body-to-world rotations of the side-scan fan whose starboard side looks along the vehicle's forward axis."""
+        return np.einsum("pij,jk->pik", np.asarray(rot, dtype=np.float64), HEAD_FROM_SIDESCAN)
+
+    def _rows(self, e: Echoes, el_start: np.ndarray) -> Echoes:
+        """The side-scan layout's echoes (aligned with its rays) as one row per ping and azimuth line."""
+        return dataclasses.replace(e, n_channels=self.n_synth_channels,
+                                   ray_start=azimuth_rows(el_start, self.plan.s.shape[0]))
+
+    def beamform(self, intensity, cplx, noise):
+        """Beams (pings, n_beams, n_s) from the azimuth lines' intensities and, for coherent speckle, their complex
+        signals; ``noise(shape, complex_)`` draws the receiver noise added per beam (or None)."""
+        if cplx is not None:
+            beams = np.matmul(self.af, cplx)
+            if noise is not None:
+                beams += noise(beams.shape, True)
+            return beams.real ** 2 + beams.imag ** 2, beams
+        out = np.matmul(self.af ** 2, intensity)
+        if noise is not None:
+            out += noise(out.shape, False)
+        return out, None
+
+
+def azimuth_rows(el_start: np.ndarray, n_az: int) -> np.ndarray:
+    """(pings·n_az + 1,) offsets of one row per ping and azimuth line into a side-scan block's rays (rows port,
+    starboard per ping, azimuth-major: ray a·n_el + j of a row is azimuth line a, elevation j); the port rows are
+    empty."""
+    el_start = np.asarray(el_start, dtype=np.int64)
+    lo, hi = el_start[1:-1:2], el_start[2::2]              # each ping's starboard row
+    start = n_az * lo[:, None] + np.arange(n_az)[None, :] * (hi - lo)[:, None]
+    return np.append(start.ravel(), n_az * el_start[-1]).astype(np.int64)
