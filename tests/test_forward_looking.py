@@ -33,8 +33,8 @@ def _af2(u, u_k):
 
 
 def _height():
-    """The membrane height whose one-way −3 dB width is VBW: sinc(π·h/λ·sin(VBW/2)) = 1/√2."""
-    x = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 0.1, 3.0)
+    """The membrane height whose one-way −3 dB width is VBW: sinc(π·h/λ·sin(VBW/2)) = 10^(−3/20)."""
+    x = brentq(lambda x: np.sin(x) / x - 10 ** (-3 / 20), 0.1, 3.0, xtol=1e-14)
     return x * LAM / (np.pi * np.sin(np.radians(VBW / 2)))
 
 
@@ -144,3 +144,62 @@ def test_flat_floor_boresight_beam_matches_quadrature():
     assert lit.sum() > 1500
     err = 10 * np.log10(got[lit] / q[lit])
     assert np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
+
+
+def test_fan_image_zarr_and_toml(tmp_path):
+    """The shipped config loads as a ForwardLooking; the fan display puts a sphere's echo at its position within
+    two pixels; the Zarr store holds one (ping, beam, sample) intensity with the steering angles; XTF, labels,
+    a swell and non-coherent speckle are refused naming what is missing."""
+    import xarray as xr
+
+    from sonar_embree.io import registry
+    from sonar_embree.runs import runconfig
+    from sonar_embree.sonars.forward_looking import fan_image
+
+    cfg = runconfig.load_run_config("asset:fls_harbour.toml")
+    assert isinstance(cfg.sonar, se.ForwardLooking) and cfg.sonar.n_beams == 256 and cfg.output.fan
+    x, y, a = 12.0, -4.0, 0.3                                           # 4 m to starboard (world −y)
+    rec = se.simulate(_ball_scene(x, y, H, a), _still(), _sonar(), se.Pulse.cw(duration_s=TAU, taper=0.0),
+                      start_time="2000-01-01")
+    img, (left, right, near, far) = fan_image(rec, pixel_m=0.05)
+    row, col = np.unravel_index(np.nanargmax(img), img.shape)
+    stbd, fwd = left + (col + 0.5) * 0.05, far - (row + 0.5) * 0.05
+    assert math.hypot(stbd - 4.0 * (1 - a / math.hypot(x, y)), fwd - x * (1 - a / math.hypot(x, y))) < 2 * 0.05 + 0.02
+    paths = registry.write_each(rec, str(tmp_path), ["fan", "zarr"])
+    assert len(paths) == 2
+    ds = xr.open_zarr(tmp_path / "record.zarr")
+    assert ds["intensity"].dims == ("ping", "beam", "sample") and ds.sizes["beam"] == 61
+    np.testing.assert_array_equal(ds["intensity"].values, rec.data)
+    np.testing.assert_allclose(ds["beam_angle_deg"].values, rec.sonar.beam_angles_deg())
+    with pytest.raises(se.ConfigError, match="labels"):
+        se.simulate(_ball_scene(x, y, H), _still(), _sonar(), labels=True)
+    with pytest.raises(se.ConfigError, match="coherent"):
+        se.simulate(_ball_scene(x, y, H), _still(), _sonar(), speckle=True, detection="incoherent", band="carrier")
+    with pytest.raises(se.ConfigError, match="swell"):
+        swell = se.Environment(surface=se.SeaSurface(z_m=H + 3, swell_height_m=0.2, swell_length_m=8.0))
+        se.simulate(_ball_scene(x, y, H), _still(), _sonar(environment=swell))
+    with pytest.raises(se.ConfigError, match="grating lobes"):
+        se.ForwardLooking(element_spacing_m=0.0015)
+    with pytest.raises(se.ConfigError, match="n_beams"):
+        se.ForwardLooking(n_beams=2.5)
+
+
+@pytest.mark.parametrize("speckle", [False, True])
+def test_receiver_noise_is_added_per_beam(speckle):
+    """With a source level and nothing in view, each beam holds the receiver's noise N·fs (µPa²; N the ambient
+    noise over the beam's DI, the element's plus 10·log10 M, and the self-noise): expected exactly, speckled
+    within 5 % on average; and XTF is refused for a multibeam in one short line."""
+    far = _ball_scene(-10.0, 0.0, 200.0)                 # in range, behind the baffle: the beams hear noise only
+    traj = se.Trajectory(np.array([[0.0, 0.0, 200.0]]), heading_deg=np.array([90.0]), times_s=np.zeros(1))
+    sonar = _sonar(source_level_db=200.0, self_noise_db_per_hz=20.0)
+    rec = se.simulate(far, traj, sonar, se.Pulse.cw(duration_s=TAU, taper=0.0), speckle=speckle,
+                      start_time="2000-01-01")
+    amb = sonar.environment.noise.spectral_density_db(F0)
+    elem_di = 10 * np.log10(4 * np.pi * (LAM / 2) * _height() / LAM ** 2)
+    n = 10 ** ((amb - elem_di - 10 * np.log10(M)) / 10) + 10 ** 2.0
+    if speckle:
+        assert rec.data.mean() == pytest.approx(n * FS, rel=0.05)
+    else:
+        np.testing.assert_allclose(rec.data, n * FS, rtol=1e-9)
+    with pytest.raises(se.ConfigError, match=r"beam000, beam001, beam002, … \(61 channels\)$"):
+        rec.to_xtf("never.xtf")

@@ -1,6 +1,7 @@
 """The same physics verdicts on every scanning sonar type (issue: other scanning sonars): speckle statistics,
 the scattering law's scale, absorption, a sea surface's multipath and the source level, each checked against
-its closed form, parametrised over the side-scan and the MSIS (whose ping is the side-scan's fan on a head).
+its closed form, parametrised over the side-scan, the MSIS (whose ping is the side-scan's fan on a head) and the
+forward-looking sonar (the side-scan's fan turned forward, its azimuth lines beamformed).
 """
 import dataclasses
 
@@ -19,15 +20,19 @@ def _floor(mu_db=-20.0):
 
 def _case(kind, n=40, **kw):
     """(sonar, trajectory): independent pings over the floor (side-scan: 2 m apart; MSIS: a still head turning
-    9° per ping, its beam on new floor each ping)."""
+    9° per ping, its beam on new floor each ping; forward-looking: 6 m apart)."""
     if kind == "sidescan":
         return (se.Sonar(max_range_m=30.0, **kw),
                 se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), n).stop_and_hop())
+    if kind == "forward_looking":  # a small array (32 elements, 33 beams over 60°); a third of the pings, 6 m apart
+        n = max(2, n // 3)
+        return (se.ForwardLooking(n_elements=32, n_beams=33, field_of_view_deg=60.0, max_range_m=30.0, **kw),
+                se.Trajectory.line((-40.0, 0.0, H), (-40.0 + 6.0 * (n - 1), 0.0, H), n).stop_and_hop())
     return (se.MSIS(step_deg=9.0, max_range_m=30.0, **kw),
             se.Trajectory(np.tile([[0.0, 0.0, H]], (n, 1)), times_s=np.arange(float(n))))
 
 
-KINDS = ["sidescan", "msis"]
+KINDS = ["sidescan", "msis", "forward_looking"]
 
 
 @pytest.mark.parametrize("kind", KINDS)

@@ -102,7 +102,8 @@ def to_xarray(record):
     """The record as a CF-style ``xarray.Dataset`` (writable as NetCDF with ``to_netcdf``).
 
     Variables: one per channel, ``port``, ``starboard`` for a side-scan (ping,
-    sample), linear intensity (and ``port_complex``, ``starboard_complex`` when the record keeps them: NetCDF needs
+    sample), linear intensity (a multibeam, :class:`~sonar_embree.ForwardLooking`: one ``intensity`` (ping, beam,
+    sample) with the coordinate ``beam_angle_deg``) (and ``port_complex``, ``starboard_complex`` when the record keeps them: NetCDF needs
     ``to_netcdf(..., auto_complex=True)`` for those); ``altitude_m`` (ping); with
     labels ``label_kind``, ``label_object_id``, ``label_shadow_of``,
     ``label_height_m``, ``label_ground_range_m`` (side, ping, sample). Coordinates
@@ -125,9 +126,32 @@ def to_xarray(record):
         return {"units": "uPa2", "long_name": f"{side} mean-square pressure at the receiver, source level {sl:g} dB "
                                               "re 1 uPa at 1 m"}
 
-    data = {ch: (("ping", "sample"), record.channel(ch), intensity(ch)) for ch in record.channels}
+    beams = hasattr(record.sonar, "beam_angles_deg")                 # a multibeam: one (ping, beam, sample) array
+    data = _beam_variables(record, intensity) if beams else _channel_variables(record, intensity)
     data |= {"altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
                                                           "long_name": "range to the first surface below the sonar"})}
+    coords = {"time_s": (("sample",), record.time_s,
+                         {"units": "s", "long_name": "time from the start of transmission"}),
+              "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
+              **_ping_coords(record)}
+    if beams:
+        coords["beam_angle_deg"] = (("beam",), record.sonar.beam_angles_deg(),
+                                    {"units": "degree", "long_name": "steering angle of the beam, to starboard"})
+    attrs = _flat_attrs(record)
+    attrs["channels"] = "intensity" if beams else " ".join(record.channels)
+    if record.trajectory.crs is not None:  # CF: data on projected x, y name their grid mapping
+        data["crs"] = _crs_variable(record.trajectory.crs)
+        for ch in (("intensity",) if beams else record.channels):
+            data[ch][2]["grid_mapping"] = "crs"
+    if record.labels is not None:
+        _label_variables(record.labels, data, coords, attrs)
+    return xr.Dataset(data, coords=coords, attrs=attrs)
+
+
+def _channel_variables(record, intensity) -> dict:
+    """One (ping, sample) variable per channel, with its complex signal and ADC codes when the record has them."""
+    sl = record.sonar.source_level_db
+    data = {ch: (("ping", "sample"), record.channel(ch), intensity(ch)) for ch in record.channels}
     for side in record.channels:
         z = record.channel(side, complex_=True)
         if z is not None:
@@ -139,19 +163,22 @@ def to_xarray(record):
             data[f"{side}_samples"] = (("ping", "sample"), record.samples[:, i],
                                        {"units": "1", "long_name": f"{side} ADC codes ({rx.adc_bits} bits, "
                                                                    f"full scale {rx.full_scale_v:g} V) after the gain"})
-    coords = {"time_s": (("sample",), record.time_s,
-                         {"units": "s", "long_name": "time from the start of transmission"}),
-              "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
-              **_ping_coords(record)}
-    attrs = _flat_attrs(record)
-    attrs["channels"] = " ".join(record.channels)
-    if record.trajectory.crs is not None:  # CF: data on projected x, y name their grid mapping
-        data["crs"] = _crs_variable(record.trajectory.crs)
-        for ch in record.channels:
-            data[ch][2]["grid_mapping"] = "crs"
-    if record.labels is not None:
-        _label_variables(record.labels, data, coords, attrs)
-    return xr.Dataset(data, coords=coords, attrs=attrs)
+    return data
+
+
+def _beam_variables(record, intensity) -> dict:
+    """A multibeam's ``intensity`` (ping, beam, sample), and ``intensity_complex`` / ``samples`` likewise."""
+    dims = ("ping", "beam", "sample")
+    data = {"intensity": (dims, record.data, intensity("beam"))}
+    if record.complex_data is not None:
+        data["intensity_complex"] = (dims, record.complex_data, {
+            "units": "1" if record.sonar.source_level_db is None else "uPa",
+            "long_name": "beam complex baseband, |.|^2 = intensity"})
+    if record.samples is not None:
+        rx = record.sonar.receiver
+        data["samples"] = (dims, record.samples, {"units": "1", "long_name": f"beam ADC codes ({rx.adc_bits} bits, "
+                                                                            f"full scale {rx.full_scale_v:g} V)"})
+    return data
 
 
 def _label_variables(lab, data, coords, attrs) -> None:

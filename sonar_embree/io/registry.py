@@ -69,6 +69,12 @@ def _polar(rec, path, o):
     save_polar_png(rec, path)
 
 
+def _fan(rec, path, o):
+    from ..sonars.forward_looking import save_fan_png
+
+    save_fan_png(rec, path)
+
+
 def _xtf(rec, path, o):
     from .xtf import to_xtf
 
@@ -92,6 +98,7 @@ FORMATS = {f.name: f for f in (
     OutputFormat("xtf", "record.xtf", _xtf, description="eXtended Triton Format, pyxtf-readable"),
     OutputFormat("png", "waterfall.png", _png, description="8-bit waterfall image"),
     OutputFormat("polar", "polar.png", _polar, description="8-bit polar display of an MSIS scan (MSIS only)"),
+    OutputFormat("fan", "fan.png", _fan, description="8-bit fan display of a forward-looking ping (the middle one)"),
     OutputFormat("labels", "labels.png", _labels, needs_labels=True, description="per-pixel class image"),
     OutputFormat("coco", "coco.json", _coco, needs_labels=True, description="COCO boxes and masks"),
     OutputFormat("npz", "record.npz", _npz, description="the whole record (Record.load)"),

@@ -218,8 +218,10 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
     """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
     start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.stream`)."""
     if tuple(record.channels) != ("port", "starboard"):
+        names = ", ".join(record.channels[:3]) + (f", … ({len(record.channels)} channels)"
+                                                   if len(record.channels) > 3 else "")
         raise ConfigError(f"to_xtf: XTF holds side-scan records (port and starboard); this record's channels are "
-                          f"{', '.join(record.channels)}")
+                          f"{names}")
     when = _start(record, start)
     ints = record.samples if samples and record.samples is not None else None
     factor = sample_scale(record, scale) if ints is None else 1.0

@@ -34,7 +34,7 @@ from .. import sediments
 from ..laws import LAWS, Composite, KTexture, Tabulated
 from ..laws.maps import BackscatterMap
 from ..scene import Scene, seafloor
-from ..sonars import MSIS, EchoSounder
+from ..sonars import MSIS, EchoSounder, ForwardLooking
 from ..trajectory import Trajectory
 from ..waterfall import DISPLAY_DEFAULTS, check_display
 
@@ -57,6 +57,7 @@ class OutputOptions:
 
     png: bool = True
     polar: bool = False
+    fan: bool = False
     npz: bool = True
     zarr: bool = False
     xtf: bool = False
@@ -122,7 +123,7 @@ def _build(source: str, where: str, fn, kwargs):
 
 
 #: ``[sonar] type`` → the sonar type's configuration class.
-SONAR_TYPES = {"sidescan": Sonar, "msis": MSIS, "echosounder": EchoSounder}
+SONAR_TYPES = {"sidescan": Sonar, "msis": MSIS, "echosounder": EchoSounder, "forward_looking": ForwardLooking}
 
 
 def table_keys(cls) -> tuple:

@@ -228,3 +228,66 @@ def azimuth_rows(el_start: np.ndarray, n_az: int) -> np.ndarray:
     lo, hi = el_start[1:-1:2], el_start[2::2]              # each ping's starboard row
     start = n_az * lo[:, None] + np.arange(n_az)[None, :] * (hi - lo)[:, None]
     return np.append(start.ravel(), n_az * el_start[-1]).astype(np.int64)
+
+
+def fan_image(record, ping: int | None = None, pixel_m: float | None = None):
+    """The usual forward-looking display: one ping's beams drawn as a fan, each sample at its slant range along its
+    beam's steering angle (seen from above, the sonar at the bottom centre, forward up).
+
+    Parameters
+    ----------
+    record : Record
+        A :class:`ForwardLooking` record.
+    ping : int, optional
+        The ping (default: the middle one).
+    pixel_m : float, optional
+        Pixel size, m (default: max_range / 300).
+
+    Returns
+    -------
+    image : (rows, columns) float64
+        Row 0 farthest ahead; each pixel takes the sample of the beam steered nearest its direction at its
+        distance, NaN outside the field of view (farther than half a beam spacing from the outer beams) or range.
+    extent_m : (left, right, near, far)
+        Starboard and forward coordinates of the image's edges, m (left negative: port).
+    """
+    s = record.sonar
+    if not isinstance(s, ForwardLooking):
+        raise ConfigError(f"fan_image: a ForwardLooking record is needed, got a {type(s).__name__} record")
+    ping = record.n_pings // 2 if ping is None else int(ping)
+    if not 0 <= ping < record.n_pings:
+        raise ConfigError(f"fan_image: ping {ping} is not in the record's {record.n_pings} pings")
+    pixel = s.max_range_m / 300.0 if pixel_m is None else float(pixel_m)
+    half = 0.5 * math.radians(s.field_of_view_deg)
+    n_y, n_x = int(math.ceil(s.max_range_m / pixel)), 2 * int(math.ceil(s.max_range_m * math.sin(half) / pixel))
+    stbd = (np.arange(n_x) + 0.5 - n_x / 2) * pixel
+    fwd = (n_y - np.arange(n_y) - 0.5) * pixel
+    x, y = np.meshgrid(stbd, fwd)
+    r, theta = np.hypot(x, y), np.degrees(np.arctan2(x, y))
+    angles = s.beam_angles_deg()
+    step = angles[1] - angles[0] if angles.size > 1 else s.field_of_view_deg
+    k = np.clip(np.rint((theta - angles[0]) / step).astype(np.int64), 0, angles.size - 1)
+    sample = np.rint(r / record.slant_range_m[1]).astype(np.int64)
+    ok = (sample < record.data.shape[2]) & (np.abs(theta - angles[k]) <= 0.5 * step + 1e-9)
+    image = np.full(r.shape, np.nan)
+    image[ok] = record.data[ping, k[ok], sample[ok]]
+    return image, (stbd[0] - 0.5 * pixel, stbd[-1] + 0.5 * pixel, 0.0, n_y * pixel)
+
+
+def save_fan_png(record, path, ping: int | None = None, dynamic_range_db: float = 40.0) -> None:
+    """Write :func:`fan_image` as an 8-bit PNG (atomic): display TVG R², dB, white at the 99.9th percentile,
+    ``dynamic_range_db`` below it black (and outside the fan)."""
+    import imageio.v3 as iio
+
+    from ..io.files import atomic_write
+
+    img, (left, right, near, far) = fan_image(record, ping)
+    ny, nx = img.shape
+    x = np.linspace(left, right, nx)
+    y = np.linspace(far, near, ny)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = 10.0 * np.log10(img * np.add.outer(y ** 2, x ** 2))
+    top = np.nanpercentile(db[np.isfinite(db)], 99.9) if np.isfinite(db).any() else 0.0
+    grey = np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0.0, 1.0)
+    out = np.nan_to_num(np.rint(255 * grey), nan=0.0).astype(np.uint8)
+    atomic_write(path, lambda tmp: iio.imwrite(tmp, out, extension=".png"), suffix=".png")
