@@ -22,16 +22,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.p
 import sonar_embree as se  # noqa: E402
 from sonar_embree.runs import runconfig  # noqa: E402
 from sonar_embree.sonars.forward_looking import fan_image  # noqa: E402
-
-
-def _grey(img, dynamic_range_db=40.0):
-    """fan_image → 8-bit: display TVG R², dB, white at the 99.9th percentile."""
-    n_y, n_x = img.shape
-    with np.errstate(divide="ignore", invalid="ignore"):
-        db = 10 * np.log10(img)
-    top = np.nanpercentile(db[np.isfinite(db)], 99.9)
-    return np.nan_to_num(np.rint(255 * np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0, 1))).astype(
-        np.uint8)
+from sonar_embree.sonars.msis import display_grey  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -55,7 +46,7 @@ def main(argv=None) -> int:
         img, (left, right, near, far) = fan_image(rec, 0, pixel_m=0.05)
         y = np.linspace(far, near, img.shape[0])[:, None]
         x = np.linspace(left, right, img.shape[1])[None, :]
-        panels.append(_grey(img * (x ** 2 + y ** 2)))
+        panels.append(display_grey(img, x ** 2 + y ** 2, 40.0))
     plotting.mosaic_png(panels, list(info), os.path.join(args.output, "fan.png"), columns=2)
     text = json.dumps(info, indent=1) + "\n"
     atomic_write(os.path.join(args.output, "fls.json"), lambda tmp: open(tmp, "w").write(text))

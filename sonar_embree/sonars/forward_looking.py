@@ -34,7 +34,7 @@ from ..environment import Environment
 from ..errors import ConfigError
 from ..receiver import Receiver
 from ..validation import check_number
-from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN
+from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN, SideScanEquivalent, display_grey
 from .sidescan import SideScanFrontEnd
 
 #: Probe lines across the fan, at least (the side-scan probes three: a wide fan needs them everywhere): one per
@@ -45,7 +45,7 @@ U_MAX = 0.999
 
 
 @dataclass(frozen=True)
-class ForwardLooking(Transducer):
+class ForwardLooking(SideScanEquivalent, Transducer):
     """A forward-looking multibeam imaging sonar.
 
     Parameters
@@ -144,28 +144,12 @@ class ForwardLooking(Transducer):
                      environment=self.environment, source_level_db=self.source_level_db,
                      self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver)
 
-    # what the back ends and the receiver read of a sonar: the element's side-scan's
-    @property
-    def n_samples(self) -> int:
-        return self.as_sidescan().n_samples
-
-    @property
-    def range_bin_m(self) -> float:
-        return self.as_sidescan().range_bin_m
-
-    @property
-    def default_speckle_cell_m(self) -> float:
-        return self.as_sidescan().default_speckle_cell_m
-
     @property
     def directivity_index_db(self) -> float:
         """A beam's receiving DI: the element's (Urick §3.6) plus the array gain 10·log10 M against isotropic
         noise (elements at λ/2, Urick §3.4), dB."""
         return self.as_sidescan().directivity_index_db + 10.0 * math.log10(self.n_elements)
 
-    @property
-    def tilt_rad(self) -> float:
-        return math.radians(self.tilt_deg)
 
 
 def array_samples(sonar: ForwardLooking, oversample: float):
@@ -282,12 +266,7 @@ def save_fan_png(record, path, ping: int | None = None, dynamic_range_db: float 
     from ..io.files import atomic_write
 
     img, (left, right, near, far) = fan_image(record, ping)
-    ny, nx = img.shape
-    x = np.linspace(left, right, nx)
-    y = np.linspace(far, near, ny)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        db = 10.0 * np.log10(img * np.add.outer(y ** 2, x ** 2))
-    top = np.nanpercentile(db[np.isfinite(db)], 99.9) if np.isfinite(db).any() else 0.0
-    grey = np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0.0, 1.0)
-    out = np.nan_to_num(np.rint(255 * grey), nan=0.0).astype(np.uint8)
+    x = np.linspace(left, right, img.shape[1])
+    y = np.linspace(far, near, img.shape[0])
+    out = display_grey(img, np.add.outer(y ** 2, x ** 2), dynamic_range_db)
     atomic_write(path, lambda tmp: iio.imwrite(tmp, out, extension=".png"), suffix=".png")

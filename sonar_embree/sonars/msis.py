@@ -33,8 +33,29 @@ HEAD_FROM_SIDESCAN = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0
 ELEVATION_NULLS = 3
 
 
+class SideScanEquivalent:
+    """Mixin of the sonar types cast by a side-scan's fan (``as_sidescan()``): what the back ends and the receiver
+    read of a sonar is the equivalent side-scan's."""
+
+    @property
+    def n_samples(self) -> int:
+        return self.as_sidescan().n_samples
+
+    @property
+    def range_bin_m(self) -> float:
+        return self.as_sidescan().range_bin_m
+
+    @property
+    def default_speckle_cell_m(self) -> float:
+        return self.as_sidescan().default_speckle_cell_m
+
+    @property
+    def tilt_rad(self) -> float:
+        return math.radians(self.tilt_deg)
+
+
 @dataclass(frozen=True)
-class MSIS(Transducer):
+class MSIS(SideScanEquivalent, Transducer):
     """A mechanically scanning imaging sonar.
 
     Parameters
@@ -112,26 +133,9 @@ class MSIS(Transducer):
         off = np.where(phase <= n, phase, 2 * n - phase) * self.step_deg
         return (self.start_bearing_deg - 0.5 * n * self.step_deg + off) % 360.0
 
-    # what the back ends and the receiver read of a sonar: the equivalent side-scan's
-    @property
-    def n_samples(self) -> int:
-        return self.as_sidescan().n_samples
-
-    @property
-    def range_bin_m(self) -> float:
-        return self.as_sidescan().range_bin_m
-
-    @property
-    def default_speckle_cell_m(self) -> float:
-        return self.as_sidescan().default_speckle_cell_m
-
     @property
     def directivity_index_db(self) -> float:
         return self.as_sidescan().directivity_index_db
-
-    @property
-    def tilt_rad(self) -> float:
-        return math.radians(self.tilt_deg)
 
 
 class MSISFrontEnd(SideScanFrontEnd):
@@ -231,10 +235,15 @@ def save_polar_png(record, path, pixel_m: float | None = None, dynamic_range_db:
     img, ext = polar_image(record, pixel_m)
     n = img.shape[0]
     c = (np.arange(n) + 0.5 - n / 2) * (ext[1] - ext[0]) / n
-    r2 = np.add.outer(c ** 2, c ** 2)
+    atomic_write(path, lambda tmp: iio.imwrite(tmp, display_grey(img, np.add.outer(c ** 2, c ** 2), dynamic_range_db),
+                                               extension=".png"), suffix=".png")
+
+
+def display_grey(img, r2, dynamic_range_db: float) -> np.ndarray:
+    """8-bit grey of a display image (NaN outside the scan): display TVG ``r2`` (R², m²), dB, white at the 99.9th
+    percentile, ``dynamic_range_db`` below it black (and NaN)."""
     with np.errstate(divide="ignore", invalid="ignore"):
         db = 10.0 * np.log10(img * r2)
     top = np.nanpercentile(db[np.isfinite(db)], 99.9) if np.isfinite(db).any() else 0.0
     grey = np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0.0, 1.0)
-    out = np.nan_to_num(np.rint(255 * grey), nan=0.0).astype(np.uint8)
-    atomic_write(path, lambda tmp: iio.imwrite(tmp, out, extension=".png"), suffix=".png")
+    return np.nan_to_num(np.rint(255 * grey), nan=0.0).astype(np.uint8)
