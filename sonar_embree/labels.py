@@ -36,7 +36,8 @@ ECHO_FRACTION = 0.1
 
 @dataclass(frozen=True, eq=False)
 class Labels:
-    """Per-sample ground truth, each array shaped (2, n_pings, n_samples): side 0 port, 1 starboard.
+    """Per-sample ground truth, each array shaped (channels, n_pings, n_samples): the record's channels (a
+    side-scan's side 0 port, 1 starboard; an MSIS's beam; a forward-looking sonar's beams).
 
     Attributes
     ----------
@@ -81,8 +82,8 @@ class Labels:
 
     def __post_init__(self):
         shape = self.kind.shape
-        if len(shape) != 3 or shape[0] != 2:
-            raise ConfigError(f"Labels arrays must be shaped (2, n_pings, n_samples), got {shape}")
+        if len(shape) != 3 or shape[0] < 1:
+            raise ConfigError(f"Labels arrays must be shaped (channels, n_pings, n_samples), got {shape}")
         for name in self.ARRAYS:
             if getattr(self, name).shape != shape:
                 raise ConfigError(f"Labels.{name} has shape {getattr(self, name).shape}, expected {shape}")
@@ -132,11 +133,19 @@ class Labels:
             raise ConfigError(f"unknown label array {name!r}; one of {self.ARRAYS}")
         block = waterfall_block(self.kind.shape[2], max_columns)
         sides = []
-        for side in range(2):
+        for side in range(self._image_channels()):
             a = getattr(self, name)[side]
             keep = self.kind[side] != WATER
             sides.append(_block_first(a, keep, block))
-        return np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
+        return sides[0] if len(sides) == 1 else np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
+
+    def _image_channels(self) -> int:
+        """Channels of the waterfall image (2: port mirrored on the left; 1: the one channel)."""
+        n = self.kind.shape[0]
+        if n > 2:
+            raise ConfigError(f"label images are waterfalls of one or two channels; these labels have {n} "
+                              "(a multibeam's: use the arrays, channels × pings × samples)")
+        return n
 
     def echo_mask(self, i: int, fraction: float = ECHO_FRACTION) -> np.ndarray:
         """(2, n_pings, n_samples) bool: where object ``i``'s echo is the strongest object echo and at
@@ -208,11 +217,11 @@ class Labels:
         """
         block = waterfall_block(self.kind.shape[2], max_columns)
         sides = []
-        for side in range(2):
+        for side in range(self._image_channels()):
             m = selected[side]
             pad = (-m.shape[1]) % block
             sides.append(np.pad(m, ((0, 0), (0, pad))).reshape(m.shape[0], -1, block).any(axis=2))
-        return np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
+        return sides[0] if len(sides) == 1 else np.concatenate([sides[0][:, ::-1], sides[1]], axis=1)
 
 
 def _block_first(a, keep, block):
@@ -255,10 +264,12 @@ def _footprint_lines(u, f, normals, range_m, dbeta, slope_cap):
 
 
 def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
-                is_seafloor: np.ndarray, max_range_m: float, dr_m: float, origin_z_m: float, out) -> None:
-    """Ground truth of a block of pings along each ping's centre line (along-track angle 0).
+                is_seafloor: np.ndarray, max_range_m: float, dr_m: float, origin_z_m: float, out,
+                lines=None) -> None:
+    """Ground truth of a block of pings along each ping's label lines (side-scan: its centre lines, along-track
+    angle 0, one per side).
 
-    The centre line is the block fan's boresight azimuth line (its rays and echoes are
+    A label line is one azimuth line of one side of the block's fan (its rays and echoes are
     reused; weights carry the fan's azimuth factor, which scales every score alike).
     Each is followed past its first hit, through objects and back faces, to the
     first seafloor surface facing the sonar: where only such hidden footprints
@@ -275,28 +286,36 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
         Slant range per sample, m.
     origin_z_m : float
         World z of the scene's local origin, m.
-    out : tuple of 5 arrays (pings, 2, n_s)
+    out : tuple of 5 arrays (pings, channels, n_s)
         kind (int8), object_id, shadow_of (int32), height_m, ground_range_m (float32), written.
+    lines : (sides, azimuth indices), optional
+        Each channel's fan side (0 port, 1 starboard) and azimuth line (default :func:`centre_lines`).
     """
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     c = caster.compiled
-    el_start, n = e.el_start, int(e.el_start[-1])
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
-    cos_b, sin_b = np.cos(e.beta), np.sin(e.beta)
-    # the fan's boresight azimuth line (s = 0) is the centre line: its rays were cast already
-    a0 = int(np.flatnonzero(plan.s == 0.0)[0])
-    row = np.repeat(np.arange(el_start.shape[0] - 1), np.diff(el_start))
-    n_el = np.diff(el_start)[row]
-    centre = plan.s.shape[0] * el_start[row] + a0 * n_el + (np.arange(n) - el_start[row])
+    # each label line's rays: its fan row's rays of one azimuth line (cast already)
+    sides, az = centre_lines(plan) if lines is None else lines
+    n_p, n_ch, n_az = rot.shape[0], len(sides), plan.s.shape[0]
+    src = 2 * np.arange(n_p)[:, None] + np.asarray(sides)[None, :]          # (pings, channels): the fan's row
+    n_el = np.diff(e.el_start)[src].ravel()
+    el_start = np.concatenate(([0], np.cumsum(n_el))).astype(np.int64)
+    n = int(el_start[-1])
+    row = np.repeat(np.arange(n_p * n_ch), n_el)                           # the label row of each ray
+    j = np.arange(n) - el_start[row]
+    fan_row, line = src.ravel()[row], np.tile(np.asarray(az), n_p)[row]
+    centre = n_az * e.el_start[fan_row] + line * np.diff(e.el_start)[fan_row] + j
     prim, tfar = e.prim[centre], e.tfar[centre]
-    rng, w = e.range_m[centre], e.weight[centre]
+    rng, w, dbeta = e.range_m[centre], e.weight[centre], e.dbeta[e.el_start[fan_row] + j]
+    beta = e.beta[e.el_start[fan_row] + j]
+    cos_b, sin_b = np.cos(beta), np.sin(beta)
 
-    # float64 directions u and ∂u/∂β of every centre-line ray, in the world frame
-    b, side = row // 2, np.where(row % 2, 1.0, -1.0)
-    zero = np.zeros(n)
-    u = np.einsum("nij,nj->ni", rot[b], np.stack([zero, side * cos_b, sin_b], axis=1))
-    f = np.einsum("nij,nj->ni", rot[b], np.stack([zero, -side * sin_b, cos_b], axis=1))
+    # float64 directions u and ∂u/∂β of every label ray, in the world frame
+    b, side, sa = fan_row // 2, np.where(fan_row % 2, 1.0, -1.0), plan.s[line]
+    cpsi = np.sqrt(1.0 - sa * sa)
+    u = np.einsum("nij,nj->ni", rot[b], np.stack([sa, side * cpsi * cos_b, cpsi * sin_b], axis=1))
+    f = np.einsum("nij,nj->ni", rot[b], np.stack([np.zeros(n), -side * cpsi * sin_b, cpsi * cos_b], axis=1))
     origin = pos_local[b]
 
     lit = w > 0.0
@@ -304,7 +323,7 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
     lit_obj = np.where(prim >= 0, c.face_object[np.maximum(prim, 0)], -1).astype(np.int32)
     lit_dir, ext = np.zeros((n, 3)), np.zeros(n)  # footprints even where the fan splats point echoes
     if lit.any():
-        lit_dir[lit], ext[lit] = _footprint_lines(u[lit], f[lit], c.face_normals[prim[lit]], rng[lit], e.dbeta[lit],
+        lit_dir[lit], ext[lit] = _footprint_lines(u[lit], f[lit], c.face_normals[prim[lit]], rng[lit], dbeta[lit],
                                                   plan.slope_cap_m_rad)
     score = np.where(lit, w / np.maximum(ext, dr_m), 0.0)
 
@@ -341,17 +360,24 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
                 & (np.abs(r64 - hid_r[hid]) <= kernels.REFIT_REL_TOL * (1.0 + hid_r[hid])))
         hid_r[hid] = np.where(good, r64, hid_r[hid])
         hid_pt[hid] = origin[hid] + hid_r[hid][:, None] * u[hid]
-        hid_dir[hid], hid_ext[hid] = _footprint_lines(u[hid], f[hid], nrm, hid_r[hid], e.dbeta[hid],
+        hid_dir[hid], hid_ext[hid] = _footprint_lines(u[hid], f[hid], nrm, hid_r[hid], dbeta[hid],
                                                       plan.slope_cap_m_rad)
-    rows, n_s = 2 * rot.shape[0], out[0].shape[-1]
+    rows, n_s = n_p * n_ch, out[0].shape[-1]
     flat = [a.reshape(rows, n_s) for a in out]
     kernels.label_rows(el_start, float(dr_m), rng, ext, score, lit_obj, pts, lit_dir, hid_r, hid_ext, lit_obj,
-                       hid_pt, hid_dir, pos_local, np.ascontiguousarray(is_seafloor, dtype=np.bool_),
-                       float(origin_z_m), np.empty((rows, n_s)), *flat)
+                       hid_pt, hid_dir, np.repeat(pos_local, n_ch, axis=0),
+                       np.ascontiguousarray(is_seafloor, dtype=np.bool_), float(origin_z_m), np.empty((rows, n_s)),
+                       *flat)
+
+
+def centre_lines(plan: FanPlan):
+    """The side-scan's label lines: (sides, azimuth indices) of its two channels, each side's boresight line."""
+    a0 = int(np.flatnonzero(plan.s == 0.0)[0])
+    return (0, 1), (a0, a0)
 
 
 def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel: np.ndarray, lead: int,
-                      out_id: np.ndarray, out_value: np.ndarray) -> None:
+                      out_id: np.ndarray, out_value: np.ndarray, beams=None) -> None:
     """The strongest object echo at every sample of a block, from every echo of the block.
 
     Each object (not seafloor) echoing in the block has its echoes splatted and
@@ -374,17 +400,22 @@ def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel
         Written: object index of the strongest object echo, −1 where none.
     out_value : (pings, channels, n_out) float32
         Written: its expected intensity (unit source, no TVG).
+    beams : (channels, e.n_channels) float64, optional
+        A beamformer's power weights (AF²) from the echoes' channels to the record's (default: the same).
     """
     n_p, n_ch, n_out = out_id.shape
+    n_in = e.n_channels
     obj = np.where((e.object_id >= 0) & ~is_seafloor[np.maximum(e.object_id, 0)], e.object_id, -1)
     best = np.zeros((n_ch * n_p, n_out))
     best_id = np.full((n_ch * n_p, n_out), -1, dtype=np.int32)
     n_s = n_out + lead
     for k in np.unique(obj[obj >= 0]):
-        buf = np.zeros((n_ch * n_p, n_s))
+        buf = np.zeros((n_in * n_p, n_s))
         kernels.splat_rows(e.ray_start, e.travel_time_s * rate_hz, e.extent_s * rate_hz,
                            np.where(obj == k, e.weight, 0.0), buf)
         img = convolve_time(buf, kernel, lead)[:, :n_out]
+        if beams is not None:
+            img = np.matmul(beams, img.reshape(n_p, n_in, n_out)).reshape(n_p * n_ch, n_out)
         better = img > best
         best[better], best_id[better] = img[better], k
     out_id[...] = best_id.reshape(n_p, n_ch, n_out)
@@ -392,7 +423,11 @@ def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel
 
 
 class GroundTruth:
-    """Per-sample ground truth of a record, block by block (side-scan centre lines and object echoes).
+    """Per-sample ground truth of a record, block by block (each channel's label line and object echoes).
+
+    A front end may declare ``label_lines()`` (its channels' fan sides and azimuth lines, :func:`label_block`;
+    default the side-scan's centre lines) and ``beam_power`` (a beamformer's AF² from its echo channels to its
+    record's, :func:`object_echo_block`).
 
     Parameters
     ----------
@@ -412,9 +447,9 @@ class GroundTruth:
         b, c, s = a + e.n_pings, self.compiled, front.sonar
         label_block(caster, front.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
                     s.sound_speed_m_s / (2.0 * s.sample_rate_hz), float(c.origin_m[2]),
-                    tuple(x[a:b] for x in self.arrays[:5]))
+                    tuple(x[a:b] for x in self.arrays[:5]), getattr(front, "label_lines", lambda: None)())
         object_echo_block(e, c.is_seafloor, s.sample_rate_hz, self.kernel, self.lead, self.arrays[5][a:b],
-                          self.arrays[6][a:b])
+                          self.arrays[6][a:b], getattr(front, "beam_power", None))
 
     def labels(self) -> "Labels":
         """The :class:`Labels`, arrays (channels, pings, samples)."""

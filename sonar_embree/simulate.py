@@ -277,7 +277,8 @@ class _Run:
             raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from coherent baseband signals; "
                               "speckle needs band='baseband' and detection='coherent'")
         if labels and not front.supports_labels:
-            raise ConfigError(f"simulate: labels are made for side-scan sonars, not {type(sonar).__name__}")
+            raise ConfigError(f"simulate: labels are made for side-scan, MSIS and forward-looking sonars, not "
+                              f"{type(sonar).__name__}")
         compiled = scene.compiled(survey_origin(trajectory.positions_m))  # the frame where the rays are
         caster = (RayCaster if caster is None else caster).for_scene(compiled)  # built once per scene
         c, fs = sonar.sound_speed_m_s, sonar.sample_rate_hz
@@ -293,7 +294,7 @@ class _Run:
         back_n0 = None if hasattr(front, "beamform") else n0  # a beamformer adds the noise to its beams
         back = (SpeckleSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0) if chain.speckle
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0, kernel))
-        truth = GroundTruth((n_p, n_ch, n_out), compiled, kernel) if labels else None
+        truth = GroundTruth((n_p, len(front.channels), n_out), compiled, kernel) if labels else None
         rots = _mounted(front, trajectory, ping_offset)
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
                    np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,

@@ -252,7 +252,7 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
         return p + np.clip(t, -half, half) * d
 
     for r in range(rows):
-        o = pos[r // 2]
+        o = pos[r]
         js = range(el_start[r], el_start[r + 1])
         for n in range(n_s):
             def overlaps(rr, ext):

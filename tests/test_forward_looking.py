@@ -148,8 +148,8 @@ def test_flat_floor_boresight_beam_matches_quadrature():
 
 def test_fan_image_zarr_and_toml(tmp_path):
     """The shipped config loads as a ForwardLooking; the fan display puts a sphere's echo at its position within
-    two pixels; the Zarr store holds one (ping, beam, sample) intensity with the steering angles; XTF, labels,
-    a swell and non-coherent speckle are refused naming what is missing."""
+    two pixels; the Zarr store holds one (ping, beam, sample) intensity with the steering angles; a swell and
+    non-coherent speckle are refused naming what is missing."""
     import xarray as xr
 
     from sonar_embree.io import registry
@@ -171,8 +171,6 @@ def test_fan_image_zarr_and_toml(tmp_path):
     assert ds["intensity"].dims == ("ping", "beam", "sample") and ds.sizes["beam"] == 61
     np.testing.assert_array_equal(ds["intensity"].values, rec.data)
     np.testing.assert_allclose(ds["beam_angle_deg"].values, rec.sonar.beam_angles_deg())
-    with pytest.raises(se.ConfigError, match="labels"):
-        se.simulate(_ball_scene(x, y, H), _still(), _sonar(), labels=True)
     with pytest.raises(se.ConfigError, match="coherent"):
         se.simulate(_ball_scene(x, y, H), _still(), _sonar(), speckle=True, detection="incoherent", band="carrier")
     with pytest.raises(se.ConfigError, match="swell"):
@@ -203,3 +201,43 @@ def test_receiver_noise_is_added_per_beam(speckle):
         np.testing.assert_allclose(rec.data, n * FS, rtol=1e-9)
     with pytest.raises(se.ConfigError, match=r"beam000, beam001, beam002, … \(61 channels\)$"):
         rec.to_xtf("never.xtf")
+
+
+def test_labels_per_beam_and_sample():
+    """Ground truth per beam along the azimuth line nearest its steering direction: a 1 m ball 13 m ahead at
+    18° is an object in the beams its cone angle spans and in no other, its shadow lies behind it in the same
+    beams; the floor samples of the boresight beam sit at z = 0 and ground range √(R² − H²) (within a sample's
+    footprint); the object echoes are beamformed as the record is (the ball's echo spreads into neighbours by
+    the array's side lobes); the labels go through the Zarr store with a beam dimension."""
+    import trimesh
+    import xarray as xr
+
+    scene = se.Scene().add(se.seafloor.flat((200.0, 200.0)), label="seafloor")
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    ball.apply_translation((12.0, -4.0, 0.5))
+    scene.add(ball, label="ball")
+    fls = _sonar()
+    rec = se.simulate(scene, _still(), fls, se.Pulse.cw(duration_s=TAU, taper=0.0), labels=True,
+                      start_time="2000-01-01")
+    lab = rec.labels
+    assert lab.kind.shape == (61, 1, rec.data.shape[2])
+    big_r = math.dist((0, 0, H), (12.0, -4.0, 0.5))
+    u_c, half = 4.0 / big_r, math.asin(0.5 / big_r)                     # the centre's cosine to starboard
+    u_k = np.sin(np.radians(fls.beam_angles_deg()))
+    obj_beams = np.unique(np.argwhere(lab.kind[:, 0] == 2)[:, 0])
+    assert obj_beams.size >= 3 and np.all(np.abs(u_k[obj_beams] - u_c) <= math.sin(half) + 0.01)
+    for k in obj_beams:
+        first_shadow = np.flatnonzero(lab.kind[k, 0] == 3)
+        assert first_shadow.size and rec.slant_range_m[first_shadow[0]] > big_r - 0.5
+    floor = (lab.kind[30, 0] == 1) & (rec.slant_range_m > H + 0.05)     # past the nadir sample's footprint
+    assert floor.sum() > 1000
+    r = rec.slant_range_m[floor]
+    np.testing.assert_allclose(lab.height_m[30, 0][floor], 0.0, atol=0.02)
+    np.testing.assert_allclose(lab.ground_range_m[30, 0][floor], np.sqrt(r ** 2 - H ** 2), atol=0.05)
+    echo_beams = np.unique(np.argwhere(lab.echo_object[:, 0] == 1)[:, 0])
+    assert set(obj_beams) <= set(echo_beams)
+    ds = rec.to_xarray()
+    assert ds["label_kind"].dims == ("beam", "ping", "sample")
+    np.testing.assert_array_equal(ds["label_kind"].values, lab.kind)
+    with pytest.raises(se.ConfigError, match="multibeam"):
+        lab.waterfall()

@@ -132,9 +132,11 @@ def test_label_rows_matches_its_numpy_twin(rng):
     floor = np.array([True, False, False])
     out = (np.zeros((rows, n_s), np.int8), np.zeros((rows, n_s), np.int32), np.zeros((rows, n_s), np.int32),
            np.zeros((rows, n_s), np.float32), np.zeros((rows, n_s), np.float32))
-    kernels.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos, floor, 2.5,
+    pos_rows = np.repeat(pos, 2, axis=0)                                # each row's ping's position
+    kernels.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos_rows, floor, 2.5,
                        np.empty((rows, n_s)), *out)
-    want = naive.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos, floor, 2.5, n_s)
+    want = naive.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos_rows, floor, 2.5,
+                            n_s)
     for got, ref in zip(out[:3], want[:3]):
         np.testing.assert_array_equal(got, ref)
     for got, ref in zip(out[3:], want[3:]):

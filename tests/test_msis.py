@@ -156,3 +156,27 @@ def test_polar_png_output_is_the_msis_display(tmp_path):
     side = se.simulate(_floor(), _still(2), se.Sonar(max_range_m=15.0))
     with pytest.raises(se.ConfigError, match="an MSIS record is needed"):
         registry.write_each(side, str(tmp_path), ["polar"])
+
+
+def test_labels_along_the_beam(tmp_path):
+    """Ground truth along each ping's beam centre line: a box 8 m from a still head is an object in the pings
+    whose bearing points at it (and a shadow behind it), floor samples sit at z = 0 and ground range √(R² − h²);
+    the one-channel label image is the ping × sample waterfall."""
+    import trimesh
+
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    box.apply_translation((8.0 * np.sin(np.radians(30.0)), 8.0 * np.cos(np.radians(30.0)), 0.5))  # ahead: heading 30°
+    scene = _floor().add(box, label="box")
+    rec = se.simulate(scene, _still(40), se.MSIS(step_deg=9.0, max_range_m=15.0), labels=True)
+    lab = rec.labels
+    assert lab.kind.shape == (1, 40, rec.data.shape[2])
+    bearings = rec.sonar.bearings_deg(np.arange(40))
+    hit = np.flatnonzero((lab.kind[0] == 2).any(axis=1))
+    assert hit.size and np.all(np.minimum(bearings[hit], 360.0 - bearings[hit]) <= 9.0)
+    assert (lab.kind[0, hit] == 3).any()
+    floor = (lab.kind[0] == 1) & (rec.slant_range_m > H + 0.05)          # past the nadir sample's footprint
+    r = np.broadcast_to(rec.slant_range_m, floor.shape)[floor]
+    np.testing.assert_allclose(lab.height_m[0][floor], 0.0, atol=0.02)
+    np.testing.assert_allclose(lab.ground_range_m[0][floor], np.sqrt(r ** 2 - H ** 2), atol=0.05)
+    assert lab.waterfall(max_columns=None).shape == (40, rec.data.shape[2])
+    lab.save_png(tmp_path / "labels.png")

@@ -60,7 +60,7 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
     Parameters
     ----------
     el_start : (rows + 1,) int64
-        Ray offsets of each row (row = 2·ping + side).
+        Ray offsets of each row (one label line of one ping).
     dr : float
         Slant-range spacing of the samples, m.
     lit_range, lit_extent, lit_score : (n,) float64
@@ -72,8 +72,8 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
     hid_range, hid_extent, hid_object, hid_point, hid_dir
         The same for the hidden seafloor hit (range NaN: none); ``hid_object`` is
         the occluder (the first hit's object).
-    pos : (pings, 3) float64
-        Sonar positions, local frame, m.
+    pos : (rows, 3) float64
+        Sonar position of each row's ping, local frame, m.
     is_seafloor : (n_objects,) bool
     origin_z : float
         World z of the local origin, m.
@@ -84,10 +84,9 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
     """
     n_s = kind.shape[1]
     for r in prange(el_start.shape[0] - 1):
-        b = r // 2
-        ox = pos[b, 0]
-        oy = pos[b, 1]
-        oz = pos[b, 2]
+        ox = pos[r, 0]
+        oy = pos[r, 1]
+        oz = pos[r, 2]
         for n in range(n_s):
             best[r, n] = 0.0
             kind[r, n] = 0

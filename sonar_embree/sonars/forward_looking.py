@@ -162,9 +162,10 @@ def array_samples(sonar: ForwardLooking, oversample: float):
 
 class ForwardLookingFrontEnd(SideScanFrontEnd):
     """Poses → echoes for a :class:`ForwardLooking`: one element's fan looking forward, one channel per azimuth
-    line; :meth:`beamform` turns those into the beams."""
+    line; :meth:`beamform` turns those into the beams. Ground truth per beam: along the azimuth line nearest its
+    steering direction, and the object echoes beamformed as the record is (:attr:`beam_power`)."""
 
-    supports_labels = False
+    supports_labels = True
 
     def __init__(self, sonar: ForwardLooking, fan: FanSettings):
         if sonar.environment.surface is not None and not sonar.environment.surface.is_flat:
@@ -180,6 +181,13 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
         self.fls, self.channels = sonar, sonar.channels
         self.n_synth_channels = s.shape[0]
         self.af = sonar.array_factor(-s)                           # u to starboard = −s (HEAD_FROM_SIDESCAN)
+        self.beam_power = self.af ** 2
+
+    def label_lines(self):
+        """Each beam's label line: the fan's (starboard) azimuth line nearest its steering direction."""
+        u_k = np.sin(np.radians(self.fls.beam_angles_deg()))
+        az = np.argmin(np.abs(self.plan.s[None, :] + u_k[:, None]), axis=1)
+        return (1,) * u_k.shape[0], tuple(int(a) for a in az)
 
     def mount(self, rot: np.ndarray, pings: np.ndarray) -> np.ndarray:
         """Body-to-world rotations of the side-scan fan whose starboard side looks along the vehicle's forward axis."""
@@ -198,7 +206,7 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
             if noise is not None:
                 beams += noise(beams.shape, True)
             return beams.real ** 2 + beams.imag ** 2, beams
-        out = np.matmul(self.af ** 2, intensity)
+        out = np.matmul(self.beam_power, intensity)
         if noise is not None:
             out += noise(out.shape, False)
         return out, None
