@@ -273,9 +273,9 @@ class _Run:
         if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
             raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
                               "(the complex signal exists only there)")
-        if hasattr(front, "beamform") and chain.speckle and (chain.band, chain.detection) != ("baseband", "coherent"):
-            raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from coherent baseband signals; "
-                              "speckle needs band='baseband' and detection='coherent'")
+        if hasattr(front, "beamform") and chain.speckle and chain.detection != "coherent":
+            raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from complex signals; its speckle "
+                              "needs detection='coherent'")
         if labels and not front.supports_labels:
             raise ConfigError(f"simulate: labels are made for side-scan, MSIS and forward-looking sonars, not "
                               f"{type(sonar).__name__}")
