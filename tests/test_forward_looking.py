@@ -257,3 +257,44 @@ def test_beamformed_speckle_is_fully_developed_in_either_band(band):
     ratio = speckled.data[:, :, band_] / expected.data[:, :, band_]
     assert ratio.size > 50_000
     assert abs(ratio.mean() - 1) < 0.05 and abs(ratio.std() / ratio.mean() - 1) < 0.1
+
+
+def test_a_sweep_varies_the_forward_looking_sonar(tmp_path):
+    """A batch sweep over the forward-looking sonar's own keys (here its beam count):
+    every job's sonar is built from its [sonar] table and [vary] entries, checked before any work."""
+    from sonar_embree.runs.sweep import load_sweep
+
+    text = """\
+[sweep]
+name = "fls"
+outputs = ["zarr", "npz"]
+
+[sonar]
+type = "forward_looking"
+n_elements = 16
+field_of_view_deg = 40.0
+max_range_m = 8.0
+
+[vary]
+"sonar.n_beams" = [9, 17]
+
+[[scenes]]
+name = "flat"
+  [[scenes.objects]]
+  seafloor = "flat"
+  size_m = [30.0, 30.0]
+
+[[trajectories]]
+name = "pass"
+kind = "line"
+start = [0.0, 0.0, 3.0]
+end = [1.0, 0.0, 3.0]
+n_pings = 2
+"""
+    (tmp_path / "s.toml").write_text(text)
+    sweep = load_sweep(tmp_path / "s.toml")
+    assert [(type(j.sonar).__name__, j.sonar.n_beams) for j in sweep.jobs] == [("ForwardLooking", 9),
+                                                                              ("ForwardLooking", 17)]
+    (tmp_path / "t.toml").write_text(text.replace('"sonar.n_beams" = [9, 17]', '"sonar.n_beams" = [0, 17]'))
+    with pytest.raises(se.ConfigError, match="n_beams"):
+        load_sweep(tmp_path / "t.toml")
