@@ -119,6 +119,7 @@ def test_msis_record_round_trips_and_exports():
     assert back.sonar == rec.sonar and np.array_equal(back.data, rec.data)
     ds = rec.to_xarray()
     assert "beam" in ds and ds["beam"].dims == ("ping", "sample")
+    np.testing.assert_allclose(ds["bearing_deg"].values, [0.0, 10.0, 20.0])          # the head's bearing per ping
 
 
 def test_toml_sonar_type_msis_renders(tmp_path):

@@ -134,6 +134,11 @@ def to_xarray(record):
                          {"units": "s", "long_name": "time from the start of transmission"}),
               "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
               **_ping_coords(record)}
+    if hasattr(record.sonar, "bearings_deg"):                          # an MSIS head's bearing per ping
+        first = int(record.attrs.get("first_ping", 0))
+        coords["bearing_deg"] = (("ping",), record.sonar.bearings_deg(first + np.arange(record.n_pings)),
+                                 {"units": "degree", "long_name": "head bearing, clockwise from the vehicle's forward "
+                                                                  "axis"})
     if beams:
         coords["beam_angle_deg"] = (("beam",), record.sonar.beam_angles_deg(),
                                     {"units": "degree", "long_name": "steering angle of the beam, to starboard"})
