@@ -1,6 +1,6 @@
 """The same physics verdicts on every scanning sonar type (issue: other scanning sonars): speckle statistics,
-the scattering law's scale, absorption, a sea surface's multipath and the source level, each checked against
-its closed form, parametrised over the side-scan, the MSIS (whose ping is the side-scan's fan on a head) and the
+the scattering law's scale, absorption, a sea surface's multipath, refraction in a sound-speed profile, the
+source level and the receiver's codes, each checked against its closed form, parametrised over the side-scan, the MSIS (whose ping is the side-scan's fan on a head) and the
 forward-looking sonar (the side-scan's fan turned forward, its azimuth lines beamformed).
 """
 import dataclasses
@@ -86,3 +86,34 @@ def test_source_level_scales_the_record(kind):
     unit, db = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, loud)
     np.testing.assert_allclose(db.data, unit.data * 10 ** 21.0, rtol=1e-9, atol=0)
     assert db.attrs["intensity_unit"] == "uPa^2"
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_sound_speed_profile_bends_the_rays_and_a_uniform_one_does_not(kind):
+    """A uniform profile is the homogeneous ocean bit for bit; in a gradient g = +0.5 s⁻¹ (1500 m/s at the sonar,
+    faster below) the first echo, from straight below, arrives at 2/g·ln(c_floor/c_sonar) (the vertical ray's
+    closed form), 4 samples of 5 µs earlier than 2h/c, within one sample."""
+    sonar, traj = _case(kind, n=3, sample_rate_hz=200e3)
+    straight = se.simulate(_floor(), traj, sonar)
+    flat = se.SoundSpeedProfile(depth_m=[0.0, 100.0], speed_m_s=[1500.0, 1500.0], surface_z_m=H + 20.0)
+    same = se.simulate(_floor(), traj, sonar, environment=se.Environment(sound_speed=flat))
+    np.testing.assert_array_equal(same.data, straight.data)
+    grad = se.SoundSpeedProfile(depth_m=[0.0, 100.0], speed_m_s=[1490.0, 1540.0], surface_z_m=H + 20.0)
+    bent = se.simulate(_floor(), traj, sonar, environment=se.Environment(sound_speed=grad, sound_speed_m_s=1500.0))
+    t = straight.time_s
+    first = t[np.flatnonzero(bent.data.max(axis=(0, 1)) > 1e-6 * bent.data.max())[0]]
+    want = 2.0 / 0.5 * np.log((1500.0 + 0.5 * H) / 1500.0)
+    assert abs(first - want) <= t[1] and want < 2 * H / 1500.0 - 3 * t[1]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_receiver_codes_follow_the_level(kind):
+    """With a receiver (sensitivity, TVG, 12-bit ADC) every record carries integer codes within the ADC's range,
+    and a source 10 dB louder never lowers a code and raises their sum."""
+    rx = se.Receiver(adc_bits=12)
+    sonar, traj = _case(kind, n=2, source_level_db=190.0, receiver=rx)
+    quiet = se.simulate(_floor(), traj, sonar)
+    loud = se.simulate(_floor(), traj, dataclasses.replace(sonar, source_level_db=200.0))
+    assert quiet.samples is not None and quiet.samples.shape == quiet.data.shape
+    assert quiet.samples.max() <= 4095 and np.all(loud.samples.astype(int) >= quiet.samples.astype(int))
+    assert loud.samples.sum() > quiet.samples.sum()
