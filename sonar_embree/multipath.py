@@ -73,12 +73,22 @@ def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) ->
     return out
 
 
+def _can_block(caster, from_sonar: bool, pos_local) -> bool:
+    """Whether the scene can block any upward leg: from the sonar, when the scene reaches above it; from a hit
+    point, unless the scene is exactly level (every vertex at one height: such a leg leaves it at its top)."""
+    lo, hi = caster.compiled.bounds_local[:, 2]
+    return _below_top(caster, float(pos_local[:, 2].min())) if from_sonar else bool(hi > lo)
+
+
 def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w) -> None:
     """Zero the weights ``w`` (n,) of a block's echoes whose upward leg is blocked (see kernels.visibility_legs).
 
     Legs start at the sonar (``from_sonar``) or at the hit points ``x`` (n, 3) and run along ``dirs`` (n, 3)
-    for ``dist`` (n,) m; ``buf`` holds the float32 rays.
+    for ``dist`` (n,) m; ``buf`` holds the float32 rays. Nothing is done where nothing can block
+    (:func:`_can_block`).
     """
+    if not _can_block(caster, from_sonar, pos_local):
+        return
     n = w.shape[0]
     idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
                         buf.take("leg_dir", (n, 3), np.float32), buf.take("leg_len", n, np.float32))
@@ -205,15 +215,21 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
-    want_phi = wants_azimuth(c)
+    lambert = c.maps is None and c.textures is None and bool(np.all(np.isfinite(c.mu)))   # σ in the kernel
+    want_phi = wants_azimuth(c) and not lambert
+    legs = (_can_block(caster, False, pos_local), _can_block(caster, True, pos_local))
     kernels.mixed_legs(blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta), np.sin(blk.beta), blk.dbeta,
                        blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, _wave_kh(s), want_phi, t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
-    apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)
-    block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w)
-    block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w)
+                       s.sound_speed_m_s, _wave_kh(s), want_phi, c.mu if lambert else np.zeros(0), c.face_object,
+                       any(legs), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
+    if not lambert:
+        apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)
+    if legs[0]:
+        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w)
+    if legs[1]:
+        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w)
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 

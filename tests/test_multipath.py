@@ -277,13 +277,31 @@ def test_mixed_legs_kernel_matches_naive(rng):
     keys = ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")
     out, no_phi = ({k: np.full(n, np.nan) for k in keys} for _ in range(2))
     v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
-    for want_phi, o in ((True, out), (False, no_phi)):
+    face_object = rng.integers(0, 3, 7).astype(np.int32)
+    mu = np.array([0.01, 0.002, 0.05])
+    lam, no_legs = ({k: np.full(n, np.nan) for k in keys} for _ in range(2))
+    v_lam, u2_lam = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    for want_phi, o, mu_obj, legs, vv, uu in ((True, out, np.zeros(0), True, v, u2),
+                                              (False, no_phi, np.zeros(0), True, v, u2),
+                                              (False, lam, mu, True, v_lam, u2_lam),
+                                              (False, no_legs, np.zeros(0), False, np.full((n, 3), np.nan),
+                                               np.full((n, 3), np.nan))):
         kernels.mixed_legs(ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, r, x, prim,
-                           *rest, want_phi,
-                           *[o[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], v, o["leg1"], u2,
+                           *rest, want_phi, mu_obj, face_object, legs,
+                           *[o[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], vv, o["leg1"], uu,
                            o["leg2"])
     for k in keys:                          # without φ (a scene of laws that ignore it): the rest to the bit
         np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.full(n, np.nan), err_msg=k)
+        if k not in ("leg1", "leg2", "phi"):   # without the legs: none written, the rest to the bit
+            np.testing.assert_array_equal(no_legs[k], out[k], err_msg=k)
+    assert np.all(np.isnan(no_legs["leg1"])) and np.all(np.isnan(no_legs["leg2"]))
+    # Lambert in the kernel: the weight × (μ·cos θi)·cos θs (cosines clipped at 0) to the bit, as apply_bistatic does
+    lit = out["weight"] > 0
+    want = out["weight"].copy()
+    want[lit] = out["weight"][lit] * (mu[face_object[prim[lit]]] * np.clip(out["cos_i"][lit], 0, None)
+                                      * np.clip(out["cos_s"][lit], 0, None))
+    np.testing.assert_array_equal(lam["weight"], want)
+    np.testing.assert_array_equal(v_lam, v)
     hit = ~miss
     ref = naive.mixed_legs(x[hit], r[hit], ping[hit], side[hit], dbeta[hit], prim[hit], *rest)
     for k in out:

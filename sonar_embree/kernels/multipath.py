@@ -65,8 +65,9 @@ def _azimuth(n, u, v):
 
 @njit(cache=True, nogil=True, parallel=True)
 def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals,
-               beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, time_out,
-               extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out):
+               beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, mu_obj,
+               face_object, want_legs, time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out,
+               u2_out, leg2_out):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
@@ -112,6 +113,12 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
         k·h_w of the surface (0: a mirror).
     want_phi : bool
         Whether to write ``phi_out``.
+    mu_obj : (n_objects,) or (0,) float64; face_object : (f,) int32
+        Lambert's μ per object when every object has Lambert's law and there are no maps or texture: then σ =
+        μ·cos θi·cos θs is applied here (the weight × (μ·cos θi)·cos θs, as ``multipath.apply_bistatic`` would);
+        empty: σ is left to the caller.
+    want_legs : bool
+        Whether to write ``v_out``, ``u2_out``, ``leg1_out``, ``leg2_out`` (for the visibility legs).
     time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
     v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
         Written.
@@ -155,15 +162,20 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
             rb2 = max(r2, min_range_m)
             att = math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2])
             g = g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2          # = 2·g1²·g2², bit for bit, when δ = 0
-            weight_out[i] = g * att * ds * db / (rb2 * rb2 * cos_i)
+            w = g * att * ds * db / (rb2 * rb2 * cos_i)
+            cos_s = n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+            if mu_obj.shape[0] > 0 and w > 0.0:                       # Lambert: σ = μ·cos θi·cos θs, here
+                w = w * (mu_obj[face_object[p]] * max(cos_i, 0.0) * max(cos_s, 0.0))
+            weight_out[i] = w
             time_out[i] = (r[i] + r2) / sound_speed_m_s
             extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
-            cos_i_out[i], cos_s_out[i] = cos_i, n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+            cos_i_out[i], cos_s_out[i] = cos_i, cos_s
             if want_phi:
                 phi_out[i] = _azimuth(n, u, v)
-            v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
-            u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = px / leg2, py / leg2, pz / leg2
-            leg1_out[i], leg2_out[i] = leg1, leg2
+            if want_legs:
+                v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
+                u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = px / leg2, py / leg2, pz / leg2
+                leg1_out[i], leg2_out[i] = leg1, leg2
 
 
 @njit(cache=True, nogil=True, parallel=True)
