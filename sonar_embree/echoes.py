@@ -58,6 +58,12 @@ class Echoes:
         return (self.ray_start.shape[0] - 1) // self.n_channels
 
 
+def merged(e) -> Echoes:
+    """The one :class:`Echoes` of a block: ``e`` itself, or the merge of a block whose paths a front end kept
+    apart (:class:`sonar_embree.multipath.PathEchoes`, merged on first use)."""
+    return e.merged() if hasattr(e, "merged") else e
+
+
 def row_of(ray_start: np.ndarray) -> np.ndarray:
     """(n,) int: the row (channels·ping + channel) of every echo of offsets ``ray_start``."""
     return np.repeat(np.arange(ray_start.shape[0] - 1), np.diff(ray_start))

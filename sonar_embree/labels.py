@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import kernels
-from .echoes import Echoes
+from .echoes import Echoes, merged
 from .errors import ConfigError
 from .fan import BlockEchoes, FanPlan
 from .processing import convolve_time
@@ -444,6 +444,7 @@ class GroundTruth:
 
     def add_block(self, front, caster, blk, e: Echoes, a: int, rot, pos_local, max_range_m: float) -> None:
         """Labels of pings a … a + e.n_pings − 1 from the side-scan block ``blk`` and its echoes ``e``."""
+        e = merged(e)
         b, c, s = a + e.n_pings, self.compiled, front.sonar
         label_block(caster, front.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
                     s.sound_speed_m_s / (2.0 * s.sample_rate_hz), float(c.origin_m[2]),

@@ -233,6 +233,30 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 
+class PathEchoes:
+    """A block's echoes kept as its paths (direct, one bounce, two bounces, the surface line), in the same rows.
+
+    A back end that only adds echoes up (the speckle-free splatting) takes ``parts`` one after the other: row by
+    row that is the merged order, so the same bits, without the merge. Everything else takes :meth:`merged`
+    (:func:`sonar_embree.echoes.merged`), made on first use.
+    """
+
+    def __init__(self, parts, points: bool, buf: Buffers | None = None, paths=None):
+        self.parts, self._args, self._merged = tuple(parts), (points, buf, paths), None
+        self.n_channels = self.parts[0].n_channels
+
+    @property
+    def n_pings(self) -> int:
+        return self.parts[0].n_pings
+
+    def merged(self) -> Echoes:
+        """The lit echoes of every path, row by row, tagged with their path (:func:`merge`)."""
+        if self._merged is None:
+            points, buf, paths = self._args
+            self._merged = merge(self.parts, points, buf, paths)
+        return self._merged
+
+
 def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes:
     """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path
     (its index in ``parts``, or ``paths[index]``: the surface line is a direct path).

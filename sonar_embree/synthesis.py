@@ -19,7 +19,7 @@ import numpy as np
 
 from . import kernels, multipath, processing, pulses
 from .config import Pulse, SignalChain
-from .echoes import Echoes, select
+from .echoes import Echoes, merged, select
 from .processing import convolve_time
 
 
@@ -139,8 +139,9 @@ class ExpectedSynthesis:
         velocity ``vel_world`` moves only speckle phases, so it is not needed here."""
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
-        kernels.splat_rows(e.ray_start, e.travel_time_s * fs, e.extent_s * fs, e.weight,
-                           self.out[a:b].reshape(e.ray_start.shape[0] - 1, self.out.shape[-1]))
+        for part in getattr(e, "parts", (e,)):  # a block's paths one after the other: row by row, the merged order
+            kernels.splat_rows(part.ray_start, part.travel_time_s * fs, part.extent_s * fs, part.weight,
+                               self.out[a:b].reshape(part.ray_start.shape[0] - 1, self.out.shape[-1]))
 
     def finish(self):
         """Detected intensity (pings, channels, n_s) and no complex signal."""
@@ -175,6 +176,7 @@ class SpeckleSynthesis:
     def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None) -> None:
         """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise); the
         vehicle moves at ``vel_world`` (pings, 3) m/s during them (None: at rest)."""
+        e = merged(e)
         s, chain, out = self.sonar, self.chain, self.out[a:a + e.n_pings]
         fs, f0 = s.sample_rate_hz, s.frequency_hz
         n_b, n_ch, n_s = out.shape

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import FanSettings, Sonar, Transducer
-from ..echoes import Echoes
+from ..echoes import Echoes, merged
 from ..environment import Environment
 from ..errors import ConfigError
 from ..receiver import Receiver
@@ -164,6 +164,7 @@ class MSISFrontEnd(SideScanFrontEnd):
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """The side-scan block's echoes with its (empty) port rows dropped: one channel per ping."""
         e, blk = super().cast(caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
+        e = merged(e)
         start = np.concatenate([e.ray_start[1::2], e.ray_start[-1:]])
         return Echoes(1, start, e.travel_time_s, e.extent_s, e.weight, e.point_m, e.object_id, e.path), blk
 

@@ -68,8 +68,9 @@ class SideScanFrontEnd:
         return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
 
     def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
-                      rx_shift=None) -> Echoes:
-        """Direct, one-bounce and two-bounce echoes of the block, row by row (docs/physics.md §13)."""
+                      rx_shift=None) -> multipath.PathEchoes:
+        """Direct, one-bounce and two-bounce echoes of the block (and the surface line), kept as paths in the same
+        rows (docs/physics.md §13)."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         direct = echoes_of(blk, ids)
         if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
@@ -91,7 +92,7 @@ class SideScanFrontEnd:
         parts = [self._rows(e, el) for e, el in zip(parts, layouts)]
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
-        return multipath.merge(parts, want_points, self.buffers, paths)
+        return multipath.PathEchoes(parts, want_points, self.buffers, paths)
 
     def _rows(self, e: Echoes, el_start) -> Echoes:
         """A path's echoes in this type's rows (the side-scan's: two per ping, as cast); ``el_start`` the layout
