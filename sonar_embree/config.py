@@ -31,6 +31,13 @@ class Transducer:
     #: The record's channels, in order (a sonar type's own names).
     channels = ("port", "starboard")
 
+    def _check_environment(self, owner: str) -> None:
+        """Take a saved record's environment table as an :class:`Environment`; refuse anything else that is not one."""
+        if isinstance(self.environment, dict):  # from a saved record's metadata
+            object.__setattr__(self, "environment", Environment(**self.environment))
+        if not isinstance(self.environment, Environment):
+            raise ConfigError(f"{owner}.environment must be a sonar_embree.Environment, got {self.environment!r}")
+
     @property
     def wavelength_m(self) -> float:
         """Acoustic wavelength λ = c / f0 in m."""
@@ -162,10 +169,7 @@ class Sonar(Transducer):
     receiver: Receiver | None = None
 
     def __post_init__(self):
-        if isinstance(self.environment, dict):  # from a saved record's metadata
-            object.__setattr__(self, "environment", Environment(**self.environment))
-        if not isinstance(self.environment, Environment):
-            raise ConfigError(f"Sonar.environment must be a sonar_embree.Environment, got {self.environment!r}")
+        self._check_environment("Sonar")
         self._check_levels("Sonar")
         for name in ("frequency_hz", "length_m", "height_m", "max_range_m"):
             _check_number("Sonar", name, getattr(self, name), positive=True)

@@ -25,7 +25,7 @@ import numpy as np
 
 from . import kernels
 from .buffers import Buffers
-from .echoes import Echoes, row_of, row_starts
+from .echoes import Echoes
 from .fan import BlockEchoes, cast_block
 
 #: Visibility rays start this far along their leg (m), off the surface they leave.

@@ -21,7 +21,6 @@ from ..config import FanSettings, Transducer
 from ..receiver import Receiver
 from ..echoes import Echoes
 from ..environment import Environment
-from ..errors import ConfigError
 from ..laws import apply_laws
 from ..processing import absorption_np_per_m
 from ..validation import check_number
@@ -68,15 +67,12 @@ class EchoSounder(Transducer):
     channels = ("down",)
 
     def __post_init__(self):
-        if isinstance(self.environment, dict):  # from a saved record's metadata
-            object.__setattr__(self, "environment", Environment(**self.environment))
+        self._check_environment("EchoSounder")
         check_number("EchoSounder", "frequency_hz", self.frequency_hz, positive=True)
         check_number("EchoSounder", "beamwidth_deg", self.beamwidth_deg, positive=True, hi=60.0)
         check_number("EchoSounder", "max_range_m", self.max_range_m, positive=True)
         if self.sample_rate_hz is not None:
             check_number("EchoSounder", "sample_rate_hz", self.sample_rate_hz, positive=True)
-        if not isinstance(self.environment, Environment):
-            raise ConfigError(f"EchoSounder.environment must be a sonar_embree.Environment, got {self.environment!r}")
         self._check_levels("EchoSounder")
 
     @property

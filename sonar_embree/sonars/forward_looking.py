@@ -83,8 +83,7 @@ class ForwardLooking(SideScanEquivalent, Transducer):
     receiver: Receiver | None = None
 
     def __post_init__(self):
-        if isinstance(self.environment, dict):  # from a saved record's metadata
-            object.__setattr__(self, "environment", Environment(**self.environment))
+        self._check_environment("ForwardLooking")
         for name, lo, hi in (("n_beams", 1, 4096), ("n_elements", 2, 4096)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
@@ -96,8 +95,6 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         check_number("ForwardLooking", "max_range_m", self.max_range_m, positive=True)
         if self.sample_rate_hz is not None:
             check_number("ForwardLooking", "sample_rate_hz", self.sample_rate_hz, positive=True)
-        if not isinstance(self.environment, Environment):
-            raise ConfigError(f"ForwardLooking.environment must be a sonar_embree.Environment, got {self.environment!r}")
         if self.element_spacing_m is not None:
             check_number("ForwardLooking", "element_spacing_m", self.element_spacing_m, positive=True)
         u_edge = math.sin(math.radians(0.5 * self.field_of_view_deg))
@@ -149,7 +146,6 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         """A beam's receiving DI: the element's (Urick §3.6) plus the array gain 10·log10 M against isotropic
         noise (elements at λ/2, Urick §3.4), dB."""
         return self.as_sidescan().directivity_index_db + 10.0 * math.log10(self.n_elements)
-
 
 
 def array_samples(sonar: ForwardLooking, oversample: float):

@@ -94,8 +94,7 @@ class MSIS(SideScanEquivalent, Transducer):
     channels = ("beam",)
 
     def __post_init__(self):
-        if isinstance(self.environment, dict):  # from a saved record's metadata
-            object.__setattr__(self, "environment", Environment(**self.environment))
+        self._check_environment("MSIS")
         for name, hi in (("horizontal_beamwidth_deg", 30.0), ("vertical_beamwidth_deg", 90.0),
                          ("step_deg", 90.0), ("sector_deg", 360.0)):
             check_number("MSIS", name, getattr(self, name), positive=True, hi=hi)
@@ -105,8 +104,6 @@ class MSIS(SideScanEquivalent, Transducer):
         check_number("MSIS", "max_range_m", self.max_range_m, positive=True)
         if self.sample_rate_hz is not None:
             check_number("MSIS", "sample_rate_hz", self.sample_rate_hz, positive=True)
-        if not isinstance(self.environment, Environment):
-            raise ConfigError(f"MSIS.environment must be a sonar_embree.Environment, got {self.environment!r}")
         if self.sector_deg < 360.0 and self.step_deg > self.sector_deg:
             raise ConfigError(f"MSIS.step_deg = {self.step_deg:g} exceeds the sector of {self.sector_deg:g} degrees")
         self._check_levels("MSIS")
