@@ -298,3 +298,26 @@ n_pings = 2
     (tmp_path / "t.toml").write_text(text.replace('"sonar.n_beams" = [9, 17]', '"sonar.n_beams" = [0, 17]'))
     with pytest.raises(se.ConfigError, match="n_beams"):
         load_sweep(tmp_path / "t.toml")
+
+
+def test_cli_renders_the_shipped_config_shortened(tmp_path):
+    """``sonar-embree render`` on the shipped forward-looking config (2 pings, 33 beams from 16 elements, 12 m):
+    the fan display, the record and the Zarr store are written; the record's beams are the config's."""
+    import imageio.v3 as iio
+
+    from sonar_embree.runs import cli, runconfig
+
+    text = open(runconfig.assets.path("asset:fls_harbour.toml")).read()
+    for old, new in (("n_pings = 20", "n_pings = 2"), ("n_beams = 256", "n_beams = 33"),
+                     ("n_elements = 128", "n_elements = 16"), ("max_range_m = 30.0", "max_range_m = 12.0")):
+        assert old in text
+        text = text.replace(old, new)
+    cfg = tmp_path / "fls.toml"
+    cfg.write_text(text)
+    out = tmp_path / "out"
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["fan.png", "record.npz", "record.zarr"]
+    rec = se.Record.load(out / "record.npz")
+    assert isinstance(rec.sonar, se.ForwardLooking) and rec.data.shape[:2] == (2, 33)
+    img = iio.imread(out / "fan.png")
+    assert img.ndim == 2 and img.max() == 255 and (img == 0).any()            # a fan on black
