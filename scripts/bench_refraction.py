@@ -1,6 +1,8 @@
 """Cost of refraction (curved rays in a sound-speed profile) against the straight-ray ping (docs/benchmarks.md).
 
     python scripts/bench_refraction.py            # prints one JSON line
+    python scripts/bench_refraction.py --paired 5 # the ratio only: 5 rounds of straight and curved in turn, one
+                                                  # process; each round's ratio and the median
 
 Cases: the flat floor (10 m altitude, 60 m range) and the shipwreck pass, each with straight rays and in a linear
 profile (gradient 0.5 s⁻¹, the sonar 20 m deep); speckle-free. ms per ping, best of three, the stage times, and
@@ -15,7 +17,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.p
 
 import sonar_embree as se  # noqa: E402
 from sonar_embree import shipwreck  # noqa: E402
-from bench_multipath import _best  # noqa: E402  (ms per stage and ping, best of three: one definition)
+from bench_multipath import _best, _wall  # noqa: E402  (ms per stage and ping, best of three: one definition)
 
 
 def main() -> int:
@@ -31,6 +33,14 @@ def main() -> int:
         profile = se.SoundSpeedProfile.linear(sonar.sound_speed_m_s - 0.5 * 20.0, 0.5, surface_z_m=z)
         bent = dataclasses.replace(sonar, environment=se.Environment(sound_speed=profile))
         se.simulate(scene, traj[:2], bent, start_time="2000-01-01")  # compile the curved path
+        if "--paired" in sys.argv:
+            rounds = []
+            for _ in range(int(sys.argv[sys.argv.index("--paired") + 1])):
+                d, b = _wall(scene, traj, sonar), _wall(scene, traj, bent)
+                rounds.append((round(d, 2), round(b / d, 2)))
+            out[name] = {"rounds (straight ms, ratio)": rounds,
+                         "median ratio": float(sorted(r[1] for r in rounds)[len(rounds) // 2])}
+            continue
         out[name] = {"straight": _best(scene, traj, sonar), "profile": _best(scene, traj, bent)}
         out[name]["ratio"] = round(out[name]["profile"]["total"] / out[name]["straight"]["total"], 2)
     print(json.dumps(out))
