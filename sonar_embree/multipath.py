@@ -30,6 +30,8 @@ from .fan import BlockEchoes, cast_block
 
 #: Visibility rays start this far along their leg (m), off the surface they leave.
 LEG_EPSILON_M = 1e-3
+#: Up to this many objects, a visibility leg is cast only through the boxes of those it crosses.
+MAX_LEG_BOXES = 16
 
 
 def mirror(pos: np.ndarray, z_s: float) -> np.ndarray:
@@ -51,28 +53,6 @@ def _below_top(caster, z: float) -> bool:
     return float(caster.compiled.bounds_local[1, 2]) > z + LEG_EPSILON_M * 1e-3
 
 
-def occluded(caster, origins: np.ndarray, dirs: np.ndarray, dist: np.ndarray) -> np.ndarray:
-    """True where something lies on the upward segment origin + t·dir, LEG_EPSILON_M < t < dist (local frame).
-
-    Only the part of a leg below the top of the scene can be blocked: legs are cut there, and those left
-    shorter than 2·LEG_EPSILON_M (a flat floor's, a sonar above everything) are not cast at all.
-    """
-    top = float(caster.compiled.bounds_local[1, 2])
-    if origins.shape[0] == 0 or not _below_top(caster, origins[:, 2].min()):  # every leg starts on top
-        return np.zeros(origins.shape[0], dtype=bool)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        reach = np.where(dirs[:, 2] > 0, (top - origins[:, 2]) / dirs[:, 2], np.inf)
-    length = np.minimum(dist - LEG_EPSILON_M, reach + LEG_EPSILON_M) - LEG_EPSILON_M
-    out = np.zeros(origins.shape[0], dtype=bool)
-    cast = np.flatnonzero(length > 0)
-    if cast.size:
-        org = origins[cast] + LEG_EPSILON_M * dirs[cast]
-        out[cast] = caster.occluded(np.ascontiguousarray(org, dtype=np.float32),
-                                    np.ascontiguousarray(dirs[cast], dtype=np.float32),
-                                    np.ascontiguousarray(length[cast], dtype=np.float32))
-    return out
-
-
 def _can_block(caster, from_sonar: bool, pos_local) -> bool:
     """Whether the scene can block any upward leg: from the sonar, when the scene reaches above it; from a hit
     point, unless the scene is exactly level (every vertex at one height: such a leg leaves it at its top)."""
@@ -80,23 +60,45 @@ def _can_block(caster, from_sonar: bool, pos_local) -> bool:
     return _below_top(caster, float(pos_local[:, 2].min())) if from_sonar else bool(hi > lo)
 
 
-def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w) -> None:
+def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w, prim=None) -> None:
     """Zero the weights ``w`` (n,) of a block's echoes whose upward leg is blocked (see kernels.visibility_legs).
 
     Legs start at the sonar (``from_sonar``) or at the hit points ``x`` (n, 3) and run along ``dirs`` (n, 3)
     for ``dist`` (n,) m; ``buf`` holds the float32 rays. Nothing is done where nothing can block
-    (:func:`_can_block`).
+    (:func:`_can_block`); a leg is cast only through the objects' boxes it crosses (:func:`leg_boxes`).
+    ``prim`` (n,), the triangles of direct echoes, marks the one-bounce legs of the direct fan: a height-field
+    floor those echoes lie on, seen from above, cannot block them and is passed over.
     """
     if not _can_block(caster, from_sonar, pos_local):
         return
-    n = w.shape[0]
+    n, c = w.shape[0], caster.compiled
     idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
                         buf.take("leg_dir", (n, 3), np.float32), buf.take("leg_len", n, np.float32))
-    top = float(caster.compiled.bounds_local[1, 2])
-    k = kernels.visibility_legs(ray_start, x, pos_local, from_sonar, dirs, dist, w, top, LEG_EPSILON_M, idx, org, dr,
-                                ln)
+    lo, hi, obj = leg_boxes(c, prim is not None)
+    k = kernels.visibility_legs(ray_start, x, pos_local, from_sonar, dirs, dist, w, lo, hi, obj, prim is not None,
+                                np.zeros(0, np.int32) if prim is None else prim, c.face_object, c.face_normals,
+                                LEG_EPSILON_M, buf.take("leg_t0", n), buf.take("leg_t1", n), idx, org, dr, ln)
     if k:
         w[idx[:k][caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
+
+
+def leg_boxes(compiled, with_heightfields: bool):
+    """(lo (k, 3), hi (k, 3), obj (k,) int32) boxes that hold the scene, for :func:`block_legs`: one per object
+    (up to :data:`MAX_LEG_BOXES` objects, else one for all), widened by :data:`LEG_EPSILON_M`; ``obj`` the object
+    of a height field (−1 for other boxes, and for all without ``with_heightfields``). Kept with the scene."""
+    cache = compiled.__dict__.setdefault("_leg_boxes", {})
+    if with_heightfields not in cache:
+        b = compiled.object_bounds
+        obj = np.arange(b.shape[0], dtype=np.int32)
+        if b.shape[0] > MAX_LEG_BOXES:
+            b, obj = compiled.bounds_local[None], np.full(1, -1, np.int32)
+        elif with_heightfields:
+            obj = np.where(compiled.heightfield, obj, -1).astype(np.int32)
+        else:
+            obj = np.full(b.shape[0], -1, np.int32)
+        cache[with_heightfields] = (np.ascontiguousarray(b[:, 0] - LEG_EPSILON_M),
+                                    np.ascontiguousarray(b[:, 1] + LEG_EPSILON_M), obj)
+    return cache[with_heightfields]
 
 
 def surface_caster(caster, surface, max_range_m: float):
@@ -227,9 +229,9 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     if not lambert:
         apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)
     if legs[0]:
-        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w)
+        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w, blk.prim)
     if legs[1]:
-        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w)
+        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w, blk.prim)
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 

@@ -364,16 +364,35 @@ def merge_lit(parts):
     return (start, *[c[keep][order] for c in cols], path[keep][order])
 
 
-def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps):
-    """The legs to cast for visibility in NumPy (twin of kernels.visibility_legs): (index, origin, dir, length)."""
+def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, free_own, prim,
+                    face_object, face_normals, eps):
+    """The legs to cast for visibility in NumPy (twin of kernels.visibility_legs): (index, origin, dir, length).
+    Each box by the slab method over the leg's [eps, dist − eps], all legs at once; a leg is cast from its first
+    box entry to its last box exit."""
     ping = np.repeat(np.arange(len(ray_start) - 1), np.diff(ray_start)) // 2
     o = pos[ping] if from_sonar else x
-    with np.errstate(divide="ignore"):
-        reach = np.where(dirs[:, 2] > 0, (top - o[:, 2]) / dirs[:, 2], np.inf)
-    length = np.minimum(dist - eps, reach + eps) - eps
-    i = np.flatnonzero((weight > 0) & (length > 0))
-    return (i, (o[i] + eps * dirs[i]).astype(np.float32), dirs[i].astype(np.float32),
-            length[i].astype(np.float32))
+    own = np.full(len(dist), -1)
+    if free_own:
+        above = np.sum(face_normals[prim] * (x - pos[ping]), axis=1) < 0
+        own = np.where(above, face_object[prim], -1)
+    start, end = np.full(len(dist), np.inf), np.full(len(dist), -np.inf)
+    for lo, hi, obj in zip(box_lo, box_hi, box_obj):
+        t0, t1 = np.full(len(dist), eps), dist - eps
+        inside = np.ones(len(dist), dtype=bool)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for q in range(3):
+                flat = dirs[:, q] == 0
+                inside &= ~flat | ((o[:, q] >= lo[q]) & (o[:, q] <= hi[q]))
+                ta, tb = (lo[q] - o[:, q]) / dirs[:, q], (hi[q] - o[:, q]) / dirs[:, q]
+                t0 = np.where(flat, t0, np.maximum(t0, np.minimum(ta, tb)))
+                t1 = np.where(flat, t1, np.minimum(t1, np.maximum(ta, tb)))
+        hit = inside & (t0 <= t1) & ((obj < 0) | (obj != own))
+        start, end = np.where(hit, np.minimum(start, t0), start), np.where(hit, np.maximum(end, t1), end)
+    end = np.minimum(dist - eps, end + eps)
+    with np.errstate(invalid="ignore"):
+        i = np.flatnonzero((weight > 0) & (end - start > 0))
+    return (i, (o[i] + start[i, None] * dirs[i]).astype(np.float32), dirs[i].astype(np.float32),
+            (end - start)[i].astype(np.float32))
 
 
 def swell_launch(ping, dirs, t1, prim_s, pos, surface_normals, eps):

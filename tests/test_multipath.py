@@ -208,6 +208,42 @@ def test_occluder_shadows_only_the_surface_paths(records, leg, plate_y, plate_z,
     np.testing.assert_allclose(got[lit], flat[lit], rtol=rtol)
 
 
+@pytest.mark.parametrize("surface", ["flat", "swell"])
+def test_legs_cast_through_boxes_only_change_nothing(monkeypatch, surface):
+    """Visibility legs are cast only through the objects' boxes they cross, and a height-field floor is passed
+    over for the one-bounce legs of its own direct echoes (multipath.block_legs, docs/physics.md §13). On a
+    rough floor with a post reaching above the sonar and a floating plate (a height field too, seen from below,
+    so it must still block), the record is the one with every leg cast through the whole scene's box."""
+    import trimesh
+
+    from sonar_embree import multipath
+
+    def scene(objects=True):
+        out = se.Scene().add(se.seafloor.perlin((120.0, 120.0), resolution_m=1.0, relief_m=1.5, seed=3),
+                             material=se.Material(backscatter_db=MU_DB), label="seafloor")
+        if objects:
+            post = trimesh.creation.box(extents=(1.0, 1.0, 14.0))
+            post.apply_translation((2.0, 9.0, 5.5))
+            plate = se.seafloor.flat((8.0, 4.0), z_m=H + 2.0, center_m=(-2.0, -6.0))
+            out.add(post, label="post").add(plate, material=se.Material(backscatter_db=-150.0), label="plate")
+        return out
+
+    sea = (se.SeaSurface(z_m=H + D) if surface == "flat"
+           else se.SeaSurface(z_m=H + D, swell_height_m=0.3, swell_length_m=10.0))
+    line = se.Trajectory.line((-0.5, 0.0, H), (0.5, 0.0, H), 3, speed_m_s=2.0)
+
+    def run(s):
+        return se.simulate(s, line, _sonar(sea), se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
+
+    s = scene()
+    assert s.compiled(np.zeros(3)).heightfield.tolist() == [True, False, True]
+    boxed, clear = run(s), run(scene(objects=False))
+    monkeypatch.setattr(multipath, "MAX_LEG_BOXES", 0)          # one box for all: every leg cast, none passed over
+    whole = run(scene())
+    np.testing.assert_allclose(boxed.data, whole.data, rtol=1e-12, atol=0.0)
+    assert np.mean(np.abs(clear.data - boxed.data) > 1e-3 * clear.data) > 0.01   # the post and plate do block
+
+
 def test_no_surface_runs_no_multipath_code_and_surface_errors(monkeypatch):
     from sonar_embree import multipath
 
@@ -441,9 +477,11 @@ def test_merge_kernels_match_naive(rng):
     assert m < sum(len(p[3]) for p in parts) and set(np.unique(out[5])) == {0, 1, 2}
 
 
-@pytest.mark.parametrize("from_sonar", [False, True])
-def test_visibility_legs_kernel_matches_naive(rng, from_sonar):
-    """kernels.visibility_legs against its NumPy twin: legs cut at the scene's top, unlit and empty ones skipped."""
+@pytest.mark.parametrize("from_sonar, free_own", [(False, False), (True, False), (False, True), (True, True)])
+def test_visibility_legs_kernel_matches_naive(rng, from_sonar, free_own):
+    """kernels.visibility_legs against its NumPy twin: legs cast from where they enter the first box they cross to where they leave the last, those
+    crossing none (or a height field of their own echo seen from above, with ``free_own``), unlit and empty ones
+    skipped."""
     import naive
 
     from sonar_embree import kernels
@@ -454,15 +492,26 @@ def test_visibility_legs_kernel_matches_naive(rng, from_sonar):
     x = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-1, 4, n)])
     dirs = rng.normal(size=(n, 3))
     dirs[:, 2] = np.abs(dirs[:, 2]) * np.where(rng.random(n) < 0.1, -1, 1)
+    dirs[rng.random(n) < 0.05, 0] = 0.0                                 # legs parallel to a slab
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     dist, w = rng.uniform(0.0, 20.0, n), np.where(rng.random(n) < 0.2, 0.0, 1.0)
+    lo = np.array([[-40.0, -40.0, -1.5], [-5.0, 2.0, -1.0], [10.0, -20.0, 0.0]])
+    hi = np.array([[40.0, 40.0, 0.5], [5.0, 12.0, 3.0], [20.0, -10.0, 2.0]])
+    obj = np.array([0, -1, 2], np.int32)
+    face_object, normals = np.array([0, 1, 2, 0], np.int32), rng.normal(size=(4, 3))
+    prim = rng.integers(0, 4, n).astype(np.int32)
     idx, org, dr, ln = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
                         np.empty(n, np.float32))
-    k = kernels.visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, w, 2.0, 1e-3, idx, org, dr, ln)
-    ref = naive.visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, w, 2.0, 1e-3)
-    assert 0 < k < n
+    args = (ray_start, x, pos, from_sonar, dirs, dist, w, lo, hi, obj, free_own, prim, face_object, normals, 1e-3)
+    span = np.empty(n), np.empty(n)
+    k = kernels.visibility_legs(*args, *span, idx, org, dr, ln)
+    ref = naive.visibility_legs(*args)
+    assert 0 < k < int((w > 0).sum())
     for got, want in zip((idx[:k], org[:k], dr[:k], ln[:k]), ref):
         np.testing.assert_array_equal(got, want)
+    if free_own:                                                        # some legs skipped for their own floor
+        plain = kernels.visibility_legs(*args[:10], False, *args[11:], *span, idx, org, dr, ln)
+        assert plain > k
 
 
 def test_speckle_with_a_surface_averages_to_the_expected_four_paths(records):

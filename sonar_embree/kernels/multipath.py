@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ._numba import njit, prange
 from .rays import _sinc
 
@@ -261,14 +263,44 @@ def merge_lit(starts, times, extents, weights, points, ids, out_start, time_out,
                 k += 1
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _slab(lo, hi, o, inv, t0, t1):
+    """One axis of the slab test: [t0, t1] narrowed to where o + t·d lies in [lo, hi] (inv = 1/d; d = 0: inv = inf,
+    the whole line or nothing)."""
+    if inv == math.inf or inv == -math.inf:
+        return (t0, t1) if lo <= o <= hi else (1.0, -1.0)
+    ta, tb = (lo - o) * inv, (hi - o) * inv
+    return max(t0, min(ta, tb)), min(t1, max(ta, tb))
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _box_span(box_lo, box_hi, k, ox, oy, oz, ix, iy, iz, t0, t1):
+    """(entry, exit) of the segment o + t·d, t0 ≤ t ≤ t1, in box k (slab test, i = 1/d per axis); exit < entry
+    when it misses."""
+    t0, t1 = _slab(box_lo[k, 0], box_hi[k, 0], ox, ix, t0, t1)
+    t0, t1 = _slab(box_lo[k, 1], box_hi[k, 1], oy, iy, t0, t1)
+    return _slab(box_lo[k, 2], box_hi[k, 2], oz, iz, t0, t1)
+
+
 @njit(cache=True, nogil=True)
-def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps, idx_out, org_out, dir_out, len_out):
+def _inverse(d):
+    """1/d, ±inf for d = ±0."""
+    return 1.0 / d if d != 0.0 else math.copysign(math.inf, d)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, free_own, prim,
+                    face_object, face_normals, eps, start_out, end_out, idx_out, org_out, dir_out, len_out):
     """The legs of a block's lit echoes that can be blocked, as float32 rays for an occlusion query.
 
     Leg i starts at the sonar of its row's ping (``from_sonar``) or at its hit point x[i] and runs
-    along dirs[i] for dist[i]. Only its part below the top of the scene can be blocked: it is cut
-    there, and it is cast from eps along it to eps short of its end. Legs left with no length (a
-    flat floor's, a sonar above everything) and echoes of weight 0 are skipped.
+    along dirs[i] for dist[i]. Only boxes it crosses hold anything that can block it: it is cast from
+    where it enters the first of them (eps along it at least) to where it leaves the last (eps short of
+    its end at most); a leg that crosses none, or has no length left, is not cast, nor is an echo of
+    weight 0. With ``free_own`` (the one-bounce legs of a direct echo), the box of the echo's own object
+    is passed over when that object is a height field (``box_obj`` ≥ 0) and the direct ray reached x[i]
+    from above (n·(x − S) < 0): the legs then run above the clear direct ray in its vertical plane, which
+    such a floor cannot reach (docs/physics.md §13). Legs keep their order (rows counted, then filled).
 
     Parameters
     ----------
@@ -279,8 +311,17 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps,
     from_sonar : bool
     dirs : (n, 3) float64; dist : (n,) float64; weight : (n,) float64
         Unit direction and length (m) of each echo's leg, and its weight.
-    top, eps : float
-        Top of the scene (local z, m) and the offset from each end, m.
+    box_lo, box_hi : (k, 3) float64
+        Boxes that hold the whole scene (local frame, m, already widened for rounding).
+    box_obj : (k,) int32
+        The height-field object a box holds, −1 for any other box.
+    free_own : bool
+    prim : (n,) int32; face_object : (f,) int32; face_normals : (f, 3) float64
+        The echoes' triangles (read with ``free_own``), their objects and normals.
+    eps : float
+        Offset from each end of a leg, m.
+    start_out, end_out : (n,) float64
+        Written: the part of each leg to cast, m along it (0, 0: none).
     idx_out : (n,) int64; org_out, dir_out : (n, 3) float32; len_out : (n,) float32
         Written, the first k rows.
 
@@ -289,24 +330,45 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, top, eps,
     k : int
         Legs to cast.
     """
-    k = 0
-    for row in range(ray_start.shape[0] - 1):
+    rows = ray_start.shape[0] - 1
+    counts = np.zeros(rows + 1, dtype=np.int64)
+    for row in prange(rows):                      # each leg's span (start_out, end_out), legs per row counted
         b = row // 2
         for i in range(ray_start[row], ray_start[row + 1]):
+            start_out[i], end_out[i] = 0.0, 0.0
             if not weight[i] > 0.0:
                 continue
-            if from_sonar:
-                ox, oy, oz = pos[b, 0], pos[b, 1], pos[b, 2]
-            else:
-                ox, oy, oz = x[i, 0], x[i, 1], x[i, 2]
-            dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
-            reach = (top - oz) / dz if dz > 0.0 else math.inf
-            length = min(dist[i] - eps, reach + eps) - eps
-            if not length > 0.0:
+            ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
+            own = -1
+            if free_own:
+                p = prim[i]
+                if face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (x[i, 1] - pos[b, 1]) + \
+                        face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0:
+                    own = face_object[p]
+            ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
+            start, end = math.inf, -math.inf
+            for q in range(box_lo.shape[0]):
+                if box_obj[q] < 0 or box_obj[q] != own:
+                    t0, t1 = _box_span(box_lo, box_hi, q, ox, oy, oz, ix, iy, iz, eps, dist[i] - eps)
+                    if t0 <= t1:
+                        start, end = min(start, t0), max(end, t1)
+            end = min(dist[i] - eps, end + eps)
+            if end - start > 0.0:
+                start_out[i], end_out[i] = start, end
+                counts[row + 1] += 1
+    for row in range(rows):
+        counts[row + 1] += counts[row]
+    for row in prange(rows):                      # the legs with a span, in order
+        b, k = row // 2, counts[row]
+        for i in range(ray_start[row], ray_start[row + 1]):
+            t0, t1 = start_out[i], end_out[i]
+            if not t1 - t0 > 0.0:
                 continue
+            ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
+            dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
             idx_out[k] = i
-            org_out[k, 0], org_out[k, 1], org_out[k, 2] = ox + eps * dx, oy + eps * dy, oz + eps * dz
+            org_out[k, 0], org_out[k, 1], org_out[k, 2] = ox + t0 * dx, oy + t0 * dy, oz + t0 * dz
             dir_out[k, 0], dir_out[k, 1], dir_out[k, 2] = dx, dy, dz
-            len_out[k] = length
+            len_out[k] = t1 - t0
             k += 1
-    return k
+    return counts[rows]

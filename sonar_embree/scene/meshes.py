@@ -21,6 +21,7 @@ from ..config import Material
 from ..errors import SceneError
 from ..laws.maps import BackscatterMap, MapTable
 from ..laws.texture import TextureTable
+from .heightfield import is_heightfield, object_bounds
 
 log = logging.getLogger(__name__)
 
@@ -113,6 +114,18 @@ class CompiledScene:
     def bounds_local(self) -> np.ndarray:
         """(2, 3) min and max corner of the vertices in the local frame, m."""
         return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+
+    @cached_property
+    def object_bounds(self) -> np.ndarray:
+        """(n_objects, 2, 3) min and max corner of each object in the local frame, m."""
+        return object_bounds(self.vertices, self.faces, self.face_object, len(self.labels))
+
+    @cached_property
+    def heightfield(self) -> np.ndarray:
+        """(n_objects,) bool: which objects are height fields over their xy rectangle
+        (:func:`~sonar_embree.scene.heightfield.is_heightfield`; made on first use)."""
+        return np.array([is_heightfield(self.vertices, self.faces[self.face_object == o])
+                         for o in range(len(self.labels))], dtype=bool)
 
     @cached_property
     def horizontal_area_share(self) -> float:
