@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import checks, processing, pulses, sonars
+from . import checks, multipath, processing, pulses, sonars
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError
@@ -286,6 +286,8 @@ class _Run:
         pos_local = trajectory.positions_m - compiled.origin_m
         checks.check_setup(caster, sonar, pos_local, max_r + c * pulse.duration_s / 2.0)
         checks.check_surface(compiled, sonar, pos_local)
+        if sonar.environment.surface is not None:
+            multipath.leg_boxes(compiled, True)  # the objects' boxes and height fields: once per scene, at set-up
         checks.check_profile(compiled, sonar, pos_local, labels)
         n0 = _noise_density(sonar, chain)
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
