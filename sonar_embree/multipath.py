@@ -60,22 +60,24 @@ def _can_block(caster, from_sonar: bool, pos_local) -> bool:
     return _below_top(caster, float(pos_local[:, 2].min())) if from_sonar else bool(hi > lo)
 
 
-def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w, prim=None) -> None:
+def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w, prim=None,
+               free_own: bool = False) -> None:
     """Zero the weights ``w`` (n,) of a block's echoes whose upward leg is blocked (see kernels.visibility_legs).
 
     Legs start at the sonar (``from_sonar``) or at the hit points ``x`` (n, 3) and run along ``dirs`` (n, 3)
     for ``dist`` (n,) m; ``buf`` holds the float32 rays. Nothing is done where nothing can block
     (:func:`_can_block`); a leg is cast only through the objects' boxes it crosses (:func:`leg_boxes`).
-    ``prim`` (n,), the triangles of direct echoes, marks the one-bounce legs of the direct fan: a height-field
-    floor those echoes lie on, seen from above, cannot block them and is passed over.
+    ``prim`` (n,), the echoes' triangles, lets a height-field floor they lie on be passed over where it cannot
+    block: for a leg from x steeper than its steepest face, and, with ``free_own`` (the one-bounce legs of the
+    direct fan), for the legs of an echo seen from above.
     """
     if not _can_block(caster, from_sonar, pos_local):
         return
     n, c = w.shape[0], caster.compiled
     idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
                         buf.take("leg_dir", (n, 3), np.float32), buf.take("leg_len", n, np.float32))
-    lo, hi, obj = leg_boxes(c, prim is not None)
-    k = kernels.visibility_legs(ray_start, x, pos_local, from_sonar, dirs, dist, w, lo, hi, obj, prim is not None,
+    lo, hi, obj, slope = leg_boxes(c, prim is not None)
+    k = kernels.visibility_legs(ray_start, x, pos_local, from_sonar, dirs, dist, w, lo, hi, obj, slope, free_own,
                                 np.zeros(0, np.int32) if prim is None else prim, c.face_object, c.face_normals,
                                 LEG_EPSILON_M, buf.take("leg_t0", n), buf.take("leg_t1", n), idx, org, dr, ln)
     if k:
@@ -83,21 +85,23 @@ def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dis
 
 
 def leg_boxes(compiled, with_heightfields: bool):
-    """(lo (k, 3), hi (k, 3), obj (k,) int32) boxes that hold the scene, for :func:`block_legs`: one per object
-    (up to :data:`MAX_LEG_BOXES` objects, else one for all), widened by :data:`LEG_EPSILON_M`; ``obj`` the object
-    of a height field (−1 for other boxes, and for all without ``with_heightfields``). Kept with the scene."""
+    """(lo (k, 3), hi (k, 3), obj (k,) int32, slope (k,)) boxes that hold the scene, for :func:`block_legs`: one
+    per object (up to :data:`MAX_LEG_BOXES` objects, else one for all), widened by :data:`LEG_EPSILON_M`; ``obj``
+    the object of a height field (−1 for other boxes, and for all without ``with_heightfields``) and ``slope`` its
+    steepest face's tan. Kept with the scene."""
     cache = compiled.__dict__.setdefault("_leg_boxes", {})
     if with_heightfields not in cache:
         b = compiled.object_bounds
-        obj = np.arange(b.shape[0], dtype=np.int32)
+        obj, slope = np.arange(b.shape[0], dtype=np.int32), np.full(b.shape[0], np.inf)
         if b.shape[0] > MAX_LEG_BOXES:
-            b, obj = compiled.bounds_local[None], np.full(1, -1, np.int32)
+            b, obj, slope = compiled.bounds_local[None], np.full(1, -1, np.int32), np.full(1, np.inf)
         elif with_heightfields:
             obj = np.where(compiled.heightfield, obj, -1).astype(np.int32)
+            slope = np.where(compiled.heightfield, compiled.object_slope, np.inf)
         else:
             obj = np.full(b.shape[0], -1, np.int32)
         cache[with_heightfields] = (np.ascontiguousarray(b[:, 0] - LEG_EPSILON_M),
-                                    np.ascontiguousarray(b[:, 1] + LEG_EPSILON_M), obj)
+                                    np.ascontiguousarray(b[:, 1] + LEG_EPSILON_M), obj, slope)
     return cache[with_heightfields]
 
 
@@ -229,9 +233,9 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     if not lambert:
         apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)
     if legs[0]:
-        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w, blk.prim)
+        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w, blk.prim, True)
     if legs[1]:
-        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w, blk.prim)
+        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w, blk.prim, True)
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 

@@ -111,7 +111,8 @@ def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shif
     o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
     apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
                    o["phi"] if o["want_phi"] else None)
-    block_legs(caster, front.buffers, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"])  # X → S
+    block_legs(caster, front.buffers, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"],  # X → S
+               b["prim"])
     apply_laws(caster.compiled, front.sonar.frequency_hz, b["prim"], o["cos_i"], o["w2"], o["x"])
     out = []
     for w, t, ext in ((o["w1"], o["t1"], o["e1"]), (o["w2"], o["t2"], o["e2"])):

@@ -364,19 +364,21 @@ def merge_lit(parts):
     return (start, *[c[keep][order] for c in cols], path[keep][order])
 
 
-def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, free_own, prim,
-                    face_object, face_normals, eps):
+def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, box_slope, free_own,
+                    prim, face_object, face_normals, eps):
     """The legs to cast for visibility in NumPy (twin of kernels.visibility_legs): (index, origin, dir, length).
     Each box by the slab method over the leg's [eps, dist − eps], all legs at once; a leg is cast from its first
     box entry to its last box exit."""
     ping = np.repeat(np.arange(len(ray_start) - 1), np.diff(ray_start)) // 2
     o = pos[ping] if from_sonar else x
-    own = np.full(len(dist), -1)
-    if free_own:
-        above = np.sum(face_normals[prim] * (x - pos[ping]), axis=1) < 0
-        own = np.where(above, face_object[prim], -1)
+    own, above = np.full(len(dist), -1), np.zeros(len(dist), dtype=bool)
+    if len(prim):
+        own = face_object[prim]
+        above = free_own & (np.sum(face_normals[prim] * (x - pos[ping]), axis=1) < 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rise = np.full(len(dist), -np.inf) if from_sonar else dirs[:, 2] / np.hypot(dirs[:, 0], dirs[:, 1])
     start, end = np.full(len(dist), np.inf), np.full(len(dist), -np.inf)
-    for lo, hi, obj in zip(box_lo, box_hi, box_obj):
+    for lo, hi, obj, slope in zip(box_lo, box_hi, box_obj, box_slope):
         t0, t1 = np.full(len(dist), eps), dist - eps
         inside = np.ones(len(dist), dtype=bool)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -386,7 +388,7 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, b
                 ta, tb = (lo[q] - o[:, q]) / dirs[:, q], (hi[q] - o[:, q]) / dirs[:, q]
                 t0 = np.where(flat, t0, np.maximum(t0, np.minimum(ta, tb)))
                 t1 = np.where(flat, t1, np.minimum(t1, np.maximum(ta, tb)))
-        hit = inside & (t0 <= t1) & ((obj < 0) | (obj != own))
+        hit = inside & (t0 <= t1) & ((obj < 0) | (obj != own) | ~(above | (rise > slope)))
         start, end = np.where(hit, np.minimum(start, t0), start), np.where(hit, np.maximum(end, t1), end)
     end = np.minimum(dist - eps, end + eps)
     with np.errstate(invalid="ignore"):

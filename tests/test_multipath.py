@@ -211,16 +211,19 @@ def test_occluder_shadows_only_the_surface_paths(records, leg, plate_y, plate_z,
 @pytest.mark.parametrize("surface", ["flat", "swell"])
 def test_legs_cast_through_boxes_only_change_nothing(monkeypatch, surface):
     """Visibility legs are cast only through the objects' boxes they cross, and a height-field floor is passed
-    over for the one-bounce legs of its own direct echoes (multipath.block_legs, docs/physics.md §13). On a
-    rough floor with a post reaching above the sonar and a floating plate (a height field too, seen from below,
-    so it must still block), the record is the one with every leg cast through the whole scene's box."""
+    over where it cannot block (multipath.block_legs, docs/physics.md §13). On a rough floor with steep ridges
+    (which shadow legs from behind them), a post reaching above the sonar and a floating plate (a height field
+    too, seen from below, so it must still block), the record is the one with every leg cast through the whole
+    scene's box."""
     import trimesh
 
     from sonar_embree import multipath
 
-    def scene(objects=True):
-        out = se.Scene().add(se.seafloor.perlin((120.0, 120.0), resolution_m=1.0, relief_m=1.5, seed=3),
-                             material=se.Material(backscatter_db=MU_DB), label="seafloor")
+    def scene(objects=True):  # a rough floor with a steep ridge (slope 2) each side: shadows it casts itself
+        x, y = np.meshgrid(np.linspace(-60.0, 60.0, 121), np.linspace(-60.0, 60.0, 241))
+        z = 0.5 * np.sin(0.3 * x) * np.cos(0.2 * y) + np.maximum(0.0, 4.0 - 2.0 * np.abs(np.abs(y) - 14.0))
+        floor = se.seafloor.from_heights(z, spacing_m=(1.0, 0.5), origin_m=(-60.0, -60.0))
+        out = se.Scene().add(floor, material=se.Material(backscatter_db=MU_DB), label="seafloor")
         if objects:
             post = trimesh.creation.box(extents=(1.0, 1.0, 14.0))
             post.apply_translation((2.0, 9.0, 5.5))
@@ -479,9 +482,9 @@ def test_merge_kernels_match_naive(rng):
 
 @pytest.mark.parametrize("from_sonar, free_own", [(False, False), (True, False), (False, True), (True, True)])
 def test_visibility_legs_kernel_matches_naive(rng, from_sonar, free_own):
-    """kernels.visibility_legs against its NumPy twin: legs cast from where they enter the first box they cross to where they leave the last, those
-    crossing none (or a height field of their own echo seen from above, with ``free_own``), unlit and empty ones
-    skipped."""
+    """kernels.visibility_legs against its NumPy twin: legs cast from where they enter the first box they cross to
+    where they leave the last; those crossing none, unlit and empty ones skipped; a height field of the echo's own
+    passed over for a leg from it steeper than its slope, and (``free_own``) for an echo seen from above."""
     import naive
 
     from sonar_embree import kernels
@@ -493,25 +496,29 @@ def test_visibility_legs_kernel_matches_naive(rng, from_sonar, free_own):
     dirs = rng.normal(size=(n, 3))
     dirs[:, 2] = np.abs(dirs[:, 2]) * np.where(rng.random(n) < 0.1, -1, 1)
     dirs[rng.random(n) < 0.05, 0] = 0.0                                 # legs parallel to a slab
+    dirs[rng.random(n) < 0.02, :2] = 0.0                                # vertical legs
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     dist, w = rng.uniform(0.0, 20.0, n), np.where(rng.random(n) < 0.2, 0.0, 1.0)
     lo = np.array([[-40.0, -40.0, -1.5], [-5.0, 2.0, -1.0], [10.0, -20.0, 0.0]])
     hi = np.array([[40.0, 40.0, 0.5], [5.0, 12.0, 3.0], [20.0, -10.0, 2.0]])
-    obj = np.array([0, -1, 2], np.int32)
+    obj, slope = np.array([0, -1, 2], np.int32), np.array([0.6, np.inf, 1.5])
     face_object, normals = np.array([0, 1, 2, 0], np.int32), rng.normal(size=(4, 3))
     prim = rng.integers(0, 4, n).astype(np.int32)
     idx, org, dr, ln = (np.empty(n, np.int64), np.empty((n, 3), np.float32), np.empty((n, 3), np.float32),
                         np.empty(n, np.float32))
-    args = (ray_start, x, pos, from_sonar, dirs, dist, w, lo, hi, obj, free_own, prim, face_object, normals, 1e-3)
     span = np.empty(n), np.empty(n)
-    k = kernels.visibility_legs(*args, *span, idx, org, dr, ln)
-    ref = naive.visibility_legs(*args)
-    assert 0 < k < int((w > 0).sum())
-    for got, want in zip((idx[:k], org[:k], dr[:k], ln[:k]), ref):
-        np.testing.assert_array_equal(got, want)
-    if free_own:                                                        # some legs skipped for their own floor
-        plain = kernels.visibility_legs(*args[:10], False, *args[11:], *span, idx, org, dr, ln)
-        assert plain > k
+    counts = {}
+    for p in (prim, prim[:0]):
+        args = (ray_start, x, pos, from_sonar, dirs, dist, w, lo, hi, obj, slope, free_own, p, face_object, normals,
+                1e-3)
+        k = kernels.visibility_legs(*args, *span, idx, org, dr, ln)
+        ref = naive.visibility_legs(*args)
+        assert 0 < k < int((w > 0).sum())
+        for got, want in zip((idx[:k], org[:k], dr[:k], ln[:k]), ref):
+            np.testing.assert_array_equal(got, want)
+        counts[len(p)] = k
+    if free_own or not from_sonar:                                      # some legs skipped for their own floor
+        assert counts[n] < counts[0]
 
 
 def test_speckle_with_a_surface_averages_to_the_expected_four_paths(records):

@@ -289,7 +289,7 @@ def _inverse(d):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, free_own, prim,
+def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, box_slope, free_own, prim,
                     face_object, face_normals, eps, start_out, end_out, idx_out, org_out, dir_out, len_out):
     """The legs of a block's lit echoes that can be blocked, as float32 rays for an occlusion query.
 
@@ -297,10 +297,12 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, b
     along dirs[i] for dist[i]. Only boxes it crosses hold anything that can block it: it is cast from
     where it enters the first of them (eps along it at least) to where it leaves the last (eps short of
     its end at most); a leg that crosses none, or has no length left, is not cast, nor is an echo of
-    weight 0. With ``free_own`` (the one-bounce legs of a direct echo), the box of the echo's own object
-    is passed over when that object is a height field (``box_obj`` ≥ 0) and the direct ray reached x[i]
-    from above (n·(x − S) < 0): the legs then run above the clear direct ray in its vertical plane, which
-    such a floor cannot reach (docs/physics.md §13). Legs keep their order (rows counted, then filled).
+    weight 0. The box of the echo's own object (its triangle ``prim``, when given) is passed over when that
+    object is a height field (``box_obj`` ≥ 0) that cannot block the leg (docs/physics.md §13):
+    with ``free_own`` (the one-bounce legs of a direct echo), when the direct ray reached x[i] from above
+    (n·(x − S) < 0): the legs then run above the clear direct ray in its vertical plane; and for a leg
+    from x[i] that rises more steeply than the field's steepest face (``box_slope``, tan): the field lies
+    below it everywhere. Legs keep their order (rows counted, then filled).
 
     Parameters
     ----------
@@ -313,11 +315,11 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, b
         Unit direction and length (m) of each echo's leg, and its weight.
     box_lo, box_hi : (k, 3) float64
         Boxes that hold the whole scene (local frame, m, already widened for rounding).
-    box_obj : (k,) int32
-        The height-field object a box holds, −1 for any other box.
+    box_obj : (k,) int32; box_slope : (k,) float64
+        The height-field object a box holds (−1 for any other box) and its steepest slope (tan).
     free_own : bool
-    prim : (n,) int32; face_object : (f,) int32; face_normals : (f, 3) float64
-        The echoes' triangles (read with ``free_own``), their objects and normals.
+    prim : (n,) or (0,) int32; face_object : (f,) int32; face_normals : (f, 3) float64
+        The echoes' triangles (empty: no box is passed over), their objects and normals.
     eps : float
         Offset from each end of a leg, m.
     start_out, end_out : (n,) float64
@@ -339,16 +341,20 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, b
             if not weight[i] > 0.0:
                 continue
             ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
-            own = -1
-            if free_own:
+            own, above = -1, False
+            if prim.shape[0] > 0:
                 p = prim[i]
-                if face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (x[i, 1] - pos[b, 1]) + \
-                        face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0:
-                    own = face_object[p]
+                own = face_object[p]
+                above = free_own and face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (
+                    x[i, 1] - pos[b, 1]) + face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0
+            rise = -math.inf                                            # tan of the leg's elevation from x[i]
+            if not from_sonar:
+                h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
+                rise = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
             ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
             start, end = math.inf, -math.inf
             for q in range(box_lo.shape[0]):
-                if box_obj[q] < 0 or box_obj[q] != own:
+                if box_obj[q] < 0 or box_obj[q] != own or not (above or rise > box_slope[q]):
                     t0, t1 = _box_span(box_lo, box_hi, q, ox, oy, oz, ix, iy, iz, eps, dist[i] - eps)
                     if t0 <= t1:
                         start, end = min(start, t0), max(end, t1)

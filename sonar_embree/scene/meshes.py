@@ -128,6 +128,17 @@ class CompiledScene:
                          for o in range(len(self.labels))], dtype=bool)
 
     @cached_property
+    def object_slope(self) -> np.ndarray:
+        """(n_objects,) the steepest face of each object: max √(n_x² + n_y²)/n_z (tan of its slope; inf where a face
+        is vertical or looks down)."""
+        n = self.face_normals
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tan = np.where(n[:, 2] > 0.0, np.hypot(n[:, 0], n[:, 1]) / n[:, 2], np.inf)
+        out = np.zeros(len(self.labels))
+        np.maximum.at(out, self.face_object, tan)
+        return out
+
+    @cached_property
     def horizontal_area_share(self) -> float:
         """Share of the surface area whose faces look up or down (|n_z| > 0.7)."""
         tri = self.vertices[self.faces]
