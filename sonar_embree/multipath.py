@@ -119,13 +119,20 @@ def surface_caster(caster, surface, max_range_m: float):
     c = caster.compiled
     cache = c.__dict__.setdefault("_swell_casters", {})
     key = (surface, round(max_range_m, 6))
-    if key not in cache:  # reflection points lie between the sonar and the scene: within its extent ± the range
-        lo, hi = c.bounds_local[0, :2] + c.origin_m[:2], c.bounds_local[1, :2] + c.origin_m[:2]
-        mesh = surface.mesh((lo[0] - max_range_m, hi[0] + max_range_m), (lo[1] - max_range_m, hi[1] + max_range_m))
+    if key not in cache:
+        mesh = surface.mesh(*surface_extent(c, max_range_m))
         law = surface.backscatter_law
         material = Material(two_sided=True) if law is None else Material(two_sided=True, scattering=law)
         cache[key] = RayCaster(Scene().add(mesh, material=material, label="sea surface").compiled(c.origin_m))
     return cache[key]
+
+
+def surface_extent(compiled, max_range_m: float):
+    """World (x range, y range) the sea surface is meshed over: reflection points lie between the sonar and the
+    scene, within its extent ± the range."""
+    lo = compiled.bounds_local[0, :2] + compiled.origin_m[:2]
+    hi = compiled.bounds_local[1, :2] + compiled.origin_m[:2]
+    return (lo[0] - max_range_m, hi[0] + max_range_m), (lo[1] - max_range_m, hi[1] + max_range_m)
 
 
 def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_ids, clock,

@@ -26,7 +26,7 @@ from .echoes import Echoes
 from .fan import elevation_rows, probe_ranges
 from .laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, mirror_pose, surface_caster,
-                        wants_azimuth)
+                        surface_extent, wants_azimuth)
 
 
 def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
@@ -41,7 +41,7 @@ def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
     return (*elevation_rows(plan, np.concatenate(lines, axis=1)), t_embree)
 
 
-def _image_fan(front, swell, caster, rot, pos_local, max_range_m, clock):
+def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock):
     """The image fan's rays cast up from the sonar to the swell: a dict of the fan and of the rays that reached it.
 
     A one-bounce echo at range (R + r)/2 in the window may have travelled R up to twice the range on its bounce
@@ -61,10 +61,31 @@ def _image_fan(front, swell, caster, rot, pos_local, max_range_m, clock):
     kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot_i), pos_i, dirs, org)
     dirs[:, 2] *= -1.0                                                # the real, upward ray (negation: exact)
     org[:] = np.repeat(pos_local.astype(np.float32), 2, axis=0).repeat(np.diff(ray_start), axis=0)
-    prim_s, t1 = swell.cast_raw(org, dirs, max_range_m)
+    prim_s, t1 = _surface_hits(buf, caster.compiled.origin_m, strips, org, dirs, max_range_m)
     up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
     return dict(el_start=el_start, ray_start=ray_start, beta=beta, dbeta=dbeta, dirs=dirs, prim_s=prim_s, t1=t1,
                 up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m)
+
+
+def surface_strips(caster, surface, max_range_m: float):
+    """The swell's mesh grid (:meth:`SeaSurface.strips`) over the extent :func:`surface_caster` meshes for the same
+    range; kept with the scene's compiled arrays."""
+    c = caster.compiled
+    cache = c.__dict__.setdefault("_swell_strips", {})
+    key = (surface, round(max_range_m, 6))
+    if key not in cache:
+        cache[key] = surface.strips(*surface_extent(c, max_range_m))
+    return cache[key]
+
+
+def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
+    """(facet, distance) of each ray's first hit on the swell's mesh of grid ``g``, in closed form
+    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.multipath.surface_caster` meshes, not cast)."""
+    n = dirs.shape[0]
+    prim, t = buf.take("swell_hit_prim", n, np.int32), buf.take("swell_hit_t", n, np.float32)
+    kernels.swell_surface_hits(org, dirs, origin_m, g.k, g.c, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,
+                               float(g.b[0]), float(g.b[1] - g.b[0]), g.b.size, max_range_m, prim, t)
+    return prim, t
 
 
 def _bounce(front, caster, swell, fan, pos_local):
@@ -106,7 +127,8 @@ def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shif
     """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan; ``rx_shift``
     (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
     swell = surface_caster(caster, front.sonar.environment.surface, max_range_m)
-    fan = _image_fan(front, swell, caster, rot, pos_local, max_range_m, clock)
+    fan = _image_fan(front, surface_strips(caster, front.sonar.environment.surface, max_range_m), caster, rot,
+                     pos_local, max_range_m, clock)
     b = _bounce(front, caster, swell, fan, pos_local)
     o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
     apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],

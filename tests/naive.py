@@ -539,3 +539,25 @@ def arc_echoes(s, ds, beta, dbeta, el_start, rot, hit_prim, point, direction, T,
     t[ok] = 2 * T[ok]
     ext[ok] = 2 * np.minimum(shift_per_rad[ok] / cos_i[ok], slope_cap) * dbb[ok] / c_hit[ok]
     return w, t, ext, c_nom * T
+
+
+def first_hits(org, dirs, vertices, faces, t_max):
+    """First hit of each ray on a triangle mesh by brute force (Möller–Trumbore against every triangle; twin of
+    kernels.swell_surface_hits): (triangle (n,), −1 for none; distance (n,), inf for none)."""
+    v0, v1, v2 = (vertices[faces[:, q]] for q in range(3))
+    e1, e2 = v1 - v0, v2 - v0
+    prim, dist = np.full(len(org), -1), np.full(len(org), np.inf)
+    for i, (o, d) in enumerate(zip(org, dirs)):
+        p = np.cross(d, e2)
+        det = np.sum(e1 * p, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = o - v0
+            u = np.sum(s * p, axis=1) / det
+            q = np.cross(s, e1)
+            v = np.sum(q * d, axis=1) / det
+            t = np.sum(q * e2, axis=1) / det
+        ok = (det != 0) & (u >= 0) & (v >= 0) & (u + v <= 1) & (t >= 0) & (t <= t_max)
+        if ok.any():
+            j = np.flatnonzero(ok)[np.argmin(t[ok])]
+            prim[i], dist[i] = j, t[j]
+    return prim, dist

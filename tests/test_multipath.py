@@ -453,6 +453,41 @@ def test_two_bounce_kernel_matches_naive(rng):
     assert np.all(got[lit] < w[lit]) and np.all(leg[~lit] == 0)
 
 
+@pytest.mark.parametrize("direction_deg", [0.0, 25.0, 90.0])
+def test_swell_surface_hits_match_brute_force(rng, direction_deg):
+    """kernels.swell_surface_hits (the swell's mesh hit in closed form, strip by strip) against Möller–Trumbore on
+    every triangle of SeaSurface.mesh: the same triangle (or its coplanar partner, on the quad's diagonal) and
+    distance; rays up, down, level, from outside the mesh and too short to reach it."""
+    import naive
+
+    from sonar_embree import kernels
+
+    sea = se.SeaSurface(z_m=5.0, swell_height_m=0.6, swell_length_m=6.0, swell_direction_deg=direction_deg)
+    shift = np.array([1000.0, -2000.0, 3.0])                        # the local origin in world coordinates
+    xr, yr = (990.0, 1012.0), (-2011.0, -1993.0)
+    mesh, g = sea.mesh(xr, yr, origin_m=shift), sea.strips(xr, yr)
+    n = 400
+    org = np.column_stack([rng.uniform(-14.0, 16.0, n), rng.uniform(-12.0, 10.0, n), rng.uniform(-6.0, 1.5, n)])
+    dirs = rng.normal(size=(n, 3))
+    dirs[:, 2] = np.abs(dirs[:, 2]) * np.where(rng.random(n) < 0.15, -1.0, 1.0)
+    dirs[:10, 2] = 0.0                                              # level rays: only in the band of heights
+    org[:10, 2] = rng.uniform(1.7, 2.3, 10)
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    org32, dirs32 = org.astype(np.float32), dirs.astype(np.float32)
+    prim, t = np.empty(n, np.int32), np.empty(n, np.float32)
+    kernels.swell_surface_hits(org32, dirs32, shift, g.k, g.c, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,
+                               float(g.b[0]), float(g.b[1] - g.b[0]), g.b.size, 30.0, prim, t)
+    ref_prim, ref_t = naive.first_hits(org32.astype(float), dirs32.astype(float), np.asarray(mesh.vertices),
+                                       np.asarray(mesh.faces), 30.0)
+    n_q = len(mesh.faces) // 2
+    hit = ref_prim >= 0
+    assert 0.3 * n < hit.sum() < n and np.any(dirs[:10, 2] == 0.0)
+    np.testing.assert_array_equal(prim >= 0, hit)
+    np.testing.assert_array_equal(prim[hit] % n_q, ref_prim[hit] % n_q)
+    assert np.mean(prim[hit] == ref_prim[hit]) > 0.99
+    np.testing.assert_allclose(t[hit], ref_t[hit], rtol=1e-6, atol=1e-6)
+
+
 def test_merge_kernels_match_naive(rng):
     """kernels.count_lit + merge_lit against a stable sort by row: lit echoes only, part by part in each row."""
     import naive

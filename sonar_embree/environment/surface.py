@@ -36,6 +36,19 @@ G_M_S2 = 9.80665
 CREST_CUT = 64
 
 
+@dataclass(frozen=True, eq=False)
+class SwellStrips:
+    """The swell's mesh grid (:meth:`SeaSurface.mesh`), world frame: unit vectors across (``k``) and along (``c``)
+    the crests, the nodes across (``a``, m, evenly spaced) and along (``b``, m, evenly spaced) them, and the height
+    of each ``a`` node (``z``, m)."""
+
+    k: np.ndarray
+    c: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    z: np.ndarray
+
+
 @dataclass(frozen=True)
 class SeaSurface:
     """A horizontal sea surface at world height ``z_m`` (z up, the trajectory's frame).
@@ -121,13 +134,26 @@ class SeaSurface:
 
         Strips along the crests (the height is constant along a crest, so the strips are exact there), Λ/24 wide
         across them (the sinusoid's chords stand off it by < 1 % of H), cut every ``CREST_CUT`` strip widths
-        along the crests; normals up.
+        along the crests; normals up. The grid is :meth:`strips`: quad (ia, ib) is faces q and n_q + q,
+        q = ib·(na − 1) + ia (the first where the along-strip fraction ≤ the across one).
         """
         import trimesh
 
         if self.is_flat:                                             # two triangles
             v = np.array([[x, y, self.z_m] for x in x_range_m for y in y_range_m]) - np.asarray(origin_m, float)
             return trimesh.Trimesh(v, [[0, 2, 3], [0, 3, 1]], process=False)
+        g = self.strips(x_range_m, y_range_m)
+        ga, gb = np.meshgrid(g.a, g.b)
+        xy = ga[..., None] * g.k + gb[..., None] * g.c
+        z = np.broadcast_to(g.z, ga.shape)
+        v = np.concatenate([xy, z[..., None]], axis=-1).reshape(-1, 3) - np.asarray(origin_m, float)
+        na = g.a.size
+        i = (np.arange(g.b.size - 1)[:, None] * na + np.arange(na - 1)[None, :]).ravel()
+        faces = np.concatenate([np.stack([i, i + 1, i + na + 1], 1), np.stack([i, i + na + 1, i + na], 1)])
+        return trimesh.Trimesh(v, faces, process=False)
+
+    def strips(self, x_range_m, y_range_m) -> "SwellStrips":
+        """The grid of :meth:`mesh` (world frame) over x and y ranges (m), for a swell."""
         step = self.swell_length_m / 24.0
         psi = math.radians(self.swell_direction_deg)
         k, c = np.array([math.cos(psi), math.sin(psi)]), np.array([-math.sin(psi), math.cos(psi)])
@@ -136,14 +162,8 @@ class SeaSurface:
         b_lo, b_hi = (corners @ c).min(), (corners @ c).max()
         a = np.arange(math.floor(a_lo / step), math.ceil(a_hi / step) + 1) * step
         b = np.linspace(b_lo, b_hi, max(2, math.ceil((b_hi - b_lo) / (CREST_CUT * step)) + 1))
-        ga, gb = np.meshgrid(a, b)
-        xy = ga[..., None] * k + gb[..., None] * c
-        z = self.z_m + 0.5 * self.swell_height_m * np.sin(2.0 * math.pi * ga / self.swell_length_m)
-        v = np.concatenate([xy, z[..., None]], axis=-1).reshape(-1, 3) - np.asarray(origin_m, float)
-        na = a.size
-        i = (np.arange(b.size - 1)[:, None] * na + np.arange(na - 1)[None, :]).ravel()
-        faces = np.concatenate([np.stack([i, i + 1, i + na + 1], 1), np.stack([i, i + na + 1, i + na], 1)])
-        return trimesh.Trimesh(v, faces, process=False)
+        z = self.z_m + 0.5 * self.swell_height_m * np.sin(2.0 * math.pi * a / self.swell_length_m)
+        return SwellStrips(k, c, a, b, z)
 
     @property
     def wave_height_m(self) -> float:

@@ -181,3 +181,87 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
                          * ds * db / (max(r, min_range_m) ** 2 * cos_i))
             if want_phi:
                 phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _strip_hit(a_o, d_a, oz, dz, a0, a_step, z, t_lo, t_hi):
+    """(t, ia) of the first crossing of the ray z = oz + t·dz, a = a_o + t·d_a (t_lo ≤ t ≤ t_hi) with the profile
+    through (a0 + i·a_step, z[i]), linear between nodes; (inf, −1) without one. Strips are visited in the ray's
+    order, so the first crossing found is the nearest."""
+    na = z.shape[0]
+    a_s = a_o + t_lo * d_a
+    ia = min(max(int(math.floor((a_s - a0) / a_step)), 0), na - 2)
+    step = 1 if d_a > 0.0 else -1
+    while 0 <= ia <= na - 2:
+        a_i = a0 + ia * a_step
+        t0, t1 = t_lo, t_hi
+        if d_a != 0.0:
+            ta, tb = (a_i - a_o) / d_a, (a_i + a_step - a_o) / d_a
+            t0, t1 = max(t0, min(ta, tb)), min(t1, max(ta, tb))
+        if t0 > t_hi:
+            break
+        if t0 <= t1:
+            slope = (z[ia + 1] - z[ia]) / a_step
+            f1 = dz - d_a * slope
+            if f1 != 0.0:
+                t = -(oz - z[ia] - (a_o - a_i) * slope) / f1
+                if t0 <= t <= t1:
+                    return t, ia
+        if d_a == 0.0:
+            break
+        ia += step
+    return math.inf, -1
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def swell_surface_hits(org, dirs, shift, k, c, a0, a_step, z, b0, b_step, n_b, t_max, prim_out, t_out):
+    """First hit of every ray on the swell's strip mesh (:meth:`SeaSurface.mesh`), in closed form: the mesh is the
+    profile z(a) across the crests (nodes a0 + i·a_step, heights z, linear between), extruded along them over
+    b0 … b0 + (n_b − 1)·b_step. Same triangles as the mesh: quad (ia, ib) is faces q and n_q + q,
+    q = ib·(na − 1) + ia, n_q = (na − 1)(n_b − 1), the second where the fraction along the crest exceeds the one
+    across.
+
+    Parameters
+    ----------
+    org, dirs : (n, 3) float32
+        Ray origins (local frame, m) and unit directions.
+    shift : (3,) float64
+        World position of the local origin (the grid is in world coordinates), m.
+    k, c : (2,) float64
+        Unit vectors across and along the crests (world x, y).
+    a0, a_step : float; z : (na,) float64
+        The profile's first node and spacing across the crests (m) and its heights (world z, m).
+    b0, b_step : float; n_b : int
+        The nodes along the crests, m.
+    t_max : float
+        Farthest hit, m.
+    prim_out : (n,) int32; t_out : (n,) float32
+        Written: the facet hit (−1: none) and the distance to it (m; inf for none).
+    """
+    z_lo, z_hi = z.min(), z.max()
+    b_hi = b0 + (n_b - 1) * b_step
+    na = z.shape[0]
+    n_q = (na - 1) * (n_b - 1)
+    for i in prange(org.shape[0]):
+        ox, oy, oz = org[i, 0] + shift[0], org[i, 1] + shift[1], org[i, 2] + shift[2]
+        dx, dy, dz = np.float64(dirs[i, 0]), np.float64(dirs[i, 1]), np.float64(dirs[i, 2])
+        a_o, d_a = ox * k[0] + oy * k[1], dx * k[0] + dy * k[1]
+        b_o, d_b = ox * c[0] + oy * c[1], dx * c[0] + dy * c[1]
+        t_lo, t_hi = 0.0, t_max
+        for lo, hi, o, d in ((z_lo, z_hi, oz, dz), (b0, b_hi, b_o, d_b)):   # the band of heights and the strips' ends
+            if d == 0.0:
+                if o < lo or o > hi:
+                    t_lo = math.inf
+                continue
+            ta, tb = (lo - o) / d, (hi - o) / d
+            t_lo, t_hi = max(t_lo, min(ta, tb)), min(t_hi, max(ta, tb))
+        t, ia = (math.inf, -1) if t_lo > t_hi else _strip_hit(a_o, d_a, oz, dz, a0, a_step, z, t_lo, t_hi)
+        if ia < 0:
+            prim_out[i], t_out[i] = -1, np.float32(math.inf)
+            continue
+        fa = (a_o + t * d_a - (a0 + ia * a_step)) / a_step
+        ib = min(max(int(math.floor((b_o + t * d_b - b0) / b_step)), 0), n_b - 2)
+        fb = (b_o + t * d_b - (b0 + ib * b_step)) / b_step
+        q = ib * (na - 1) + ia
+        prim_out[i] = q if fa >= fb else n_q + q
+        t_out[i] = np.float32(t)
