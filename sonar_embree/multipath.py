@@ -194,6 +194,13 @@ def bistatic_sigma(compiled, frequency_hz, prim, cos_i, cos_s, phi):
     return out
 
 
+def lambert_mu(compiled) -> np.ndarray:
+    """Lambert's μ per object when every object has Lambert's law and there are no maps or texture (a kernel then
+    applies σ = μ·cos θi·cos θs itself), else an empty array."""
+    c = compiled
+    return c.mu if c.maps is None and c.textures is None and bool(np.all(np.isfinite(c.mu))) else np.zeros(0)
+
+
 def wants_azimuth(compiled) -> bool:
     """Whether any law of the scene reads the bistatic azimuth φ (it costs an arccos per echo)."""
     return any(getattr(law, "uses_azimuth", True) for law in compiled.laws)
@@ -228,14 +235,14 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
-    lambert = c.maps is None and c.textures is None and bool(np.all(np.isfinite(c.mu)))   # σ in the kernel
+    lambert = lambert_mu(c).shape[0] > 0                                     # σ in the kernel
     want_phi = wants_azimuth(c) and not lambert
     legs = (_can_block(caster, False, pos_local), _can_block(caster, True, pos_local))
     kernels.mixed_legs(blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta), np.sin(blk.beta), blk.dbeta,
                        blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, _wave_kh(s), want_phi, c.mu if lambert else np.zeros(0), c.face_object,
+                       s.sound_speed_m_s, _wave_kh(s), want_phi, lambert_mu(c), c.face_object,
                        any(legs), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
     if not lambert:
         apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)

@@ -25,8 +25,8 @@ from . import kernels
 from .echoes import Echoes
 from .fan import elevation_rows, probe_ranges
 from .laws import apply_laws
-from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, mirror_pose, surface_caster,
-                        surface_extent, wants_azimuth)
+from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
+                        surface_caster, surface_extent, wants_azimuth)
 
 
 def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
@@ -111,14 +111,16 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
     m = fan["up"].shape[0]
     o = {k: buf.take("swell_" + k, m) for k in ("w1", "t1", "e1", "w2", "t2", "e2", "cos_i", "cos_s", "phi", "r")}
     o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
-    o["want_phi"] = wants_azimuth(c)
+    o["mu"] = lambert_mu(c)                                        # Lambert's σ in the kernel
+    o["want_phi"] = wants_azimuth(c) and o["mu"].shape[0] == 0
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     kernels.swell_paths(fan["up_start"], fan["up"], fan["ray_start"], fan["el_start"], plan.s, np.cos(fan["beta"]),
                         np.sin(fan["beta"]), fan["dbeta"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"], b["prim"],
                         b["t2"], b["seen"], swell.compiled.face_normals, c.face_normals,
                         np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, plan.beam, plan.ds,
                         plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad, s.sound_speed_m_s, _wave_kh(s),
-                        fan["max_range_m"], LEG_EPSILON_M, o["want_phi"], o["x"], o["w1"], o["t1"], o["e1"], o["w2"],
+                        fan["max_range_m"], LEG_EPSILON_M, o["want_phi"], o["mu"], c.face_object, o["x"], o["w1"],
+                        o["t1"], o["e1"], o["w2"],
                         o["t2"], o["e2"], o["cos_i"], o["cos_s"], o["phi"], o["leg"], o["r"])
     return o
 
@@ -131,8 +133,9 @@ def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shif
                      pos_local, max_range_m, clock)
     b = _bounce(front, caster, swell, fan, pos_local)
     o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
-    apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
-                   o["phi"] if o["want_phi"] else None)
+    if o["mu"].shape[0] == 0:
+        apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
+                       o["phi"] if o["want_phi"] else None)
     block_legs(caster, front.buffers, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"],  # X → S
                b["prim"])
     apply_laws(caster.compiled, front.sonar.frequency_hz, b["prim"], o["cos_i"], o["w2"], o["x"])

@@ -402,12 +402,18 @@ def test_swell_kernels_match_naive(rng):
     keys = ("w1", "time1", "ext1", "w2", "time2", "ext2", "cos_i", "cos_s", "phi", "r")
     out, no_phi = ({k: np.full(m, np.nan) for k in keys} for _ in range(2))
     x, leg = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
-    for want_phi, o in ((True, out), (False, no_phi)):
+    lam = {k: np.full(m, np.nan) for k in keys}
+    face_object, mu = np.array([0, 1, 0, 1, 0, 1, 0], np.int32), np.array([0.01, 0.2])
+    for want_phi, o, mu_obj in ((True, out, np.zeros(0)), (False, no_phi, np.zeros(0)), (False, lam, mu)):
         kernels.swell_paths(up_start, up, ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell,
                             u, p, ur, t1, prim_s, prim, t2, seen, surf, normals, rot, pos, rx_shift, *consts, want_phi,
-                            x, *[o[k] for k in keys[:-1]], leg, o["r"])
+                            mu_obj, face_object, x, *[o[k] for k in keys[:-1]], leg, o["r"])
     for k in keys:                        # without φ (laws that ignore it): the rest to the bit, φ left at 0
         np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.zeros(m), err_msg=k)
+    sigma = mu[face_object[np.maximum(prim, 0)]] * np.maximum(out["cos_i"], 0) * np.maximum(out["cos_s"], 0)
+    np.testing.assert_array_equal(lam["w1"], np.where(out["w1"] > 0, out["w1"] * sigma, out["w1"]))  # Lambert's σ
+    for k in keys[1:]:
+        np.testing.assert_array_equal(lam[k], no_phi[k], err_msg=k)
     pu, cu = ping[up], cell[up]
     ref = naive.swell_paths(s_az[a[up]], beta_cell[cu], dbeta_cell[cu], u, p, ur, t1[up], surf[prim_s[up]], prim, t2,
                             seen, normals, rot, pos, pu, side[up], rx_shift[pu], *consts)

@@ -72,9 +72,10 @@ def _footprint(m, side, cpsi, cb, sb, nx, ny, nz, ur, n_x, cos_i, big_r):
 @njit(cache=True, nogil=True, parallel=True)
 def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p, ur, t1, prim_s, prim, t2,
                 seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m, two_way_np_per_m,
-                slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, x_out, w1_out, time1_out,
-                ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, leg_out, r_out):
-    """The one- and two-bounce paths of every bounced ray, without σ, maps or the direct leg's visibility.
+                slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj, face_object, x_out,
+                w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, leg_out, r_out):
+    """The one- and two-bounce paths of every bounced ray, without σ (but Lambert's, see ``mu_obj``), maps or the
+    direct leg's visibility.
 
     A ray reached the scene at X = P + (eps + t2)·u_r (triangle ``prim``, normal n): unfolded range
     R = t1 + eps + t2 (the facet is a mirror: a straight ray from S's image), r = |X − S|, u_d = (X − S)/r,
@@ -117,6 +118,10 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
         longest unfolded range R (m) and the bounced rays' origin offset (m).
     want_phi : bool
         Whether to write ``phi_out`` (the bistatic azimuth: an arccos per ray).
+    mu_obj : (n_objects,) or (0,) float64; face_object : (f,) int32
+        Lambert's μ per object when every object has Lambert's law and there are no maps or texture: then the
+        one-bounce σ = μ·cos θi·cos θs is applied here, as :func:`sonar_embree.multipath.apply_bistatic` would
+        (the weight × (μ·cos θi)·cos θs); empty: σ is left to the caller.
     x_out : (m, 3) float64
     w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, r_out : (m,) float64
     leg_out : (m, 3) float64
@@ -177,8 +182,11 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
             if not cos_s > 1e-9:
                 continue
             gd, gd_rx = _gains(m, side, ud[0], ud[1], ud[2], beam, ct, st, shift)
-            w1_out[k] = ((g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * half * math.exp(-0.5 * two_way_np_per_m * r)
-                         * ds * db / (max(r, min_range_m) ** 2 * cos_i))
+            w1 = ((g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * half * math.exp(-0.5 * two_way_np_per_m * r)
+                  * ds * db / (max(r, min_range_m) ** 2 * cos_i))
+            if mu_obj.shape[0] > 0 and w1 > 0.0:                     # Lambert: σ = μ·cos θi·cos θs, here
+                w1 = w1 * (mu_obj[face_object[q]] * max(cos_i, 0.0) * max(cos_s, 0.0))
+            w1_out[k] = w1
             if want_phi:
                 phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
 
