@@ -417,3 +417,16 @@ def test_curved_rays_move_during_the_ping_too():
     assert band.sum() > 100
     got_db = 10 * np.log10(moving.starboard[:, band] / still.starboard[:, band])
     np.testing.assert_allclose(got_db, want_db, atol=0.03)
+
+
+def test_segment_turn_angle_series_matches_arctan2():
+    """kernels.refraction._angle (a layer segment's turn θ − θb without the library call where it is small)
+    against NumPy's arctan2, on both sides of the series' limit and in every quadrant."""
+    from sonar_embree.kernels import refraction as kr
+
+    rng = np.random.default_rng(7)
+    y = np.concatenate([rng.uniform(-0.05, 0.05, 500), rng.uniform(-3.0, 3.0, 500), [0.0, 1e-300, -1e-12]])
+    x = np.concatenate([rng.uniform(0.9, 1.0, 500), rng.uniform(-1.0, 1.0, 500), [1.0, 1.0, 1.0]])
+    got = np.array([kr._angle(a, b) for a, b in zip(y, x)])
+    np.testing.assert_allclose(got, np.arctan2(y, x), rtol=1e-14, atol=1e-300)
+    assert np.sum(np.abs(y) < kr.SERIES_MAX_U * x) > 400                # the series branch is exercised

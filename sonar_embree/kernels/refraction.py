@@ -146,8 +146,8 @@ def _turn(ca, sa, kappa, ds):
     u = kappa * ds
     if abs(u) < SERIES_MAX_U:
         u2 = u * u
-        sinc_u = 1.0 - u2 / 6.0 * (1.0 - u2 / 20.0 * (1.0 - u2 / 42.0))
-        cosc_u = 0.5 * u * (1.0 - u2 / 12.0 * (1.0 - u2 / 30.0 * (1.0 - u2 / 56.0)))
+        sinc_u = 1.0 - u2 * (1.0 / 6.0) * (1.0 - u2 * (1.0 / 20.0) * (1.0 - u2 * (1.0 / 42.0)))  # products:
+        cosc_u = 0.5 * u * (1.0 - u2 * (1.0 / 12.0) * (1.0 - u2 * (1.0 / 30.0) * (1.0 - u2 * (1.0 / 56.0))))  # no divisions
     else:
         sinc_u = math.sin(u) / u
         cosc_u = (1.0 - math.cos(u)) / u
@@ -155,6 +155,17 @@ def _turn(ca, sa, kappa, ds):
     sin_u = u * sinc_u
     return (ds * (ca * sinc_u + sa * cosc_u), ds * (sa * sinc_u - ca * cosc_u),
             ca * cos_u + sa * sin_u, sa * cos_u - ca * sin_u)
+
+
+@njit(cache=True, nogil=True)
+def _angle(y, x):
+    """atan2(y, x); for |y| < SERIES_MAX_U·x (a layer segment's turn) from its series to z⁹, z = y/x (relative
+    error < z¹⁰/11 < 10⁻¹⁴), without the library call."""
+    if x > 0.0 and abs(y) < SERIES_MAX_U * x:
+        z = y / x
+        z2 = z * z
+        return z * (1.0 - z2 * (1.0 / 3.0 - z2 * (0.2 - z2 * (1.0 / 7.0 - z2 * (1.0 / 9.0)))))
+    return math.atan2(y, x)
 
 
 @njit(cache=True, nogil=True)
@@ -217,7 +228,7 @@ def _step(layers, k, depth, th, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
         th_b = th
     else:
         cb, sb, d_b = _boundary(layers, k, th, xi, lo, hi)
-        dth = math.atan2(sa * cb - ca * sb, ca * cb + sa * sb)  # θ − θb, well conditioned at any angle
+        dth = _angle(sa * cb - ca * sb, ca * cb + sa * sb)  # θ − θb, well conditioned at any angle
         if dth * kappa < 0.0:
             dth = 0.0
         ds = dth / kappa
