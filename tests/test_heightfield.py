@@ -57,3 +57,18 @@ def test_compiled_scene_knows_its_height_fields_and_boxes():
     assert lo[0] == -10.0 and hi[1] == 10.0 and hi[2] - lo[2] <= 1.0
     empty = object_bounds(c.vertices, c.faces[:0], c.face_object[:0], 1)
     assert np.all(np.isinf(empty))
+
+
+def test_object_bounds_match_a_loop_over_objects():
+    """object_bounds (one sorted pass) against each object's own min and max, objects interleaved and one empty
+    (objects share no vertices, as in a compiled scene)."""
+    rng = np.random.default_rng(3)
+    vertices = rng.normal(size=(300, 3)) * [10.0, 5.0, 1.0]
+    vertex_object = rng.choice([0, 1, 3], 300)                          # interleaved; object 2 has nothing
+    face_object = rng.choice([0, 1, 3], 200).astype(np.int32)
+    faces = np.array([rng.choice(np.flatnonzero(vertex_object == o), 3) for o in face_object])
+    got = object_bounds(vertices, faces, face_object, 4)
+    for o in range(4):
+        v = vertices[np.unique(faces[face_object == o])]
+        want = np.array([v.min(axis=0), v.max(axis=0)]) if len(v) else np.array([[np.inf] * 3, [-np.inf] * 3])
+        np.testing.assert_array_equal(got[o], want)

@@ -66,13 +66,22 @@ def _edges_bound_rectangle(xy: np.ndarray, f: np.ndarray, lo: np.ndarray, hi: np
 
 
 def object_bounds(vertices: np.ndarray, faces: np.ndarray, face_object: np.ndarray, n_objects: int) -> np.ndarray:
-    """(n_objects, 2, 3) min and max corner of each object's triangles, m (an object without faces: +inf, −inf)."""
+    """(n_objects, 2, 3) min and max corner of each object's triangles, m (an object without faces: +inf, −inf);
+    objects share no vertices (as in a :class:`~sonar_embree.scene.CompiledScene`).
+
+    One pass over the vertices (grouped by object with a stable sort, which is linear on a compiled scene's
+    already grouped vertices), not one per object."""
     out = np.empty((n_objects, 2, 3))
     out[:, 0], out[:, 1] = np.inf, -np.inf
     vert_obj = np.full(vertices.shape[0], -1, dtype=np.int64)
     vert_obj[faces.ravel()] = np.repeat(face_object, 3)
-    for o in range(n_objects):
-        v = vertices[vert_obj == o]
-        if v.shape[0]:
-            out[o] = v.min(axis=0), v.max(axis=0)
+    used = np.flatnonzero(vert_obj >= 0)
+    if used.size == 0:
+        return out
+    order = used[np.argsort(vert_obj[used], kind="stable")]
+    objs = vert_obj[order]
+    starts = np.flatnonzero(np.concatenate(([True], objs[1:] != objs[:-1])))
+    v = vertices[order]
+    out[objs[starts], 0] = np.minimum.reduceat(v, starts, axis=0)
+    out[objs[starts], 1] = np.maximum.reduceat(v, starts, axis=0)
     return out
