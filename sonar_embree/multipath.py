@@ -117,13 +117,29 @@ def surface_caster(caster, surface, max_range_m: float):
     from .scene import Scene
 
     c = caster.compiled
-    cache = c.__dict__.setdefault("_swell_casters", {})
-    key = (surface, round(max_range_m, 6))
-    if key not in cache:
-        mesh = surface.mesh(*surface_extent(c, max_range_m))
+
+    def make():
         law = surface.backscatter_law
         material = Material(two_sided=True) if law is None else Material(two_sided=True, scattering=law)
-        cache[key] = RayCaster(Scene().add(mesh, material=material, label="sea surface").compiled(c.origin_m))
+        mesh = surface.mesh(*surface_extent(c, max_range_m))
+        return RayCaster(Scene().add(mesh, material=material, label="sea surface").compiled(c.origin_m))
+    return _per_surface(c, "_swell_casters", surface, max_range_m, make)
+
+
+def surface_strips(caster, surface, max_range_m: float):
+    """The swell's mesh grid (:meth:`SeaSurface.strips`) over the extent :func:`surface_caster` meshes for the same
+    range; kept with the scene's compiled arrays."""
+    c = caster.compiled
+    return _per_surface(c, "_swell_strips", surface, max_range_m,
+                        lambda: surface.strips(*surface_extent(c, max_range_m)))
+
+
+def _per_surface(compiled, name: str, surface, max_range_m: float, make):
+    """``make()`` once per sea surface and range, kept with the scene's compiled arrays under ``name``."""
+    cache = compiled.__dict__.setdefault(name, {})
+    key = (surface, round(max_range_m, 6))
+    if key not in cache:
+        cache[key] = make()
     return cache[key]
 
 
@@ -235,14 +251,15 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
-    lambert = lambert_mu(c).shape[0] > 0                                     # σ in the kernel
+    mu = lambert_mu(c)                                                       # σ in the kernel
+    lambert = mu.shape[0] > 0
     want_phi = wants_azimuth(c) and not lambert
     legs = (_can_block(caster, False, pos_local), _can_block(caster, True, pos_local))
     kernels.mixed_legs(blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta), np.sin(blk.beta), blk.dbeta,
                        blk.range_m, blk.point_m, blk.prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
                        plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, _wave_kh(s), want_phi, lambert_mu(c), c.face_object,
+                       s.sound_speed_m_s, _wave_kh(s), want_phi, mu, c.face_object,
                        any(legs), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
     if not lambert:
         apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)

@@ -26,7 +26,7 @@ from .echoes import Echoes
 from .fan import elevation_rows, probe_ranges
 from .laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
-                        surface_caster, surface_extent, wants_azimuth)
+                        surface_caster, surface_strips, wants_azimuth)
 
 
 def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
@@ -65,17 +65,6 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock):
     up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
     return dict(el_start=el_start, ray_start=ray_start, beta=beta, dbeta=dbeta, dirs=dirs, prim_s=prim_s, t1=t1,
                 up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m)
-
-
-def surface_strips(caster, surface, max_range_m: float):
-    """The swell's mesh grid (:meth:`SeaSurface.strips`) over the extent :func:`surface_caster` meshes for the same
-    range; kept with the scene's compiled arrays."""
-    c = caster.compiled
-    cache = c.__dict__.setdefault("_swell_strips", {})
-    key = (surface, round(max_range_m, 6))
-    if key not in cache:
-        cache[key] = surface.strips(*surface_extent(c, max_range_m))
-    return cache[key]
 
 
 def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):

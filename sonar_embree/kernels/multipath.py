@@ -341,16 +341,15 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, b
             if not weight[i] > 0.0:
                 continue
             ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
-            own, above = -1, False
+            own, above, rise = -1, False, -math.inf                    # rise: tan of the leg's elevation from x[i]
             if prim.shape[0] > 0:
                 p = prim[i]
                 own = face_object[p]
                 above = free_own and face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (
                     x[i, 1] - pos[b, 1]) + face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0
-            rise = -math.inf                                            # tan of the leg's elevation from x[i]
-            if not from_sonar:
-                h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
-                rise = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
+                if not (from_sonar or above):
+                    h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
+                    rise = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
             ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
             start, end = math.inf, -math.inf
             for q in range(box_lo.shape[0]):
