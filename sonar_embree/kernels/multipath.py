@@ -6,7 +6,10 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .rays import _sinc
+from .rays import _sinc, sinc_rows
+
+#: Rays per pass of :func:`mixed_legs`: their sinc arguments are gathered, then evaluated in one vectorised loop.
+_CHUNK = 256
 
 
 @njit(cache=True, nogil=True)
@@ -16,23 +19,6 @@ def _rotation(rot, b):
             rot[b, 2, 0], rot[b, 2, 1], rot[b, 2, 2])
 
 
-@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
-def _gains(m, side, ux, uy, uz, beam, c, s, shift):
-    """(Γ, Γ_rx) of the channel's membrane (side −1 port, +1 starboard) for the world direction u; m the body →
-    world rotation (9-tuple, row-major), c and s the cosine and sine of the tilt. Γ_rx takes the along-track
-    cosine ``shift`` back (the receive beam moving during the ping, docs/physics.md §16); Γ_rx = Γ when 0."""
-    e0 = m[0] * ux + m[3] * uy + m[6] * uz                    # body = mᵀ·u: forward, starboard, down
-    e1 = m[1] * ux + m[4] * uy + m[7] * uz
-    e2 = m[2] * ux + m[5] * uy + m[8] * uz
-    if side * e1 * c + e2 * s <= 0.0:                         # cos ψ · cos(β − δ): behind the baffle
-        return 0.0, 0.0
-    el = _sinc(beam[1] * (e2 * c - side * e1 * s))
-    g = _sinc(beam[0] * e0) * el
-    if shift == 0.0:
-        return g, g
-    return g, _sinc(beam[0] * (e0 - shift)) * el
-
-
 @njit(cache=True, nogil=True)
 def _footprint_slope(m, side, u, v, n, r):
     """|d(r + r')/dβ| of a ray cell: dX/dβ = r·(f − u·(n·f)/(n·u)), f = ∂u/∂β in world axes (m a 9-tuple)."""
@@ -40,12 +26,11 @@ def _footprint_slope(m, side, u, v, n, r):
     e2 = m[2] * u[0] + m[5] * u[1] + m[8] * u[2]
     f = (m[1] * (-side * e2) + m[2] * (side * e1), m[4] * (-side * e2) + m[5] * (side * e1),
          m[7] * (-side * e2) + m[8] * (side * e1))
-    nf = n[0] * f[0] + n[1] * f[1] + n[2] * f[2]
-    nu = n[0] * u[0] + n[1] * u[1] + n[2] * u[2]
+    k = (n[0] * f[0] + n[1] * f[1] + n[2] * f[2]) / (n[0] * u[0] + n[1] * u[1] + n[2] * u[2])
     out = 0.0
     for q in range(3):
-        out += (u[q] - v[q]) * r * (f[q] - u[q] * nf / nu)
-    return abs(out)
+        out += (u[q] - v[q]) * (f[q] - u[q] * k)
+    return abs(out * r)
 
 
 @njit(cache=True, nogil=True)
@@ -83,12 +68,13 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
     cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
     and v in the plane of n (the bistatic azimuth; 0 for backscatter; computed only when ``want_phi``, for a
     law that depends on it, else left unwritten: an arccos per echo). Γ(u1) and Γ_rx(u1) are the fan ray's
-    own, from its grid direction (azimuth sine s, depression β) as :func:`fan_echoes` computes them, so the
-    direct and the mixed paths share their bits and a ray costs one sinc there instead of three (a ray behind
-    the baffle has no direct echo: fan_echoes left its r = inf). Rays without
-    a direct echo (r = inf) get w = 0, t = inf. Γ_rx is Γ with the along-track cosine shifted by the
-    ping's ``rx_shift`` δ = 2·v_fwd/c (motion during the ping, docs/physics.md §16); with δ = 0 the weight is
-    2·Γ²(u1)·Γ²(u2) to the bit.
+    own, from its grid direction (azimuth sine s, depression β) as :func:`fan_echoes` computes them (a ray
+    behind the baffle has no direct echo: fan_echoes left its r = inf). Rays without a direct echo (r = inf)
+    get w = 0, t = inf. Γ_rx is Γ with the along-track cosine shifted by the ping's ``rx_shift``
+    δ = 2·v_fwd/c (motion during the ping, docs/physics.md §16); with δ = 0 the weight is 2·Γ²(u1)·Γ²(u2) to
+    the bit. The rays go in chunks of :data:`_CHUNK`: the geometry ray by ray, then the chunk's four sincs per
+    ray in one vectorised loop (:func:`sinc_rows`, within 3 ulp of ``math.sin``; fan_echoes' Γ(u1) may differ
+    from this one in its last bits), then the weights.
 
     Parameters
     ----------
@@ -125,59 +111,80 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
     v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
         Written.
     """
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
     for row in prange(ray_start.shape[0] - 1):
-        b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
-        m = _rotation(rot, b)
-        n_el = el_start[row + 1] - el_start[row]
-        sx, sy, sz = pos[b, 0], pos[b, 1], pos[b, 2]
-        shift = rx_shift[b]
-        j, az = n_el - 1, -1  # elevation cell and azimuth of ray i, counted (no integer division per ray)
-        g_az, g_az_rx, cpsi = 0.0, 0.0, 0.0
-        for i in range(ray_start[row], ray_start[row + 1]):
-            if j == n_el - 1:
-                j, az = 0, az + 1
-                cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
-                g_az, g_az_rx = _sinc(beam[0] * s_az[az]), _sinc(beam[0] * (s_az[az] - shift))
-            else:
-                j += 1
-            if not math.isfinite(r[i]):
-                weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
-                continue
-            cell = el_start[row] + j
-            db = dbeta[cell]
-            g_el = _sinc(beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st))  # fan_echoes' Γ(u1), Γ_rx(u1)
-            g1, g1r = g_az * g_el, g_az_rx * g_el
-            u = ((x[i, 0] - sx) / r[i], (x[i, 1] - sy) / r[i], (x[i, 2] - sz) / r[i])
-            vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
-            r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
-            v = (vx / r2, vy / r2, vz / r2)
-            leg1 = r2 * (z_s - x[i, 2]) / (2.0 * z_s - sz - x[i, 2])
-            px, py, pz = x[i, 0] + leg1 * v[0] - sx, x[i, 1] + leg1 * v[1] - sy, x[i, 2] + leg1 * v[2] - sz
-            leg2 = math.sqrt(px * px + py * py + pz * pz)
-            p = prim[i]
-            nx, ny, nz = face_normals[p, 0], face_normals[p, 1], face_normals[p, 2]
-            flip = -1.0 if nx * u[0] + ny * u[1] + nz * u[2] > 0.0 else 1.0
-            n = (flip * nx, flip * ny, flip * nz)
-            cos_i = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2])
-            g2, g2r = _gains(m, side, px / leg2, py / leg2, pz / leg2, beam, ct, st, shift)
-            rb2 = max(r2, min_range_m)
-            att = math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2])
-            g = g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2          # = 2·g1²·g2², bit for bit, when δ = 0
-            w = g * att * ds * db / (rb2 * rb2 * cos_i)
-            cos_s = n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
-            if mu_obj.shape[0] > 0 and w > 0.0:                       # Lambert: σ = μ·cos θi·cos θs, here
-                w = w * (mu_obj[face_object[p]] * max(cos_i, 0.0) * max(cos_s, 0.0))
-            weight_out[i] = w
-            time_out[i] = (r[i] + r2) / sound_speed_m_s
-            extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
-            cos_i_out[i], cos_s_out[i] = cos_i, cos_s
-            if want_phi:
-                phi_out[i] = _azimuth(n, u, v)
-            if want_legs:
-                v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
-                u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = px / leg2, py / leg2, pz / leg2
-                leg1_out[i], leg2_out[i] = leg1, leg2
+        sc = np.empty((8, _CHUNK))   # per echo: the four sincs' arguments (then values), Γ_az, Γ_az,rx, gate, σ_Lambert
+        j, az, cpsi, ga, gar = el_start[row + 1] - el_start[row] - 1, -1, 0.0, 0.0, 0.0
+        for c0 in range(ray_start[row], ray_start[row + 1], _CHUNK):
+            c1 = min(c0 + _CHUNK, ray_start[row + 1])
+            j, az, cpsi, ga, gar = _mixed_chunk(
+                row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos,
+                rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad,
+                sound_speed_m_s, wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out,
+                cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc)
+            sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per echo
+            for k in range(c1 - c0):                                    # = 2·g1²·g2², bit for bit, when δ = 0
+                g1, g1r, g2, g2r = sc[4, k] * sc[0, k], sc[5, k] * sc[0, k], sc[1, k] * sc[3, k], sc[2, k] * sc[3, k]
+                g = (g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2) * sc[6, k]
+                weight_out[c0 + k] = weight_out[c0 + k] * g * sc[7, k]
+
+
+@njit(cache=True, nogil=True)  # one call per chunk: its arrays' reference counts cost nothing here
+def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos,
+                 rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s,
+                 wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out, cos_i_out,
+                 cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc):
+    """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`: everything but the gains, whose sinc arguments go to
+    ``sc`` (rows 0–3: Γ_el(u1), Γ_az(u2), Γ_az,rx(u2), Γ_el(u2); 4, 5: the ray's Γ_az, Γ_az,rx; 6: 1 in front
+    of the baffle along u2, else 0; 7: Lambert's σ = μ·cos θi·cos θs, or 1). ``j``, ``az`` (the ray's elevation
+    cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk and are returned."""
+    ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 1.0 / sound_speed_m_s
+    b, side, n_el = row // 2, 1.0 if row % 2 == 1 else -1.0, el_start[row + 1] - el_start[row]
+    m = _rotation(rot, b)
+    sx, sy, sz, shift = pos[b, 0], pos[b, 1], pos[b, 2], rx_shift[b]
+    for i in range(c0, c1):
+        k = i - c0
+        if j == n_el - 1:
+            j, az = 0, az + 1
+            cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
+            ga, gar = _sinc(beam[0] * s_az[az]), _sinc(beam[0] * (s_az[az] - shift))
+        else:
+            j += 1
+        cell = el_start[row] + j
+        sc[0, k], sc[4, k], sc[5, k] = beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st), ga, gar
+        if not math.isfinite(r[i]):
+            weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
+            sc[1, k], sc[2, k], sc[3, k], sc[6, k], sc[7, k] = 0.0, 0.0, 0.0, 0.0, 0.0
+            continue
+        db, ir = dbeta[cell], 1.0 / r[i]
+        u = ((x[i, 0] - sx) * ir, (x[i, 1] - sy) * ir, (x[i, 2] - sz) * ir)
+        vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
+        r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
+        ir2 = 1.0 / r2
+        v = (vx * ir2, vy * ir2, vz * ir2)          # X → S'; S → P is its mirror (−v_x, −v_y, v_z)
+        p = prim[i]
+        flip = -1.0 if face_normals[p, 0] * u[0] + face_normals[p, 1] * u[1] + face_normals[p, 2] * u[2] > 0.0 else 1.0
+        n = (flip * face_normals[p, 0], flip * face_normals[p, 1], flip * face_normals[p, 2])
+        cos_i, cos_s = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2]), n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+        e0 = -m[0] * v[0] - m[3] * v[1] + m[6] * v[2]             # S → P in body axes: forward, starboard, down
+        e1 = -m[1] * v[0] - m[4] * v[1] + m[7] * v[2]
+        e2 = -m[2] * v[0] - m[5] * v[1] + m[8] * v[2]
+        sc[1, k], sc[2, k], sc[3, k] = beam[0] * e0, beam[0] * (e0 - shift), beam[1] * (e2 * ct - side * e1 * st)
+        sc[6, k] = 1.0 if side * e1 * ct + e2 * st > 0.0 else 0.0  # cos ψ · cos(β − δ) > 0: in front of the baffle
+        rb2 = max(r2, min_range_m)
+        w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2]) * ds * db
+             / (rb2 * rb2 * cos_i))
+        sc[7, k] = mu_obj[face_object[p]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
+        weight_out[i], time_out[i] = w, (r[i] + r2) * inv_c
+        extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db * inv_c
+        cos_i_out[i], cos_s_out[i] = cos_i, cos_s
+        if want_phi:
+            phi_out[i] = _azimuth(n, u, v)
+        if want_legs:
+            q = r2 / vz
+            v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
+            u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = -v[0], -v[1], v[2]
+            leg1_out[i], leg2_out[i] = (z_s - x[i, 2]) * q, (z_s - sz) * q   # X → P and S → P (= P → S')
+    return j, az, cpsi, ga, gar
 
 
 @njit(cache=True, nogil=True, parallel=True)

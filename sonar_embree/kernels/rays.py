@@ -94,6 +94,41 @@ def _sinc(x):
     return math.sin(x) / x
 
 
+# fdlibm's k_sin.c and k_cos.c (Sun Microsystems, 1993; freely distributable): minimax polynomials with
+# |sin y − y·(1 + z·S(z))| < 2⁻⁵⁸ and |cos y − (1 − z/2 + z²·C(z))| < 2⁻⁵⁸ on |y| ≤ π/4, z = y².
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _sinc_poly(x):
+    """sin(x)/x without a branch, so that a loop of it vectorises: fdlibm's polynomials of sin and cos after the
+    two-term Cody–Waite reduction y = |x| − n·π/2 (n·π/2 in 33 + 53 bits). Within 3 ulp of ``math.sin(x)/x`` for
+    |x| < 10⁵ (tests/test_kernels.py); the beams' arguments stay below k·L."""
+    ax = abs(x)
+    n = math.floor(ax * 0.6366197723675814 + 0.5)           # nearest multiple of π/2
+    y = (ax - n * 1.57079632673412561417e+00) - n * 6.07710050650619224932e-11
+    z = y * y
+    sp = y + y * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    h = 0.5 * z
+    w = 1.0 - h
+    cp = w + (((1.0 - w) - h) + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+    q = int(n)
+    out = (1.0 - (q & 2)) * (cp if q & 1 else sp)
+    tiny = ax < 1e-8
+    return 1.0 - x * x / 6.0 if tiny else out / (1.0 if tiny else ax)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def sinc_rows(a, rows, m):
+    """a[j, k] = sin(a[j, k])/a[j, k] for j < rows, k < m, in place (:func:`_sinc_poly`, vectorised)."""
+    for j in range(rows):
+        for k in range(m):
+            a[j, k] = _sinc_poly(a[j, k])
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, prim, tfar, vertices, faces, face_normals,
                face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,

@@ -10,8 +10,8 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .multipath import _azimuth, _gains, _rotation
-from .rays import _sinc
+from .multipath import _CHUNK, _azimuth, _rotation
+from .rays import _sinc, sinc_rows
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -90,7 +90,9 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
     with Γ(u) of the launch direction from its fan grid direction, Γ(u_d) of the direct leg, Γ_rx the receive
     beam turned by the ping's δ (motion during the ping, docs/physics.md §16; δ = 0: Γ_rx = Γ and the one-bounce
     gain is 2·Γ²(u)·Γ²(u_d) to the bit). w2 = 0 unless cos θi > 1e-9, w1 = 0 unless cos θs > 1e-9 too; rays not
-    ``seen`` (S→P blocked), missing the scene or with R beyond ``max_range_m`` get w1 = w2 = 0, t = inf.
+    ``seen`` (S→P blocked), missing the scene or with R beyond ``max_range_m`` get w1 = w2 = 0, t = inf. As in
+    :func:`~sonar_embree.kernels.multipath.mixed_legs`, the rays go in chunks: the geometry, then the chunk's
+    four sincs per ray in one vectorised loop (:func:`~sonar_embree.kernels.rays.sinc_rows`), then the weights.
 
     Parameters
     ----------
@@ -127,68 +129,97 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
     leg_out : (m, 3) float64
         Written; ``leg_out`` = −u_d and ``r_out`` = r are the direct leg X → S for the visibility check.
     """
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
     for row in prange(up_start.shape[0] - 1):
-        b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
-        m = _rotation(rot, b)
-        n_el = el_start[row + 1] - el_start[row]
-        shift = rx_shift[b]
-        a_now, g_az, g_az_rx, cpsi = -1, 0.0, 0.0, 0.0      # the launch gain's azimuth factors, per azimuth
-        for k in range(up_start[row], up_start[row + 1]):
-            w1_out[k], w2_out[k], time1_out[k], time2_out[k], ext1_out[k], ext2_out[k] = (0.0, 0.0, math.inf,
-                                                                                         math.inf, 0.0, 0.0)
-            cos_i_out[k], cos_s_out[k], phi_out[k], r_out[k] = 1.0, 1.0, 0.0, 0.0
-            x_out[k, 0], x_out[k, 1], x_out[k, 2] = p[k, 0], p[k, 1], p[k, 2]
-            big_r = np.float64(t1[up[k]]) + eps + np.float64(t2[k])
-            if prim[k] < 0 or not seen[k] > 0.0 or big_r > max_range_m:
-                continue
-            ray = up[k] - ray_start[row]
-            a = ray // n_el
-            cell = el_start[row] + ray - a * n_el
-            urk = (ur[k, 0], ur[k, 1], ur[k, 2])
-            d = eps + np.float64(t2[k])
-            x = (p[k, 0] + d * urk[0], p[k, 1] + d * urk[1], p[k, 2] + d * urk[2])
-            x_out[k, 0], x_out[k, 1], x_out[k, 2] = x
-            q = prim[k]
-            n_x = (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2])
-            cos_i = -(n_x[0] * urk[0] + n_x[1] * urk[1] + n_x[2] * urk[2])
-            if not cos_i > 1e-9:
-                continue
-            qs = prim_s[up[k]]
-            nx, ny, nz = surface_normals[qs, 0], surface_normals[qs, 1], surface_normals[qs, 2]
-            sg = u[k, 0] * nx + u[k, 1] * ny + u[k, 2] * nz
-            half = math.exp(-0.5 * two_way_np_per_m * big_r - 4.0 * wave_kh * wave_kh * sg * sg)  # e^(−α'R/2)·|R_s|²
-            if a != a_now:
-                a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
-                g_az, g_az_rx = _sinc(beam[0] * s_az[a]), _sinc(beam[0] * (s_az[a] - shift))
-            g_el = 0.0                                       # Γ(u) from the fan grid: the mirror maps the image
-            if cos_beta[cell] * ct + sin_beta[cell] * st > 0.0:   # ray onto u; 0 behind the baffle
-                g_el = _sinc(beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st))
-            g, g_rx = g_az * g_el, g_az_rx * g_el
-            dx = _footprint(m, side, cpsi, cos_beta[cell], sin_beta[cell], nx, ny, nz, urk, n_x, cos_i, big_r)
-            db = dbeta[cell]
-            w2_out[k] = g * g * g_rx * g_rx * half * half * ds * db / max(big_r, min_range_m) ** 2
-            slope = min(abs(urk[0] * dx[0] + urk[1] * dx[1] + urk[2] * dx[2]), slope_cap_m_rad)
-            time2_out[k], ext2_out[k] = 2.0 * big_r / sound_speed_m_s, 2.0 * slope * db / sound_speed_m_s
-            cos_i_out[k] = cos_i
-            vx, vy, vz = x[0] - pos[b, 0], x[1] - pos[b, 1], x[2] - pos[b, 2]
-            r = math.sqrt(vx * vx + vy * vy + vz * vz)
-            ud = (vx / r, vy / r, vz / r)
-            cos_s = -(n_x[0] * ud[0] + n_x[1] * ud[1] + n_x[2] * ud[2])
-            leg_out[k, 0], leg_out[k, 1], leg_out[k, 2], r_out[k], cos_s_out[k] = -ud[0], -ud[1], -ud[2], r, cos_s
-            time1_out[k] = (big_r + r) / sound_speed_m_s
-            slope = abs((urk[0] + ud[0]) * dx[0] + (urk[1] + ud[1]) * dx[1] + (urk[2] + ud[2]) * dx[2])
-            ext1_out[k] = min(slope, 2.0 * slope_cap_m_rad) * db / sound_speed_m_s
-            if not cos_s > 1e-9:
-                continue
-            gd, gd_rx = _gains(m, side, ud[0], ud[1], ud[2], beam, ct, st, shift)
-            w1 = ((g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * half * math.exp(-0.5 * two_way_np_per_m * r)
-                  * ds * db / (max(r, min_range_m) ** 2 * cos_i))
-            if mu_obj.shape[0] > 0 and w1 > 0.0:                     # Lambert: σ = μ·cos θi·cos θs, here
-                w1 = w1 * (mu_obj[face_object[q]] * max(cos_i, 0.0) * max(cos_s, 0.0))
-            w1_out[k] = w1
-            if want_phi:
-                phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
+        sc = np.empty((9, _CHUNK))      # per ray: the four sincs' arguments (then values), Γ_az, Γ_az,rx, two gates, σ
+        a_now, cpsi, ga, gar = -1, 0.0, 0.0, 0.0
+        for c0 in range(up_start[row], up_start[row + 1], _CHUNK):
+            c1 = min(c0 + _CHUNK, up_start[row + 1])
+            a_now, cpsi, ga, gar = _swell_chunk(
+                row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p, ur,
+                t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m,
+                two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj,
+                face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out,
+                phi_out, leg_out, r_out, sc)
+            sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per ray
+            for k in range(c1 - c0):
+                g, g_rx = sc[4, k] * sc[0, k] * sc[6, k], sc[5, k] * sc[0, k] * sc[6, k]
+                gd, gd_rx = sc[1, k] * sc[3, k] * sc[7, k], sc[2, k] * sc[3, k] * sc[7, k]
+                w2_out[c0 + k] = w2_out[c0 + k] * (g * g * g_rx * g_rx)
+                w1_out[c0 + k] = w1_out[c0 + k] * (g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * sc[8, k]
+
+
+@njit(cache=True, nogil=True)  # one call per chunk: its arrays' reference counts cost nothing here
+def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p,
+                 ur, t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds,
+                 min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi,
+                 mu_obj, face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out,
+                 cos_s_out, phi_out, leg_out, r_out, sc):
+    """Bounced rays c0 … c1 − 1 of a row of :func:`swell_paths`: everything but the gains, whose sinc arguments go
+    to ``sc`` (rows 0–3: Γ_el(u), Γ_az(u_d), Γ_az,rx(u_d), Γ_el(u_d); 4, 5: the launch's Γ_az, Γ_az,rx; 6, 7: 1
+    where u, u_d are in front of the baffle and the path lit, else 0; 8: Lambert's one-bounce σ, or 1); w1 and w2
+    are written without the gains. The launch azimuth, its cos ψ and gains carry from chunk to chunk."""
+    ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 1.0 / sound_speed_m_s
+    b, side, n_el = row // 2, 1.0 if row % 2 == 1 else -1.0, el_start[row + 1] - el_start[row]
+    m, shift = _rotation(rot, b), rx_shift[b]
+    for k in range(c0, c1):
+        c = k - c0
+        sc[0, c], sc[1, c], sc[2, c], sc[3, c], sc[6, c], sc[7, c], sc[8, c] = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        w1_out[k], w2_out[k], time1_out[k], time2_out[k] = 0.0, 0.0, math.inf, math.inf
+        ext1_out[k], ext2_out[k] = 0.0, 0.0
+        cos_i_out[k], cos_s_out[k], phi_out[k], r_out[k] = 1.0, 1.0, 0.0, 0.0
+        x_out[k, 0], x_out[k, 1], x_out[k, 2] = p[k, 0], p[k, 1], p[k, 2]
+        big_r = np.float64(t1[up[k]]) + eps + np.float64(t2[k])
+        if prim[k] < 0 or not seen[k] > 0.0 or big_r > max_range_m:
+            continue
+        ray = up[k] - ray_start[row]
+        a = ray // n_el
+        cell = el_start[row] + ray - a * n_el
+        urk = (ur[k, 0], ur[k, 1], ur[k, 2])
+        d = eps + np.float64(t2[k])
+        x = (p[k, 0] + d * urk[0], p[k, 1] + d * urk[1], p[k, 2] + d * urk[2])
+        x_out[k, 0], x_out[k, 1], x_out[k, 2] = x
+        q = prim[k]
+        n_x = (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2])
+        cos_i = -(n_x[0] * urk[0] + n_x[1] * urk[1] + n_x[2] * urk[2])
+        if not cos_i > 1e-9:
+            continue
+        qs = prim_s[up[k]]
+        nx, ny, nz = surface_normals[qs, 0], surface_normals[qs, 1], surface_normals[qs, 2]
+        sg = u[k, 0] * nx + u[k, 1] * ny + u[k, 2] * nz
+        half = math.exp(-0.5 * two_way_np_per_m * big_r - 4.0 * wave_kh * wave_kh * sg * sg)  # e^(−α'R/2)·|R_s|²
+        if a != a_now:
+            a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
+            ga, gar = _sinc(beam[0] * s_az[a]), _sinc(beam[0] * (s_az[a] - shift))
+        sc[4, c], sc[5, c] = ga, gar                     # Γ(u) from the fan grid: the mirror maps the image ray onto u
+        sc[0, c] = beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st)
+        sc[6, c] = 1.0 if cos_beta[cell] * ct + sin_beta[cell] * st > 0.0 else 0.0      # 0 behind the baffle
+        dx = _footprint(m, side, cpsi, cos_beta[cell], sin_beta[cell], nx, ny, nz, urk, n_x, cos_i, big_r)
+        db = dbeta[cell]
+        w2_out[k] = half * half * ds * db / max(big_r, min_range_m) ** 2
+        slope = min(abs(urk[0] * dx[0] + urk[1] * dx[1] + urk[2] * dx[2]), slope_cap_m_rad)
+        time2_out[k], ext2_out[k] = 2.0 * big_r * inv_c, 2.0 * slope * db * inv_c
+        cos_i_out[k] = cos_i
+        vx, vy, vz = x[0] - pos[b, 0], x[1] - pos[b, 1], x[2] - pos[b, 2]
+        r = math.sqrt(vx * vx + vy * vy + vz * vz)
+        ir = 1.0 / r
+        ud = (vx * ir, vy * ir, vz * ir)
+        cos_s = -(n_x[0] * ud[0] + n_x[1] * ud[1] + n_x[2] * ud[2])
+        leg_out[k, 0], leg_out[k, 1], leg_out[k, 2], r_out[k], cos_s_out[k] = -ud[0], -ud[1], -ud[2], r, cos_s
+        time1_out[k] = (big_r + r) * inv_c
+        slope = abs((urk[0] + ud[0]) * dx[0] + (urk[1] + ud[1]) * dx[1] + (urk[2] + ud[2]) * dx[2])
+        ext1_out[k] = min(slope, 2.0 * slope_cap_m_rad) * db * inv_c
+        if not cos_s > 1e-9:
+            continue
+        e0 = m[0] * ud[0] + m[3] * ud[1] + m[6] * ud[2]             # u_d in body axes: forward, starboard, down
+        e1 = m[1] * ud[0] + m[4] * ud[1] + m[7] * ud[2]
+        e2 = m[2] * ud[0] + m[5] * ud[1] + m[8] * ud[2]
+        sc[1, c], sc[2, c], sc[3, c] = beam[0] * e0, beam[0] * (e0 - shift), beam[1] * (e2 * ct - side * e1 * st)
+        sc[7, c] = 1.0 if side * e1 * ct + e2 * st > 0.0 else 0.0
+        sc[8, c] = mu_obj[face_object[q]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
+        w1_out[k] = half * math.exp(-0.5 * two_way_np_per_m * r) * ds * db / (max(r, min_range_m) ** 2 * cos_i)
+        if want_phi:
+            phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
+    return a_now, cpsi, ga, gar
 
 
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
