@@ -58,9 +58,8 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock):
     ray_start = n_az * el_start
     n = int(ray_start[-1])
     dirs, org = buf.take("swell_dirs", (n, 3), np.float32), buf.take("swell_org", (n, 3), np.float32)
-    kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot_i), pos_i, dirs, org)
-    dirs[:, 2] *= -1.0                                                # the real, upward ray (negation: exact)
-    org[:] = np.repeat(pos_local.astype(np.float32), 2, axis=0).repeat(np.diff(ray_start), axis=0)
+    # the real, upward rays from S: the image fan's directions with z negated, i.e. the fan of the real attitude
+    kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot), pos_local, dirs, org)
     prim_s, t1 = _surface_hits(buf, caster.compiled.origin_m, strips, org, dirs, max_range_m)
     up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
     return dict(el_start=el_start, ray_start=ray_start, beta=beta, dbeta=dbeta, dirs=dirs, prim_s=prim_s, t1=t1,

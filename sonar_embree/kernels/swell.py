@@ -172,7 +172,7 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         if prim[k] < 0 or not seen[k] > 0.0 or big_r > max_range_m:
             continue
         ray = up[k] - ray_start[row]
-        a = ray // n_el
+        a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el      # the azimuth, divided only when it moves on
         cell = el_start[row] + ray - a * n_el
         urk = (ur[k, 0], ur[k, 1], ur[k, 2])
         d = eps + np.float64(t2[k])
@@ -195,7 +195,8 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         sc[6, c] = 1.0 if cos_beta[cell] * ct + sin_beta[cell] * st > 0.0 else 0.0      # 0 behind the baffle
         dx = _footprint(m, side, cpsi, cos_beta[cell], sin_beta[cell], nx, ny, nz, urk, n_x, cos_i, big_r)
         db = dbeta[cell]
-        w2_out[k] = half * half * ds * db / max(big_r, min_range_m) ** 2
+        rb = max(big_r, min_range_m)
+        w2_out[k] = half * half * ds * db / (rb * rb)
         slope = min(abs(urk[0] * dx[0] + urk[1] * dx[1] + urk[2] * dx[2]), slope_cap_m_rad)
         time2_out[k], ext2_out[k] = 2.0 * big_r * inv_c, 2.0 * slope * db * inv_c
         cos_i_out[k] = cos_i
@@ -216,7 +217,8 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         sc[1, c], sc[2, c], sc[3, c] = beam[0] * e0, beam[0] * (e0 - shift), beam[1] * (e2 * ct - side * e1 * st)
         sc[7, c] = 1.0 if side * e1 * ct + e2 * st > 0.0 else 0.0
         sc[8, c] = mu_obj[face_object[q]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
-        w1_out[k] = half * math.exp(-0.5 * two_way_np_per_m * r) * ds * db / (max(r, min_range_m) ** 2 * cos_i)
+        rb = max(r, min_range_m)
+        w1_out[k] = half * math.exp(-0.5 * two_way_np_per_m * r) * ds * db / (rb * rb * cos_i)
         if want_phi:
             phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
     return a_now, cpsi, ga, gar
