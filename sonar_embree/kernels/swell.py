@@ -163,7 +163,8 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
     m, shift = _rotation(rot, b), rx_shift[b]
     for k in range(c0, c1):
         c = k - c0
-        sc[0, c], sc[1, c], sc[2, c], sc[3, c], sc[6, c], sc[7, c], sc[8, c] = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        for q in range(9):                              # a ray that returns nothing: every gain 0, none unset
+            sc[q, c] = 0.0
         w1_out[k], w2_out[k], time1_out[k], time2_out[k] = 0.0, 0.0, math.inf, math.inf
         ext1_out[k], ext2_out[k] = 0.0, 0.0
         cos_i_out[k], cos_s_out[k], phi_out[k], r_out[k] = 1.0, 1.0, 0.0, 0.0
