@@ -11,6 +11,7 @@ faces the sonar, or the seafloor an object hides (shadow). See
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -327,25 +328,7 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
                                                   plan.slope_cap_m_rad)
     score = np.where(lit, w / np.maximum(ext, dr_m), 0.0)
 
-    # follow every hit to the first seafloor surface behind it that faces the sonar
-    hid_r = np.full(n, np.nan)
-    hid_prim = np.full(n, -1, dtype=np.int64)
-    active = np.nonzero(prim >= 0)[0]
-    t_cur = tfar[active].astype(np.float64)
-    for _ in range(MAX_HIDDEN_LAYERS):
-        if active.size == 0:
-            break
-        o = origin[active] + (t_cur + CONTINUE_EPS_M)[:, None] * u[active]
-        p2, t2 = caster.cast_raw(o.astype(np.float32), u[active].astype(np.float32), max_range_m)
-        total = t_cur + CONTINUE_EPS_M + t2
-        ok = (p2 >= 0) & (total <= max_range_m)
-        p2c = np.maximum(p2, 0)
-        facing = np.einsum("ij,ij->i", u[active], c.face_normals[p2c]) < 0.0
-        found = ok & facing & is_seafloor[c.face_object[p2c]]
-        hid_prim[active[found]] = p2[found]
-        hid_r[active[found]] = total[found]
-        keep = ok & ~found
-        active, t_cur = active[keep], total[keep]
+    hid_r, hid_prim = _hidden_seafloor(caster, is_seafloor, origin, u, prim, tfar, max_range_m)
     hid = np.nonzero(hid_prim >= 0)[0]
     hid_pt = np.zeros((n, 3))
     hid_dir = np.zeros((n, 3))
@@ -368,6 +351,57 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
                        hid_pt, hid_dir, np.repeat(pos_local, n_ch, axis=0),
                        np.ascontiguousarray(is_seafloor, dtype=np.bool_), float(origin_z_m), np.empty((rows, n_s)),
                        *flat)
+
+
+def _hidden_seafloor(caster: Caster, is_seafloor, origin, u, prim, tfar, max_range_m: float):
+    """(range (n,), NaN for none; triangle (n,) int64, −1 for none) of the first seafloor face that faces the sonar
+    behind each ray's first hit (triangle ``prim``, −1: none, at ``tfar``), along u from ``origin``, within the
+    range: the ray goes on through the seafloor's back faces, and through everything else, which is not cast at
+    all (:func:`seafloor_caster`: an object resting on the floor has faces in the floor's plane, and which of two
+    coplanar faces a caster reports is its own choice)."""
+    n = u.shape[0]
+    hid_r, hid_prim = np.full(n, np.nan), np.full(n, -1, dtype=np.int64)
+    sea, faces = seafloor_caster(caster, is_seafloor)
+    if sea is None:
+        return hid_r, hid_prim
+    normals = caster.compiled.face_normals
+    active = np.nonzero(prim >= 0)[0]
+    t_cur = tfar[active].astype(np.float64)
+    for _ in range(MAX_HIDDEN_LAYERS):
+        if active.size == 0:
+            break
+        o = origin[active] + (t_cur + CONTINUE_EPS_M)[:, None] * u[active]
+        p2, t2 = sea.cast_raw(o.astype(np.float32), u[active].astype(np.float32), max_range_m)
+        if faces is not None:                                     # the seafloor's triangles → the scene's
+            p2 = np.where(p2 >= 0, faces[np.maximum(p2, 0)], -1)
+        total = t_cur + CONTINUE_EPS_M + t2
+        ok = (p2 >= 0) & (total <= max_range_m)
+        found = ok & (np.einsum("ij,ij->i", u[active], normals[np.maximum(p2, 0)]) < 0.0)
+        hid_prim[active[found]], hid_r[active[found]] = p2[found], total[found]
+        keep = ok & ~found
+        active, t_cur = active[keep], total[keep]
+    return hid_r, hid_prim
+
+
+def seafloor_caster(caster: Caster, is_seafloor):
+    """(caster, faces): a caster of the same class over the scene's seafloor objects only and the scene's triangle
+    of each of its triangles ((f',) int64); ``caster`` itself and None (the same triangles) when every object is
+    seafloor, (None, None) without a seafloor. Built on first use and kept with the scene (a second BVH of the
+    floor: labels of scenes with objects only)."""
+    c, sea = caster.compiled, np.asarray(is_seafloor, dtype=bool)
+    cache = c.__dict__.setdefault("_seafloor_scenes", {})         # a cache: CompiledScene stays immutable
+    if sea.tobytes() not in cache:
+        present = np.bincount(c.face_object, minlength=sea.shape[0]) > 0
+        sub = faces = None
+        if (sea & present).any() and not sea[present].all():
+            faces = np.flatnonzero(sea[c.face_object])
+            sub = dataclasses.replace(c, faces=c.faces[faces], face_normals=c.face_normals[faces],
+                                      face_object=c.face_object[faces])
+        cache[sea.tobytes()] = (bool((sea & present).any()), sub, faces)
+    any_sea, sub, faces = cache[sea.tobytes()]
+    if not any_sea:
+        return None, None
+    return (caster, None) if sub is None else (type(caster).for_scene(sub), faces)
 
 
 def centre_lines(plan: FanPlan):

@@ -70,6 +70,26 @@ def test_box_highlight_and_shadow_follow_the_shadow_formula(wall_record):
     assert lab.highlight.sum() == (lab.kind == OBJECT).sum() and lab.shadow.sum() == (lab.kind == SHADOW).sum()
 
 
+@pytest.mark.parametrize("caster", ["EmbreeCaster", "NumpyCaster"])
+def test_shadow_behind_a_box_resting_on_the_floor_is_one_run(caster):
+    """A 1 m cube on the floor (its bottom in the floor's plane) at ground range 14 m: label rays through its top
+    leave through its bottom exactly where the floor is, and the floor under it (slant range up to √(14.5² + 10²))
+    lies beyond its lit top, in its shadow. The hidden floor is found there whichever of the two coplanar faces a
+    caster reports: the shadow is one run from the top's far edge to R_end = h·R_top/(h − 1), no water in it."""
+    from sonar_embree import raycast
+
+    scene = flat_scene().add(box((1.0, 1.0, 1.0), (0.0, 14.0, 0.5)), label="box")
+    rec = se.simulate(scene, line_along_x(2, length=0.2), se.Sonar(max_range_m=25.0), quality=0.5, labels=True,
+                      caster=getattr(raycast, caster))
+    r, dr = rec.slant_range_m, rec.slant_range_m[1]
+    r_top = np.hypot(14.5, H - 1.0)
+    r_end = H * r_top / (H - 1.0)
+    for ping in range(2):
+        kind = rec.labels.kind[0, ping]                                  # +y is port
+        assert np.all(kind[(r > r_top + 2 * dr) & (r < r_end - 2 * dr)] == SHADOW)
+        assert np.count_nonzero(kind == SHADOW) >= (r_end - r_top) / dr - 4
+
+
 def test_seafloor_is_chosen_by_label_or_explicitly():
     s = se.Scene().add(se.seafloor.flat((10, 10)), label="seafloor/sand")
     s.add(se.seafloor.flat((10, 10), z_m=-5), label="rock")

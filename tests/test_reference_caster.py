@@ -42,8 +42,10 @@ def test_simulate_with_the_reference_caster_matches_embree():
     b = se.simulate(scene, traj, sonar, caster=NumpyCaster, **kw)
     for x, y in ((a.port, b.port), (a.starboard, b.starboard)):
         assert x.max() > 0
-        # float32 probe distances differ in the last bits between casters, so the rays sit a hair apart
-        np.testing.assert_allclose(y, x, rtol=2e-4, atol=1e-9 * x.max())
+        # float32 probe distances differ in the last bits between casters, so the rays sit a hair apart: a sample
+        # at the box's silhouette moves by up to 0.1 % (Embree 2 against the reference), the rest by < 0.02 %
+        np.testing.assert_allclose(y, x, rtol=2e-3, atol=1e-9 * x.max())
+        assert np.mean(np.abs(y - x) <= 2e-4 * np.abs(x) + 1e-9 * x.max()) > 0.99
     # labels: the same up to a sample or two at the shadow's ends (the same hair's breadth)
     assert (a.labels.kind == b.labels.kind).mean() > 0.99
     assert a.labels.shadow.sum() > 50 and abs(int(a.labels.shadow.sum()) - int(b.labels.shadow.sum())) <= 8
