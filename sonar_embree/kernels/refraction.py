@@ -22,10 +22,11 @@ it is X̃/(sin θa·sin θb) with X̃ = Δx/ξ, so that the ray tube's area per 
 A_Ω = X̃_total·|M| / c0², M = sin θ0·sin θh·J (A_Ω = R² for straight rays).
 
 Per-ray state, ``state[i]`` (:data:`STATE_WIDTH` columns): position (local frame, m) ×3,
-θ (rad), path length L (m); then at the start of the current layer segment: T (s), L (m),
+path length L (m); then at the start of the current layer segment: T (s), L (m),
 depth (m), sin θ, the horizontal coordinate along the ray's azimuth (m) and X̃ (m²/s);
 P = sin θ0·J of the finished segments; ra = sin θ0 / sin θ at the segment's start (1 on the
-first); cos θ and sin θ. Times and X̃ are evaluated only at knots and hits, from the segment's start in one
+first); cos θ and sin θ (θ itself is never needed: its sign is sin θ's, and the library's atan2 of
+every launch cost a fifth of the launch kernel). Times and X̃ are evaluated only at knots and hits, from the segment's start in one
 closed form (X̃ = Δx/ξ from the positions). ``ray[i]``: horizontal direction (2), ξ (s/m),
 sin θ0, c0. Turning by u = κΔs, the offsets use sin u / u and (1 − cos u)/u, as
 polynomials for the small u of a chord (no transcendental functions on the hot path).
@@ -40,14 +41,14 @@ from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
 from .rays import _sinc
 
 #: Columns of a ray's marching state (see the module docstring).
-STATE_WIDTH = 15
+STATE_WIDTH = 14
 #: Newton steps that move a chord's hit onto the arc, and the step (m) below which it has arrived.
 NEWTON_STEPS = 4
 NEWTON_TOL_M = 1e-6
-# state columns: position, θ, L; at the segment's start T, L, depth, sin θ, horizontal coordinate, X̃; P; ra
-S_TH, S_L, S_T0, S_L0, S_D0, S_SN0, S_XH0, S_X0, S_P, S_RA = 3, 4, 5, 6, 7, 8, 9, 10, 11, 12
+# state columns: position, L; at the segment's start T, L, depth, sin θ, horizontal coordinate, X̃; P; ra
+S_L, S_T0, S_L0, S_D0, S_SN0, S_XH0, S_X0, S_P, S_RA = 3, 4, 5, 6, 7, 8, 9, 10, 11
 # and cos θ, sin θ of the current θ (carried by the exact rotations, not recomputed)
-S_CT, S_ST = 13, 14
+S_CT, S_ST = 12, 13
 #: Below this turn u (rad) sin u / u and (1 − cos u)/u are taken from their series (error < u⁶/5040).
 SERIES_MAX_U = 0.05
 #: Columns of a ray's constants: h_x, h_y, ξ, sin θ0, c0.
@@ -124,7 +125,6 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
                 state[i, 0] = pos[b, 0]
                 state[i, 1] = pos[b, 1]
                 state[i, 2] = pos[b, 2]
-                state[i, S_TH] = math.atan2(-uz, hz)
                 for q in range(S_L, STATE_WIDTH):
                     state[i, q] = 0.0
                 state[i, S_D0] = depth
@@ -169,16 +169,16 @@ def _angle(y, x):
 
 
 @njit(cache=True, nogil=True)
-def _boundary(layers, k, th, xi, lo, hi):
+def _boundary(layers, k, sa, xi, lo, hi):
     """Where a curved ray leaves depths [lo, hi] of layer k: (cos θ, sin θ there, depth there), cos θ = ξc
     (Snell); ξc ≥ 1 at one edge means the ray turns before it and leaves by the other."""
     kappa = xi * layers[k, 2]
     c_hi = _speed(layers, k, hi)
     c_lo = _speed(layers, k, lo)
     if kappa > 0.0:
-        down = th > 0.0 and xi * c_hi < 1.0
+        down = sa > 0.0 and xi * c_hi < 1.0
     else:
-        down = not (th < 0.0 and xi * c_lo < 1.0)
+        down = not (sa < 0.0 and xi * c_lo < 1.0)
     cb = min(xi * (c_hi if down else c_lo), 1.0)
     sb = math.sqrt(1.0 - cb * cb)
     return cb, sb if down else -sb, hi if down else lo
@@ -198,10 +198,10 @@ def _stays(layers, k, depth, dd, sa, sb, xi, lo, hi):
 
 
 @njit(cache=True, nogil=True)
-def _step(layers, k, depth, th, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
+def _step(layers, k, depth, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
     """One step of a ray in layer k between depths ``d_lo`` and ``d_hi`` (stops, or ±inf), at most ``ds_max``.
 
-    Returns (Δs, layer after, θ after, depth to snap to or NaN, Δx, Δdepth, cos θ and sin θ after): to the next
+    Returns (Δs, layer after, depth to snap to or NaN, Δx, Δdepth, cos θ and sin θ after): to the next
     knot or stop depth, to the chord limit (a chord of arc length Δs on radius 1/|κ| stands off the arc
     by Δs²|κ|/8, so Δs ≤ √(8·sagitta/|κ|)), or to ``ds_max``.
     """
@@ -217,27 +217,25 @@ def _step(layers, k, depth, th, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
     if ds < math.inf:  # the common case: a chord (or the rest of the window) that stays inside
         dx, dd, cb, sb = _turn(ca, sa, kappa, ds)
         if _stays(layers, k, depth, dd, sa, sb, xi, lo, hi):
-            return ds, k, th - kappa * ds, math.nan, dx, dd, cb, sb
+            return ds, k, math.nan, dx, dd, cb, sb
     if kappa == 0.0:
         if sa > 0.0 and hi < math.inf:
             ds, d_b = (hi - depth) / sa, hi
         elif sa < 0.0 and lo > -math.inf:
             ds, d_b = (lo - depth) / sa, lo
         else:
-            return math.inf, k, th, math.nan, math.inf, 0.0, ca, sa
-        th_b = th
+            return math.inf, k, math.nan, math.inf, 0.0, ca, sa
     else:
-        cb, sb, d_b = _boundary(layers, k, th, xi, lo, hi)
+        cb, sb, d_b = _boundary(layers, k, sa, xi, lo, hi)
         dth = _angle(sa * cb - ca * sb, ca * cb + sa * sb)  # θ − θb, well conditioned at any angle
         if dth * kappa < 0.0:
             dth = 0.0
         ds = dth / kappa
-        th_b = th - dth
         dx, dd, _, _ = _turn(ca, sa, kappa, ds)
-        return ds, k + 1 if d_b == bot else (k - 1 if d_b == top else k), th_b, d_b, dx, dd, cb, sb
+        return ds, k + 1 if d_b == bot else (k - 1 if d_b == top else k), d_b, dx, dd, cb, sb
     k_b = k + 1 if d_b == bot else (k - 1 if d_b == top else k)
     dx, dd, cb, sb = _turn(ca, sa, kappa, ds)
-    return ds, k_b, th_b, d_b, dx, dd, cb, sb
+    return ds, k_b, d_b, dx, dd, cb, sb
 
 
 @njit(cache=True, nogil=True)
@@ -287,9 +285,8 @@ def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o
     """One step of ray i from state ``st[si]`` (see :func:`_step`), at most to path length ``l_max``:
     ``out[o]`` gets the state after it; returns the layer after it."""
     depth = z0 - st[si, 2]
-    th = st[si, S_TH]
-    ds, kn, th_b, d_b, dx, dd, cb, sb = _step(layers, k, depth, th, st[si, S_CT], st[si, S_ST], ray[i, 2],
-                                              sagitta_m, max(l_max - st[si, S_L], 0.0) + 1e-6, d_lo, d_hi)
+    ds, kn, d_b, dx, dd, cb, sb = _step(layers, k, depth, st[si, S_CT], st[si, S_ST], ray[i, 2], sagitta_m,
+                                        max(l_max - st[si, S_L], 0.0) + 1e-6, d_lo, d_hi)
     for q in range(STATE_WIDTH):
         out[o, q] = st[si, q]
     if ds == math.inf:  # a straight ray that meets nothing: it is done
@@ -298,7 +295,6 @@ def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o
     out[o, 0] += dx * ray[i, 0]
     out[o, 1] += dx * ray[i, 1]
     out[o, 2] = out[o, 2] - dd if math.isnan(d_b) else z0 - d_b  # on a knot or stop exactly
-    out[o, S_TH] = th_b
     out[o, S_CT] = cb
     out[o, S_ST] = sb
     out[o, S_L] += ds
