@@ -427,17 +427,19 @@ def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, 
         s = min(max(t / length, 0.0), 1.0) * ds_chord if length > 0 else 0.0
         ca, sa = state[i, S_CT], state[i, S_ST]
         kappa = ray[i, 2] * layers[lay[i], 2]
-        s = _onto_arc(state, i, ray, ca, sa, kappa, s, ds_chord, vertices, faces, face_normals, tri)
-        _hit_of(state, i, lay[i], ray, layers, z0, ca, sa, kappa, s, hit)
+        s, dx, dd, cb, sb = _onto_arc(state, i, ray, ca, sa, kappa, s, ds_chord, vertices, faces, face_normals, tri)
+        _hit_of(state, i, lay[i], ray, layers, z0, s, dx, dd, cb, sb, hit)
         hit_prim[i] = tri
 
 
 @njit(cache=True, nogil=True, inline='always')
 def _onto_arc(st, i, ray, ca, sa, kappa, s0, ds_chord, vertices, faces, face_normals, tri):
-    """Arc length from the chord's start at which the arc meets the hit triangle's plane (Newton from s0).
+    """Arc length from the chord's start at which the arc meets the hit triangle's plane (Newton from s0), and
+    :func:`_turn` there (Δx, Δdepth, cos θ, sin θ).
 
-    Stops when a step is below :data:`NEWTON_TOL_M` (keeping the point it evaluated); falls back to ``s0``
-    (the chord's own hit) if Newton leaves the chord or the arc runs along the plane.
+    Stops when a step is below :data:`NEWTON_TOL_M` (keeping the point it evaluated, whose turn is returned
+    as it is); falls back to ``s0`` (the chord's own hit) if Newton leaves the chord or the arc runs along the
+    plane.
     """
     v = faces[tri, 0]
     hn = ray[i, 0] * face_normals[tri, 0] + ray[i, 1] * face_normals[tri, 1]
@@ -445,25 +447,32 @@ def _onto_arc(st, i, ray, ca, sa, kappa, s0, ds_chord, vertices, faces, face_nor
     base = 0.0
     for q in range(3):
         base += (st[i, q] - vertices[v, q]) * face_normals[tri, q]
-    s = s0
+    s, at = s0, math.nan                               # at: the arc length whose turn (dx, dd, cb, sb) is held
+    dx, dd, cb, sb = 0.0, 0.0, 1.0, 0.0
     for _ in range(NEWTON_STEPS):
         dx, dd, cb, sb = _turn(ca, sa, kappa, s)
+        at = s
         fp = cb * hn - sb * nz
         if abs(fp) < REFIT_MIN_COS:
-            return s0
+            s = s0
+            break
         step = (base + dx * hn - dd * nz) / fp
         if abs(step) < NEWTON_TOL_M:
             break
         s -= step
     tol = REFIT_REL_TOL * (1.0 + ds_chord)
-    return s if -tol <= s <= ds_chord + tol else s0
+    if not -tol <= s <= ds_chord + tol:
+        s = s0
+    if s != at:
+        dx, dd, cb, sb = _turn(ca, sa, kappa, s)
+    return s, dx, dd, cb, sb
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _hit_of(st, i, k, ray, layers, z0, ca, sa, kappa, s, out):
+def _hit_of(st, i, k, ray, layers, z0, s, dx, dd, cb, sb, out):
     """The :data:`HIT_WIDTH` quantities (into ``out[i]``) of the arc point an arc length ``s`` after the
-    chord's start ``st[i]``."""
-    dx, dd, cb, sb = _turn(ca, sa, kappa, s)
+    chord's start ``st[i]``, which the arc reaches by Δx, Δdepth with cos θ ``cb``, sin θ ``sb`` there
+    (:func:`_turn`)."""
     hx, hy = ray[i, 0], ray[i, 1]
     out[i, 0] = st[i, 0] + dx * hx
     out[i, 1] = st[i, 1] + dx * hy
