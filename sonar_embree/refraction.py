@@ -82,7 +82,8 @@ class Marching:
 def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
     """Follow every ray chord by chord until it hits or its path could no longer arrive before ``m.t_max``.
 
-    Returns (hit_prim, hit) of the block (:func:`~sonar_embree.kernels.refraction.arc_land`).
+    Returns (hit_prim, hit, hit_len) of the block (:func:`~sonar_embree.kernels.refraction.arc_land`; hit_len inf
+    where nothing was hit).
 
     Chords are cast only within ``m.box_z``; outside it rays move in closed form.
     """
@@ -90,23 +91,24 @@ def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
     l_max = m.l_max
     n = state.shape[0]
     hit_prim = np.full(n, -1, dtype=np.int32)
+    hit_len = np.full(n, np.inf, dtype=np.float32)
     hit = buffers.take("hit", (n, kernels.HIT_WIDTH))  # read only where hit_prim ≥ 0
     idx = np.arange(n, dtype=np.int64)
     for _ in range(MAX_ROUNDS):
         if idx.size == 0:
-            return hit_prim, hit
+            return hit_prim, hit, hit_len
         k = idx.size
         nxt, nlay = buffers.take("nxt", (k, kernels.STATE_WIDTH)), buffers.take("nlay", k, np.int64)
         org, dirs = buffers.take("org", (k, 3), np.float32), buffers.take("dirs", (k, 3), np.float32)
-        seg = buffers.take("seg", k, np.float32)
+        seg, live = buffers.take("seg", k, np.float32), buffers.take("live", k, np.bool_)
         kernels.arc_chord(idx, state, lay, ray, m.layers, m.z0, m.box_z, m.sagitta_m, l_max, nxt, nlay, org, dirs,
                           seg)
         t = time.perf_counter()
         prim, tfar = caster.cast_segments(org, dirs, seg)
         clock["embree"] = clock.get("embree", 0.0) + time.perf_counter() - t
         kernels.arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, m.layers, m.z0, c.vertices, c.faces,
-                         c.face_normals, hit_prim, hit)
-        idx = idx[(prim < 0) & (nxt[:, kernels.S_L] < l_max)]
+                         c.face_normals, l_max, hit_prim, hit, hit_len, live)
+        idx = idx[live]
     raise RuntimeError(f"curved rays still in flight after {MAX_ROUNDS} chords")  # pragma: no cover
 
 
@@ -116,7 +118,7 @@ def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffe
     lines = PROBE_LINES * np.abs(plan.s).max()
     el = np.arange(rows + 1, dtype=np.int64) * n_beta
     state, lay, ray = m.launch(lines, np.tile(plan.probe_beta, rows), el, rot, pos_local, buffers)
-    hit_prim, hit = march(caster, m, state, lay, ray, clock, buffers)
+    hit_prim, hit, _ = march(caster, m, state, lay, ray, clock, buffers)
     out = np.full(state.shape[0], np.nan)
     lit = np.flatnonzero(hit_prim >= 0)   # ``hit`` holds nothing for the other rays
     out[lit] = np.where(hit[lit, 6] <= m.t_max, c_nom * hit[lit, 6], np.nan)
@@ -160,7 +162,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     n = n_az * int(el_start[-1])
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     state, lay, ray = m.launch(plan.s, beta, el_start, rot, pos_local, buffers)
-    hit_prim, hit = march(caster, m, state, lay, ray, clock, buffers)
+    hit_prim, hit, tfar = march(caster, m, state, lay, ray, clock, buffers)
 
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
@@ -173,7 +175,4 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(rot.shape[0], 2).sum(axis=1) + plan.n_probe
     clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
-    tfar = np.full(n, np.inf, dtype=np.float32)
-    lit = np.flatnonzero(hit_prim >= 0)
-    tfar[lit] = hit[lit, 7]
     return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar)

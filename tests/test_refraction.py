@@ -192,7 +192,10 @@ def three_layer_block():
     start = state.copy()
     t_max = 40.0 / sonar.sound_speed_m_s
     box = compiled.bounds_local[:, 2] + [-0.5, 0.5]
-    hit_prim, hit = march(caster, Marching(layers, z0, box, 0.02, t_max), state, lay, ray, {}, Buffers())
+    hit_prim, hit, hit_len = march(caster, Marching(layers, z0, box, 0.02, t_max), state, lay, ray, {}, Buffers())
+    lit = hit_prim >= 0                                       # the path length of each hit, also as float32
+    assert lit.any() and np.all(np.isinf(hit_len[~lit]))
+    np.testing.assert_array_equal(hit_len[lit], hit[lit, 7].astype(np.float32))
     return dict(front=front, sonar=sonar, caster=caster, rot=rot, pos=pos, el_start=el_start, beta=beta, dbeta=dbeta,
                 layers=layers, z0=z0, start=start, ray=ray, hit_prim=hit_prim, hit=hit.copy(), t_max=t_max,
                 face_object=compiled.face_object, origin=compiled.origin_m)

@@ -392,27 +392,34 @@ def _refit(st, i, ux, uy, uz, t_emb, tri, vertices, faces, face_normals):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, faces, face_normals, hit_prim, hit):
+def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, faces, face_normals, l_max, hit_prim,
+             hit, hit_len, live):
     """Rays whose chord hit something stop there (``hit``); the others move to the chord's end.
 
     Parameters
     ----------
-    idx, state, lay, ray, nxt, nlay, layers, z0
+    idx, state, lay, ray, nxt, nlay, layers, z0, l_max
         As for :func:`arc_chord` (``state``, ``lay`` updated for the rays that missed).
     prim : (m,) int32; tfar : (m,) float32
         Embree's answer for each chord.
     vertices, faces, face_normals
         The scene (local frame), for the float64 refit of the hit.
-    hit_prim : (n,) int32; hit : (n, HIT_WIDTH) float64
-        Written for the rays that hit: the triangle and the quantities of :data:`HIT_WIDTH` at the point
-        where the arc meets the triangle's plane (:func:`_onto_arc`), from the closed forms.
+    hit_prim : (n,) int32; hit : (n, HIT_WIDTH) float64; hit_len : (n,) float32
+        Written for the rays that hit: the triangle, the quantities of :data:`HIT_WIDTH` at the point
+        where the arc meets the triangle's plane (:func:`_onto_arc`), from the closed forms, and the path length
+        there (m, float32).
+    live : (m,) bool
+        Written: whether the ray goes on (missed, and still short of ``l_max``): the next round's rays, without a
+        pass over ``nxt`` in NumPy.
     """
     for j in prange(idx.shape[0]):
         i = idx[j]
+        live[j] = False
         if prim[j] < 0:
             for q in range(STATE_WIDTH):
                 state[i, q] = nxt[j, q]
             lay[i] = nlay[j]
+            live[j] = nxt[j, S_L] < l_max
             continue
         dx = nxt[j, 0] - state[i, 0]
         dy = nxt[j, 1] - state[i, 1]
@@ -429,7 +436,7 @@ def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, 
         kappa = ray[i, 2] * layers[lay[i], 2]
         s, dx, dd, cb, sb = _onto_arc(state, i, ray, ca, sa, kappa, s, ds_chord, vertices, faces, face_normals, tri)
         _hit_of(state, i, lay[i], ray, layers, z0, s, dx, dd, cb, sb, hit)
-        hit_prim[i] = tri
+        hit_prim[i], hit_len[i] = tri, np.float32(hit[i, 7])
 
 
 @njit(cache=True, nogil=True, inline='always')
