@@ -61,13 +61,20 @@ MIN_SIN = 1e-12
 MAX_SKIPS = 64
 
 
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _layer(layers, k):
+    """Layer k as scalars, (top depth (m), c at the top (m/s), gradient (s⁻¹), bottom depth (m; inf for the last)):
+    what the per-step helpers take, so that they are called without an array (no reference counting per ray)."""
+    return layers[k, 0], layers[k, 1], layers[k, 2], layers[k + 1, 0] if k < layers.shape[0] - 1 else math.inf
+
+
 @njit(cache=True, nogil=True)
-def _speed(layers, k, depth):
-    """c at ``depth`` in layer k (m/s)."""
-    g = layers[k, 2]
+def _speed(lk, depth):
+    """c at ``depth`` in the layer ``lk`` (:func:`_layer`), m/s."""
+    g = lk[2]
     if g == 0.0:
-        return layers[k, 1]
-    return layers[k, 1] + g * (depth - layers[k, 0])
+        return lk[1]
+    return lk[1] + g * (depth - lk[0])
 
 
 @njit(cache=True, nogil=True)
@@ -105,7 +112,7 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
         base = n_az * el_start[r]
         depth = z0 - pos[b, 2]
         k = _layer_of(layers, depth)
-        c0 = _speed(layers, k, depth)
+        c0 = _speed(_layer(layers, k), depth)
         for a in range(n_az):
             sa = s[a]
             cpsi = math.sqrt(1.0 - sa * sa)
@@ -169,12 +176,12 @@ def _angle(y, x):
 
 
 @njit(cache=True, nogil=True)
-def _boundary(layers, k, sa, xi, lo, hi):
-    """Where a curved ray leaves depths [lo, hi] of layer k: (cos θ, sin θ there, depth there), cos θ = ξc
+def _boundary(lk, sa, xi, lo, hi):
+    """Where a curved ray leaves depths [lo, hi] of the layer ``lk``: (cos θ, sin θ there, depth there), cos θ = ξc
     (Snell); ξc ≥ 1 at one edge means the ray turns before it and leaves by the other."""
-    kappa = xi * layers[k, 2]
-    c_hi = _speed(layers, k, hi)
-    c_lo = _speed(layers, k, lo)
+    kappa = xi * lk[2]
+    c_hi = _speed(lk, hi)
+    c_lo = _speed(lk, lo)
     if kappa > 0.0:
         down = sa > 0.0 and xi * c_hi < 1.0
     else:
@@ -185,30 +192,29 @@ def _boundary(layers, k, sa, xi, lo, hi):
 
 
 @njit(cache=True, nogil=True)
-def _stays(layers, k, depth, dd, sa, sb, xi, lo, hi):
+def _stays(lk, depth, dd, sa, sb, xi, lo, hi):
     """Whether an arc from ``depth`` (sin θ ``sa``) to depth + ``dd`` (sin θ ``sb``) stays inside (lo, hi)."""
     d_end = depth + dd
     if not (lo < d_end < hi):
         return False
     if sa * sb > 0.0:
         return True
-    g = layers[k, 2]  # it turned on the way: at the depth where ξc = 1
-    d_turn = layers[k, 0] + (1.0 / xi - layers[k, 1]) / g if g != 0.0 else depth
+    g = lk[2]  # it turned on the way: at the depth where ξc = 1
+    d_turn = lk[0] + (1.0 / xi - lk[1]) / g if g != 0.0 else depth
     return lo < d_turn < hi
 
 
 @njit(cache=True, nogil=True)
-def _step(layers, k, depth, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
-    """One step of a ray in layer k between depths ``d_lo`` and ``d_hi`` (stops, or ±inf), at most ``ds_max``.
+def _step(lk, k, depth, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
+    """One step of a ray in layer k (``lk``: :func:`_layer`) between depths ``d_lo`` and ``d_hi`` (stops, or ±inf),
+    at most ``ds_max``.
 
     Returns (Δs, layer after, depth to snap to or NaN, Δx, Δdepth, cos θ and sin θ after): to the next
     knot or stop depth, to the chord limit (a chord of arc length Δs on radius 1/|κ| stands off the arc
     by Δs²|κ|/8, so Δs ≤ √(8·sagitta/|κ|)), or to ``ds_max``.
     """
-    last = layers.shape[0] - 1
-    kappa = xi * layers[k, 2]
-    top = layers[k, 0]
-    bot = layers[k + 1, 0] if k < last else math.inf
+    kappa = xi * lk[2]
+    top, bot = lk[0], lk[3]
     lo = max(top, d_lo)
     hi = min(bot, d_hi)
     ds = ds_max
@@ -216,7 +222,7 @@ def _step(layers, k, depth, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
         ds = min(ds, math.sqrt(8.0 * sagitta_m / abs(kappa)))
     if ds < math.inf:  # the common case: a chord (or the rest of the window) that stays inside
         dx, dd, cb, sb = _turn(ca, sa, kappa, ds)
-        if _stays(layers, k, depth, dd, sa, sb, xi, lo, hi):
+        if _stays(lk, depth, dd, sa, sb, xi, lo, hi):
             return ds, k, math.nan, dx, dd, cb, sb
     if kappa == 0.0:
         if sa > 0.0 and hi < math.inf:
@@ -226,7 +232,7 @@ def _step(layers, k, depth, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
         else:
             return math.inf, k, math.nan, math.inf, 0.0, ca, sa
     else:
-        cb, sb, d_b = _boundary(layers, k, sa, xi, lo, hi)
+        cb, sb, d_b = _boundary(lk, sa, xi, lo, hi)
         dth = _angle(sa * cb - ca * sb, ca * cb + sa * sb)  # θ − θb, well conditioned at any angle
         if dth * kappa < 0.0:
             dth = 0.0
@@ -239,18 +245,19 @@ def _step(layers, k, depth, ca, sa, xi, sagitta_m, ds_max, d_lo, d_hi):
 
 
 @njit(cache=True, nogil=True)
-def _seg_dt_xt(layers, k, d_a, s_a, d_b, s_b, dxh, ds, xi):
-    """One-way time (s) and X̃ = Δx/ξ (m²/s) of a layer segment from depth ``d_a`` (sin θ ``s_a``) to ``d_b``.
+def _seg_dt_xt(lk, d_a, s_a, d_b, s_b, dxh, ds, xi):
+    """One-way time (s) and X̃ = Δx/ξ (m²/s) of a segment in the layer ``lk`` from depth ``d_a`` (sin θ ``s_a``)
+    to ``d_b``.
 
     Δt = (asinh tan θa − asinh tan θb)/g with asinh tan θ = ln((1 + sin θ)/(ξc)), one logarithm taken on the
     side away from sin θ = ∓1, or ∫ds/c by the trapezoid where that difference is below 1e-5 (then exact to
     ~1e-11); straight rays Δs/c, a vertical ray in a gradient ln(c_b/c_a)/g.
     """
-    g = layers[k, 2]
-    c_a = _speed(layers, k, d_a)
+    g = lk[2]
+    c_a = _speed(lk, d_a)
     if g == 0.0:
         return ds / c_a, ds * c_a
-    c_b = _speed(layers, k, d_b)
+    c_b = _speed(lk, d_b)
     if xi == 0.0:
         return math.log(c_b / c_a) / g, 0.5 * ds * (c_a + c_b)
     if s_a + s_b >= 0.0:
@@ -267,7 +274,7 @@ def _close_segment(out, o, k, ray, i, layers, depth_b, sin_b):
     the totals. (Rows are passed as array and index: a row view per ray costs reference counting that the
     threads contend for.)"""
     xh = out[o, 0] * ray[i, 0] + out[o, 1] * ray[i, 1]
-    dt, xt = _seg_dt_xt(layers, k, out[o, S_D0], out[o, S_SN0], depth_b, sin_b, xh - out[o, S_XH0],
+    dt, xt = _seg_dt_xt(_layer(layers, k), out[o, S_D0], out[o, S_SN0], depth_b, sin_b, xh - out[o, S_XH0],
                         out[o, S_L] - out[o, S_L0], ray[i, 2])
     sb = math.copysign(max(abs(sin_b), MIN_SIN), sin_b)
     out[o, S_T0] += dt
@@ -285,8 +292,8 @@ def _advance(st, si, k, ray, i, layers, z0, sagitta_m, l_max, d_lo, d_hi, out, o
     """One step of ray i from state ``st[si]`` (see :func:`_step`), at most to path length ``l_max``:
     ``out[o]`` gets the state after it; returns the layer after it."""
     depth = z0 - st[si, 2]
-    ds, kn, d_b, dx, dd, cb, sb = _step(layers, k, depth, st[si, S_CT], st[si, S_ST], ray[i, 2], sagitta_m,
-                                        max(l_max - st[si, S_L], 0.0) + 1e-6, d_lo, d_hi)
+    ds, kn, d_b, dx, dd, cb, sb = _step(_layer(layers, k), k, depth, st[si, S_CT], st[si, S_ST], ray[i, 2],
+                                        sagitta_m, max(l_max - st[si, S_L], 0.0) + 1e-6, d_lo, d_hi)
     for q in range(STATE_WIDTH):
         out[o, q] = st[si, q]
     if ds == math.inf:  # a straight ray that meets nothing: it is done
@@ -489,7 +496,8 @@ def _hit_of(st, i, k, ray, layers, z0, s, dx, dd, cb, sb, out):
     out[i, 5] = -sb
     depth = z0 - out[i, 2]
     xh = out[i, 0] * hx + out[i, 1] * hy
-    dt, xt = _seg_dt_xt(layers, k, st[i, S_D0], st[i, S_SN0], depth, sb, xh - st[i, S_XH0],
+    lk = _layer(layers, k)
+    dt, xt = _seg_dt_xt(lk, st[i, S_D0], st[i, S_SN0], depth, sb, xh - st[i, S_XH0],
                         st[i, S_L] + s - st[i, S_L0], ray[i, 2])
     out[i, 6] = st[i, S_T0] + dt
     out[i, 7] = st[i, S_L] + s
@@ -497,7 +505,7 @@ def _hit_of(st, i, k, ray, layers, z0, s, dx, dd, cb, sb, out):
     out[i, 9] = st[i, S_P] * sb + st[i, S_RA] * xt
     out[i, 10] = sb
     out[i, 11] = cb
-    out[i, 12] = _speed(layers, k, depth)
+    out[i, 12] = _speed(lk, depth)
 
 
 @njit(cache=True, nogil=True, inline='always')
