@@ -8,8 +8,9 @@ import numpy as np
 from ._numba import njit, prange
 from .rays import _sinc, sinc_rows
 
-#: Rays per pass of :func:`mixed_legs`: their sinc arguments are gathered, then evaluated in one vectorised loop.
-_CHUNK = 256
+#: Rays per pass of :func:`mixed_legs` (and the swell's paths): their sinc arguments are gathered, then evaluated in one
+#: vectorised loop. 1024 rather than 256: a chunk's call passes ~40 arrays (reference counts), −7 % per kernel.
+_CHUNK = 1024
 
 
 @njit(cache=True, nogil=True)
