@@ -129,7 +129,7 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
                 weight_out[c0 + k] = weight_out[c0 + k] * g * sc[7, k]
 
 
-@njit(cache=True, nogil=True)  # one call per chunk: its arrays' reference counts cost nothing here
+@njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
 def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos,
                  rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s,
                  wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out, cos_i_out,

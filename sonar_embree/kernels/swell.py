@@ -148,7 +148,7 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
                 w1_out[c0 + k] = w1_out[c0 + k] * (g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * sc[8, k]
 
 
-@njit(cache=True, nogil=True)  # one call per chunk: its arrays' reference counts cost nothing here
+@njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
 def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p,
                  ur, t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds,
                  min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi,
