@@ -90,6 +90,30 @@ def test_shadow_behind_a_box_resting_on_the_floor_is_one_run(caster):
         assert np.count_nonzero(kind == SHADOW) >= (r_end - r_top) / dr - 4
 
 
+def test_seafloor_caster_covers_exactly_the_seafloor():
+    """labels.seafloor_caster: the caster itself when every object is seafloor, none without a seafloor, else a
+    caster of the same class over the seafloor's triangles, mapped back to the scene's, built once."""
+    from sonar_embree.labels import seafloor_caster
+    from sonar_embree.raycast import EmbreeCaster, NumpyCaster
+
+    scene = flat_scene().add(box((1.0, 1.0, 1.0), (0.0, 14.0, 0.5)), label="box")
+    c = scene.compiled()
+    for cls in (EmbreeCaster, NumpyCaster):
+        caster = cls.for_scene(c)
+        assert seafloor_caster(caster, np.ones(2, bool)) == (caster, None)
+        assert seafloor_caster(caster, np.zeros(2, bool)) == (None, None)
+        sea, faces = seafloor_caster(caster, c.is_seafloor)
+        assert type(sea) is cls and sea is not caster and seafloor_caster(caster, c.is_seafloor)[0] is sea
+        np.testing.assert_array_equal(faces, np.flatnonzero(c.face_object == 0))
+        # straight down through the box's top: the full scene hits the box, the seafloor caster the floor under it
+        o = np.array([[0.0, 14.0, 5.0]], np.float32) - c.origin_m.astype(np.float32)
+        d = np.array([[0.0, 0.0, -1.0]], np.float32)
+        p_all, t_all = caster.cast_raw(o, d, 10.0)
+        p_sea, t_sea = sea.cast_raw(o, d, 10.0)
+        assert c.face_object[p_all[0]] == 1 and c.face_object[faces[p_sea[0]]] == 0
+        assert t_all[0] == pytest.approx(4.0) and t_sea[0] == pytest.approx(5.0)
+
+
 def test_seafloor_is_chosen_by_label_or_explicitly():
     s = se.Scene().add(se.seafloor.flat((10, 10)), label="seafloor/sand")
     s.add(se.seafloor.flat((10, 10), z_m=-5), label="rock")
