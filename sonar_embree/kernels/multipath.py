@@ -21,6 +21,19 @@ def _rotation(rot, b):
 
 
 @njit(cache=True, nogil=True)
+def _gain_args(m, side, ux, uy, uz, k_az, k_el, c, s, shift):
+    """The membrane's gains along the world direction u as sinc arguments, (along-track, along-track of the receive
+    beam turned by ``shift``, elevation, gate): Γ = sinc(along)·sinc(elevation)·gate, Γ_rx with the second; the gate
+    is 0 behind the baffle. m the body → world rotation (9-tuple, row-major), side −1 port, +1 starboard, k_az and
+    k_el the beam's k·lx/2 and k·ly/2, c and s the cosine and sine of the tilt (docs/physics.md §2, §16)."""
+    e0 = m[0] * ux + m[3] * uy + m[6] * uz                    # body = mᵀ·u: forward, starboard, down
+    e1 = m[1] * ux + m[4] * uy + m[7] * uz
+    e2 = m[2] * ux + m[5] * uy + m[8] * uz
+    gate = 1.0 if side * e1 * c + e2 * s > 0.0 else 0.0       # cos ψ · cos(β − δ) > 0: in front of the baffle
+    return k_az * e0, k_az * (e0 - shift), k_el * (e2 * c - side * e1 * s), gate
+
+
+@njit(cache=True, nogil=True)
 def _footprint_slope(m, side, u, v, n, r):
     """|d(r + r')/dβ| of a ray cell: dX/dβ = r·(f − u·(n·f)/(n·u)), f = ∂u/∂β in world axes (m a 9-tuple)."""
     e1 = m[1] * u[0] + m[4] * u[1] + m[7] * u[2]
@@ -166,11 +179,8 @@ def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, si
         flip = -1.0 if face_normals[p, 0] * u[0] + face_normals[p, 1] * u[1] + face_normals[p, 2] * u[2] > 0.0 else 1.0
         n = (flip * face_normals[p, 0], flip * face_normals[p, 1], flip * face_normals[p, 2])
         cos_i, cos_s = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2]), n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
-        e0 = -m[0] * v[0] - m[3] * v[1] + m[6] * v[2]             # S → P in body axes: forward, starboard, down
-        e1 = -m[1] * v[0] - m[4] * v[1] + m[7] * v[2]
-        e2 = -m[2] * v[0] - m[5] * v[1] + m[8] * v[2]
-        sc[1, k], sc[2, k], sc[3, k] = beam[0] * e0, beam[0] * (e0 - shift), beam[1] * (e2 * ct - side * e1 * st)
-        sc[6, k] = 1.0 if side * e1 * ct + e2 * st > 0.0 else 0.0  # cos ψ · cos(β − δ) > 0: in front of the baffle
+        sc[1, k], sc[2, k], sc[3, k], sc[6, k] = _gain_args(m, side, -v[0], -v[1], v[2], beam[0], beam[1], ct, st,
+                                                            shift)                                   # along S → P
         rb2 = max(r2, min_range_m)
         w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2]) * ds * db
              / (rb2 * rb2 * cos_i))

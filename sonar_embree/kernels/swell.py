@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .multipath import _CHUNK, _azimuth, _rotation
+from .multipath import _CHUNK, _azimuth, _gain_args, _rotation
 from .rays import _sinc, sinc_rows
 
 
@@ -212,11 +212,8 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         ext1_out[k] = min(slope, 2.0 * slope_cap_m_rad) * db * inv_c
         if not cos_s > 1e-9:
             continue
-        e0 = m[0] * ud[0] + m[3] * ud[1] + m[6] * ud[2]             # u_d in body axes: forward, starboard, down
-        e1 = m[1] * ud[0] + m[4] * ud[1] + m[7] * ud[2]
-        e2 = m[2] * ud[0] + m[5] * ud[1] + m[8] * ud[2]
-        sc[1, c], sc[2, c], sc[3, c] = beam[0] * e0, beam[0] * (e0 - shift), beam[1] * (e2 * ct - side * e1 * st)
-        sc[7, c] = 1.0 if side * e1 * ct + e2 * st > 0.0 else 0.0
+        sc[1, c], sc[2, c], sc[3, c], sc[7, c] = _gain_args(m, side, ud[0], ud[1], ud[2], beam[0], beam[1], ct, st,
+                                                            shift)
         sc[8, c] = mu_obj[face_object[q]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
         rb = max(r, min_range_m)
         w1_out[k] = half * math.exp(-0.5 * two_way_np_per_m * r) * ds * db / (rb * rb * cos_i)
