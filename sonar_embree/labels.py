@@ -386,22 +386,20 @@ def _hidden_seafloor(caster: Caster, is_seafloor, origin, u, prim, tfar, max_ran
 def seafloor_caster(caster: Caster, is_seafloor):
     """(caster, faces): a caster of the same class over the scene's seafloor objects only and the scene's triangle
     of each of its triangles ((f',) int64); ``caster`` itself and None (the same triangles) when every object is
-    seafloor, (None, None) without a seafloor. Built on first use and kept with the scene (a second BVH of the
-    floor: labels of scenes with objects only)."""
+    seafloor, (None, None) without a seafloor (every object has faces: the scene refuses empty meshes). Built on
+    first use and kept with the scene (a second BVH of the floor: labels of scenes with objects only)."""
     c, sea = caster.compiled, np.asarray(is_seafloor, dtype=bool)
+    if not sea.any():
+        return None, None
+    if sea.all():
+        return caster, None
     cache = c.__dict__.setdefault("_seafloor_scenes", {})         # a cache: CompiledScene stays immutable
     if sea.tobytes() not in cache:
-        present = np.bincount(c.face_object, minlength=sea.shape[0]) > 0
-        sub = faces = None
-        if (sea & present).any() and not sea[present].all():
-            faces = np.flatnonzero(sea[c.face_object])
-            sub = dataclasses.replace(c, faces=c.faces[faces], face_normals=c.face_normals[faces],
-                                      face_object=c.face_object[faces])
-        cache[sea.tobytes()] = (bool((sea & present).any()), sub, faces)
-    any_sea, sub, faces = cache[sea.tobytes()]
-    if not any_sea:
-        return None, None
-    return (caster, None) if sub is None else (type(caster).for_scene(sub), faces)
+        faces = np.flatnonzero(sea[c.face_object])
+        cache[sea.tobytes()] = (dataclasses.replace(c, faces=c.faces[faces], face_normals=c.face_normals[faces],
+                                                    face_object=c.face_object[faces]), faces)
+    sub, faces = cache[sea.tobytes()]
+    return type(caster).for_scene(sub), faces
 
 
 def centre_lines(plan: FanPlan):
