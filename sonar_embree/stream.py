@@ -6,17 +6,24 @@ Zarr store laid out for the whole line (the CF dataset of :meth:`Record.to_xarra
 and appended to an XTF file, and only then counted as done in the store's ``stream.json``. A killed run
 started again with the same inputs continues at the first block not done (its partial writes are
 overwritten; the XTF is cut back to the blocks done) and ends with the same bytes as a run never stopped;
-different inputs are refused. The whole-line attributes (rays per ping, …) are the first block's.
+different inputs (the output paths included) are refused, and so are a store or XTF shorter than the progress
+says. Nothing the stream did not write is touched: a non-empty folder without its ``stream.json`` and an
+existing XTF file it did not start are refused unless ``overwrite=True``. Each block's files are fsynced before
+the progress (written atomically, fsynced) counts it. The whole-line attributes (rays per ping, …) are the
+first block's.
 """
 from __future__ import annotations
 
 import hashlib
 import json
 import os
+import shutil
+import time
 
 import numpy as np
 
 from .errors import ConfigError
+from .io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
 
 #: Name of the progress file inside the Zarr store.
 PROGRESS = "stream.json"
@@ -42,18 +49,100 @@ def _fingerprint(scene, trajectory, sonar, pulse, kwargs) -> str:
 def _progress(path: str) -> dict | None:
     try:
         with open(os.path.join(path, PROGRESS)) as fh:
-            return json.load(fh)
+            progress = json.load(fh)
     except FileNotFoundError:
         return None
     except (OSError, ValueError) as exc:
         raise ConfigError(f"{path}: unreadable stream progress ({exc})") from None
+    if not isinstance(progress, dict) or not {"fingerprint", "pings_done", "n_pings"} <= set(progress):
+        raise ConfigError(f"{path}: {PROGRESS} is not a stream's progress; choose another folder")
+    return progress
 
 
 def _save_progress(path: str, progress: dict) -> None:
-    tmp = os.path.join(path, PROGRESS + ".tmp")
-    with open(tmp, "w") as fh:
-        json.dump(progress, fh, sort_keys=True)
-    os.replace(tmp, os.path.join(path, PROGRESS))
+    """Progress written atomically and fsynced (a power cut leaves the old or the new count, never a torn one)."""
+    write_json_durable(progress, os.path.join(path, PROGRESS))
+
+
+def _foreign(path: str) -> list:
+    """Names in the folder ``path`` that are neither the stream's own bookkeeping nor a killed writer's temporaries."""
+    return sorted(n for n in os.listdir(path) if n not in OWN_NAMES and not n.startswith(STALE_PREFIXES))
+
+
+def _claim(path: str, overwrite: bool) -> None:
+    """Make ``path`` a folder this stream may write: new, empty, a stream's own store, or (``overwrite``)
+    anything that is a folder. Refuses, before any work, what the project did not create."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        raise ConfigError(f"{path}: exists and is not a folder (a streamed line is a Zarr folder); choose another "
+                          "path")
+    if os.path.isdir(path):
+        names = _foreign(path)
+        if names and PROGRESS not in names and not overwrite:
+            raise ConfigError(f"{path}: not empty and not a streamed line (found {names[0]!r}); choose a new or "
+                              "empty folder, or pass overwrite=True to replace its contents")
+    try:
+        os.makedirs(path, exist_ok=True)
+    except OSError as exc:
+        raise os_error_line(exc, path) from None
+
+
+def _check_xtf_free(xtf_path, old: dict | None, overwrite: bool) -> None:
+    """Refuse to start an XTF over a non-empty file that this store's stream did not write (unless ``overwrite``)."""
+    if xtf_path is None or not os.path.exists(xtf_path):
+        return
+    if os.path.isdir(xtf_path):
+        raise ConfigError(f"{xtf_path}: is a folder, not an XTF file")
+    ours = old is not None and old.get("xtf_path") == xtf_path
+    if os.path.getsize(xtf_path) > 0 and not ours and not overwrite:
+        raise ConfigError(f"{xtf_path}: exists and was not written by this stream; choose another name or pass "
+                          "overwrite=True")
+
+
+def _check_outputs(path: str, progress: dict, xtf_path) -> None:
+    """Before a resume touches them: the store holds the whole line, and the XTF holds at least every ping
+    counted as done and starts with the header this stream wrote."""
+    import xarray as xr
+
+    try:
+        n = xr.open_zarr(path).sizes.get("ping")
+    except Exception as exc:                                       # zarr/xarray raise many types
+        raise ConfigError(f"{path}: the Zarr store of this streamed line is unreadable ({type(exc).__name__}); "
+                          "pass resume=False to start over") from None
+    if n != progress["n_pings"]:
+        raise ConfigError(f"{path}: the store holds {n} pings, its progress says {progress['n_pings']}; pass "
+                          "resume=False to start over")
+    x = progress.get("xtf")
+    if x is None:
+        return
+    if not os.path.isfile(xtf_path):
+        raise ConfigError(f"{xtf_path}: the XTF of this streamed line is missing; pass resume=False to start over")
+    need = x["header_bytes"] + progress["pings_done"] * x.get("ping_bytes", 0)
+    size = os.path.getsize(xtf_path)
+    if size < need:
+        raise ConfigError(f"{xtf_path}: holds {size} bytes, fewer than the {need} of the {progress['pings_done']} "
+                          "pings done; it was cut or changed: pass resume=False to start over")
+    with open(xtf_path, "rb") as fh:
+        if hashlib.sha256(fh.read(x["header_bytes"])).hexdigest() != x["header_sha256"]:
+            raise ConfigError(f"{xtf_path}: its header is not the one this stream wrote; pass resume=False to "
+                              "start over")
+
+
+def _resumed(path: str, key: str, xtf_path, resume: bool, overwrite: bool) -> dict | None:
+    """The progress to continue from, or None to start over (the folder emptied of the old store, the XTF
+    checked free)."""
+    old = _progress(path)
+    if old is not None and resume and old.get("pings_done", 0) > 0:
+        if old["fingerprint"] != key:
+            was = old.get("xtf_path")
+            why = f" (its XTF was {was}, now {xtf_path})" if was != xtf_path else ""
+            raise ConfigError(f"{path}: holds a streamed line of other inputs{why}; remove it or pass resume=False")
+        _check_outputs(path, old, xtf_path)
+        return old
+    _check_xtf_free(xtf_path, old, overwrite)
+    for name in _foreign(path):                                      # ours (or overwrite): the old store goes
+        p = os.path.join(path, name)
+        shutil.rmtree(p) if os.path.isdir(p) and not os.path.islink(p) else os.unlink(p)
+    return None
 
 
 def _template(ds, n_pings: int, block: int):
@@ -73,23 +162,27 @@ def _template(ds, n_pings: int, block: int):
 
 
 def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
-    """Create the store (metadata, sample coordinates) and the XTF header from the first block's record."""
+    """Create the store (metadata, sample coordinates) and the XTF header from the first block's record.
+
+    The progress file (the marker that makes the folder this stream's) is written before anything else."""
     from .io.dataset import to_xarray
     from .io.xtf import xtf_bytes
 
+    progress = {"fingerprint": fingerprint, "pings_done": 0, "n_pings": n_pings, "block_pings": block,
+                "xtf": None, "xtf_path": xtf_path}
+    _save_progress(path, progress)
     ds = to_xarray(first)
     encoding = {name: {"chunks": tuple(block if d == "ping" else ds.sizes[d] for d in var.dims)}
                 for name, var in ds.data_vars.items()}
-    _template(ds, n_pings, block).to_zarr(path, mode="w", zarr_format=2, consolidated=True, encoding=encoding,
+    _template(ds, n_pings, block).to_zarr(path, mode="a", zarr_format=2, consolidated=True, encoding=encoding,
                                           compute=False)
-    progress = {"fingerprint": fingerprint, "pings_done": 0, "n_pings": n_pings, "block_pings": block,
-                "xtf": None}
     if xtf_path is not None:
         scale = _scale_of(first, xtf_scale)                          # fixed by the first block for the line
         header, _ = xtf_bytes(first, scale=scale)
         with open(xtf_path, "wb") as fh:
             fh.write(header)
-        progress["xtf"] = {"header_bytes": len(header), "scale": scale}
+        progress["xtf"] = {"header_bytes": len(header), "scale": scale,
+                           "header_sha256": hashlib.sha256(header).hexdigest()}
     _save_progress(path, progress)
     return progress
 
@@ -100,27 +193,54 @@ def _scale_of(record, scale) -> float:
     return 1.0 if record.samples is not None else sample_scale(record, scale)
 
 
+def _fsync_since(path: str, t0_ns: int) -> None:
+    """fsync every file of the store written since ``t0_ns`` (a block's chunks), then the folders."""
+    for root, _, names in os.walk(path):
+        for n in names:
+            p = os.path.join(root, n)
+            if os.stat(p).st_mtime_ns >= t0_ns:
+                fsync_path(p)
+        fsync_path(root)
+
+
 def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
-    """The block's pings into their Zarr region and onto the XTF; then counted as done."""
+    """The block's pings into their Zarr region and onto the XTF, flushed to disk; then counted as done."""
     from .io.dataset import to_xarray
     from .io.xtf import xtf_bytes
 
+    t0 = time.time_ns() - 2_000_000_000                             # file systems' mtime granularity
     ds = to_xarray(rec)
     ds = ds.drop_vars([n for n, v in ds.variables.items() if "ping" not in v.dims])
     ds.attrs = {}
     ds.to_zarr(path, region={"ping": slice(a, a + rec.n_pings)}, zarr_format=2)
     if xtf_path is not None:
         _, packets = xtf_bytes(rec, scale=progress["xtf"]["scale"], first_ping=a)
+        per_ping = progress["xtf"].setdefault("ping_bytes", len(packets) // rec.n_pings)
         with open(xtf_path, "r+b") as fh:
-            fh.truncate(progress["xtf"]["header_bytes"] + a * (len(packets) // rec.n_pings))
+            fh.truncate(progress["xtf"]["header_bytes"] + a * per_ping)
             fh.seek(0, os.SEEK_END)
             fh.write(packets)
+            fh.flush()
+            os.fsync(fh.fileno())
+    _fsync_since(path, t0)
     progress["pings_done"] = a + rec.n_pings
     _save_progress(path, progress)
 
 
+def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
+    if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
+        raise ConfigError(f"render_line: block_pings must be an integer >= 1, got {block_pings!r}")
+    for name, value in flags.items():
+        if not isinstance(value, (bool, np.bool_)):
+            raise ConfigError(f"render_line: {name} must be True or False, got {value!r}")
+    for key in ("ping_offset", "keep_complex"):
+        if key in simulate_kwargs:
+            raise ConfigError(f"render_line: {key} is not a streaming option")
+
+
 def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings: int = 512, xtf_path=None,
-                xtf_scale="auto", resume: bool = True, progress_bar: bool = False, **simulate_kwargs) -> str:
+                xtf_scale="auto", resume: bool = True, overwrite: bool = False, progress_bar: bool = False,
+                **simulate_kwargs) -> str:
     """Simulate ``trajectory`` block by block into a Zarr store at ``path`` (and an XTF file), memory bounded by
     one block.
 
@@ -131,51 +251,62 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         reach of its pings, so memory follows the swath); every other keyword of it (speckle, labels, seed, …) goes through
         ``simulate_kwargs`` (not ``ping_offset``, set per block, nor ``keep_complex``).
     path : str or PathLike
-        The Zarr store (``xarray.open_zarr`` opens it, lazily).
+        The Zarr store, a folder: new, empty, or one this function wrote (``xarray.open_zarr`` opens it, lazily).
+        A folder holding anything else is refused unless ``overwrite``.
     block_pings : int
-        Pings per block: one Zarr chunk each, and what is redone after a kill.
+        Pings per block: one Zarr chunk each, and what is redone after a kill (at most the line's length).
     xtf_path : str or PathLike, optional
         Also write an XTF file as the blocks come (float samples × a factor fixed by the first block for
-        ``xtf_scale="auto"``, see :func:`sonar_embree.io.xtf.sample_scale`).
+        ``xtf_scale="auto"``, see :func:`sonar_embree.io.xtf.sample_scale`). An existing non-empty file that
+        this stream did not write is refused unless ``overwrite``.
     resume : bool
-        Continue a store left by a killed run with the same inputs (default); False starts over.
+        Continue a store left by a killed run with the same inputs, the same ``xtf_path`` included (default);
+        False starts over. A resume first checks the store and that the XTF holds every ping counted as done.
+    overwrite : bool
+        Replace a folder's or an XTF file's contents that this function did not write.
 
     Returns
     -------
     str
         ``path``.
     """
+    path = os.path.abspath(os.fspath(path))
+    xtf_path = None if xtf_path is None else os.path.abspath(os.fspath(xtf_path))
+    _checked_args(block_pings, {"resume": resume, "overwrite": overwrite, "progress_bar": progress_bar},
+                  simulate_kwargs)
+    n = len(trajectory)
+    block = int(min(block_pings, max(n, 1)))
+    key = _fingerprint(scene, trajectory, sonar, pulse, simulate_kwargs | {"block_pings": block, "xtf": xtf_path})
+    _claim(path, overwrite)
+    with folder_lock(path):
+        progress = _resumed(path, key, xtf_path, resume, overwrite)
+        try:
+            _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_scale, progress,
+                        progress_bar, simulate_kwargs)
+        except OSError as exc:
+            raise os_error_line(exc, exc.filename or path) from None
+    return path
+
+
+def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_scale, progress, bar,
+                simulate_kwargs) -> None:
     from .simulate import progress_bar as pings_bar, simulate
 
-    path = os.fspath(path)
-    if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
-        raise ConfigError(f"render_line: block_pings must be an integer >= 1, got {block_pings!r}")
-    for key in ("ping_offset", "keep_complex"):
-        if key in simulate_kwargs:
-            raise ConfigError(f"render_line: {key} is not a streaming option")
     n = len(trajectory)
-    key = _fingerprint(scene, trajectory, sonar, pulse, simulate_kwargs | {"block_pings": int(block_pings),
-                                                                            "xtf": xtf_path is not None})
-    progress = _progress(path) if resume and os.path.isdir(path) else None
-    if progress is not None and progress.get("fingerprint") != key:
-        raise ConfigError(f"{path}: holds a streamed line of other inputs; remove it or pass resume=False")
-    if progress is not None and xtf_path is not None and not os.path.exists(xtf_path):
-        progress = None                                              # the XTF is gone: start over
-    bar = pings_bar(progress_bar, n, 0 if progress is None else progress["pings_done"])
     a = 0 if progress is None else progress["pings_done"]
+    bar = pings_bar(bar, n, a)
     while a < n:
-        b = min(a + int(block_pings), n)
+        b = min(a + block, n)
         rec = simulate(_block_scene(scene, trajectory[a:b], sonar), trajectory[a:b], sonar, pulse, ping_offset=a,
                        **simulate_kwargs)
         if progress is None:
-            progress = _start(path, rec, n, int(block_pings), key, xtf_path, xtf_scale)
+            progress = _start(path, rec, n, block, key, xtf_path, xtf_scale)
         _write_block(path, rec, a, progress, xtf_path)
         if bar is not None:
             bar.update(b - a)
         a = b
     if bar is not None:
         bar.close()
-    return path
 
 
 def _block_scene(scene, block, sonar):

@@ -573,6 +573,26 @@ def test_resume_refuses_changed_mesh_contents_and_attitude(tmp_path, capsys):
     assert "different sweep" in err and "trajectories" in err, err
 
 
+def test_a_second_batch_of_the_same_folder_is_refused_while_the_first_runs(tmp_path, capsys):
+    """Issue 33, finding 12: two runs of one folder: the second is refused in one line (the first holds its
+    lock) and touches nothing; with the first done, the lock is gone and a resume runs."""
+    from sonar_embree.io.files import LOCK_NAME, folder_lock
+
+    _multi_object_obj(tmp_path / "scene.obj")
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(SWEEP)
+    out = tmp_path / "out"
+    assert cli.main(["batch", str(sweep), "-o", str(out), "--workers", "1", "--no-progress"]) == 0
+    (out / ".tmp-being-written").mkdir()                 # what the first run is writing now
+    with folder_lock(out):
+        assert cli.main(["batch", str(sweep), "-o", str(out), "--resume", "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert "another run is writing this folder now" in err and err.count("\n") == 1, err
+        assert (out / ".tmp-being-written").is_dir()
+    assert not (out / LOCK_NAME).exists()
+    assert cli.main(["batch", str(sweep), "-o", str(out), "--resume", "--no-progress"]) == 0
+
+
 # --- 13: far, unrelated geometry costs the survey no precision -------------------------------------------
 @pytest.mark.parametrize("far_m", [1e4, 1e6, 1e8])
 def test_a_stray_box_far_away_leaves_the_record_unchanged(far_m):

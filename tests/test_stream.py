@@ -112,3 +112,120 @@ def test_other_inputs_are_refused_unless_started_over(tmp_path):
         se.stream.render_line(_scene(), LINE, path, SONAR, block_pings=0)
     with pytest.raises(se.ConfigError, match="ping_offset is not a streaming option"):
         se.stream.render_line(_scene(), LINE, path, SONAR, ping_offset=3)
+
+
+# --- issue 33: never a byte of what the stream did not write ------------------------------------------------
+def test_a_users_folder_is_refused_and_survives(tmp_path):
+    """Finding 1: a non-empty folder that is not a streamed line is refused before any work, its files intact;
+    overwrite=True replaces its contents."""
+    mine = tmp_path / "mydata"
+    (mine / "sub").mkdir(parents=True)
+    (mine / "thesis.tex").write_text("years of work")
+    (mine / "sub" / "fig.pdf").write_bytes(b"%PDF")
+    with pytest.raises(se.ConfigError, match=r"mydata: not empty and not a streamed line \(found 'sub'\)"):
+        se.stream.render_line(_scene(), LINE[:4], mine, SONAR, block_pings=4, start_time=START)
+    assert (mine / "thesis.tex").read_text() == "years of work" and (mine / "sub" / "fig.pdf").exists()
+    se.stream.render_line(_scene(), LINE[:4], mine, SONAR, block_pings=4, start_time=START, overwrite=True)
+    assert not (mine / "thesis.tex").exists() and xr.open_zarr(mine)["port"].shape[0] == 4
+    afile = tmp_path / "notes.txt"
+    afile.write_text("keep")
+    with pytest.raises(se.ConfigError, match="notes.txt: exists and is not a folder"):
+        se.stream.render_line(_scene(), LINE[:4], afile, SONAR, block_pings=4)
+    assert afile.read_text() == "keep"
+
+
+def test_an_unrelated_xtf_survives(tmp_path):
+    """Finding 2: the XTF path is part of the fingerprint (a resume with another XTF is refused) and a fresh
+    stream does not start over a file it did not write."""
+    kw = dict(block_pings=8, xtf_scale=1.0, start_time=START)
+    other = tmp_path / "other.xtf"
+    other.write_bytes(b"a user's survey" * 100)
+    before = other.read_bytes()
+    with pytest.raises(se.ConfigError, match="other.xtf: exists and was not written by this stream"):
+        se.stream.render_line(_scene(), LINE[:16], tmp_path / "a.zarr", SONAR, xtf_path=other, **kw)
+    assert not (tmp_path / "a.zarr" / "stream.json").exists()
+    se.stream.render_line(_scene(), LINE[:16], tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf", **kw)
+    with pytest.raises(se.ConfigError, match=r"holds a streamed line of other inputs \(its XTF was .*a.xtf"):
+        se.stream.render_line(_scene(), LINE[:16], tmp_path / "a.zarr", SONAR, xtf_path=other, **kw)
+    assert other.read_bytes() == before
+    # its own XTF may be started over (resume=False): it is the stream's
+    se.stream.render_line(_scene(), LINE[:16], tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf",
+                          resume=False, **kw)
+
+
+def _cut_after_two_blocks(tmp_path, monkeypatch, name):
+    saved = stream._save_progress
+
+    def dies(path, progress):
+        if progress["pings_done"] == 24:
+            raise _Killed
+        saved(path, progress)
+
+    monkeypatch.setattr(stream, "_save_progress", dies)
+    with pytest.raises(_Killed):
+        se.stream.render_line(_scene(), LINE, tmp_path / f"{name}.zarr", SONAR, xtf_path=tmp_path / f"{name}.xtf",
+                              block_pings=8, xtf_scale=1.0, start_time=START)
+    monkeypatch.undo()
+
+
+def test_a_short_or_missing_xtf_is_refused_on_resume(tmp_path, monkeypatch):
+    """Finding 2: an XTF shorter than the progress claims is refused (not padded with zeros); so is a missing
+    one and one whose header is not the stream's."""
+    kw = dict(block_pings=8, xtf_scale=1.0, start_time=START)
+    _cut_after_two_blocks(tmp_path, monkeypatch, "b")
+    xtf = tmp_path / "b.xtf"
+    data = xtf.read_bytes()
+    xtf.write_bytes(data[: len(data) // 3])
+    with pytest.raises(se.ConfigError, match=r"b.xtf: holds \d+ bytes, fewer than the \d+ of the 16 pings done"):
+        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=xtf, **kw)
+    xtf.write_bytes(b"X" + data[1:])
+    with pytest.raises(se.ConfigError, match="b.xtf: its header is not the one this stream wrote"):
+        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=xtf, **kw)
+    xtf.unlink()
+    with pytest.raises(se.ConfigError, match="b.xtf: the XTF of this streamed line is missing"):
+        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=xtf, **kw)
+
+
+def test_progress_is_fsynced_after_the_blocks_files(tmp_path, monkeypatch):
+    """Finding 2: every block's XTF and Zarr files are fsynced before the progress that counts them, and the
+    progress itself is fsynced (a power cut cannot count a block whose bytes are not on disk)."""
+    order = []
+    real_fsync, real_save = os.fsync, stream._save_progress
+    monkeypatch.setattr(os, "fsync", lambda fd: order.append(os.readlink(f"/proc/self/fd/{fd}")) or real_fsync(fd))
+    monkeypatch.setattr(stream, "_save_progress", lambda p, pr: order.append(("saved", pr["pings_done"]))
+                        or real_save(p, pr))
+    se.stream.render_line(_scene(), LINE[:16], tmp_path / "s.zarr", SONAR, block_pings=8,
+                          xtf_path=tmp_path / "s.xtf", xtf_scale=1.0, start_time=START)
+    i = order.index(("saved", 8))
+    before = [p for p in order[:i] if isinstance(p, str)]
+    assert str(tmp_path / "s.xtf") in before and any(p.endswith(os.path.join("port", "0.0")) for p in before)
+    assert any(isinstance(p, str) and p.endswith("stream.json.tmp") for p in order[i:])
+
+
+def test_a_huge_block_is_the_whole_line(tmp_path):
+    """Finding 12: block_pings beyond the line is one block (no half store, no traceback)."""
+    se.stream.render_line(_scene(), LINE[:5], tmp_path / "s.zarr", SONAR, block_pings=10**9, start_time=START)
+    ds = xr.open_zarr(tmp_path / "s.zarr")
+    assert ds["port"].shape[0] == 5 and ds["port"].encoding["chunks"][0] == 5
+    with pytest.raises(se.ConfigError, match="resume must be True or False"):
+        se.stream.render_line(_scene(), LINE[:5], tmp_path / "s.zarr", SONAR, resume="no")
+
+
+def test_disk_full_and_a_second_writer_give_one_line(tmp_path, monkeypatch):
+    """Finding 12: an OS error while writing names the path in one line; a second writer of the same store is
+    refused while the first holds its lock."""
+    import errno
+
+    from sonar_embree.io.files import folder_lock
+
+    def full(*a, **k):
+        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "s.zarr" / "port" / "0.0"))
+
+    monkeypatch.setattr(stream, "_write_block", full)
+    with pytest.raises(se.ConfigError, match=r"s.zarr/port/0.0: cannot write \(No space left on device\); free"):
+        se.stream.render_line(_scene(), LINE[:4], tmp_path / "s.zarr", SONAR, block_pings=4)
+    monkeypatch.undo()
+    (tmp_path / "t.zarr").mkdir()
+    with folder_lock(tmp_path / "t.zarr"):
+        with pytest.raises(se.ConfigError, match="t.zarr: another run is writing this folder now"):
+            se.stream.render_line(_scene(), LINE[:4], tmp_path / "t.zarr", SONAR, block_pings=4)

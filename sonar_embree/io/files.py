@@ -7,13 +7,82 @@ removes on the next run.
 from __future__ import annotations
 
 import contextlib
+import errno
+import json
 import os
 import shutil
 import tempfile
 
+from ..errors import ConfigError
+
 
 #: Prefixes of the temporaries that atomic writers leave only when killed (SIGKILL, power loss).
 STALE_PREFIXES = (".tmp-", ".old-")
+#: The lock file a writer holds in a folder it is writing (:func:`folder_lock`); never a user's file.
+LOCK_NAME = ".sonar-embree.lock"
+#: Names in an output folder that are the project's own bookkeeping, not outputs or a user's files.
+OWN_NAMES = (LOCK_NAME,)
+
+
+@contextlib.contextmanager
+def folder_lock(folder):
+    """Hold an exclusive lock on ``folder`` (its :data:`LOCK_NAME` file) while writing into it.
+
+    A second writer of the same folder, in this process or another, is refused with a one-line
+    :class:`~sonar_embree.errors.ConfigError`; the operating system drops the lock when its holder dies
+    (``flock``), so a killed run never leaves the folder locked. The lock file is removed on release.
+    """
+    import fcntl
+
+    lock = os.path.join(os.fspath(folder), LOCK_NAME)
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            same = os.path.exists(lock) and os.stat(lock).st_ino == os.fstat(fd).st_ino
+        except OSError as exc:
+            if exc.errno not in (errno.EAGAIN, errno.EACCES, errno.EWOULDBLOCK):
+                raise
+            same = False
+        if not same:                                        # held, or released and removed under us
+            raise ConfigError(f"{os.fspath(folder)}: another run is writing this folder now (it holds "
+                              f"{LOCK_NAME}); wait for it to end")
+        try:
+            yield
+        finally:
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(lock)                             # while still held: the next writer makes a new one
+    finally:
+        os.close(fd)                                        # closing drops the lock
+
+
+def fsync_path(path) -> None:
+    """Flush a file (or a folder's entries) to the disk, so that a power loss cannot undo it."""
+    fd = os.open(os.fspath(path), os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def write_json_durable(obj, path) -> None:
+    """Write ``obj`` as JSON to ``path`` atomically and durably: a temporary beside it, fsynced, renamed onto
+    ``path``, and the folder fsynced (after a crash the file holds either the old or the new whole object)."""
+    path = os.fspath(path)
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        json.dump(obj, fh, sort_keys=True)
+        fh.flush()
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    fsync_path(os.path.dirname(os.path.abspath(path)))
+
+
+def os_error_line(exc: OSError, path) -> ConfigError:
+    """A one-line error naming ``path`` for an operating-system failure (disk full, permission, …)."""
+    what = exc.strerror or str(exc)
+    hint = "; free some space, then run again to resume" if exc.errno == errno.ENOSPC else ""
+    return ConfigError(f"{os.fspath(path)}: cannot write ({what}){hint}")
 
 
 def clean_stale(folder) -> int:

@@ -30,7 +30,7 @@ import tempfile
 from ..errors import ConfigError
 from ..io import registry
 from ..io.coco import merge, write_json
-from ..io.files import atomic_job_folder, clean_stale
+from ..io.files import LOCK_NAME, OWN_NAMES, atomic_job_folder, clean_stale, folder_lock
 from ..record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 
@@ -131,7 +131,7 @@ def _check_folder(sweep: Sweep, out_dir: str, resume: bool) -> None:
             raise ConfigError(f"{out_dir}: holds a different sweep than {sweep.source} (changed: "
                               f"{', '.join(what)}); choose another folder")
     elif os.path.isdir(out_dir):
-        stray = [n for n in os.listdir(out_dir) if not n.startswith(".tmp-")]
+        stray = [n for n in os.listdir(out_dir) if not n.startswith(".tmp-") and n not in OWN_NAMES]
         if stray:
             raise ConfigError(f"{out_dir}: not empty and not a batch folder (found {stray[0]!r})")
     elif os.path.exists(out_dir):
@@ -197,6 +197,16 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
     _check_folder(sweep, out_dir, resume)
     preflight(sweep)
     created = not os.path.exists(out_dir)
+    os.makedirs(out_dir, exist_ok=True)
+    with folder_lock(out_dir):                            # a second run of this folder is refused, not interleaved
+        _check_folder(sweep, out_dir, resume)             # again, now that no other run can change it
+        todo = _run_locked(sweep, out_dir, resume, created, client, scheduler, workers, dashboard,
+                           max_in_flight, progress)
+    return [j.id for j in todo]
+
+
+def _run_locked(sweep, out_dir, resume, created, client, scheduler, workers, dashboard, max_in_flight,
+                progress) -> list:
     todo, fresh = _prepare(sweep, out_dir, resume)
     try:
         if todo:
@@ -207,11 +217,11 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
         if fresh and not any(os.path.isdir(os.path.join(out_dir, j.id)) for j in sweep.jobs):
             _remove_started(out_dir, created)  # nothing finished: leave no batch to refuse a re-run
         raise
-    return [j.id for j in todo]
+    return todo
 
 
 def _remove_started(out_dir: str, created: bool) -> None:
-    for name in ("sweep.json", "coco.json"):
+    for name in ("sweep.json", "coco.json", LOCK_NAME):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(os.path.join(out_dir, name))
     if created:
