@@ -110,11 +110,21 @@ def check_altitude(altitude_m: np.ndarray, max_range_m: float) -> None:
                   f"Sonar.max_range_m = {max_range_m:g} m; side-scan sonars fly at 5–50 % of their range")
 
 
+def _barycentric(n: int) -> np.ndarray:
+    """(n, 3) points spread over a triangle (the R2 low-discrepancy sequence folded into it), as weights."""
+    g = 1.32471795724474602596                                    # the plastic number (Roberts 2018, R2)
+    uv = np.modf(0.5 + np.arange(1, n + 1)[:, None] / np.array([g, g * g]))[0]
+    fold = uv.sum(axis=1) > 1.0
+    uv[fold] = 1.0 - uv[fold]
+    return np.column_stack([1.0 - uv.sum(axis=1), uv])
+
+
 def check_back_faces(caster, pos_local: np.ndarray, max_range_m: float, samples: int = 48) -> None:
     """Warn about objects that a ray from the sonar meets mostly on the back of their faces.
 
-    Rays from the first, middle and last ping aim at up to ``samples`` face centres of
-    each object; those whose first hit is that object count as front or back. An
+    Rays from the first, middle and last ping aim at ``samples`` points of each object, spread
+    over its faces (several on each face of a small mesh: a two-triangle plane gets as many
+    as a large one); those whose first hit is that object count as front or back. An
     object seen mostly from behind (inverted normals) returns no echo, only a shadow.
     """
     c = caster.compiled
@@ -126,8 +136,8 @@ def check_back_faces(caster, pos_local: np.ndarray, max_range_m: float, samples:
     for obj in range(len(c.labels)):
         if c.two_sided[obj]:
             continue
-        faces = np.linspace(bounds[obj], bounds[obj + 1] - 1, min(samples, bounds[obj + 1] - bounds[obj])).astype(int)
-        centres = c.vertices[c.faces[faces]].mean(axis=1)
+        faces = np.linspace(bounds[obj], bounds[obj + 1] - 1, samples).round().astype(int)   # repeats: few faces
+        centres = np.einsum("nk,nkj->nj", _barycentric(samples), c.vertices[c.faces[faces]])
         org = np.repeat(pos_local[picks], faces.size, axis=0)
         d = np.tile(centres, (picks.size, 1)) - org
         dist = np.linalg.norm(d, axis=1)

@@ -343,6 +343,19 @@ def test_up_axis_in_toml_and_bad_values(tmp_path):
 
 
 # --- 13: inverted normals warn, and two-sided materials echo -----------------------------------------------
+def test_an_inverted_two_triangle_floor_warns(warnings_log):
+    """Issue 33, finding 3: the smallest inverted floor (two triangles) renders black, so it must warn as a
+    large one does; the same floor the right way up does not."""
+    floor = se.seafloor.flat((200.0, 200.0))
+    flipped = trimesh.Trimesh(floor.vertices, floor.faces[:, ::-1], process=False)
+    traj, sonar = _line(n=10), se.Sonar(max_range_m=40)
+    se.simulate(se.Scene().add(floor, label="seafloor"), traj, sonar)
+    assert warnings_log.records == []
+    rec = se.simulate(se.Scene().add(flipped, label="seafloor"), traj, sonar)
+    assert rec.data.max() == 0.0
+    assert any("object 'seafloor' is seen from behind its faces" in r.getMessage() for r in warnings_log.records)
+
+
 def test_inverted_box_warns_and_two_sided_echoes(warnings_log):
     box = trimesh.creation.box((2.0, 2.0, 1.0))
     box.apply_translation((0.0, -12.0, 0.5))
