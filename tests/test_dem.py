@@ -3,9 +3,12 @@
 The GeoTIFF is written here with rasterio directly, north-up with a known transform; a Gaussian mound's top sits
 on one pixel centre, so a half-pixel or a flipped-row mistake moves it by metres (and its height by 0.17 m).
 """
+import re
+
 import numpy as np
 import pytest
 import rasterio
+import trimesh
 from rasterio.transform import Affine
 
 import sonar_embree as se
@@ -202,3 +205,77 @@ def test_tiled_dem_renders_as_the_whole_dem(tmp_path):
     ds = xr.open_zarr(tmp_path / "t.zarr")
     np.testing.assert_array_equal(ds["starboard"].values, whole.starboard)
     assert whole.starboard.max() > 0
+
+
+# --- issue 33: outliers, undeclared nodata, broken files: one line each, nothing dropped silently ----------
+def _write_values(path, z, nodata=None):
+    with rasterio.open(path, "w", driver="GTiff", width=z.shape[1], height=z.shape[0], count=1, dtype="float32",
+                       crs=CRS, transform=Affine(PIXEL, 0.0, X0, 0.0, -PIXEL, Y0), nodata=nodata) as dst:
+        dst.write(z.astype(np.float32), 1)
+    return path
+
+
+@pytest.mark.parametrize("spike_m", [1e6, 3e6])
+def test_one_outlier_pixel_is_named_not_half_the_mesh_dropped(tmp_path, spike_m):
+    """Finding 4: one DEM pixel at 10⁶ m used to drop 16 % of the triangles silently (the degenerate test was
+    relative to the mesh's extent); now it is refused, naming its vertex and height."""
+    z = np.where(_heights() == NODATA, FLOOR, _heights())
+    good = se.seafloor.from_dem(_write_values(tmp_path / "good.tif", z))
+    assert len(good.faces) == 2 * (NX - 1) * (NY - 1)               # every cell of a clean DEM kept
+    z[30, 20] = spike_m
+    with pytest.raises(se.ConfigError, match=r"spike.tif: pixel \(row 30, column 20\) holds " + re.escape(f"{spike_m:.6g}") + " m, "
+                                             r".* from the median height, beyond any relief"):
+        se.seafloor.from_dem(_write_values(tmp_path / "spike.tif", z))
+    with pytest.raises(se.ConfigError, match=r"spike.tif tile \(1, 1\): pixel \(row 14, column 4\) holds"):
+        se.TiledDEM(tmp_path / "spike.tif", tile_px=16).scene_around(np.array([[X0 + 20.0, Y0 - 30.0, -40.0]]), 5.0)
+    # a mesh (not a raster) with the same spike: the scene names the vertex
+    mesh = trimesh.Trimesh(good.vertices.copy(), good.faces, process=False)
+    k = int(np.argmin(np.hypot(mesh.vertices[:, 0] - X0 - 20.5, mesh.vertices[:, 1] - Y0 + 30.5)))
+    mesh.vertices[k, 2] = spike_m
+    with pytest.raises(se.SceneError, match=rf"mesh 'seafloor': vertex {k} at \(.*, " + re.escape(f"{spike_m:.6g}") + r"\) m lies "):
+        se.Scene().add(mesh, label="seafloor")
+
+
+def test_a_vertex_at_1e30_is_named_and_tiny_triangles_far_away_are_kept():
+    """Finding 4: the checks are absolute in metres: a 1e30 vertex is refused by name; a 1 cm triangle stays a
+    triangle however far another vertex of the mesh lies (the old relative test dropped it)."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0.01, 0, 0], [0, 0.01, 0], [0, 0, 1e30]], dtype=float)
+    with pytest.raises(se.SceneError, match=r"mesh 'x': vertex 5 at \(0, 0, 1e\+30\) m lies beyond 1e\+09 m"):
+        se.Scene().add(trimesh.Trimesh(v, [[0, 1, 2], [0, 3, 4], [0, 1, 5]], process=False), label="x")
+    far = np.array([[0, 0, 0], [0.01, 0, 0], [0, 0.01, 0], [5e5, 0, 0], [5e5, 1, 0], [5e5 + 1, 0, 0]], dtype=float)
+    scene = se.Scene().add(trimesh.Trimesh(far, [[0, 1, 2], [3, 5, 4]], process=False), label="x")
+    assert scene.n_faces == 2
+
+
+def test_undeclared_nodata_is_refused_and_declared_it_is_a_hole(tmp_path):
+    """Finding 4: −9999 that the raster does not declare used to be meshed as a 10 km pit."""
+    z = _heights()
+    with pytest.raises(se.ConfigError, match=r"raw.tif: 100 pixel\(s\) hold exactly -9999, a common nodata value "
+                                             r"the raster does not declare; pass nodata=-9999"):
+        se.seafloor.from_dem(_write_values(tmp_path / "raw.tif", z))
+    declared = se.seafloor.from_dem(_write_dem(tmp_path / "dem.tif"))
+    given = se.seafloor.from_dem(tmp_path / "raw.tif", nodata=-9999)
+    assert len(given.faces) == len(declared.faces) < 2 * (NX - 1) * (NY - 1)
+    tiled = se.TiledDEM(tmp_path / "raw.tif", tile_px=16)
+    with pytest.raises(se.ConfigError, match=r"raw.tif tile \(3, 0\): 100 pixel\(s\) hold exactly -9999"):
+        tiled.scene_around(np.array([[X0 + 5.0, Y0 - 55.0, -40.0]]), 5.0)
+
+
+def test_broken_rasters_and_bad_tiling_arguments_give_one_line(tmp_path):
+    """Finding 12: a truncated GeoTIFF (its pixels unreadable) and TiledDEM's arguments: one-line errors."""
+    data = _write_dem(tmp_path / "dem.tif").read_bytes()
+    cut = tmp_path / "cut.tif"
+    cut.write_bytes(data[: len(data) // 2])
+    with pytest.raises(se.ConfigError, match="cut.tif: cannot read raster"):
+        se.seafloor.from_dem(cut)
+    with pytest.raises(se.ConfigError, match="cut.tif: cannot read raster"):
+        se.TiledDEM(cut, tile_px=16).scene_around(np.array([[X0 + 40.0, Y0 - 55.0, -40.0]]), 5.0)
+    for kw, what in ((dict(band="1"), "band must be an integer >= 1, got '1'"),
+                     (dict(cache_tiles="x"), "cache_tiles must be an integer"),
+                     (dict(cache_tiles=None), "cache_tiles must be an integer"),
+                     (dict(cache_tiles=-1), "cache_tiles must be an integer >= 1, got -1"),
+                     (dict(nodata="none"), "nodata must be a number")):
+        with pytest.raises(se.ConfigError, match=what):
+            se.TiledDEM(tmp_path / "dem.tif", **kw)
+    with pytest.raises(se.ConfigError, match="dem.tif: band must be an integer"):
+        se.seafloor.from_dem(tmp_path / "dem.tif", band="1")

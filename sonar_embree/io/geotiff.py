@@ -59,17 +59,19 @@ class RasterInfo:
 def raster_info(path, band: int = 1) -> RasterInfo:
     """The size and georeferencing of a raster (no pixels read)."""
     import rasterio
-    from rasterio.errors import RasterioIOError
+    from rasterio.errors import RasterioError
 
     path = os.fspath(path)
+    if isinstance(band, bool) or not isinstance(band, (int, np.integer)):
+        raise ConfigError(f"{path}: band must be an integer (from 1), got {band!r}")
     try:
         with rasterio.open(path) as src:
             if not 1 <= band <= src.count:
                 raise ConfigError(f"{path}: band {band} does not exist (the raster has {src.count})")
             t, shape = src.transform, (src.height, src.width)
             crs = None if src.crs is None else (f"EPSG:{src.crs.to_epsg()}" if src.crs.to_epsg() else src.crs.to_wkt())
-    except RasterioIOError as exc:
-        raise ConfigError(f"{path}: cannot read raster ({exc})") from None
+    except RasterioError as exc:
+        raise ConfigError(f"{path}: cannot read raster ({str(exc).splitlines()[0]})") from None
     _check_transform(path, t)
     return RasterInfo(path, shape, t.c + (np.arange(shape[1]) + 0.5) * t.a, t.f + (np.arange(shape[0]) + 0.5) * t.e,
                       crs)
@@ -81,9 +83,15 @@ def read_window(info: RasterInfo, rows: slice, cols: slice, band: int = 1) -> np
     import rasterio
     from rasterio.windows import Window
 
+    from rasterio.errors import RasterioError
+
     win = Window(cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start)
-    with rasterio.open(info.path) as src:
-        return src.read(band, window=win, masked=True).astype(np.float64).filled(np.nan)
+    try:
+        with rasterio.open(info.path) as src:
+            return src.read(band, window=win, masked=True).astype(np.float64).filled(np.nan)
+    except RasterioError as exc:                                  # a truncated or corrupt file, read at last
+        why = str(exc.__cause__ or exc).splitlines()[0]
+        raise ConfigError(f"{info.path}: cannot read raster pixels, truncated or corrupt? ({why})") from None
 
 
 def _check_transform(path: str, t) -> None:

@@ -146,9 +146,56 @@ class CompiledScene:
         return float(area[np.abs(self.face_normals[:, 2]) > 0.7].sum() / max(area.sum(), 1e-300))
 
 
+@dataclass(frozen=True)
+class MeshTolerance:
+    """What mesh checking accepts, in absolute metres (one far vertex cannot change what counts as degenerate).
+
+    Attributes
+    ----------
+    min_area_m2 : float
+        Triangles of smaller area are degenerate and dropped (1e-9 m²: a 45 µm square; below the float32
+        resolution of Embree's hits a few metres from the local origin).
+    max_coordinate_m : float
+        A vertex coordinate beyond this is no place on Earth in any projected CRS (their coordinates stay
+        within ±2·10⁷ m): a corrupt file or a unit slip, refused.
+    max_height_offset_m : float
+        A vertex farther above or below its mesh's median height is an outlier (a DEM spike, an undeclared
+        nodata value), refused: the Earth's whole relief spans under 20 km.
+    """
+
+    min_area_m2: float = 1e-9
+    max_coordinate_m: float = 1e9
+    max_height_offset_m: float = 20_000.0
+
+
+#: The tolerances of :func:`_validate`.
+TOLERANCE = MeshTolerance()
+
+
+def _outlier(v: np.ndarray, f: np.ndarray, source: str) -> None:
+    """Refuse, naming it, the first used vertex beyond the absolute bounds of :data:`TOLERANCE`."""
+    used = np.unique(f)
+    w = v[used]
+    far = np.abs(w).max(axis=1) > TOLERANCE.max_coordinate_m
+    z_mid = float(np.median(w[:, 2]))
+    high = np.abs(w[:, 2] - z_mid) > TOLERANCE.max_height_offset_m
+    if far.any():
+        k = int(np.flatnonzero(far)[0])
+        why = f"lies beyond {TOLERANCE.max_coordinate_m:g} m of the origin, no place on Earth (a corrupt file?)"
+    elif high.any():
+        k = int(np.argmax(np.abs(w[:, 2] - z_mid)))
+        why = (f"lies {w[k, 2] - z_mid:+.6g} m from the mesh's median height {z_mid:.6g} m, beyond any relief "
+               "(a spike or an undeclared nodata value?)")
+    else:
+        return
+    x, y, z = w[k]
+    raise SceneError(f"{source}: vertex {int(used[k])} at ({x:.6g}, {y:.6g}, {z:.6g}) m {why}; fix or remove it")
+
+
 def _validate(vertices, faces, source: str):
     """Check and clean one mesh; return float64 vertices, int faces without degenerate triangles, and which
-    of the given faces were kept."""
+    of the given faces were kept. The checks are absolute (:data:`TOLERANCE`): an outlier vertex is refused,
+    degenerate triangles are dropped and counted in a log line (a warning when they are over 1 % of them)."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces)
     if f.size == 0 or v.size == 0:
@@ -161,15 +208,18 @@ def _validate(vertices, faces, source: str):
         raise SceneError(f"{source}: mesh has NaN or infinite vertex coordinates")
     if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= v.shape[0]:
         raise SceneError(f"{source}: face indices out of range")
+    _outlier(v, f, source)
     tri = v[f]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    area2 = np.linalg.norm(cross, axis=1)
-    scale = float(np.ptp(v, axis=0).max())
-    good = area2 > 1e-12 * max(scale, 1e-300) ** 2
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    good = area > TOLERANCE.min_area_m2
     if not np.any(good):
-        raise SceneError(f"{source}: mesh has only degenerate (zero-area) triangles")
-    if not np.all(good):
-        log.info("%s: dropped %d degenerate triangles", source, int((~good).sum()))
+        raise SceneError(f"{source}: mesh has only degenerate triangles (area under {TOLERANCE.min_area_m2:g} m²; "
+                         "a mesh in metres?)")
+    dropped = int((~good).sum())
+    if dropped:
+        (log.warning if dropped > 0.01 * good.size else log.info)(
+            "%s: dropped %d of %d triangles as degenerate (area under %g m², first: face %d)", source, dropped,
+            good.size, TOLERANCE.min_area_m2, int(np.flatnonzero(~good)[0]))
     return v, f[good].astype(np.int64), good
 
 

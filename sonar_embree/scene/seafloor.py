@@ -88,14 +88,49 @@ def from_heights(heights_m, spacing_m=1.0, origin_m=(0.0, 0.0)) -> trimesh.Trime
     return trimesh.Trimesh(v, f, process=False)
 
 
-def from_dem(path, band: int = 1) -> trimesh.Trimesh:
+#: Values that rasters commonly use for "no data" (GDAL/ESRI -9999, -99999, int16 limits, float32 limits):
+#: a DEM holding one of them exactly without declaring it would be meshed as a pit or a spike.
+NODATA_SENTINELS = (-9999.0, -99999.0, -32767.0, -32768.0, float(np.finfo(np.float32).min),
+                    float(np.finfo(np.float32).max))
+
+
+def declared_nodata(z: np.ndarray, nodata, where: str) -> np.ndarray:
+    """Heights ``z`` (ny, nx) with the value ``nodata`` (when given) as NaN; refused, naming the value, when it
+    holds a common nodata sentinel (:data:`NODATA_SENTINELS`) exactly that was not declared, and naming the
+    pixel, when one lies farther from the median height than any relief (a spike)."""
+    z = np.asarray(z, dtype=np.float64)
+    if nodata is not None:
+        if isinstance(nodata, bool) or not isinstance(nodata, (int, float, np.number)):
+            raise ConfigError(f"{where}: nodata must be a number, got {nodata!r}")
+        z = np.where(z == float(nodata), np.nan, z)
+    for value in NODATA_SENTINELS:
+        n = int(np.count_nonzero(z == value))
+        if n:
+            raise ConfigError(f"{where}: {n} pixel(s) hold exactly {value:g}, a common nodata value the raster does "
+                              f"not declare; pass nodata={value:g} (or set it in the file: gdal_edit.py -a_nodata "
+                              f"{value:g})")
+    from .meshes import TOLERANCE
+
+    if np.isfinite(z).any():
+        off = np.abs(z - np.nanmedian(z))
+        k = int(np.nanargmax(off))
+        if off.flat[k] > TOLERANCE.max_height_offset_m:
+            i, j = divmod(k, z.shape[1])
+            raise ConfigError(f"{where}: pixel (row {i}, column {j}) holds {z[i, j]:.6g} m, "
+                              f"{off[i, j]:.6g} m from the median height, beyond any relief (a spike or an "
+                              "undeclared nodata value?); fix or remove it")
+    return z
+
+
+def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimesh:
     """A seafloor from a digital elevation model raster (GeoTIFF, or anything GDAL reads; rasterio opens it).
 
     Vertices at the pixel centres (x = c + (j + ½)·a, y = f + (i + ½)·e of the raster's transform, so a
     north-up raster's first row is its northernmost), z the band's value in m (elevation up: the seabed
     below a sea-level datum is negative); nodata pixels are holes (no triangle touches them). The raster's
     CRS, when it has one, is kept in ``mesh.metadata["crs"]`` and becomes the scene's (:attr:`Scene.crs`); it
-    must be projected, in metres.
+    must be projected, in metres. ``nodata``: a height that means "no data" beyond the one the raster declares;
+    a common sentinel (-9999, …) held but not declared is refused.
     """
     from ..io.geotiff import read_grid
 
@@ -108,7 +143,8 @@ def from_dem(path, band: int = 1) -> trimesh.Trimesh:
             crs = crs_name(grid.crs)
         except ConfigError as exc:
             raise ConfigError(f"{os.fspath(path)}: {exc}") from None
-    mesh = grid_mesh(grid.x_m, grid.y_m, grid.values, where=os.fspath(path))
+    z = declared_nodata(grid.values, nodata, os.fspath(path))
+    mesh = grid_mesh(grid.x_m, grid.y_m, z, where=os.fspath(path))
     mesh.metadata["crs"] = crs
     return mesh
 
@@ -127,6 +163,7 @@ def from_xyz(path, crs=None) -> trimesh.Trimesh:
                               f"{step.min() if step.size else 0:g} to {step.max() if step.size else 0:g} m)")
     z = np.full((ys.size, xs.size), np.nan)
     z[np.searchsorted(ys, pts[:, 1]), np.searchsorted(xs, pts[:, 0])] = pts[:, 2]
+    z = declared_nodata(z, None, path)
     mesh = grid_mesh(xs, ys[::-1], z[::-1], where=path)    # rows north first, as a raster's: the same triangles
     if crs is not None:
         from ..geo import crs_name

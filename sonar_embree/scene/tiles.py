@@ -32,15 +32,22 @@ class TiledDEM:
     cache_tiles : int
         Tile meshes kept in memory.
     band : int
-        The raster band holding the heights.
+        The raster band holding the heights (from 1).
+    nodata : float, optional
+        A height meaning "no data" beyond the raster's own (a common sentinel held but not declared is refused
+        when its tile is read, see :func:`~sonar_embree.seafloor.declared_nodata`).
     """
 
     def __init__(self, path, tile_px: int = 256, material: Material | None = None, cache_tiles: int = 64,
-                 band: int = 1):
+                 band: int = 1, nodata: float | None = None):
         from ..io.geotiff import raster_info
 
-        if not isinstance(tile_px, (int, np.integer)) or isinstance(tile_px, bool) or tile_px < 2:
-            raise ConfigError(f"TiledDEM: tile_px must be an integer >= 2, got {tile_px!r}")
+        for name, value, low in (("tile_px", tile_px, 2), ("cache_tiles", cache_tiles, 1), ("band", band, 1)):
+            if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < low:
+                raise ConfigError(f"TiledDEM: {name} must be an integer >= {low}, got {value!r}")
+        if nodata is not None and (isinstance(nodata, bool) or not isinstance(nodata, (int, float, np.number))):
+            raise ConfigError(f"TiledDEM: nodata must be a number, got {nodata!r}")
+        self.nodata = nodata
         self.info = raster_info(path, band)
         self.path, self.tile_px, self.band = self.info.path, int(tile_px), band
         self.material = material or Material()
@@ -66,7 +73,7 @@ class TiledDEM:
         """What identifies the DEM for a resumed stream: its path, size, modification time and tiling."""
         st = os.stat(self.path)
         return f"{os.path.abspath(self.path)}:{st.st_size}:{st.st_mtime_ns}:{self.tile_px}:{self.band}:" \
-               f"{self.material!r}"
+               f"{self.material!r}:{self.nodata!r}"
 
     def tiles_around(self, positions_m, reach_m: float) -> tuple:
         """The (i, j) of the tiles holding a pixel centre within ``reach_m`` (horizontally, by the bounding box)
@@ -86,7 +93,7 @@ class TiledDEM:
     def _tile(self, i: int, j: int):
         """The mesh of tile (i, j), or None when it has no cell with heights at all its corners."""
         from ..io.geotiff import read_window
-        from .seafloor import grid_mesh
+        from .seafloor import declared_nodata, grid_mesh
 
         key = (i, j)
         if key in self._tiles:
@@ -95,7 +102,7 @@ class TiledDEM:
         ny, nx = self.info.shape
         rows = slice(i * self.tile_px, min((i + 1) * self.tile_px + 1, ny))
         cols = slice(j * self.tile_px, min((j + 1) * self.tile_px + 1, nx))
-        z = read_window(self.info, rows, cols, self.band)
+        z = declared_nodata(read_window(self.info, rows, cols, self.band), self.nodata, f"{self.path} tile {key}")
         try:
             mesh = grid_mesh(self.info.x_m[cols], self.info.y_m[rows], z, where=f"{self.path} tile {key}")
         except ConfigError:
