@@ -181,3 +181,35 @@ def test_labels_along_the_beam(tmp_path):
     np.testing.assert_allclose(lab.ground_range_m[0][floor], np.sqrt(r ** 2 - H ** 2), atol=0.05)
     assert lab.waterfall(max_columns=None).shape == (40, rec.data.shape[2])
     lab.save_png(tmp_path / "labels.png")
+
+
+def test_msis_labels_export_and_read_back(tmp_path, capsys):
+    """Issue 33, finding 5: an MSIS record with labels goes to xarray, Zarr, a streamed line and the CLI (it
+    raised "variables {'beam'} are found in both data_vars and coords" after the render); the labels read back
+    on a `channel` dimension, equal to the record's."""
+    import xarray as xr
+    import trimesh
+
+    from sonar_embree.runs import cli
+
+    box = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    box.apply_translation((8.0 * np.sin(np.radians(30.0)), 8.0 * np.cos(np.radians(30.0)), 0.5))  # ahead
+    scene = _floor().add(box, label="box")
+    sonar = se.MSIS(step_deg=9.0, max_range_m=15.0)
+    rec = se.simulate(scene, _still(12), sonar, labels=True)
+    ds = rec.to_xarray()
+    assert ds["label_kind"].dims == ("channel", "ping", "sample") and list(ds["channel"].values) == ["beam"]
+    assert ds["beam"].dims == ("ping", "sample")
+    rec.to_zarr(tmp_path / "r.zarr")
+    back = xr.open_zarr(tmp_path / "r.zarr")
+    np.testing.assert_array_equal(back["label_kind"].values, rec.labels.kind)
+    assert (rec.labels.kind == 2).any()                                # the box is in the labels
+    se.stream.render_line(scene, _still(12), tmp_path / "s.zarr", sonar, block_pings=5, labels=True)
+    np.testing.assert_array_equal(xr.open_zarr(tmp_path / "s.zarr")["label_kind"].values, rec.labels.kind)
+    cfg = tmp_path / "msis.toml"
+    text = open(se.assets.path("asset:msis_harbour.toml")).read()
+    cfg.write_text(text.replace("[output]", "[output]\nlabels = true", 1).replace("n_pings = 200",
+                                                                                          "n_pings = 3"))
+    out = tmp_path / "out"
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress"]) == 0, capsys.readouterr().err
+    assert "label_kind" in xr.open_zarr(out / "record.zarr")

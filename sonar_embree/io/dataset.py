@@ -149,7 +149,7 @@ def to_xarray(record):
         for ch in (("intensity",) if beams else record.channels):
             data[ch][2]["grid_mapping"] = "crs"
     if record.labels is not None:
-        _label_variables(record.labels, data, coords, attrs, tuple(record.channels))
+        _label_variables(record.labels, data, coords, attrs, tuple(record.channels), beams)
     return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
@@ -186,8 +186,10 @@ def _beam_variables(record, intensity) -> dict:
     return data
 
 
-def _label_variables(lab, data, coords, attrs, channels=SIDES) -> None:
-    """The labels as (side, ping, sample) variables of a side-scan, (beam, ping, sample) of other types."""
+def _label_variables(lab, data, coords, attrs, channels=SIDES, beams: bool = False) -> None:
+    """The labels as (side, ping, sample) variables of a side-scan, (beam, ping, sample) of a multibeam (on the
+    intensity's beam dimension), (channel, ping, sample) of other types (an MSIS: its one channel is named
+    "beam", a data variable, so the dimension cannot be)."""
     meta = {"kind": {"units": "1", "long_name": "what the sample sees",
                      "flag_values": np.arange(len(KIND_NAMES), dtype=lab.kind.dtype),
                      "flag_meanings": " ".join(KIND_NAMES)},
@@ -197,7 +199,7 @@ def _label_variables(lab, data, coords, attrs, channels=SIDES) -> None:
             "ground_range_m": {"units": "m", "long_name": "horizontal range to the surface point seen"},
             "echo_object": {"units": "1", "long_name": "index into labels.names of the strongest object echo, -1 none"},
             "echo_intensity": {"units": "1", "long_name": "expected intensity of that object echo, unit source"}}
-    dim = "side" if tuple(channels) == tuple(SIDES) else "beam"
+    dim = "side" if tuple(channels) == tuple(SIDES) else ("beam" if beams else "channel")
     for k in Labels.ARRAYS:
         data[f"label_{k}"] = ((dim, "ping", "sample"), getattr(lab, k), meta[k])
     coords[dim] = ((dim,), list(channels), {"long_name": "sonar channel"})
