@@ -648,6 +648,9 @@ class SignalChain:
         """This chain with ``matched_filter`` decided for ``pulse``, checked against ``sonar``."""
         if self.tvg:
             _check_tvg(sonar)
+        rx = getattr(sonar, "receiver", None)
+        if rx is not None and hasattr(rx.gain, "check_range"):     # the device's TVG: refused before any ping
+            rx.gain.check_range(sonar.max_range_m, sonar.alpha_db_per_m)
         mf = self.matched_filter
         if mf is None:
             mf = pulse.is_fm and self.detection == "coherent"

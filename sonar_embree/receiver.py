@@ -22,7 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
-from .validation import check_number, from_table
+from .validation import check_bool, check_number, from_table
+
+
+#: Largest gain law, as a power of ten of the voltage factor, that keeps the gained volts finite in float64.
+MAX_GAIN_DECADES = 250.0
+#: Gain beyond which a TVG law is implausible for a device (side-scan receivers span some 100–150 dB of gain
+#: in all; Lurton 2010, §9.2): a warning, not an error.
+MAX_DEVICE_TVG_DB = 200.0
 
 
 @dataclass(frozen=True)
@@ -45,8 +52,23 @@ class TVG:
 
     def __post_init__(self):
         check_number("TVG", "g0_db", self.g0_db, lo=-100.0, hi=200.0)
+        check_bool("TVG", "absorption", self.absorption)
         if self.k not in (20, 30, 40):
             raise ConfigError(f"TVG.k must be 20, 30 or 40 (dB per decade), got {self.k!r}")
+
+    def check_range(self, max_range_m: float, alpha_db_per_m: float) -> None:
+        """Refuse a gain G(R_max) whose voltage factor 10^(G/20) overflows float64 (an absorption in dB/km
+        given as dB/m, say): the record would be all full-scale codes; warn above :data:`MAX_DEVICE_TVG_DB`."""
+        g = float(self.gain_db(max_range_m, alpha_db_per_m))
+        if g / 20.0 > MAX_GAIN_DECADES:
+            raise ConfigError(f"Receiver TVG: the gain reaches {g:.0f} dB at max_range_m = {max_range_m:g} m with "
+                              f"{alpha_db_per_m:g} dB/m absorption, beyond float64 (every sample would clip); lower "
+                              "the absorption (a value in dB/km?) or max_range_m, or set TVG(absorption=False)")
+        if g > MAX_DEVICE_TVG_DB:
+            from .checks import warn_once
+
+            warn_once(f"Receiver TVG: the gain reaches {g:.0f} dB at max_range_m = {max_range_m:g} m, beyond "
+                      f"the {MAX_DEVICE_TVG_DB:g} dB a device's TVG spans; the far range will clip")
 
     def gain_db(self, range_m: np.ndarray, alpha_db_per_m: float) -> np.ndarray:
         """G(R) in dB for slant ranges ``range_m`` (m; below 1 m held at 1 m)."""
@@ -56,7 +78,8 @@ class TVG:
 
 @dataclass(frozen=True)
 class AGC:
-    """Automatic gain control: each sample's gain brings the moving RMS of the signal to ``target``·V_fs.
+    """Automatic gain control: each sample's gain brings the moving RMS of the signal to ``target``·V_fs, up
+    to ``max_gain_db``.
 
     Parameters
     ----------
@@ -64,14 +87,20 @@ class AGC:
         Length of the centred moving mean of v², s.
     target : float
         Wanted RMS as a fraction of full scale, in (0, 1).
+    max_gain_db : float
+        The amplifier's largest gain, dB (default 160 dB: a −180 dB re 1 V/µPa hydrophone brought from 1 µPa
+        to 0.1 V). Without a bound, a record with no noise would have its round-off (1e-187 µPa²) stretched
+        to full scale; a real amplifier saturates.
     """
 
     window_s: float = 5e-3
     target: float = 0.25
+    max_gain_db: float = 160.0
 
     def __post_init__(self):
         check_number("AGC", "window_s", self.window_s, positive=True, hi=10.0)
         check_number("AGC", "target", self.target, positive=True, hi=1.0)
+        check_number("AGC", "max_gain_db", self.max_gain_db, lo=0.0, hi=300.0)
 
 
 @dataclass(frozen=True)
@@ -133,10 +162,14 @@ class Receiver:
         n = max(int(round(g.window_s * sample_rate_hz)), 1)
         rms = np.sqrt(uniform_filter1d(volts * volts, n, axis=-1, mode="nearest"))
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(rms > 0, volts * (g.target * self.full_scale_v) / rms, 0.0)
+            gain = np.minimum((g.target * self.full_scale_v) / rms, 10.0 ** (g.max_gain_db / 20.0))
+        return np.where(rms > 0, volts * gain, 0.0)
 
     def samples(self, intensity_upa2, time_s, sonar) -> np.ndarray:
         """The device's integer samples (same shape as ``intensity_upa2``, µPa², time on the last axis)."""
+        if isinstance(self.gain, TVG):
+            self.gain.check_range(0.5 * sonar.sound_speed_m_s * float(np.max(time_s, initial=0.0)),
+                                  sonar.alpha_db_per_m)
         v = self.gained(self.volts(intensity_upa2), time_s, sonar.sound_speed_m_s, sonar.alpha_db_per_m,
                         sonar.sample_rate_hz)
         return self.digitise(v)

@@ -30,6 +30,7 @@ from .record import Record
 from .scene import Scene, TiledDEM, survey_origin
 from .synthesis import ExpectedSynthesis, SpeckleSynthesis
 from .trajectory import Trajectory, iso_utc
+from .validation import check_bool
 
 #: Rays per block of pings (about): results do not depend on the block size.
 BLOCK_RAYS = 2 ** 18
@@ -172,6 +173,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     the node and R̄ the W-weighted range of its rays, so E|Σ|² = Σ w·|p̃|².
     """
     t_start = time.perf_counter()
+    for name, flag in (("labels", labels), ("keep_complex", keep_complex), ("progress", progress)):
+        check_bool("simulate", name, flag)
     sonar, pulse, fan, chain = _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset,
                                         dict(speckle=speckle, band=band, detection=detection,
                                              matched_filter=matched_filter, tvg=tvg, noise_db_per_hz=noise_db_per_hz,
@@ -228,6 +231,7 @@ def _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset
         raise ConfigError(f"simulate: caster must be a subclass of sonar_embree.raycast.Caster, got {caster!r}")
     if isinstance(ping_offset, bool) or not isinstance(ping_offset, (int, np.integer)) or ping_offset < 0:
         raise ConfigError(f"simulate: ping_offset must be an integer >= 0, got {ping_offset!r}")
+
     if not isinstance(sonar, sonars.SONAR_TYPES) or not isinstance(pulse, Pulse):
         return sonar, pulse, fan, chain  # _check_inputs names the wrong type
     sonar = sonar.for_pulse(pulse)

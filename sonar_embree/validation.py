@@ -31,6 +31,16 @@ def check_number(owner: str, name: str, value, *, positive=False, nonneg=False,
         raise ConfigError(f"{label} must be <= {hi}, got {value!r}")
 
 
+def check_bool(owner: str, name: str, value, none_ok: bool = False) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is a real boolean (``True``/``False``, numpy's too; ``None``
+    where ``none_ok``): a string such as "no" or "false" is truthy in Python and would silently mean true."""
+    if value is None and none_ok:
+        return
+    if not isinstance(value, (bool, np.bool_)):
+        what = "True, False or None" if none_ok else "True or False"
+        raise ConfigError(f"{owner}.{name} must be {what} (a boolean, not a string or number), got {value!r}")
+
+
 def field_names(cls) -> tuple[str, ...]:
     """Names of the constructor fields of a config dataclass (for TOML key checking)."""
     return tuple(f.name for f in fields(cls) if f.init)

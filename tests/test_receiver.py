@@ -118,3 +118,58 @@ def test_samples_survive_files_and_xtf_holds_them_as_a_device_would(tmp_path):
     rec.to_xtf(tmp_path / "f.xtf", samples=False)
     _, floats = pyxtf.xtf_read(str(tmp_path / "f.xtf"))
     assert floats[pyxtf.XTFHeaderType.sonar][1].data[1].dtype == np.float32
+
+
+def test_a_tvg_that_overflows_is_refused_before_any_ping(monkeypatch):
+    """Issue 33, finding 6: 100 dB/m absorption made the receiver's TVG overflow into an all-65535 record with
+    numpy's warning only (the chain's tvg=True refused the same set-up); now refused, in one line, before any ray."""
+    import sys
+
+    sim_module = sys.modules["sonar_embree.simulate"]
+
+    sonar = se.Sonar(max_range_m=45.0, source_level_db=210.0, absorption_db_per_m=100.0,
+                     receiver=se.Receiver(gain=se.TVG(k=30)))
+    cast = []
+    monkeypatch.setattr(sim_module._Run, "setup", lambda *a, **k: cast.append(1))
+    with pytest.raises(se.ConfigError, match=r"Receiver TVG: the gain reaches 9\d\d\d dB at max_range_m = 45 m "
+                                             r"with 100 dB/m absorption, beyond float64"):
+        se.simulate(_scene(), se.Trajectory.line((-0.2, 0, 10.0), (0.2, 0, 10.0), 3), sonar)
+    assert cast == []
+    ok = se.Sonar(max_range_m=45.0, source_level_db=210.0, absorption_db_per_m=100.0,
+                  receiver=se.Receiver(gain=se.TVG(k=30, absorption=False)))
+    se.Receiver(gain=ok.receiver.gain).gain.check_range(45.0, 100.0)      # without the 2αR term: fine
+
+
+def test_agc_does_not_stretch_round_off_into_codes():
+    """Issue 33, finding 6: AGC on a record whose largest value is 1e-187 µPa² (no noise, nothing lit) gave
+    72 non-zero codes; the amplifier's gain is bounded (max_gain_db), so such a record stays at code 0, while a
+    lit floor still reaches its target (test_agc_holds_the_moving_rms_at_its_target)."""
+    rx = se.Receiver(gain=se.AGC(window_s=2e-3, target=0.3), adc_bits=16)
+    sonar = se.Sonar(max_range_m=40.0, source_level_db=210.0, receiver=rx).for_pulse(se.Pulse.cw())
+    tiny = np.full((2, 2, 500), 2e-187)
+    tiny[:, :, ::7] = 0.0
+    assert rx.samples(tiny, np.arange(500) / sonar.sample_rate_hz, sonar).max() == 0
+    # the bound itself: 160 dB on 1 µPa² at −180 dB re 1 V/µPa is 1e-9 V × 1e8 = 0.1 V
+    one = rx.samples(np.ones((1, 1, 500)), np.arange(500) / sonar.sample_rate_hz, sonar)
+    np.testing.assert_allclose(one[0, 0, 250], round(0.1 / rx.step_v), atol=1)
+
+
+@pytest.mark.parametrize("value", ["no", "false", 1, None])
+def test_bool_keys_take_only_booleans(value, tmp_path):
+    """Issue 33, finding 7: TVG(absorption="no") was taken as true (a non-empty string); every bool-like key
+    takes only True or False."""
+    with pytest.raises(se.ConfigError, match=r"TVG.absorption must be True or False"):
+        se.TVG(absorption=value)
+    with pytest.raises(se.ConfigError, match=r"simulate.labels must be True or False"):
+        se.simulate(_scene(), se.Trajectory.line((-0.2, 0, 10.0), (0.2, 0, 10.0), 3), se.Sonar(max_range_m=20.0), labels=value)
+    if value is not None:                                               # None: the default, by label
+        with pytest.raises(se.ConfigError, match=r"Scene.add.seafloor must be True, False or None"):
+            se.Scene().add(se.seafloor.flat((10.0, 10.0)), label="floor", seafloor=value)
+    from test_environment import _write
+
+    from sonar_embree import runconfig
+
+    if isinstance(value, str):
+        with pytest.raises(se.ConfigError, match=r"TVG.absorption must be True or False"):
+            runconfig.load_run_config(_write(tmp_path, sonar_extra=(
+                f"source_level_db = 210.0\nreceiver = {{ gain = {{ kind = \"tvg\", absorption = \"{value}\" }} }}\n")))

@@ -45,6 +45,7 @@ import math
 import numpy as np
 
 from ..errors import ConfigError
+from ..validation import check_bool
 from .files import atomic_write
 
 _CHAN_INFO = np.dtype([
@@ -223,6 +224,7 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
         raise ConfigError(f"to_xtf: XTF holds side-scan records (port and starboard); this record's channels are "
                           f"{names}")
     when = _start(record, start)
+    check_bool("to_xtf", "samples", samples)
     ints = record.samples if samples and record.samples is not None else None
     factor = sample_scale(record, scale) if ints is None else 1.0
     t = record.trajectory

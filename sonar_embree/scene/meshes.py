@@ -19,6 +19,7 @@ import trimesh
 
 from ..config import Material
 from ..errors import SceneError
+from ..validation import check_bool
 from ..laws.maps import BackscatterMap, MapTable
 from ..laws.texture import TextureTable
 from .heightfield import is_heightfield, object_bounds
@@ -451,6 +452,7 @@ class Scene:
         """
         if material is not None and not isinstance(material, Material):
             raise SceneError(f"material must be a sonar_embree.Material, got {type(material).__name__}")
+        check_bool("Scene.add", "seafloor", seafloor, none_ok=True)
         material = material or Material()
         materials = dict(materials or {})
         if isinstance(mesh_or_path, (str, os.PathLike)):
@@ -483,7 +485,7 @@ class Scene:
                 raise SceneError(f"{source}: label {lab!r} is already in the scene")
             taken.add(lab)
             v, f, kept = _validate(mesh.vertices, mesh.faces, source)
-            floor = (lab == "seafloor" or lab.startswith("seafloor/")) if seafloor is None else bool(seafloor)
+            floor = (lab == "seafloor" or lab.startswith("seafloor/")) if seafloor is None else seafloor
             bmap, uv = _object_map(backscatter_map, mesh, kept, source)
             new.append(SceneObject(lab, v, f, materials.get(lab, material), floor, bmap, uv))
         self._objects.extend(new)
