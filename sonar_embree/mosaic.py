@@ -112,9 +112,23 @@ def _blocks(source, block: int = 1000):
 
 
 def _dataset(source):
+    import os
+
     import xarray as xr
 
-    ds = source if isinstance(source, xr.Dataset) else xr.open_zarr(source)
+    if isinstance(source, xr.Dataset):
+        ds = source
+    elif isinstance(source, (str, os.PathLike)):
+        path = os.fspath(source)
+        if not os.path.isdir(path):
+            raise ConfigError(f"mosaic: {path}: no such Zarr store (a folder written by to_zarr or render_line)")
+        try:
+            ds = xr.open_zarr(path)
+        except Exception as exc:                                    # zarr/xarray raise many types
+            raise ConfigError(f"mosaic: {path}: not a readable Zarr store ({type(exc).__name__})") from None
+    else:
+        raise ConfigError(f"mosaic: records must be Records, Zarr store paths or xarray Datasets, got "
+                          f"{type(source).__name__}")
     if "label_ground_range_m" not in ds:
         raise ConfigError("mosaic: the store has no ground truth; stream it with labels=True")
     return ds
@@ -141,11 +155,11 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None) -> Mosaic:
         The mosaic's extent in world metres; default: every placed sample, snapped out to whole pixels (this
         reads the lines twice).
     """
-    records = [records] if not isinstance(records, (list, tuple)) else list(records)
-    if not records:
-        raise ConfigError("mosaic: no records")
-    if not (isinstance(pixel_m, (int, float)) and 0 < pixel_m < 1e4):
+    records = _record_list(records)
+    if isinstance(pixel_m, bool) or not (isinstance(pixel_m, (int, float)) and 0 < pixel_m < 1e4):
         raise ConfigError(f"mosaic: pixel_m must be a positive size in m, got {pixel_m!r}")
+    if bounds_m is not None:
+        bounds_m = _checked_bounds(bounds_m)
     crs = {_crs_of(r) for r in records}
     if len(crs) > 1:
         raise ConfigError(f"mosaic: the records are in different CRSs ({', '.join(sorted(map(str, crs)))})")
@@ -159,10 +173,46 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None) -> Mosaic:
             raise ConfigError("mosaic: no sample of the records has a seafloor point")
         bounds_m = (lo[0], lo[1], hi[0], hi[1])
     acc = _Accumulator(bounds_m, float(pixel_m))
+    acc.check_size()
     for r in records:
         for block in _blocks(r):
             acc.add(*block)
     return acc.result(crs.pop())
+
+
+#: Largest mosaic grid, pixels: its three float64 sums take 24 bytes a pixel (2.4 GB here).
+MAX_MOSAIC_PIXELS = 100_000_000
+
+
+def _record_list(records) -> list:
+    """The lines to mosaic as a list: one record, store or dataset, or any iterable of them (a generator too)."""
+    import os
+
+    if records is None:
+        raise ConfigError("mosaic: no records (got None)")
+    one = hasattr(records, "trajectory") or isinstance(records, (str, os.PathLike)) or hasattr(records, "data_vars")
+    if one:
+        return [records]
+    try:
+        records = list(records)
+    except TypeError:
+        raise ConfigError(f"mosaic: records must be a Record, a Zarr store path, a Dataset or a sequence of them, "
+                          f"got {type(records).__name__}") from None
+    if not records:
+        raise ConfigError("mosaic: no records")
+    return records
+
+
+def _checked_bounds(bounds_m) -> tuple:
+    """(xmin, ymin, xmax, ymax) as finite floats with min < max, or a one-line error."""
+    try:
+        b = tuple(float(v) for v in bounds_m)
+    except (TypeError, ValueError):
+        raise ConfigError(f"mosaic: bounds_m must be (xmin, ymin, xmax, ymax) in m, got {bounds_m!r}") from None
+    if len(b) != 4 or not all(np.isfinite(b)) or not (b[0] < b[2] and b[1] < b[3]):
+        raise ConfigError(f"mosaic: bounds_m must be four finite numbers (xmin, ymin, xmax, ymax) with min < max, "
+                          f"got {bounds_m!r}")
+    return b
 
 
 class _Accumulator:
@@ -173,7 +223,16 @@ class _Accumulator:
         self.x0, self.y0 = np.floor(bounds[0] / pixel) * pixel, np.ceil(bounds[3] / pixel) * pixel
         self.nx = max(1, int(np.ceil((bounds[2] - self.x0) / pixel)))
         self.ny = max(1, int(np.ceil((self.y0 - bounds[1]) / pixel)))
-        self.sums = np.zeros((3, self.nx * self.ny))                # count, value, height
+        self.sums = None
+
+    def check_size(self) -> None:
+        """Refuse a grid beyond :data:`MAX_MOSAIC_PIXELS` before allocating it; then allocate the sums."""
+        n = self.nx * self.ny
+        if n > MAX_MOSAIC_PIXELS:
+            raise ConfigError(f"mosaic: a grid of {self.nx} x {self.ny} pixels at pixel_m = {self.pixel:g} m needs "
+                              f"{24 * n / 2**30:.1f} GiB (at most {MAX_MOSAIC_PIXELS:.0e} pixels); use a larger "
+                              "pixel_m or smaller bounds_m")
+        self.sums = np.zeros((3, n))                                # count, value, height
 
     def add(self, x, y, v, z) -> None:
         col = np.floor((x - self.x0) / self.pixel).astype(np.int64)
@@ -193,12 +252,33 @@ class _Accumulator:
                       float(self.y0), self.pixel, crs)
 
 
+#: Grid rows per strip when the truth is taken from a TiledDEM (memory follows the strip's tiles).
+TRUTH_STRIP_ROWS = 256
+
+
 def truth(scene, grid: Mosaic, caster=None) -> np.ndarray:
     """The scene's height under each pixel centre of ``grid``, (ny, nx) m (NaN where nothing is below): the first
-    hit of a vertical ray cast down from above the scene (for a DEM, the DEM resampled onto the grid)."""
-    from .raycast import RayCaster
+    hit of a vertical ray cast down from above the scene (for a DEM, the DEM resampled onto the grid). A
+    :class:`~sonar_embree.TiledDEM` is taken strip by strip of grid rows, with the tiles under each strip."""
+    from .scene import TiledDEM
 
     cx, cy = grid.centres()
+    if not isinstance(scene, TiledDEM):
+        return _truth_of(scene, cx, cy, caster)
+    out = np.full((cy.size, cx.size), np.nan)
+    half = 0.5 * grid.pixel_m
+    for a in range(0, cy.size, TRUTH_STRIP_ROWS):
+        ys = cy[a:a + TRUTH_STRIP_ROWS]
+        corners = np.array([[cx[0] - half, ys[-1] - half, 0.0], [cx[-1] + half, ys[0] + half, 0.0]])
+        strip = scene.scene_around(corners, scene.pixel_m, empty_ok=True)
+        if strip is not None:                                       # else no DEM data under this strip: NaN
+            out[a:a + ys.size] = _truth_of(strip, cx, ys, caster)
+    return out
+
+
+def _truth_of(scene, cx, cy, caster=None) -> np.ndarray:
+    from .raycast import RayCaster
+
     xx, yy = np.meshgrid(cx, cy)
     compiled = scene.compiled()
     top = float(scene.bounds[1, 2]) + 1.0
@@ -210,9 +290,15 @@ def truth(scene, grid: Mosaic, caster=None) -> np.ndarray:
 
 
 def write_truth(path, scene, grid: Mosaic) -> np.ndarray:
-    """Write :func:`truth` on the mosaic's grid as a one-band GeoTIFF (height_m, NaN where nothing); returns it."""
+    """Write :func:`truth` on the mosaic's grid as a one-band GeoTIFF (height_m, NaN where nothing); returns it.
+
+    ``scene``: a :class:`~sonar_embree.Scene` or a :class:`~sonar_embree.TiledDEM`, in the grid's CRS (two
+    different CRSs are refused: the truth would be labelled with the wrong one)."""
     from .io.geotiff import write_grid
 
+    crs = getattr(scene, "crs", None)
+    if crs is not None and grid.crs is not None and crs != grid.crs:
+        raise ConfigError(f"write_truth: the scene is in {crs}, the mosaic grid in {grid.crs}; reproject one of them")
     z = truth(scene, grid)
     write_grid(path, z, grid.x0_m, grid.y0_m, grid.pixel_m, grid.crs, names=("height_m",))
     return z

@@ -279,3 +279,56 @@ def test_broken_rasters_and_bad_tiling_arguments_give_one_line(tmp_path):
             se.TiledDEM(tmp_path / "dem.tif", **kw)
     with pytest.raises(se.ConfigError, match="dem.tif: band must be an integer"):
         se.seafloor.from_dem(tmp_path / "dem.tif", band="1")
+
+
+def test_write_truth_refuses_other_crs_and_takes_a_tiled_dem(tmp_path):
+    """Finding 8: a scene in EPSG:32633 under a grid in EPSG:32632 gave a truth.tif labelled 32632; a TiledDEM
+    raised AttributeError. Now the CRSs must agree, and a TiledDEM (strip by strip) gives the whole DEM's truth."""
+    dem = _write_dem(tmp_path / "dem.tif")
+    grid = se.mosaic.Mosaic(np.zeros((NY, NX)), np.zeros((NY, NX)), np.zeros((NY, NX), dtype=np.int64), X0, Y0,
+                            PIXEL, CRS)
+    other = se.Scene().add(se.seafloor.from_dem(_write_dem(tmp_path / "utm33.tif", crs="EPSG:32633")),
+                           label="seafloor")
+    with pytest.raises(se.ConfigError, match="write_truth: the scene is in EPSG:32633, the mosaic grid in "
+                                             "EPSG:32632"):
+        se.mosaic.write_truth(tmp_path / "bad.tif", other, grid)
+    assert not (tmp_path / "bad.tif").exists()
+    whole = se.Scene().add(se.seafloor.from_dem(dem), label="seafloor")
+    a = se.mosaic.write_truth(tmp_path / "a.tif", whole, grid)
+    import sonar_embree.mosaic as mosaic_module
+
+    old = mosaic_module.TRUTH_STRIP_ROWS
+    mosaic_module.TRUTH_STRIP_ROWS = 7                                 # several strips over 60 rows
+    try:
+        b = se.mosaic.write_truth(tmp_path / "b.tif", se.TiledDEM(dem, tile_px=16), grid)
+    finally:
+        mosaic_module.TRUTH_STRIP_ROWS = old
+    dem_z = _heights()
+    valid = (dem_z != NODATA) & np.isfinite(a)                         # the raster's edge: centres on its rim
+    assert valid.sum() > 0.9 * (dem_z != NODATA).sum()
+    np.testing.assert_allclose(b[valid], dem_z[valid], atol=1e-3)     # the DEM itself
+    np.testing.assert_array_equal(np.isfinite(a), np.isfinite(b))
+    with rasterio.open(tmp_path / "b.tif") as src:
+        assert src.crs.to_epsg() == 32632
+
+
+def test_mosaic_bad_inputs_give_one_line(tmp_path):
+    """Finding 12: a generator of records works; None, a missing store, a .tif, NaN bounds, a grid of 1 mm
+    pixels over 10⁷ m, and a GeoTIFF into a missing folder each give one line naming the problem."""
+    scene = se.Scene().add(se.seafloor.from_dem(_write_dem(tmp_path / "dem.tif")), label="seafloor")
+    xa, ya = _apex_xy()
+    rec = se.simulate(scene, se.Trajectory.line((xa - 3.0, ya, -48.0), (xa + 3.0, ya, -48.0), 4),
+                      se.Sonar(max_range_m=30.0), labels=True)
+    a = se.mosaic.mosaic((r for r in [rec]), pixel_m=1.0)
+    np.testing.assert_array_equal(a.count, se.mosaic.mosaic([rec], pixel_m=1.0).count)
+    for records, bounds, pixel, what in (
+            (None, None, 1.0, "mosaic: no records"),
+            (str(tmp_path / "missing.zarr"), None, 1.0, "missing.zarr: no such Zarr store"),
+            (str(tmp_path / "dem.tif"), None, 1.0, "dem.tif: no such Zarr store"),
+            (rec, (0.0, np.nan, 1.0, 2.0), 1.0, "bounds_m must be four finite numbers"),
+            (rec, (0.0, 0.0, 1e7, 1e7), 1e-3, r"a grid of 10000000000 x 10000000000 pixels .* use a larger pixel_m"),
+            (rec, None, True, "pixel_m must be a positive size")):
+        with pytest.raises(se.ConfigError, match=what):
+            se.mosaic.mosaic(records, pixel_m=pixel, bounds_m=bounds)
+    with pytest.raises(se.ConfigError, match=r"nowhere/m.tif: its folder .*nowhere does not exist"):
+        a.to_geotiff(tmp_path / "nowhere" / "m.tif")

@@ -104,6 +104,10 @@ def atomic_write(path, write_fn, suffix=""):
     """Call ``write_fn(tmp_path)`` then rename onto ``path``: no half-written file is ever left."""
     path = os.fspath(path)
     d = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(d):
+        raise ConfigError(f"{path}: its folder {d} does not exist")
+    if os.path.isdir(path):
+        raise ConfigError(f"{path}: is a folder, not a file")
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix or os.path.splitext(path)[1])
     os.close(fd)
     try:

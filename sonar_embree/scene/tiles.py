@@ -112,9 +112,16 @@ class TiledDEM:
             self._tiles.popitem(last=False)
         return mesh
 
-    def scene_around(self, positions_m, reach_m: float):
+    @property
+    def pixel_m(self) -> float:
+        """The raster's larger pixel side, m."""
+        steps = [abs(float(a[1] - a[0])) for a in (self.info.x_m, self.info.y_m) if a.size > 1]
+        return max(steps, default=0.0)
+
+    def scene_around(self, positions_m, reach_m: float, empty_ok: bool = False):
         """A :class:`~sonar_embree.Scene` of the tiles within ``reach_m`` of ``positions_m`` (one object,
-        "seafloor"), kept for the next call with the same tiles (its BVH with it)."""
+        "seafloor"), kept for the next call with the same tiles (its BVH with it). Where no tile there has data:
+        an error, or None when ``empty_ok``."""
         from .meshes import Scene
 
         keys = self.tiles_around(positions_m, reach_m)
@@ -122,6 +129,8 @@ class TiledDEM:
             self._scenes.move_to_end(keys)
             return self._scenes[keys]
         meshes = [m for m in (self._tile(i, j) for i, j in keys) if m is not None]
+        if not meshes and empty_ok:
+            return None
         if not meshes:
             raise ConfigError(f"{self.path}: no DEM data within {reach_m:g} m of the pings "
                               f"(x {np.min(positions_m, axis=0)[0]:.1f}…, y {np.min(positions_m, axis=0)[1]:.1f}…)")
