@@ -68,3 +68,47 @@ def test_rectangle_lines_alternate_and_become_trajectories():
         plan_lines(poly, 50.0, 1.5)
     with pytest.raises(se.ConfigError, match="no area"):
         plan_lines([(0, 0), (1, 1), (2, 2)], 50.0)
+
+
+def test_the_planner_refuses_nonsense_in_one_line():
+    """Issue 33, finding 9: a negative run-in made 2 000 km lines, NaN a traceback, an infinite speed no
+    trajectory, 1e9 Hz a MemoryError, a 1e7 m square at 1 m range minutes of silence, and a self-intersecting
+    polygon "has no area"; each is now refused in one line, the size stated."""
+    square = [(0.0, 0.0), (200.0, 0.0), (200.0, 100.0), (0.0, 100.0)]
+    for kw, what in ((dict(run_in_m=-1e6), r"run_in_m must be a finite number >= 0 and <= 500"),
+                     (dict(run_in_m=float("nan")), "run_in_m must be a finite number"),
+                     (dict(direction_deg=float("inf")), "direction_deg must be a finite number"),
+                     (dict(range_m=True), "range_m must be a finite number")):
+        with pytest.raises(se.ConfigError, match=what):
+            plan_lines(square, **({"range_m": 50.0} | kw))
+    lines = plan_lines(square, 50.0)
+    for args, what in (((float("inf"), 4.0), "speed_m_s must be a finite number > 0"),
+                       ((2.0, 1e9), r"ping_rate_hz must be a finite number > 0 and <= 1000"),
+                       ((2.0, float("nan")), "ping_rate_hz must be a finite"),
+                       ((0.0, 4.0), "speed_m_s must be a finite number > 0")):
+        with pytest.raises(se.ConfigError, match=what):
+            line_trajectories(lines, -20.0, *args)
+    huge = [(0.0, 0.0), (1e7, 0.0), (1e7, 1e7), (0.0, 1e7)]
+    with pytest.raises(se.ConfigError, match=r"plan_lines: 1e\+07 m across at range_m = 1 m needs 6250000 lines "
+                                             r"\(some 6.25e\+10 km of track\), beyond 10000"):
+        plan_lines(huge, 1.0)
+    long_lines = plan_lines([(0.0, 0.0), (5e5, 0.0), (5e5, 4e3), (0.0, 4e3)], 100.0)
+    with pytest.raises(se.ConfigError, match=r"line_trajectories: 25 lines of 1.25\d*e\+04 km at 2 m/s and 20 Hz "
+                                             r"make 12505\d{4} pings \(17\d\d h of survey\), beyond 20000000"):
+        line_trajectories(long_lines, -20.0, 2.0, 20.0)
+    bow_tie = [(0.0, 0.0), (100.0, 100.0), (100.0, 0.0), (0.0, 100.0)]
+    with pytest.raises(se.ConfigError, match=r"the polygon's edges 0 and 2 cross \(it is self-intersecting\)"):
+        plan_lines(bow_tie, 50.0)
+
+
+def test_survey_size_counts_what_line_trajectories_makes():
+    """The estimate is the plan's: its pings equal the trajectories' (counted independently), hours = km / v."""
+    from sonar_embree.planning import survey_size
+
+    poly = [(0.0, 0.0), (300.0, 0.0), (300.0, 120.0), (150.0, 200.0), (0.0, 120.0)]
+    lines = plan_lines(poly, 40.0, 0.3)
+    size = survey_size(lines, 2.0, 5.0)
+    trajs = line_trajectories(lines, -20.0, 2.0, 5.0)
+    assert size["pings"] == sum(len(t) for t in trajs) and size["lines"] == len(trajs)
+    assert size["km"] == pytest.approx(sum(math.dist(ln.start_m, ln.end_m) for ln in lines) / 1e3)
+    assert size["hours"] == pytest.approx(size["km"] * 1e3 / 2.0 / 3600.0)
