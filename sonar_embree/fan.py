@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import beam, kernels
+from . import beam, checks, kernels
 from .config import FanSettings, Sonar
 from .laws import apply_laws
 from .raycast import Caster
@@ -203,6 +203,7 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
 
     n_az = plan.s.shape[0]
     n = n_az * int(el_start[-1])
+    checks.check_rays_memory(n, n_p, "the ray fan")
     dirs = np.empty((n, 3), dtype=np.float32)
     org = np.empty((n, 3), dtype=np.float32)
     rot = np.ascontiguousarray(rot, dtype=np.float64)

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels
+from . import checks, kernels
 from .buffers import Buffers
 from .fan import PROBE_LINES, BlockEchoes, FanPlan, elevation_rows, nadir_altitude
 from .laws import apply_laws
@@ -160,6 +160,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     clock["embree"] = clock.get("embree", 0.0) + t_nadir
     n_az = plan.s.shape[0]
     n = n_az * int(el_start[-1])
+    checks.check_rays_memory(n, rot.shape[0], "the curved-ray fan")
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     state, lay, ray = m.launch(plan.s, beta, el_start, rot, pos_local, buffers)
     hit_prim, hit, tfar = march(caster, m, state, lay, ray, clock, buffers)

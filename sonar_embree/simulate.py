@@ -53,17 +53,10 @@ def memory_estimate_bytes(n_pings: int, n_samples: int, chain: SignalChain, labe
     return cells * per
 
 
-def _physical_memory_bytes() -> int | None:
-    try:
-        return int(os.sysconf("SC_PHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
-
-
 def _check_memory(n_pings, n_samples, chain, labels, keep_complex, n_channels) -> None:
     """Refuse, before any work, a record that cannot fit in this machine's memory."""
     need = memory_estimate_bytes(n_pings, n_samples, chain, labels, keep_complex, n_channels)
-    have = _physical_memory_bytes()
+    have = checks.physical_memory_bytes()
     if have is not None and need > 0.8 * have:
         per_ping = need / max(n_pings, 1)
         fit = int(0.5 * have / per_ping)
@@ -188,7 +181,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
     bar = progress_bar(progress, len(trajectory))
-    a, block = 0, FIRST_BLOCK_PINGS
+    a, block = 0, FIRST_BLOCK_PINGS if getattr(run.front, "n_synth_channels", 2) <= 2 else 1  # wide fans: a ping
     while a < len(trajectory):
         b = min(a + block, len(trajectory))
         e, blk = run.front.cast(run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r, chain.speckle,
@@ -210,6 +203,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     t = time.perf_counter()
     intensity, cplx, samples = _process(run, keep_complex)
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
+    if not np.any(intensity):
+        checks.warn_once(f"simulate: the record is all zero: no echo reached any of its {len(trajectory)} pings; "
+                         "check the sonar's beam (tilt, beamwidths), its range and the scene's normals")
     return _record(run, intensity, cplx, samples, trajectory, fan,
                    iso_utc(start_time if start_time is not None else trajectory.start_time))
 

@@ -332,3 +332,18 @@ def test_mosaic_bad_inputs_give_one_line(tmp_path):
             se.mosaic.mosaic(records, pixel_m=pixel, bounds_m=bounds)
     with pytest.raises(se.ConfigError, match=r"nowhere/m.tif: its folder .*nowhere does not exist"):
         a.to_geotiff(tmp_path / "nowhere" / "m.tif")
+
+
+def test_a_dem_too_large_to_mesh_whole_is_refused_before_reading(tmp_path, monkeypatch):
+    """Finding 10: a 52 M-triangle DEM as one mesh failed with MemoryError after 46 s; its size is known from the
+    header (0.4 GB per million triangles), so it is refused at once, pointing at TiledDEM, which renders it."""
+    from sonar_embree import checks
+
+    dem = _write_dem(tmp_path / "dem.tif")
+    monkeypatch.setattr(checks, "physical_memory_bytes", lambda: 2 ** 20)              # a 1 MiB machine
+    with pytest.raises(se.ConfigError, match=r"dem.tif: 80 x 60 pixels make 0.0 M triangles, about 0.0 GiB once "
+                                             r"meshed, .* load it as se.TiledDEM\(path\)"):
+        se.seafloor.from_dem(dem)
+    assert 2 * 79 * 59 * 400 > 0.5 * 2 ** 20                                          # the estimate that refused
+    tiles = se.TiledDEM(dem, tile_px=16)
+    assert tiles.scene_around(np.array([[X0 + 40.0, Y0 - 20.0, -40.0]]), 5.0).n_faces > 0

@@ -321,3 +321,46 @@ def test_cli_renders_the_shipped_config_shortened(tmp_path):
     assert isinstance(rec.sonar, se.ForwardLooking) and rec.data.shape[:2] == (2, 33)
     img = iio.imread(out / "fan.png")
     assert img.ndim == 2 and img.max() == 255 and (img == 0).any()            # a fan on black
+
+
+def test_memory_is_estimated_before_the_rays_are_cast(monkeypatch):
+    """Issue 33, finding 10: a forward-looking ping's rays grow with n_elements (128: ~1.9 M, 0.5 GB) and a
+    4096-element array ended in a MemoryError traceback. The fan's rays are counted after the probes and refused
+    in one line when they cannot fit in half the machine's memory (a 0.2 GiB machine here); the count is the
+    one the fan then casts. A vertical beam of 1e-9° (an all-zero record before) is refused."""
+    from sonar_embree import checks
+
+    scene = se.Scene().add(se.seafloor.flat((200.0, 200.0)), label="seafloor")
+    sonar = se.ForwardLooking(max_range_m=30.0)
+    line = se.Trajectory.line((0.0, 0.0, 10.0), (0.1, 0.0, 10.0), 2)
+    rec = se.simulate(scene, line, sonar)
+    monkeypatch.setattr(checks, "physical_memory_bytes", lambda: 2 ** 30 // 5)
+    with pytest.raises(se.ConfigError, match=r"the ray fan: 1 ping\(s\) need (\d+) rays, about 0.\d GiB in memory, "
+                                             r"more than half this machine's 0.2 GiB; .* n_elements") as err:
+        se.simulate(scene, line, sonar)
+    n = int(err.value.args[0].split(" need ")[1].split(" rays")[0])
+    from sonar_embree import sonars
+
+    probes = sonars.front_end(sonar.for_pulse(se.Pulse.cw()), se.FanSettings()).plan.n_probe
+    assert n + probes == rec.attrs["rays_per_ping"]                  # what the fan casts, less its probes
+    with pytest.raises(se.ConfigError, match=r"vertical_beamwidth_deg must be >= 0.1, got 1e-09"):
+        se.ForwardLooking(vertical_beamwidth_deg=1e-9)
+    with pytest.raises(se.ConfigError, match=r"horizontal_beamwidth_deg must be >= 0.1"):
+        se.MSIS(horizontal_beamwidth_deg=0.01)
+
+
+def test_an_all_zero_record_warns(caplog):
+    """Finding 10's class: a record without a single echo (a box in range but outside every beam) is never silent."""
+    import trimesh
+
+    from sonar_embree import checks
+
+    checks._warned.clear()
+    box = trimesh.creation.box((1.0, 1.0, 1.0))
+    box.apply_translation((15.0, 0.0, 10.0))                       # 15 m ahead of a side-scan, level with it
+    caplog.set_level("WARNING", logger="sonar_embree.checks")
+    rec = se.simulate(se.Scene().add(box, label="box"), se.Trajectory.line((0.0, 0.0, 10.0), (0.1, 0.0, 10.0), 2),
+                      se.Sonar(max_range_m=20.0))
+    assert rec.data.max() == 0.0
+    assert any("the record is all zero" in r.getMessage() for r in caplog.records)
+    checks._warned.clear()

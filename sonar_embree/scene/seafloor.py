@@ -122,6 +122,23 @@ def declared_nodata(z: np.ndarray, nodata, where: str) -> np.ndarray:
     return z
 
 
+#: Memory a DEM's triangle takes once meshed, compiled and in Embree's BVH (measured: 0.4 GB per million).
+DEM_BYTES_PER_TRIANGLE = 400
+
+
+def check_dem_memory(shape, where: str) -> None:
+    """Refuse, before reading its pixels, a raster of ``shape`` (ny, nx) whose whole mesh cannot fit in half this
+    machine's memory, pointing at :class:`~sonar_embree.TiledDEM` (which meshes only the tiles in reach)."""
+    from ..checks import physical_memory_bytes
+
+    n = 2 * max(shape[0] - 1, 0) * max(shape[1] - 1, 0)
+    need, have = n * DEM_BYTES_PER_TRIANGLE, physical_memory_bytes()
+    if have is not None and need > 0.5 * have:
+        raise ConfigError(f"{where}: {shape[1]} x {shape[0]} pixels make {n / 1e6:.1f} M triangles, about "
+                          f"{need / 2**30:.1f} GiB once meshed, more than half this machine's {have / 2**30:.1f} GiB; "
+                          "load it as se.TiledDEM(path) (meshed tile by tile as the pings need it)")
+
+
 def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimesh:
     """A seafloor from a digital elevation model raster (GeoTIFF, or anything GDAL reads; rasterio opens it).
 
@@ -132,8 +149,9 @@ def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimes
     must be projected, in metres. ``nodata``: a height that means "no data" beyond the one the raster declares;
     a common sentinel (-9999, …) held but not declared is refused.
     """
-    from ..io.geotiff import read_grid
+    from ..io.geotiff import raster_info, read_grid
 
+    check_dem_memory(raster_info(path, band).shape, os.fspath(path))
     grid = read_grid(path, band)
     crs = None
     if grid.crs is not None:

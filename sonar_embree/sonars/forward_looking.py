@@ -34,7 +34,7 @@ from ..environment import Environment
 from ..errors import ConfigError
 from ..receiver import Receiver
 from ..validation import check_number
-from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN, SideScanEquivalent, display_grey
+from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN, MIN_BEAMWIDTH_DEG, SideScanEquivalent, display_grey
 from .sidescan import SideScanFrontEnd
 
 #: Probe lines across the fan, at least (the side-scan probes three: a wide fan needs them everywhere): one per
@@ -90,7 +90,8 @@ class ForwardLooking(SideScanEquivalent, Transducer):
                 raise ConfigError(f"ForwardLooking.{name} must be an integer in [{lo}, {hi}], got {v!r}")
         check_number("ForwardLooking", "frequency_hz", self.frequency_hz, positive=True)
         check_number("ForwardLooking", "field_of_view_deg", self.field_of_view_deg, positive=True, hi=170.0)
-        check_number("ForwardLooking", "vertical_beamwidth_deg", self.vertical_beamwidth_deg, positive=True, hi=90.0)
+        check_number("ForwardLooking", "vertical_beamwidth_deg", self.vertical_beamwidth_deg, lo=MIN_BEAMWIDTH_DEG,
+                     hi=90.0)
         check_number("ForwardLooking", "tilt_deg", self.tilt_deg, lo=-89.0, hi=89.0)
         check_number("ForwardLooking", "max_range_m", self.max_range_m, positive=True)
         if self.sample_rate_hz is not None:

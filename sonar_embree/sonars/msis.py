@@ -28,6 +28,9 @@ from .sidescan import SideScanFrontEnd
 #: Side-scan body axes in the head's frame (columns: forward → −y, starboard → +x, down → +z): the side-scan's
 #: starboard beam then looks along the head's x axis, its bearing.
 HEAD_FROM_SIDESCAN = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+#: Narrowest one-way beamwidth accepted, degrees (a 0.1° beam at 900 kHz needs a 0.85 m aperture; narrower
+#: values are unit slips, and their pattern is too narrow for any ray to sample).
+MIN_BEAMWIDTH_DEG = 0.1
 #: The fan reaches this many nulls of the vertical pattern (the baffle for a 30° beam): its side lobes light the
 #: floor under the head, so the first return comes from straight below, as a real head's does.
 ELEVATION_NULLS = 3
@@ -98,6 +101,8 @@ class MSIS(SideScanEquivalent, Transducer):
         for name, hi in (("horizontal_beamwidth_deg", 30.0), ("vertical_beamwidth_deg", 90.0),
                          ("step_deg", 90.0), ("sector_deg", 360.0)):
             check_number("MSIS", name, getattr(self, name), positive=True, hi=hi)
+        for name in ("horizontal_beamwidth_deg", "vertical_beamwidth_deg"):
+            check_number("MSIS", name, getattr(self, name), lo=MIN_BEAMWIDTH_DEG)
         check_number("MSIS", "frequency_hz", self.frequency_hz, positive=True)
         check_number("MSIS", "tilt_deg", self.tilt_deg, lo=-89.0, hi=89.0)
         check_number("MSIS", "start_bearing_deg", self.start_bearing_deg)
