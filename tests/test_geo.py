@@ -208,3 +208,40 @@ def test_georeferenced_trajectory_csv_round_trip(tmp_path):
     plain = se.Trajectory.line((0.0, 0.0, 10.0), (4.0, 0.0, 10.0), 3)
     plain.to_csv(tmp_path / "plain.csv")
     assert se.Trajectory.from_csv(tmp_path / "plain.csv") == plain
+
+
+def test_a_fast_pinging_xtf_reads_back_with_its_times(tmp_path):
+    """Issue 33, finding 11: at 140 pings/s (legal at 5 m range) hundredths of a second cannot order the pings
+    ("not strictly increasing"); NavFixMilliseconds, which the writer fills, refines them to 1 ms."""
+    x0, y0 = _forward(LON0, LAT0)
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0), z_m=-30.0, center_m=(x0, y0)), label="seafloor")
+    n, rate = 30, 140.0
+    line = se.Trajectory.line((x0, y0, -27.0), (x0 + 1.5 * (n - 1) / rate, y0, -27.0), n, speed_m_s=1.5)
+    line = se.Trajectory(line.positions_m, line.heading_deg, times_s=np.arange(n) / rate,
+                         velocity_m_s=line.velocity_m_s, crs=32632, start_time="2026-05-01T12:00:00Z")
+    rec = se.simulate(scene, line, se.Sonar(max_range_m=5.0))
+    rec.to_xtf(tmp_path / "fast.xtf")
+    back = se.Trajectory.from_xtf(tmp_path / "fast.xtf")
+    assert np.all(np.diff(back.times_s) > 0)
+    np.testing.assert_allclose(back.times_s, np.arange(n) / rate, atol=1.01e-3, rtol=0)
+
+
+def test_truncated_and_corrupt_xtf_files_are_refused(tmp_path):
+    """Finding 11: a file cut at 50 % silently gave half its pings, and NumBytesThisRecord = 0xffffffff one
+    ping; both are now refused naming the packet and its byte offset."""
+    rec = _georeferenced_record()
+    rec.to_xtf(tmp_path / "line.xtf")
+    data = (tmp_path / "line.xtf").read_bytes()
+    assert se.io.xtf.check_packets(str(tmp_path / "line.xtf")) == 5
+    (tmp_path / "cut.xtf").write_bytes(data[: len(data) // 2])
+    with pytest.raises(se.ConfigError, match=r"cut.xtf: packet 2 at byte \d+ claims \d+ bytes, but \d+ remain; "
+                                             r"the file is truncated"):
+        se.Trajectory.from_xtf(tmp_path / "cut.xtf")
+    bad = bytearray(data)
+    bad[1024 + 10:1024 + 14] = (0xFFFFFFFF).to_bytes(4, "little")
+    (tmp_path / "bad.xtf").write_bytes(bytes(bad))
+    with pytest.raises(se.ConfigError, match=r"bad.xtf: packet 0 at byte 1024 claims 4294967295 bytes"):
+        se.Trajectory.from_xtf(tmp_path / "bad.xtf")
+    (tmp_path / "junk.xtf").write_bytes(data + b"\x00" * 20)
+    with pytest.raises(se.ConfigError, match=r"junk.xtf: no XTF packet at byte \d+ \(magic number 0x0000"):
+        se.Trajectory.from_xtf(tmp_path / "junk.xtf")

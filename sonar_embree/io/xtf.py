@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import os
 
 import numpy as np
 
@@ -289,6 +290,55 @@ def _packets(record, when, surface_z_m, ints) -> np.ndarray:
     return packet
 
 
+#: XTF packets start with this magic number (the spec's 0xFACE).
+MAGIC = 0xFACE
+
+
+def check_packets(path: str) -> int:
+    """Walk an XTF file's packets by their ``NumBytesThisRecord`` and return how many there are; a packet that
+    runs past the end of the file (a file cut short, a corrupt length such as 0xFFFFFFFF), one that does not
+    start with the magic number, or a length too short for a packet header, is refused naming its byte offset."""
+    size = os.path.getsize(path)
+    with open(path, "rb") as fh:
+        head = np.frombuffer(fh.read(_FILE_HEADER.itemsize), dtype=_FILE_HEADER, count=1)[0] \
+            if size >= _FILE_HEADER.itemsize else None
+        if head is None:
+            raise ConfigError(f"{path}: shorter ({size} bytes) than an XTF file header (1024 bytes); truncated?")
+        n_chan = int(head["NumberOfSonarChannels"]) + int(head["NumberOfBathymetryChannels"])
+        pos = 1024 + 1024 * max(0, -(-(n_chan - 6) // 8))            # more than 6 channels: CHANINFO blocks follow
+        count = 0
+        while pos < size:
+            fh.seek(pos)
+            raw = fh.read(14)
+            magic = int.from_bytes(raw[0:2], "little")
+            n_bytes = int.from_bytes(raw[10:14], "little") if len(raw) == 14 else 0
+            if len(raw) < 14 or magic != MAGIC:
+                raise ConfigError(f"{path}: no XTF packet at byte {pos} (magic number {magic:#06x}, not 0xface); "
+                                  "the file is corrupt or truncated")
+            if n_bytes < 14 or pos + n_bytes > size:
+                raise ConfigError(f"{path}: packet {count} at byte {pos} claims {n_bytes} bytes, but "
+                                  f"{size - pos} remain; the file is truncated or corrupt")
+            pos += n_bytes
+            count += 1
+    return count
+
+
+def _times(pings) -> list:
+    """UTC datetimes of the pings: date and time (hundredths of a second), refined by NavFixMilliseconds where
+    the hundredths are too coarse to order the pings (over 100 pings/s) and the milliseconds agree with them."""
+    coarse = [dt.datetime(p.Year, p.Month, p.Day, p.Hour, p.Minute, p.Second, 10000 * p.HSeconds,
+                          tzinfo=dt.timezone.utc) for p in pings]
+    if len(coarse) < 2 or all(b > a for a, b in zip(coarse, coarse[1:])):
+        return coarse
+    ms = np.array([int(p.NavFixMilliseconds) for p in pings], dtype=np.int64)
+    step = np.diff(ms) % 2**32                                     # milliseconds wrap at 2³²
+    fine = np.concatenate(([0], np.cumsum(step))) / 1e3
+    lag = np.array([(c - coarse[0]).total_seconds() for c in coarse])
+    if np.all(step > 0) and np.all(step < 2**31) and np.all(np.abs(fine - lag) <= 0.0101):
+        return [coarse[0] + dt.timedelta(seconds=float(t)) for t in fine]
+    return coarse
+
+
 def read_navigation(path) -> dict:
     """The navigation and attitude of every sonar ping of an XTF file, read by pyxtf.
 
@@ -298,11 +348,16 @@ def read_navigation(path) -> dict:
         ``nav_units`` (the file header's NavUnits: 3 latitude/longitude, else metres), ``x`` and ``y`` (n,)
         (longitude and latitude in degrees for NavUnits 3, else easting and northing in m), ``depth_m``,
         ``heading_deg``, ``pitch_deg``, ``roll_deg`` and ``speed_m_s`` (n,) from the ping headers' Sensor
-        fields, and ``times`` (n,) UTC datetimes from their date and time (hundredths of seconds).
+        fields, and ``times`` (n,) UTC datetimes from their date and time (hundredths of seconds; refined by
+        NavFixMilliseconds where pings come faster than 100 per second). A truncated or corrupt file (a packet
+        running past its end) is refused, never read in part.
     """
     import pyxtf
 
     path = str(path)
+    if not os.path.isfile(path):
+        raise ConfigError(f"{path}: no such XTF file")
+    check_packets(path)
     try:
         header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
     except (OSError, ValueError, RuntimeError) as exc:
@@ -316,8 +371,7 @@ def read_navigation(path) -> dict:
         return np.array([float(getattr(p, name)) for p in pings])
 
     try:
-        times = [dt.datetime(p.Year, p.Month, p.Day, p.Hour, p.Minute, p.Second, 10000 * p.HSeconds,
-                             tzinfo=dt.timezone.utc) for p in pings]
+        times = _times(pings)
     except ValueError as exc:
         raise ConfigError(f"{path}: a ping has an invalid date or time ({exc})") from None
     return dict(nav_units=int(header.NavUnits), x=field("SensorXcoordinate"), y=field("SensorYcoordinate"),
