@@ -649,3 +649,20 @@ def test_render_start_time_is_recorded(tmp_path, capsys):
     assert se.Record.load(out / "record.npz").attrs["start_time"] == "2026-05-01T09:30:00+00:00"
     assert cli.main(["render", str(cfg), "-o", str(tmp_path / "o2"), "--no-progress", "--start-time", "May 1st"]) == 2
     assert "not an ISO 8601 date-time" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("old, new, what", [
+    ('[sonar]\n', '[sonar]\ntype = ["msis"]\n', "unknown sonar type ['msis']"),
+    ('[trajectory]\n', '[trajectory]\nkind = ["line"]\n', "kind must be one of"),
+    ('seafloor = "flat"', 'seafloor = ["flat"]', "seafloor must be one of"),
+    ('[sonar]\n', '[environment]\nabsorption_model = ["x"]\n[sonar]\n', "absorption_model"),
+    ('[sonar]\n', '[sonar]\nsource_level_db = 210.0\nreceiver = { gain = { kind = "tvg", absorption = "false" } }\n',
+     "TVG.absorption must be True or False")])
+def test_toml_values_of_the_wrong_type_give_one_line(tmp_path, capsys, old, new, what):
+    """Issue 33, findings 7 and 12: a list where a name is expected was a TypeError traceback (unhashable), and
+    "false" as a string was taken as true; each is one line naming the key, exit status 2."""
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER.replace(old, new, 1))
+    assert cli.main(["render", str(cfg), "-o", str(tmp_path / "out"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert what in err and err.count("\n") == 1 and "Traceback" not in err, err

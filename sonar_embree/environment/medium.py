@@ -77,7 +77,7 @@ class Environment:
         check_number("Environment", "salinity_ppt", self.salinity_ppt, lo=0.0, hi=45.0)
         check_number("Environment", "depth_m", self.depth_m, lo=0.0, hi=12000.0)
         check_number("Environment", "ph", self.ph, lo=6.0, hi=9.5)
-        if self.absorption_model not in ABSORPTION_MODELS:
+        if not isinstance(self.absorption_model, str) or self.absorption_model not in ABSORPTION_MODELS:
             raise ConfigError(f"Environment.absorption_model must be one of {', '.join(ABSORPTION_MODELS)}, "
                               f"got {self.absorption_model!r}")
         if self.absorption_db_per_m is not None:

@@ -109,7 +109,7 @@ def check(names, where: str = "outputs") -> tuple:
     """The format names, validated (one-line error naming an unknown one)."""
     names = tuple(names)
     for n in names:
-        if n not in FORMATS:
+        if not isinstance(n, str) or n not in FORMATS:
             raise ConfigError(f"{where}: unknown output format {n!r} (known: {', '.join(FORMATS)})")
     return names
 

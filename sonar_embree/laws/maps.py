@@ -42,7 +42,7 @@ class BackscatterMap:
     uv: np.ndarray | None = None
 
     def __post_init__(self):
-        if self.kind not in MAP_KINDS:
+        if not isinstance(self.kind, str) or self.kind not in MAP_KINDS:
             raise ConfigError(f"BackscatterMap.kind must be one of {MAP_KINDS}, got {self.kind!r}")
         v = np.asarray(self.values_db, dtype=np.float64)
         if v.ndim != (2 if self.kind == "image" else 1) or v.size == 0 or not np.all(np.isfinite(v)):

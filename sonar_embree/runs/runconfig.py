@@ -138,7 +138,7 @@ def table_keys(cls) -> tuple:
 def sonar_class(source: str, where: str, sonar_table: dict):
     """The sonar type a ``[sonar]`` table asks for (``type``, default "sidescan")."""
     kind = sonar_table.get("type", "sidescan")
-    if kind not in SONAR_TYPES:
+    if not isinstance(kind, str) or kind not in SONAR_TYPES:
         raise ConfigError(f"{source}: {where}: unknown sonar type {kind!r} (one of {', '.join(SONAR_TYPES)})")
     return SONAR_TYPES[kind]
 
@@ -238,7 +238,7 @@ def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:
         raise ConfigError(f"{source}: {where} must be a table")
     traj_t = dict(table)
     kind = traj_t.pop("kind", "line")
-    if kind not in TRAJECTORY_KINDS:
+    if not isinstance(kind, str) or kind not in TRAJECTORY_KINDS:
         raise ConfigError(f"{source}: {where} kind must be one of {list(TRAJECTORY_KINDS)}, got {kind!r}")
     _check_keys(f"{where} (kind {kind!r})", traj_t, TRAJECTORY_KINDS[kind], source)
     moving = traj_t.pop("motion_during_ping", True)
@@ -302,7 +302,7 @@ def seafloor_mesh(obj: dict, source: str, where: str):
     """The mesh of a procedural ``seafloor = "kind"`` entry (its other keys are the function's arguments)."""
     obj = dict(obj)
     kind = obj.pop("seafloor")
-    if kind not in SEAFLOORS:
+    if not isinstance(kind, str) or kind not in SEAFLOORS:
         raise ConfigError(f"{source}: {where} seafloor must be one of {list(SEAFLOORS)}, got {kind!r}")
     fn = SEAFLOORS[kind]
     _check_keys(f"{where} (seafloor {kind!r})", obj, tuple(inspect.signature(fn).parameters), source)
