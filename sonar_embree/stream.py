@@ -14,11 +14,13 @@ first block's.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import os
 import shutil
 import time
+import warnings
 
 import numpy as np
 
@@ -174,8 +176,9 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
     ds = to_xarray(first)
     encoding = {name: {"chunks": tuple(block if d == "ping" else ds.sizes[d] for d in var.dims)}
                 for name, var in ds.data_vars.items()}
-    _template(ds, n_pings, block).to_zarr(path, mode="a", zarr_format=2, consolidated=True, encoding=encoding,
-                                          compute=False)
+    with _own_files_quiet():
+        _template(ds, n_pings, block).to_zarr(path, mode="a", zarr_format=2, consolidated=True, encoding=encoding,
+                                              compute=False)
     if xtf_path is not None:
         scale = _scale_of(first, xtf_scale)                          # fixed by the first block for the line
         header, _ = xtf_bytes(first, scale=scale)
@@ -185,6 +188,14 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
                            "header_sha256": hashlib.sha256(header).hexdigest()}
     _save_progress(path, progress)
     return progress
+
+
+@contextlib.contextmanager
+def _own_files_quiet():
+    """Zarr warns about every file in a store it does not know; the stream's own two are expected there."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message=r"Object at (stream\.json|\.sonar-embree\.lock) is not recognized")
+        yield
 
 
 def _scale_of(record, scale) -> float:
@@ -212,7 +223,8 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
     ds = to_xarray(rec)
     ds = ds.drop_vars([n for n, v in ds.variables.items() if "ping" not in v.dims])
     ds.attrs = {}
-    ds.to_zarr(path, region={"ping": slice(a, a + rec.n_pings)}, zarr_format=2)
+    with _own_files_quiet():
+        ds.to_zarr(path, region={"ping": slice(a, a + rec.n_pings)}, zarr_format=2)
     if xtf_path is not None:
         _, packets = xtf_bytes(rec, scale=progress["xtf"]["scale"], first_ping=a)
         per_ping = progress["xtf"].setdefault("ping_bytes", len(packets) // rec.n_pings)
