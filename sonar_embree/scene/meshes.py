@@ -23,6 +23,7 @@ from ..validation import check_bool
 from ..laws.maps import BackscatterMap, MapTable
 from ..laws.texture import TextureTable
 from .heightfield import is_heightfield, object_bounds
+from .tolerance import TOLERANCE, MeshTolerance  # noqa: F401  (MeshTolerance: documented here too)
 
 log = logging.getLogger(__name__)
 
@@ -145,32 +146,6 @@ class CompiledScene:
         tri = self.vertices[self.faces]
         area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
         return float(area[np.abs(self.face_normals[:, 2]) > 0.7].sum() / max(area.sum(), 1e-300))
-
-
-@dataclass(frozen=True)
-class MeshTolerance:
-    """What mesh checking accepts, in absolute metres (one far vertex cannot change what counts as degenerate).
-
-    Attributes
-    ----------
-    min_area_m2 : float
-        Triangles of smaller area are degenerate and dropped (1e-9 m²: a 45 µm square; below the float32
-        resolution of Embree's hits a few metres from the local origin).
-    max_coordinate_m : float
-        A vertex coordinate beyond this is no place on Earth in any projected CRS (their coordinates stay
-        within ±2·10⁷ m): a corrupt file or a unit slip, refused.
-    max_height_offset_m : float
-        A vertex farther above or below its mesh's median height is an outlier (a DEM spike, an undeclared
-        nodata value), refused: the Earth's whole relief spans under 20 km.
-    """
-
-    min_area_m2: float = 1e-9
-    max_coordinate_m: float = 1e9
-    max_height_offset_m: float = 20_000.0
-
-
-#: The tolerances of :func:`_validate`.
-TOLERANCE = MeshTolerance()
 
 
 def _outlier(v: np.ndarray, f: np.ndarray, source: str) -> None:

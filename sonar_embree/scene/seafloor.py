@@ -109,7 +109,7 @@ def declared_nodata(z: np.ndarray, nodata, where: str) -> np.ndarray:
             raise ConfigError(f"{where}: {n} pixel(s) hold exactly {value:g}, a common nodata value the raster does "
                               f"not declare; pass nodata={value:g} (or set it in the file: gdal_edit.py -a_nodata "
                               f"{value:g})")
-    from .meshes import TOLERANCE
+    from .tolerance import TOLERANCE
 
     if np.isfinite(z).any():
         off = np.abs(z - np.nanmedian(z))
