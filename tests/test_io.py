@@ -185,3 +185,32 @@ def test_complex_output_only_where_it_exists(kw):
     scene = se.Scene().add(se.seafloor.flat((50, 50)), label="seafloor")
     with pytest.raises(se.ConfigError, match="keep_complex"):
         se.simulate(scene, se.Trajectory.line((0, 0, 5), (1, 0, 5), 2), keep_complex=True, **kw)
+
+
+def test_writers_replace_their_own_kind_of_file_never_a_users(tmp_path):
+    """Issue 33's class: every writer refuses a target it did not create. A user's document or folder given as
+    an output path is refused and left byte for byte; the writer's own earlier output is replaced."""
+    rec = se.simulate(se.Scene().add(se.seafloor.flat((60.0, 60.0)), label="seafloor"),
+                      se.Trajectory.line((-1.0, 0.0, 10.0), (1.0, 0.0, 10.0), 3), se.Sonar(max_range_m=20.0),
+                      labels=True, start_time="2026-05-01T12:00:00Z")
+    thesis = tmp_path / "thesis.tex"
+    thesis.write_text("\\documentclass{book} years of work")
+    for write, what in ((lambda p: rec.save(p), "NPZ"), (lambda p: rec.to_xtf(p), "XTF"),
+                        (lambda p: rec.save_png(p), "PNG"), (lambda p: rec.labels.save_png(p), "PNG")):
+        with pytest.raises(se.ConfigError, match=f"thesis.tex: exists and is not a {what} file"):
+            write(thesis)
+    assert thesis.read_text() == "\\documentclass{book} years of work"
+    for name, write in (("r.npz", rec.save), ("r.xtf", rec.to_xtf), ("r.png", rec.save_png)):
+        write(tmp_path / name)
+        write(tmp_path / name)                                          # its own file: replaced
+    mine = tmp_path / "mydata"
+    mine.mkdir()
+    (mine / "notes.txt").write_text("keep")
+    with pytest.raises(se.ConfigError, match="mydata: exists and is not a Zarr store written by sonar_embree"):
+        rec.to_zarr(mine)
+    assert (mine / "notes.txt").read_text() == "keep"
+    (tmp_path / "empty").mkdir()
+    rec.to_zarr(tmp_path / "empty")
+    rec.to_zarr(tmp_path / "empty")                                     # its own store: replaced
+    with pytest.raises(se.ConfigError, match="no/r.zarr: its folder .* does not exist"):
+        rec.to_zarr(tmp_path / "no" / "r.zarr")

@@ -207,10 +207,30 @@ def _label_variables(lab, data, coords, attrs, channels=SIDES, beams: bool = Fal
     attrs["labels.is_seafloor"] = [int(x) for x in lab.is_seafloor]
 
 
+def _is_own_store(path: str) -> bool:
+    """Whether the folder ``path`` is a Zarr store this package wrote (its consolidated metadata says so)."""
+    import json
+
+    try:
+        with open(os.path.join(path, ".zmetadata"), encoding="utf-8") as fh:
+            meta = json.load(fh)
+        return meta["metadata"][".zattrs"].get("package") == "sonar_embree"
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        return False
+
+
 def replace_dir(path, write_fn) -> None:
-    """Call ``write_fn(tmp_dir_path)`` then move the finished folder onto ``path``: never half a store."""
+    """Call ``write_fn(tmp_dir_path)`` then move the finished folder onto ``path``: never half a store. What is
+    at ``path`` must be nothing, an empty folder or a store this package wrote: anything else is refused."""
+    from ..errors import ConfigError
+
     path = os.path.abspath(os.fspath(path))
     parent = os.path.dirname(path)
+    if not os.path.isdir(parent):
+        raise ConfigError(f"{path}: its folder {parent} does not exist")
+    if os.path.exists(path) and not (os.path.isdir(path) and (not os.listdir(path) or _is_own_store(path))):
+        raise ConfigError(f"{path}: exists and is not a Zarr store written by sonar_embree; it would be replaced, so "
+                          "choose another path (or remove it yourself)")
     tmp = tempfile.mkdtemp(dir=parent, prefix=".tmp-")
     target = os.path.join(tmp, os.path.basename(path))
     old = None

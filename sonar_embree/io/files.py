@@ -100,14 +100,35 @@ def clean_stale(folder) -> int:
     return n
 
 
+#: The first bytes of each format the writers replace: an existing file that does not start so is not one the
+#: project wrote (a user's document given as an output path) and is refused, never overwritten.
+MAGIC = {".npz": (b"PK",), ".png": (b"\x89PNG",), ".tif": (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"),
+         ".xtf": (b"\x7b",), ".json": (b"{", b"[")}
+
+
+def check_replaceable(path: str, suffix: str) -> None:
+    """Refuse to replace an existing non-empty file at ``path`` that is not of the format being written
+    (:data:`MAGIC`, by ``suffix``): the writers replace their own kind of file, never a foreign one."""
+    magic = MAGIC.get(suffix.lower())
+    if magic is None or not os.path.isfile(path) or os.path.getsize(path) == 0:
+        return
+    with open(path, "rb") as fh:
+        head = fh.read(8).lstrip() if suffix.lower() == ".json" else fh.read(8)
+    if not head.startswith(magic):
+        raise ConfigError(f"{path}: exists and is not a {suffix[1:].upper()} file; it would be overwritten, so "
+                          "choose another name (or remove it yourself)")
+
+
 def atomic_write(path, write_fn, suffix=""):
-    """Call ``write_fn(tmp_path)`` then rename onto ``path``: no half-written file is ever left."""
+    """Call ``write_fn(tmp_path)`` then rename onto ``path``: no half-written file is ever left. An existing
+    file of another format (:func:`check_replaceable`), a folder in the way and a missing folder are refused."""
     path = os.fspath(path)
     d = os.path.dirname(os.path.abspath(path))
     if not os.path.isdir(d):
         raise ConfigError(f"{path}: its folder {d} does not exist")
     if os.path.isdir(path):
         raise ConfigError(f"{path}: is a folder, not a file")
+    check_replaceable(path, suffix or os.path.splitext(path)[1])
     fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix or os.path.splitext(path)[1])
     os.close(fd)
     try:
