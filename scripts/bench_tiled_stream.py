@@ -72,6 +72,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--pings", type=int, default=100_000)
     p.add_argument("--block", type=int, default=1000)
+    p.add_argument("--cache-tiles", type=int, default=64, help="TiledDEM's tile cache (default 64)")
     args = p.parse_args(argv)
     spacing = 0.1
     length = spacing * (args.pings - 1)
@@ -83,7 +84,7 @@ def main(argv=None) -> int:
                         f"import bench_tiled_stream as b; b.write_dem({dem!r}, {nx}, {ny})"], check=True)
         import sonar_embree as se
 
-        tiles = se.TiledDEM(dem, tile_px=256)
+        tiles = se.TiledDEM(dem, tile_px=256, cache_tiles=args.cache_tiles)
         yc = Y0 - 0.5 * ny
         line = se.Trajectory.line((X0 + 50.0, yc, -30.0), (X0 + 50.0 + length, yc, -30.0), args.pings,
                                   speed_m_s=2.5)
@@ -111,7 +112,7 @@ def main(argv=None) -> int:
             done_t = next(t for n, t in marks if n >= share / 100.0 * args.pings)
             upto = [mb for t, mb in sampler.samples if t <= done_t] or [_rss_mb()]
             by_share[f"{share}%"] = round(max(upto), 0)
-        out = {"pings": args.pings, "block_pings": args.block, "dem_pixels": [nx, ny], "labels": True,
+        out = {"pings": args.pings, "block_pings": args.block, "cache_tiles": args.cache_tiles, "dem_pixels": [nx, ny], "labels": True,
                "seconds": round(wall, 1), "pings_per_s": round(args.pings / wall, 1),
                "peak_rss_mb": round(peak_mb, 1), "max_rss_mb_by_share_of_pings": by_share,
                "tiles_kept": len(tiles._tiles), "zarr_mb": round(_size(store) / 2**20, 1),

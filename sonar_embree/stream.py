@@ -182,8 +182,11 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
     if xtf_path is not None:
         scale = _scale_of(first, xtf_scale)                          # fixed by the first block for the line
         header, _ = xtf_bytes(first, scale=scale)
-        with open(xtf_path, "wb") as fh:
-            fh.write(header)
+        try:
+            with open(xtf_path, "wb") as fh:
+                fh.write(header)
+        except OSError as exc:
+            raise os_error_line(exc, xtf_path) from None
         progress["xtf"] = {"header_bytes": len(header), "scale": scale,
                            "header_sha256": hashlib.sha256(header).hexdigest()}
     _save_progress(path, progress)
@@ -228,12 +231,15 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
     if xtf_path is not None:
         _, packets = xtf_bytes(rec, scale=progress["xtf"]["scale"], first_ping=a)
         per_ping = progress["xtf"].setdefault("ping_bytes", len(packets) // rec.n_pings)
-        with open(xtf_path, "r+b") as fh:
-            fh.truncate(progress["xtf"]["header_bytes"] + a * per_ping)
-            fh.seek(0, os.SEEK_END)
-            fh.write(packets)
-            fh.flush()
-            os.fsync(fh.fileno())
+        try:
+            with open(xtf_path, "r+b") as fh:
+                fh.truncate(progress["xtf"]["header_bytes"] + a * per_ping)
+                fh.seek(0, os.SEEK_END)
+                fh.write(packets)
+                fh.flush()
+                os.fsync(fh.fileno())
+        except OSError as exc:                                      # a full disk: name the file that did not fit
+            raise os_error_line(exc, xtf_path) from None
     _fsync_since(path, t0)
     progress["pings_done"] = a + rec.n_pings
     _save_progress(path, progress)

@@ -214,3 +214,26 @@ def test_writers_replace_their_own_kind_of_file_never_a_users(tmp_path):
     rec.to_zarr(tmp_path / "empty")                                     # its own store: replaced
     with pytest.raises(se.ConfigError, match="no/r.zarr: its folder .* does not exist"):
         rec.to_zarr(tmp_path / "no" / "r.zarr")
+
+
+def test_a_full_disk_is_one_line_naming_the_file_not_its_temporary(tmp_path):
+    """Issue 33, finding 12: the library's writers turn an OS error (here EFBIG from a file-size limit, as a
+    full disk gives) into one line naming the output, not the hidden .tmp file, and leave nothing behind."""
+    import subprocess
+    import sys
+
+    code = (
+        "import resource, signal, sys\n"
+        "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+        "import numpy as np, sonar_embree as se\n"
+        "from sonar_embree.io.coco import write_json\n"
+        "resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))\n"
+        "try:\n"
+        f"    write_json({{'images': ['x' * 100] * 100}}, {str(tmp_path / 'big.json')!r})\n"
+        "except se.ConfigError as exc:\n"
+        "    print(exc, file=sys.stderr); sys.exit(3)\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0] == str(tmp_path / "big.json") + ": cannot write (File too large)", proc.stderr
+    assert os.listdir(tmp_path) == []

@@ -211,20 +211,48 @@ def test_a_huge_block_is_the_whole_line(tmp_path):
         se.stream.render_line(_scene(), LINE[:5], tmp_path / "s.zarr", SONAR, resume="no")
 
 
-def test_disk_full_and_a_second_writer_give_one_line(tmp_path, monkeypatch):
-    """Finding 12: an OS error while writing names the path in one line; a second writer of the same store is
-    refused while the first holds its lock."""
-    import errno
+_SMALL_DISK_STREAM = """
+import resource, signal, sys
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+import sonar_embree as se
+sys.path.insert(0, {tests!r})
+from test_stream import LINE, SONAR, START, _scene
+resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))   # writes beyond it fail as on a full disk
+try:
+    se.stream.render_line(_scene(), LINE, {store!r}, SONAR, block_pings=8, xtf_path={xtf!r}, xtf_scale=1.0,
+                          start_time=START)
+except se.ConfigError as exc:
+    print(exc, file=sys.stderr)
+    sys.exit(3)
+"""
 
+
+def test_a_full_disk_gives_one_line_and_the_resume_is_exact(tmp_path):
+    """Finding 12: a full disk (a file-size limit here, so writes fail with EFBIG as on a full disk) was a raw
+    OSError; now one line naming the file, and a run after space is freed resumes to the same bytes."""
+    import subprocess
+
+    kw = dict(block_pings=8, xtf_scale=1.0, start_time=START)
+    se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf", **kw)
+    size = (tmp_path / "a.xtf").stat().st_size
+    code = _SMALL_DISK_STREAM.format(tests=os.path.dirname(__file__), limit=size // 2, store=str(tmp_path / "b.zarr"),
+                                     xtf=str(tmp_path / "b.xtf"))
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 3, proc.stderr[-2000:]
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and "b.xtf: cannot write (File too large)" in err[0], proc.stderr
+    assert 0 < stream._progress(str(tmp_path / "b.zarr"))["pings_done"] < len(LINE)
+    se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", **kw)
+    assert (tmp_path / "b.xtf").read_bytes() == (tmp_path / "a.xtf").read_bytes()
+    assert _files(tmp_path / "b.zarr") == {k: v for k, v in _files(tmp_path / "a.zarr").items()
+                                            if k != "stream.json"} | {"stream.json": (tmp_path / "b.zarr" /
+                                                                                      "stream.json").read_bytes()}
+
+
+def test_a_second_writer_is_refused(tmp_path):
+    """Finding 12: a second writer of the same store is refused while the first holds its lock."""
     from sonar_embree.io.files import folder_lock
 
-    def full(*a, **k):
-        raise OSError(errno.ENOSPC, "No space left on device", str(tmp_path / "s.zarr" / "port" / "0.0"))
-
-    monkeypatch.setattr(stream, "_write_block", full)
-    with pytest.raises(se.ConfigError, match=r"s.zarr/port/0.0: cannot write \(No space left on device\); free"):
-        se.stream.render_line(_scene(), LINE[:4], tmp_path / "s.zarr", SONAR, block_pings=4)
-    monkeypatch.undo()
     (tmp_path / "t.zarr").mkdir()
     with folder_lock(tmp_path / "t.zarr"):
         with pytest.raises(se.ConfigError, match="t.zarr: another run is writing this folder now"):

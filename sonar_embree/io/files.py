@@ -80,7 +80,7 @@ def write_json_durable(obj, path) -> None:
 
 def os_error_line(exc: OSError, path) -> ConfigError:
     """A one-line error naming ``path`` for an operating-system failure (disk full, permission, …)."""
-    what = exc.strerror or str(exc)
+    what = exc.strerror or str(exc.__cause__ or exc).splitlines()[0]
     hint = "; free some space, then run again to resume" if exc.errno == errno.ENOSPC else ""
     return ConfigError(f"{os.fspath(path)}: cannot write ({what}){hint}")
 
@@ -129,7 +129,10 @@ def atomic_write(path, write_fn, suffix=""):
     if os.path.isdir(path):
         raise ConfigError(f"{path}: is a folder, not a file")
     check_replaceable(path, suffix or os.path.splitext(path)[1])
-    fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix or os.path.splitext(path)[1])
+    try:
+        fd, tmp = tempfile.mkstemp(dir=d, prefix=".tmp-", suffix=suffix or os.path.splitext(path)[1])
+    except OSError as exc:
+        raise os_error_line(exc, path) from None
     os.close(fd)
     try:
         write_fn(tmp)
@@ -137,11 +140,12 @@ def atomic_write(path, write_fn, suffix=""):
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the usual permissions
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):                        # disk full, permissions: one line naming the target
+            raise os_error_line(exc, path) from None
         raise
-
 
 
 
