@@ -148,6 +148,18 @@ class CompiledScene:
         return float(area[np.abs(self.face_normals[:, 2]) > 0.7].sum() / max(area.sum(), 1e-300))
 
 
+def release(compiled: CompiledScene) -> None:
+    """Drop the caches kept on a compiled scene (its casters with their BVHs, law tables, leg boxes, …).
+
+    A caster refers to its compiled scene and the scene's cache refers to the caster: a reference cycle that only
+    the garbage collector frees, at a pace set by counts of Python objects, not by the hundreds of MB a BVH holds.
+    A streamed line over a tiled DEM compiles scene after scene; releasing each one it drops frees them at once
+    (resident memory otherwise climbed by ~0.5 GB over 100 000 pings). A released scene rebuilds its caches on use.
+    """
+    for key in [k for k in compiled.__dict__ if k.startswith("_")]:
+        del compiled.__dict__[key]
+
+
 def _outlier(v: np.ndarray, f: np.ndarray, source: str) -> None:
     """Refuse, naming it, the first used vertex beyond the absolute bounds of :data:`TOLERANCE`."""
     used = np.unique(f)
@@ -464,7 +476,7 @@ class Scene:
             bmap, uv = _object_map(backscatter_map, mesh, kept, source)
             new.append(SceneObject(lab, v, f, materials.get(lab, material), floor, bmap, uv))
         self._objects.extend(new)
-        self._compiled = {}
+        self.release()
         self._crs = crs
         return self
 
@@ -556,9 +568,15 @@ class Scene:
         key = tuple(float(x) for x in origin)
         if key not in self._compiled:
             while len(self._compiled) >= COMPILED_CACHE:
-                self._compiled.pop(next(iter(self._compiled)))
+                release(self._compiled.pop(next(iter(self._compiled))))
             self._compiled[key] = self._compile(origin)
         return self._compiled[key]
+
+    def release(self) -> None:
+        """Drop the compiled scenes and what is cached on them (their BVHs): memory back at once."""
+        for c in self._compiled.values():
+            release(c)
+        self._compiled = {}
 
     def _compile(self, origin: np.ndarray) -> CompiledScene:
         verts, faces, obj = [], [], []

@@ -137,7 +137,7 @@ class TiledDEM:
         scene = Scene().add(_joined(meshes, self.crs), material=self.material, label="seafloor")
         self._scenes[keys] = scene
         while len(self._scenes) > 2:
-            self._scenes.popitem(last=False)
+            self._scenes.popitem(last=False)[1].release()          # its BVHs freed now, not at the next gc
         return scene
 
 
