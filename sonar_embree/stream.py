@@ -68,7 +68,8 @@ def _save_progress(path: str, progress: dict) -> None:
 
 def _foreign(path: str) -> list:
     """Names in the folder ``path`` that are neither the stream's own bookkeeping nor a killed writer's temporaries."""
-    return sorted(n for n in os.listdir(path) if n not in OWN_NAMES and not n.startswith(STALE_PREFIXES))
+    own = (*OWN_NAMES, PROGRESS + ".tmp")                             # the progress's temporary, if killed writing it
+    return sorted(n for n in os.listdir(path) if n not in own and not n.startswith(STALE_PREFIXES))
 
 
 def _claim(path: str, overwrite: bool) -> None:

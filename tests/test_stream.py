@@ -127,6 +127,11 @@ def test_a_users_folder_is_refused_and_survives(tmp_path):
     assert (mine / "thesis.tex").read_text() == "years of work" and (mine / "sub" / "fig.pdf").exists()
     se.stream.render_line(_scene(), LINE[:4], mine, SONAR, block_pings=4, start_time=START, overwrite=True)
     assert not (mine / "thesis.tex").exists() and xr.open_zarr(mine)["port"].shape[0] == 4
+    killed = tmp_path / "killed.zarr"                      # killed while writing its very first progress
+    killed.mkdir()
+    (killed / "stream.json.tmp").write_text('{"fingerprint": "')
+    se.stream.render_line(_scene(), LINE[:4], killed, SONAR, block_pings=4, start_time=START)
+    assert stream._progress(str(killed))["pings_done"] == 4
     afile = tmp_path / "notes.txt"
     afile.write_text("keep")
     with pytest.raises(se.ConfigError, match="notes.txt: exists and is not a folder"):
