@@ -11,6 +11,70 @@ import sonar_embree as se  # noqa: E402
 
 H = 10.0  # sonar altitude of the reference cases, m
 
+#: Tests that take a second or more on the 2-core machine (``pytest --durations``), marked ``slow``: the quick
+#: tier, ``python -m pytest -q -m "not slow"``, leaves them out (README, "Tests").
+SLOW = frozenset({
+    "test_batch.py::test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds",
+    "test_batch.py::test_killed_batch_resumes_to_the_same_files",
+    "test_batch.py::test_two_workers_on_a_scheduler_give_identical_files",
+    "test_dem.py::test_mosaic_of_streamed_stores_equals_the_in_memory_one",
+    "test_errors.py::test_console_script_prints_one_line_without_traceback",
+    "test_first_hour.py::test_a_million_row_trajectory_csv_is_refused_in_one_line",
+    "test_first_hour.py::test_a_second_batch_of_the_same_folder_is_refused_while_the_first_runs",
+    "test_first_hour.py::test_batch_is_quiet_on_success",
+    "test_first_hour.py::test_ctrl_c_prints_one_line_and_leaves_nothing",
+    "test_first_hour.py::test_disk_full_leaves_the_old_outputs_and_names_the_path",
+    "test_first_hour.py::test_example_sweeps_check_and_cover_their_purpose",
+    "test_first_hour.py::test_failed_batch_leaves_no_folder_that_refuses_a_rerun",
+    "test_first_hour.py::test_multi_object_obj_sweep_without_instances_writes_coco",
+    "test_first_hour.py::test_readme_api_snippet_runs_from_a_temporary_folder",
+    "test_first_hour.py::test_resume_refuses_changed_mesh_contents_and_attitude",
+    "test_first_hour.py::test_ten_million_pings_are_refused_at_once_with_the_estimate",
+    "test_flat_floor.py::test_mean_line_matches_analytic_within_half_db",
+    "test_flat_floor.py::test_reference_quadrature_reproduces_physics_md_numbers",
+    "test_forward_looking.py::test_beamformed_speckle_is_fully_developed_in_either_band",
+    "test_forward_looking.py::test_flat_floor_boresight_beam_matches_quadrature",
+    "test_io.py::test_a_full_disk_is_one_line_naming_the_file_not_its_temporary",
+    "test_law_recovery.py::test_composite_sigma_recovered",
+    "test_law_recovery.py::test_kirchhoff_sigma_recovered_including_the_nadir_peak",
+    "test_law_recovery.py::test_lambert_sigma_recovered",
+    "test_law_recovery.py::test_tabulated_sigma_recovered",
+    "test_laws.py::test_kirchhoff_flat_floor_against_quadrature",
+    "test_motion.py::test_motion_during_the_ping_shifts_a_point_target_by_v_tau_over_2",
+    "test_msis.py::test_flat_floor_matches_the_quadrature_of_eq1",
+    "test_multipath.py::test_a_flat_swell_mesh_moves_during_the_ping_as_the_image_method_does",
+    "test_multipath.py::test_four_path_image_sum_matches_quadrature",
+    "test_multipath.py::test_moving_during_the_ping_turns_every_path_s_receive_beam",
+    "test_multipath.py::test_speckle_with_a_surface_averages_to_the_expected_four_paths",
+    "test_paper_scenes.py::test_example_configs_load_and_match_the_library",
+    "test_record_cli.py::test_cli_help_explains_options",
+    "test_record_cli.py::test_cli_render_example_config",
+    "test_record_cli.py::test_demo_command_writes_png",
+    "test_refraction.py::test_expected_intensity_matches_the_ray_map_quadrature",
+    "test_refraction.py::test_first_arrival_per_launch_angle_against_the_ray_map",
+    "test_scripts.py::test_bench_script_writes_report_and_plot",
+    "test_scripts.py::test_detection_dataset_script_writes_a_coco_dataset",
+    "test_scripts.py::test_device_figure_shows_noise_where_the_unit_source_record_is_silent",
+    "test_scripts.py::test_msis_figure_script_draws_both_scans",
+    "test_scripts.py::test_multipath_figure_shows_the_surface_paths",
+    "test_scripts.py::test_paper_modes_script_writes_every_mode",
+    "test_scripts.py::test_physics_plots_script_writes_beam_pattern_and_ping",
+    "test_scripts.py::test_refraction_figure_ends_the_floor_at_the_ray_maps_shadow_edge",
+    "test_scripts.py::test_seafloor_gallery_orders_the_presets_and_draws_sigma",
+    "test_scripts.py::test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend",
+    "test_scripts.py::test_survey_script_writes_georeferenced_lines_mosaic_and_truth",
+    "test_sonar_types.py::test_sound_speed_profile_bends_the_rays_and_a_uniform_one_does_not",
+    "test_sonar_types.py::test_speckle_is_fully_developed",
+    "test_stream.py::test_a_full_disk_gives_one_line_and_the_resume_is_exact",
+    "test_texture.py::test_k_texture_scintillation_index_and_mean",
+})
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        if f"{item.path.name}::{item.originalname}" in SLOW:
+            item.add_marker(pytest.mark.slow)
+
 
 def flat_scene(**material):
     return se.Scene().add(se.seafloor.flat(size_m=(400, 200), z_m=0.0),
