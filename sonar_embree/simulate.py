@@ -13,6 +13,7 @@ ground truth in :mod:`sonar_embree.labels`, the tail in :mod:`sonar_embree.proce
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
 import time
@@ -31,6 +32,8 @@ from .scene import Scene, TiledDEM, survey_origin
 from .synthesis import ExpectedSynthesis, SpeckleSynthesis
 from .trajectory import Trajectory, iso_utc
 from .validation import check_bool
+
+log = logging.getLogger(__name__)
 
 #: Rays per block of pings (about): results do not depend on the block size.
 BLOCK_RAYS = 2 ** 18
@@ -64,6 +67,18 @@ def _check_memory(n_pings, n_samples, chain, labels, keep_complex, n_channels) -
                           f"{need / 2**30:.1f} GiB in memory, more than this machine's {have / 2**30:.1f} GiB; "
                           f"simulate at most about {fit} pings at a time (Trajectory slices with ping_offset), "
                           "or render them as a batch (sonar-embree batch) that writes each job to disk")
+
+
+#: A run whose first block projects longer than this logs its time estimate (INFO, ``-v`` on the command line).
+ESTIMATE_LOG_S = 30.0
+
+
+def _log_time_estimate(elapsed_s: float, done: int, total: int) -> None:
+    """After the first block (set-up included, so an upper estimate): the whole run's time, when it is long."""
+    per_ping = elapsed_s / max(done, 1)
+    if per_ping * total > ESTIMATE_LOG_S:
+        log.info("simulate: about %.0f s for %d pings (%.1f ms per ping in the first block, set-up included)",
+                 per_ping * total, total, 1e3 * per_ping)
 
 
 def tile_reach_m(sonar) -> float:
@@ -197,6 +212,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
+        if a == 0:
+            _log_time_estimate(time.perf_counter() - t_start, b, len(trajectory))
         a, block = b, int(np.clip(BLOCK_RAYS // max(int(blk.n_rays.max()), 1), 1, 64))
     if bar is not None:
         bar.close()

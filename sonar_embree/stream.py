@@ -17,6 +17,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import logging
 import os
 import shutil
 import time
@@ -26,6 +27,8 @@ import numpy as np
 
 from .errors import ConfigError
 from .io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
+
+log = logging.getLogger(__name__)
 
 #: Name of the progress file inside the Zarr store.
 PROGRESS = "stream.json"
@@ -312,8 +315,9 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
     from .simulate import progress_bar as pings_bar, simulate
 
     n = len(trajectory)
-    a = 0 if progress is None else progress["pings_done"]
+    a = first = 0 if progress is None else progress["pings_done"]
     bar = pings_bar(bar, n, a)
+    t0 = time.perf_counter()
     while a < n:
         b = min(a + block, n)
         rec = simulate(_block_scene(scene, trajectory[a:b], sonar), trajectory[a:b], sonar, pulse, ping_offset=a,
@@ -323,6 +327,9 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
         _write_block(path, rec, a, progress, xtf_path)
         if bar is not None:
             bar.update(b - a)
+        if a == first and b < n:                                     # the first block sets the pace
+            log.info("render_line: about %.0f s for the %d pings left (%.1f ms per ping, block written)",
+                     (time.perf_counter() - t0) / (b - a) * (n - b), n - b, 1e3 * (time.perf_counter() - t0) / (b - a))
         a = b
     if bar is not None:
         bar.close()

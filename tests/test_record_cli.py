@@ -74,3 +74,16 @@ def test_demo_command_writes_png(tmp_path):
     assert proc.returncode == 0, proc.stderr
     img = iio.imread(tmp_path / "demo" / "waterfall.png")
     assert img.shape[0] == 40 and img.max() > 200
+
+
+def test_a_long_run_states_its_time_after_the_first_block(caplog, monkeypatch):
+    """Issue 33: a run that will take long says so (INFO) after its first block, from that block's pace."""
+    import sys
+
+    sim = sys.modules["sonar_embree.simulate"]
+    monkeypatch.setattr(sim, "ESTIMATE_LOG_S", 0.0)
+    caplog.set_level("INFO", logger="sonar_embree.simulate")
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    se.simulate(scene, se.Trajectory.line((-1.0, 0.0, 10.0), (1.0, 0.0, 10.0), 12), se.Sonar(max_range_m=20.0))
+    lines = [r.getMessage() for r in caplog.records if "simulate: about" in r.getMessage()]
+    assert len(lines) == 1 and " s for 12 pings (" in lines[0] and "ms per ping in the first block" in lines[0]

@@ -207,6 +207,14 @@ def test_progress_is_fsynced_after_the_blocks_files(tmp_path, monkeypatch):
     assert any(isinstance(p, str) and p.endswith("stream.json.tmp") for p in order[i:])
 
 
+def test_the_stream_states_its_time_after_the_first_block(tmp_path, caplog):
+    """Issue 33: the time a line will take, from its first block's pace (INFO; -v on the command line)."""
+    caplog.set_level("INFO", logger="sonar_embree.stream")
+    se.stream.render_line(_scene(), LINE[:12], tmp_path / "s.zarr", SONAR, block_pings=4, start_time=START)
+    lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("render_line: about")]
+    assert len(lines) == 1 and "for the 8 pings left (" in lines[0]
+
+
 def test_a_huge_block_is_the_whole_line(tmp_path):
     """Finding 12: block_pings beyond the line is one block (no half store, no traceback)."""
     se.stream.render_line(_scene(), LINE[:5], tmp_path / "s.zarr", SONAR, block_pings=10**9, start_time=START)
