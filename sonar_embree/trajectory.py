@@ -368,10 +368,13 @@ class Trajectory:
             names[0] = "time"
             for row, t in zip(text, self.times_s):
                 row[0] = (t0 + dt.timedelta(seconds=float(t))).isoformat()
-        tmp = os.fspath(path) + ".tmp"
-        with open(tmp, "w", newline="") as fh:
-            fh.write(",".join(names) + "\n" + "".join(",".join(row) + "\n" for row in text))
-        os.replace(tmp, path)
+        from .io.files import atomic_write
+
+        def write(tmp):
+            with open(tmp, "w", newline="") as fh:
+                fh.write(",".join(names) + "\n" + "".join(",".join(row) + "\n" for row in text))
+
+        atomic_write(path, write, suffix=".csv")
 
 
 def _csv_rows(path: str):

@@ -196,11 +196,13 @@ def test_writers_replace_their_own_kind_of_file_never_a_users(tmp_path):
     thesis = tmp_path / "thesis.tex"
     thesis.write_text("\\documentclass{book} years of work")
     for write, what in ((lambda p: rec.save(p), "NPZ"), (lambda p: rec.to_xtf(p), "XTF"),
-                        (lambda p: rec.save_png(p), "PNG"), (lambda p: rec.labels.save_png(p), "PNG")):
+                        (lambda p: rec.save_png(p), "PNG"), (lambda p: rec.labels.save_png(p), "PNG"),
+                        (lambda p: rec.trajectory.to_csv(p), "CSV")):
         with pytest.raises(se.ConfigError, match=f"thesis.tex: exists and is not a {what} file"):
             write(thesis)
     assert thesis.read_text() == "\\documentclass{book} years of work"
-    for name, write in (("r.npz", rec.save), ("r.xtf", rec.to_xtf), ("r.png", rec.save_png)):
+    for name, write in (("r.npz", rec.save), ("r.xtf", rec.to_xtf), ("r.png", rec.save_png),
+                        ("nav.csv", rec.trajectory.to_csv)):
         write(tmp_path / name)
         write(tmp_path / name)                                          # its own file: replaced
     mine = tmp_path / "mydata"

@@ -103,7 +103,8 @@ def clean_stale(folder) -> int:
 #: The first bytes of each format the writers replace: an existing file that does not start so is not one the
 #: project wrote (a user's document given as an output path) and is refused, never overwritten.
 MAGIC = {".npz": (b"PK",), ".png": (b"\x89PNG",), ".tif": (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"),
-         ".xtf": (b"\x7b",), ".json": (b"{", b"[")}
+         ".xtf": (b"\x7b",), ".json": (b"{", b"["), ".csv": (b"time_s,", b"time,"),
+         ".obj": (b"#", b"o ", b"v ", b"g ", b"mtllib")}
 
 
 def check_replaceable(path: str, suffix: str) -> None:
@@ -113,7 +114,7 @@ def check_replaceable(path: str, suffix: str) -> None:
     if magic is None or not os.path.isfile(path) or os.path.getsize(path) == 0:
         return
     with open(path, "rb") as fh:
-        head = fh.read(8).lstrip() if suffix.lower() == ".json" else fh.read(8)
+        head = fh.read(16).lstrip() if suffix.lower() == ".json" else fh.read(16)
     if not head.startswith(magic):
         raise ConfigError(f"{path}: exists and is not a {suffix[1:].upper()} file; it would be overwritten, so "
                           "choose another name (or remove it yourself)")
