@@ -23,6 +23,9 @@ import threading
 import time
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+from bench_stream import _size  # noqa: E402  (the same store/file size)
 
 X0, Y0 = 500000.0, 6020000.0
 
@@ -60,12 +63,6 @@ class _Sampler(threading.Thread):
         while not self.stop.is_set():
             self.samples.append((time.perf_counter(), _rss_mb()))
             self.stop.wait(self.period)
-
-
-def _size(path) -> int:
-    if os.path.isfile(path):
-        return os.path.getsize(path)
-    return sum(os.path.getsize(os.path.join(r, f)) for r, _, fs in os.walk(path) for f in fs)
 
 
 def main(argv=None) -> int:

@@ -27,6 +27,7 @@ import numpy as np
 
 from .errors import ConfigError
 from .io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
+from .validation import check_bool
 
 log = logging.getLogger(__name__)
 
@@ -211,14 +212,18 @@ def _scale_of(record, scale) -> float:
     return 1.0 if record.samples is not None else sample_scale(record, scale)
 
 
-def _fsync_since(path: str, t0_ns: int) -> None:
-    """fsync every file of the store written since ``t0_ns`` (a block's chunks), then the folders."""
-    for root, _, names in os.walk(path):
-        for n in names:
-            p = os.path.join(root, n)
-            if os.stat(p).st_mtime_ns >= t0_ns:
-                fsync_path(p)
-        fsync_path(root)
+def _fsync_block(path: str, ds, k: int) -> None:
+    """fsync block ``k``'s chunk of every ping-long variable of ``ds`` (Zarr format 2 keys: the block's index on the ping
+    axis, 0 on the others, which are one chunk each), then their folders and the store's: O(variables) per block,
+    not a walk of the whole store. A chunk Zarr left unwritten (all fill value) has no file and nothing to flush."""
+    for name, var in ds.variables.items():
+        folder = os.path.join(path, name)
+        chunk = os.path.join(folder, ".".join(str(k) if d == "ping" else "0" for d in var.dims))
+        if os.path.exists(chunk):
+            fsync_path(chunk)
+        if os.path.isdir(folder):
+            fsync_path(folder)
+    fsync_path(path)
 
 
 def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
@@ -226,7 +231,6 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
     from .io.dataset import to_xarray
     from .io.xtf import xtf_bytes
 
-    t0 = time.time_ns() - 2_000_000_000                             # file systems' mtime granularity
     ds = to_xarray(rec)
     ds = ds.drop_vars([n for n, v in ds.variables.items() if "ping" not in v.dims])
     ds.attrs = {}
@@ -244,7 +248,7 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
                 os.fsync(fh.fileno())
         except OSError as exc:                                      # a full disk: name the file that did not fit
             raise os_error_line(exc, xtf_path) from None
-    _fsync_since(path, t0)
+    _fsync_block(path, ds, a // progress["block_pings"])
     progress["pings_done"] = a + rec.n_pings
     _save_progress(path, progress)
 
@@ -253,8 +257,7 @@ def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
     if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
         raise ConfigError(f"render_line: block_pings must be an integer >= 1, got {block_pings!r}")
     for name, value in flags.items():
-        if not isinstance(value, (bool, np.bool_)):
-            raise ConfigError(f"render_line: {name} must be True or False, got {value!r}")
+        check_bool("render_line", name, value)
     for key in ("ping_offset", "keep_complex"):
         if key in simulate_kwargs:
             raise ConfigError(f"render_line: {key} is not a streaming option")
