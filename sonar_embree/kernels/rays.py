@@ -132,6 +132,58 @@ def sinc_rows(a, rows, m):
             a[j, k] = _sinc_poly(a[j, k])
 
 
+@njit(cache=True, nogil=True)
+def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db, consts):
+    """The physics of one hit, on scalars only: the one home of the fan's echo per ray (the object-aimed rays
+    of :mod:`sonar_embree.aim` share it; docs/physics.md §2–3).
+
+    Parameters
+    ----------
+    dn, num, fn : float
+        n̂·u, n̂·(v₀ − S) and n̂·∂u/∂β (n̂ the triangle's normal, v₀ a vertex, S the sonar, u the ray's world
+        direction).
+    t_emb : float
+        Embree's float32 distance, m.
+    two_sided : bool
+        The triangle scatters from both sides.
+    cpsi, cb, sb : float
+        √(1 − s²), cos β and sin β of the ray's body-frame direction (s, ±cψ·cos β, cψ·sin β).
+    g_az, g_az_rx : float
+        The along-track gains transmitting and receiving.
+    ds, db : float
+        The ray's cell: its along-track width ds and elevation width dβ (rad); solid angle ds·dβ.
+    consts : tuple of float
+        k·ly/2, cos tilt, sin tilt, two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m).
+
+    Returns
+    -------
+    (R (m), cos θi, w, travel-time extent (s)); w = 0: no echo (back face, grazing, beyond R_max, behind the
+    baffle).
+    """
+    k_ly2, cos_t, sin_t, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = consts
+    rr = t_emb
+    if abs(dn) > REFIT_MIN_COS:
+        t64 = num / dn
+        if abs(t64 - t_emb) <= REFIT_REL_TOL * (1.0 + t_emb):
+            rr = t64
+    cos_i = -dn
+    if cos_i < 0.0 and two_sided:
+        cos_i = dn
+    if not (cos_i > 1e-9) or not (rr <= max_range_m):
+        return rr, 0.0, 0.0, 0.0
+    if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle
+        return rr, 0.0, 0.0, 0.0
+    g_el = _sinc(k_ly2 * cpsi * (sb * cos_t - cb * sin_t))  # sin(β − δ)
+    g = g_az * g_el
+    g_rx = g_az_rx * g_el
+    rb = rr if rr > min_range_m else min_range_m
+    w = g * g * (g_rx * g_rx) * math.exp(-two_way_np_per_m * rr) * ds * db / (rb * rb)
+    slope = rr * abs(fn) / cos_i
+    if slope > slope_cap_m_rad:
+        slope = slope_cap_m_rad
+    return rr, cos_i, w, slope * db * time_per_m
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, prim, tfar, vertices, faces, face_normals,
                face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,
@@ -186,8 +238,8 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
     """
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
-    cos_t = math.cos(beam[2])
-    sin_t = math.sin(beam[2])
+    consts = (beam[1], math.cos(beam[2]), math.sin(beam[2]), two_way_np_per_m, min_range_m, max_range_m,
+              slope_cap_m_rad, time_per_m)
     for r in prange(el_start.shape[0] - 1):
         b = r // 2
         side = 1.0 if r % 2 else -1.0
@@ -214,46 +266,24 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
                     continue
                 cb = cos_beta[el_start[r] + j]
                 sb = sin_beta[el_start[r] + j]
-                e0 = sa
-                e1 = side * cpsi * cb
-                e2 = cpsi * sb
-                f1 = -side * cpsi * sb  # ∂u/∂β in body axes (0, f1, f2)
-                f2 = cpsi * cb
-                dn = 0.0
-                num = 0.0
-                fn = 0.0
+                db = dbeta[el_start[r] + j]
+                e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
+                f1, f2 = -side * cpsi * sb, cpsi * cb  # ∂u/∂β in body axes (0, f1, f2)
+                dn, num, fn = 0.0, 0.0, 0.0
                 for q in range(3):
-                    dq = rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2
                     nq = face_normals[t, q]
-                    dn += dq * nq
+                    dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
                     num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
                     fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
-                t_emb = np.float64(tfar[i])
-                rr = t_emb
-                if abs(dn) > REFIT_MIN_COS:
-                    t64 = num / dn
-                    if abs(t64 - t_emb) <= REFIT_REL_TOL * (1.0 + t_emb):
-                        rr = t64
-                cos_i = -dn
-                if cos_i < 0.0 and face_two_sided[t]:
-                    cos_i = dn
-                if not (cos_i > 1e-9) or not (rr <= max_range_m):
+                rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb,
+                                               g_az, g_az_rx, ds, db, consts)
+                if cos_i == 0.0:
                     continue
-                if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle
-                    continue
-                g_el = _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))  # sin(β − δ)
-                g = g_az * g_el
-                g_rx = g_az_rx * g_el
-                g2 = g * g
-                rb = rr if rr > min_range_m else min_range_m
                 range_out[i] = rr
                 time_out[i] = rr * time_per_m
-                weight_out[i] = g2 * (g_rx * g_rx) * math.exp(-two_way_np_per_m * rr) * ds * dbeta[el_start[r] + j] / (rb * rb)
+                weight_out[i] = wt
                 cos_out[i] = cos_i
-                slope = rr * abs(fn) / cos_i
-                if slope > slope_cap_m_rad:
-                    slope = slope_cap_m_rad
-                extent_out[i] = slope * dbeta[el_start[r] + j] * time_per_m
+                extent_out[i] = ext
                 if want_points:
                     points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
                     points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
