@@ -492,6 +492,10 @@ class FanSettings:
         Spread each ray's echo over the slant-range interval its cell covers on the
         surface (default). False treats rays as point echoes with linear splatting,
         the docs/physics.md §7 baseline, which needs about one ray per range bin.
+    aim_objects : bool
+        Also aim rays at every object that is not seafloor in every ping where it can echo (default; docs/physics.md
+        §7b): small objects are seen in every ping, whatever the fan's line spacing. False leaves them to the
+        fan's rays alone (faster with many objects, but an object narrower than the line spacing is seen by luck).
     """
 
     quality: float = 1.0
@@ -502,10 +506,12 @@ class FanSettings:
     probe_step_deg: float | None = None
     max_rays_per_side: int = 200_000
     footprint: bool = True
+    aim_objects: bool = True
 
     def __post_init__(self):
-        if not isinstance(self.footprint, bool):
-            raise ConfigError(f"FanSettings.footprint must be true or false, got {self.footprint!r}")
+        for name in ("footprint", "aim_objects"):
+            if not isinstance(getattr(self, name), bool):
+                raise ConfigError(f"FanSettings.{name} must be true or false, got {getattr(self, name)!r}")
         _check_number("FanSettings", "quality", self.quality, positive=True, hi=32)  # 2·quality azimuth ≤ 64
         if self.quality < 1.0 / 64:
             raise ConfigError(f"FanSettings.quality must be >= {1 / 64}, got {self.quality!r}")

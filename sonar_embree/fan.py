@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import beam, checks, kernels
+from .aim import aim_block, drop_aimed
 from .config import FanSettings, Sonar
 from .laws import apply_laws
 from .raycast import Caster
@@ -94,6 +95,13 @@ class BlockEchoes:
     dbeta: np.ndarray       # (el_start[-1],) its cell width, rad
     prim: np.ndarray        # (n,) int32 triangle hit by each ray, −1 for none
     tfar: np.ndarray        # (n,) float32 Embree's hit distance, m
+    aimed: object = None    # AimedEchoes of the rays aimed at objects (sonar_embree.aim), or None
+    kept_weight: np.ndarray | None = None  # (n,) ``weight`` without the hits on aimed objects (None: none aimed)
+
+    @property
+    def echo_weight(self) -> np.ndarray:
+        """(n,) the fan's weights as its echoes carry them: without the hits that aimed rays count instead."""
+        return self.weight if self.kept_weight is None else self.kept_weight
 
 
 def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
@@ -165,7 +173,8 @@ def nadir_altitude(caster: Caster, pos_local: np.ndarray, max_range_m: float):
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, time_per_m: float, want_points: bool = False,
-               timings: dict | None = None, frequency_hz: float = 0.0, rx_shift: np.ndarray | None = None) -> BlockEchoes:
+               timings: dict | None = None, frequency_hz: float = 0.0, rx_shift: np.ndarray | None = None,
+               aim=None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
     Parameters
@@ -192,6 +201,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     rx_shift : (pings,) float64, optional
         Motion during the ping: the receive beam's along-track direction-cosine offset δ = 2·v_fwd/c
         per ping (default: zeros, stop-and-hop; see :func:`kernels.fan_echoes`).
+    aim : AimPlan, optional
+        The objects to aim rays at (:mod:`sonar_embree.aim`); None: the fan alone.
     """
     t0 = time.perf_counter()
     n_p = rot.shape[0]
@@ -223,7 +234,17 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe
+    aimed, kept = None, None
+    if aim is not None:
+        consts = (plan.beam[1], math.cos(plan.beam[2]), math.sin(plan.beam[2]), two_way_np_per_m, plan.min_range_m,
+                  max_range_m, plan.slope_cap_m_rad, time_per_m)
+        aimed = aim_block(caster, aim, plan, rot, pos_local, rx_shift, consts, max_range_m,
+                          want_points, frequency_hz)
+        t_embree += aimed.seconds_cast
+        kept = drop_aimed(caster, aim, n_az * el_start, prim, w, aimed.aimed) if aimed.aimed.any() else None
+        n_rays = n_rays + aimed.n_rays
     if timings is not None:
         timings["embree"] = timings.get("embree", 0.0) + t_embree
         timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree
-    return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, prim, tfar)
+    return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, prim, tfar,
+                       aimed, kept)

@@ -296,7 +296,7 @@ class PathEchoes:
 
 def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes:
     """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path
-    (its index in ``parts``, or ``paths[index]``: the surface line is a direct path).
+    (its index in ``parts``, or ``paths[index]``: the surface line is a direct path; every part direct: no tags).
 
     Within a row, each part's echoes in their order, part by part. The hit points are kept when ``points``
     (speckle, maps), the object ids when every part has them. With ``buf`` the result lives in its kept arrays
@@ -319,6 +319,8 @@ def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes
                       tuple(_points(e) for e in parts), tuple(_ids(e) for e in parts), start, t, ext, w, pts,
                       ids, path)
     if paths is not None:
+        if not any(paths):                          # every part direct (the fan and the aimed rays): no tags
+            return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids)
         path[:] = np.asarray(paths, dtype=np.int8)[path]
     return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids, path)
 

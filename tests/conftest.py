@@ -14,6 +14,8 @@ H = 10.0  # sonar altitude of the reference cases, m
 #: Tests that take a second or more on the 2-core machine (``pytest --durations``), marked ``slow``: the quick
 #: tier, ``python -m pytest -q -m "not slow"``, leaves them out (README, "Tests").
 SLOW = frozenset({
+    "test_objects_seen.py::test_a_ball_at_shallow_depression_is_seen_in_every_ping",
+    "test_objects_seen.py::test_sphere_echo_follows_the_two_way_pattern_in_every_ping",
     "test_batch.py::test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds",
     "test_batch.py::test_killed_batch_resumes_to_the_same_files",
     "test_batch.py::test_two_workers_on_a_scheduler_give_identical_files",

@@ -561,3 +561,66 @@ def first_hits(org, dirs, vertices, faces, t_max):
             j = np.flatnonzero(ok)[np.argmin(t[ok])]
             prim[i], dist[i] = j, t[j]
     return prim, dist
+
+
+def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m, max_rays):
+    """(2·pings, k, 6) lattices [s0, hs, β0, hβ, ns, nβ] of every object in every row, by plain vector algebra: the
+    object's bounding cone (half-angle γ = asin(ρ/D) about its centre's body direction) spans s_c ± γ and
+    β_c ± asin(sin γ / √(1 − s_c²)), clipped to the row's span (s widened by δ on its side); cells of at most
+    2γ/n_across, the fan's steps and (in β) 2γ·dr/(2ρ); none beyond the range, inside the sphere, on the
+    along-track axis or above ``max_rays``."""
+    n_p, k = rot.shape[0], centre.shape[0]
+    out = np.zeros((2 * n_p, k, 6))
+    for r in range(2 * n_p):
+        b, side = r // 2, (1.0 if r % 2 else -1.0)
+        if not sides[r % 2]:
+            continue
+        v = (centre - pos[b]) @ rot[b]                      # body-frame offsets (Rᵀ·w per row vector)
+        for j in range(k):
+            d = np.linalg.norm(v[j])
+            if d <= radius[j] * (1 + 1e-9) or d - radius[j] > span[4]:
+                continue
+            gam = np.arcsin(radius[j] / d)
+            sc = v[j, 0] / d
+            if np.sin(gam) >= 0.999 * np.sqrt(1 - sc ** 2):
+                continue
+            half_b = np.arcsin(np.sin(gam) / np.sqrt(1 - sc ** 2))
+            bc = np.arctan2(v[j, 2], side * v[j, 1])
+            s_lo, s_hi = max(sc - gam, span[0] + min(rx_shift[b], 0)), min(sc + gam, span[1] + max(rx_shift[b], 0))
+            b_lo, b_hi = max(bc - half_b, span[2]), min(bc + half_b, span[3])
+            if s_hi <= s_lo or b_hi <= b_lo:
+                continue
+            hs = min(2 * gam / n_across, span[5])
+            hb = min(2 * gam / n_across, span[6], 2 * gam * dr_m / (2 * radius[j]))
+            ns, nb = np.ceil((s_hi - s_lo) / hs - 1e-9), np.ceil((b_hi - b_lo) / hb - 1e-9)
+            if ns * nb > max_rays:
+                continue
+            out[r, j] = [s_lo, (s_hi - s_lo) / ns, b_lo, (b_hi - b_lo) / nb, ns, nb]
+    return out
+
+
+def aim_directions(table, rot):
+    """World directions of every lattice's rays (rows, then objects; s-major, β fastest), cell centres."""
+    out = []
+    for r in range(table.shape[0]):
+        for row in table[r]:
+            ns, nb = int(row[4]), int(row[5])
+            if ns == 0:
+                continue
+            s = row[0] + (np.arange(ns) + 0.5) * row[1]
+            beta = row[2] + (np.arange(nb) + 0.5) * row[3]
+            el = [0, nb, nb] if r % 2 == 0 else [0, 0, nb]
+            out.append(fan_directions(s, beta, np.array(el), rot[r // 2:r // 2 + 1]))
+    return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def drop_aimed(ray_start, prim, face_object, cand_of_object, aimed, weight):
+    """The fan's weights with the hits on each row's aimed objects set to 0."""
+    out = weight.copy()
+    for r in range(len(ray_start) - 1):
+        for i in range(ray_start[r], ray_start[r + 1]):
+            if prim[i] >= 0:
+                k = cand_of_object[face_object[prim[i]]]
+                if k >= 0 and aimed[r, k]:
+                    out[i] = 0.0
+    return out

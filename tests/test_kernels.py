@@ -295,3 +295,101 @@ def test_sinc_rows_matches_libm_sin_over_x(rng):
     assert np.all(err[:-1] <= 3 * np.spacing(np.abs(ref[:-1])) + 1e-21 / np.maximum(np.abs(x[:-1]), 1.0))
     assert a[0, -4] == 1.0 and np.all(a[1, :-1] == a[0, :-1])             # sinc(0) = 1; even
     assert a[0, -1] == x[-1] and np.all(a[2] == 7.0)                      # beyond m and rows: untouched
+
+
+def _aim_scene(rng):
+    """A bumpy floor and three small objects abeam of poses near the origin."""
+    import trimesh
+
+    heights = rng.uniform(-0.2, 0.2, (21, 21))
+    scene = se.Scene().add(se.seafloor.from_heights(heights, spacing_m=4.0, origin_m=(-40, -40)), label="seafloor")
+    for i, (x, y, z) in enumerate([(0.1, -12.0, 2.0), (-0.1, 8.0, 0.3), (0.0, -20.0, 6.0)]):
+        m = trimesh.creation.icosphere(2, radius=0.3) if i != 1 else trimesh.creation.box(extents=(0.4, 0.6, 0.5))
+        m.apply_translation((x, y, z))
+        scene.add(m, label=f"object{i}", material=se.Material(-12.0 - i))
+    return scene
+
+
+def test_aim_kernels_match_naive(rng):
+    """The object-aimed rays (sonar_embree.aim): lattices, directions, echoes (against the fan's naive twin per
+    lattice, counting only hits on the lattice's own object) and the fan hits they replace."""
+    from sonar_embree.aim import AimPlan
+    from sonar_embree.fan import FanPlan
+    from sonar_embree.kernels import aim as K
+    from sonar_embree.laws import apply_laws
+    from sonar_embree.raycast import RayCaster
+
+    scene = _aim_scene(rng)
+    c = scene.compiled()
+    caster = RayCaster(c)
+    from scipy.spatial.transform import Rotation
+
+    # poses near the origin with small attitudes, so that the objects fall inside the narrow along-track span
+    rot = Rotation.from_euler("zyx", rng.uniform(-0.01, 0.01, (6, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
+    pos = np.column_stack([rng.uniform(-0.1, 0.1, 6), rng.uniform(-0.5, 0.5, 6), np.full(6, 10.0)]) - c.origin_m
+    sonar = se.Sonar().for_pulse(se.Pulse.cw())
+    plan = FanPlan.build(sonar, se.FanSettings())
+    aim = AimPlan.build(c, plan, 1.0)
+    span = aim.span.copy()
+    span[4] = 50.0
+    shift = rng.uniform(-3e-3, 3e-3, rot.shape[0])
+    table = np.empty((2 * rot.shape[0], aim.objects.size, K.LATTICE_WIDTH))
+    K.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, span, shift, aim.n_across, aim.dr_m, aim.max_rays,
+                   table)
+    ref = naive.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, span, shift, aim.n_across, aim.dr_m,
+                             aim.max_rays)
+    np.testing.assert_array_equal(table[..., K.NS] * table[..., K.NB], ref[..., 4] * ref[..., 5])
+    lit = ref[..., 4] > 0
+    assert lit.sum() >= 3
+    np.testing.assert_allclose(table[lit][:, :4], ref[lit][:, :4], rtol=1e-12, atol=1e-15)
+
+    counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
+    start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
+    n = int(start[-1])
+    dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
+    K.aim_rays(table, start, rot, pos, dirs, org)
+    np.testing.assert_allclose(dirs, naive.aim_directions(table, rot), atol=1e-6)
+    prim, tfar = caster.cast_raw(org, dirs, 50.0)
+
+    out = [np.empty(n) for _ in range(5)]
+    pts = np.empty((n, 3))
+    consts = (plan.beam[1], np.cos(plan.beam[2]), np.sin(plan.beam[2]), 0.02, plan.min_range_m, 50.0,
+              plan.slope_cap_m_rad, 2 / 1500.0)
+    K.aim_echoes(table, start, aim.objects, rot, pos, shift, prim, tfar, c.face_object, c.vertices, c.faces,
+                 c.face_normals, c.face_two_sided, plan.beam, consts, *out, pts)
+    apply_laws(c, sonar.frequency_hz, prim, out[4], out[3], pts)
+    k_wave = 2 * np.pi / sonar.wavelength_m
+    w_ref = np.zeros(n)
+    r_ref = np.full(n, np.inf)
+    for r in range(table.shape[0]):
+        for j in range(table.shape[1]):
+            a, b = start[r * table.shape[1] + j], start[r * table.shape[1] + j + 1]
+            if a == b:
+                continue
+            s0, hs, b0, hb, ns, nb = table[r, j]
+            s = s0 + (np.arange(int(ns)) + 0.5) * hs
+            beta = b0 + (np.arange(int(nb)) + 0.5) * hb
+            el = np.array([0, int(nb), int(nb)] if r % 2 == 0 else [0, 0, int(nb)])
+            p = r // 2
+            rng_n, _, w_n = naive.fan_echoes(s, hs, beta, np.full(int(nb), hb), el, rot[p:p + 1], pos[p:p + 1],
+                                             prim[a:b], c.vertices, c.faces, c.mu[c.face_object], k_wave,
+                                             sonar.length_m, sonar.height_m, sonar.tilt_rad, 0.02, plan.min_range_m,
+                                             50.0, plan.slope_cap_m_rad, rx_shift=shift[p:p + 1])
+            own = (prim[a:b] >= 0) & (c.face_object[np.maximum(prim[a:b], 0)] == aim.objects[j])
+            w_ref[a:b], r_ref[a:b] = np.where(own, w_n, 0.0), np.where(own & (w_n > 0), rng_n, np.inf)
+    hit = w_ref > 0
+    assert hit.sum() > 50
+    np.testing.assert_array_equal(out[3] > 0, hit)
+    np.testing.assert_allclose(out[3][hit], w_ref[hit], rtol=1e-9)
+    np.testing.assert_allclose(out[0][hit], r_ref[hit], rtol=1e-12)
+    assert ((prim >= 0) & ~hit).any()          # some rays hit something else first: they count nothing
+
+    ray_start = np.array([0, 40, 90, 90, 200, 260, 300, 330, 400])
+    fan_prim = rng.integers(-1, c.faces.shape[0], 400).astype(np.int32)
+    aimed = rng.random((8, aim.objects.size)) < 0.6
+    w = rng.random(400)
+    got = w.copy()
+    K.drop_aimed(ray_start, fan_prim, c.face_object, aim.cand_of_object, aimed, got)
+    expect = naive.drop_aimed(ray_start, fan_prim, c.face_object, aim.cand_of_object, aimed, w)
+    np.testing.assert_array_equal(got, expect)
+    assert (got == 0).any() and (got > 0).any()

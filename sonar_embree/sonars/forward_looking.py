@@ -163,6 +163,7 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
     steering direction, and the object echoes beamformed as the record is (:attr:`beam_power`)."""
 
     supports_labels = True
+    aims = False  # its echoes are synthesised per azimuth line: an aimed echo has no line (issue 34, open)
 
     def __init__(self, sonar: ForwardLooking, fan: FanSettings):
         if sonar.environment.surface is not None and not sonar.environment.surface.is_flat:

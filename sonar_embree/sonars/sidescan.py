@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from .. import multipath, refraction, swell
+from ..aim import AimPlan
 from ..buffers import Buffers
 from ..config import FanSettings, Sonar
 from ..echoes import Echoes
@@ -25,6 +26,8 @@ class SideScanFrontEnd:
 
     channels = ("port", "starboard")
     supports_labels = True
+    #: Whether rays are aimed at the scene's objects (:mod:`sonar_embree.aim`) besides the fan's.
+    aims = True
 
     def __init__(self, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1):
         self.sonar = sonar
@@ -32,6 +35,16 @@ class SideScanFrontEnd:
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         env = sonar.environment
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
+        self.quality, self.aims = fan.quality, self.aims and fan.aim_objects
+        self._aim = (None, None)  # (compiled scene, its AimPlan)
+
+    def aim_plan(self, compiled) -> AimPlan | None:
+        """The objects of ``compiled`` to aim rays at (built once per compiled scene); None for none."""
+        if not self.aims:
+            return None
+        if self._aim[0] is not compiled:
+            self._aim = (compiled, AimPlan.build(compiled, self.plan, self.quality))
+        return self._aim[1]
 
     def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
              want_ids: bool, clock: dict, rx_shift: np.ndarray | None = None):
@@ -61,10 +74,14 @@ class SideScanFrontEnd:
             return self._rows(echoes_of(blk, caster.compiled.face_object if want_ids else None), blk.el_start), blk
         blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
                          2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
-                         timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift)
+                         timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift,
+                         aim=self.aim_plan(caster.compiled))
         ids = caster.compiled.face_object if want_ids else None
         if surface is None:
-            return self._rows(echoes_of(blk, ids), blk.el_start), blk
+            direct = self._rows(echoes_of(blk, ids), blk.el_start)
+            if blk.aimed is None:
+                return direct, blk
+            return multipath.PathEchoes([direct, blk.aimed.echoes], want_points, None, (0, 0)), blk
         return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
 
     def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
@@ -90,6 +107,8 @@ class SideScanFrontEnd:
                                                 ids is not None, clock, rx_shift)
             parts, layouts, paths = parts + [line], layouts + [lblk.el_start], (0, 1, 2, 0)
         parts = [self._rows(e, el) for e, el in zip(parts, layouts)]
+        if blk.aimed is not None:                     # the rays aimed at objects: direct echoes too
+            parts, paths = parts + [blk.aimed.echoes], (paths or (0, 1, 2)) + (0,)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
         return multipath.PathEchoes(parts, want_points, self.buffers, paths)
@@ -105,4 +124,4 @@ def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes
     ids = np.zeros(0, dtype=np.int32)
     if face_object is not None:
         ids = np.where((blk.prim >= 0) & (blk.weight > 0), face_object[np.maximum(blk.prim, 0)], -1).astype(np.int32)
-    return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, blk.weight, blk.point_m, ids)
+    return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, blk.echo_weight, blk.point_m, ids)

@@ -1,0 +1,145 @@
+"""Rays aimed at the objects: every object in the beam is seen, whatever the fan's line spacing (docs/physics.md §7b).
+
+The fan (:mod:`sonar_embree.fan`) places its rays where the floor needs them; an object narrower than its
+azimuth-line spacing is sampled by luck. Each row (ping, side) therefore also aims a lattice of rays at every
+object that is not seafloor and can echo inside the range window and the row's span: a uniform grid of cells in
+the fan's own coordinates (s, β), whose solid angle is exactly ds·dβ, tiling the part of the object's bounding
+cone inside the span, fine enough for ``n_across`` rays across the cone each way, the fan's largest steps and
+one ray per wanted range step over the object's depth. The integral of eq. (1) is split exactly by what each
+direction hits first: an aimed ray counts only where it hits its own object first, and the fan's rays that hit
+an aimed object first count nothing (:func:`kernels.drop_aimed`). The lattice moves with the object in every ping,
+so an object's echo changes smoothly from ping to ping. An object too big for ``max_rays`` (or holding the
+sonar) is left to the fan, whose probes see it.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import checks
+from .echoes import Echoes
+from .kernels import aim as K
+from .laws import apply_laws
+
+#: Rays across an object's bounding cone, each way, at quality 1 (× √quality).
+RAYS_ACROSS = 16
+#: The most rays one object gets in one row at quality 1 (× quality); a bigger object is left to the fan.
+MAX_RAYS = 4096
+
+
+@dataclass(frozen=True, eq=False)
+class AimPlan:
+    """The candidates of a compiled scene (objects not seafloor) and the density of their lattices."""
+
+    objects: np.ndarray          # (k,) int32 scene object of each candidate
+    centre: np.ndarray           # (k, 3) float64 bounding-sphere centre, local frame, m
+    radius: np.ndarray           # (k,) float64 bounding-sphere radius, m
+    cand_of_object: np.ndarray   # (n_objects,) int32 candidate of each object, −1 for none
+    span: np.ndarray             # (7,) see kernels.aim.aim_lattices
+    sides: np.ndarray            # (2,) bool
+    n_across: float
+    dr_m: float
+    max_rays: float
+
+    @classmethod
+    def build(cls, compiled, plan, quality: float) -> "AimPlan | None":
+        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.fan.FanPlan`); None when every
+        object is seafloor (nothing to aim at: the fan alone, at no cost)."""
+        objects = np.flatnonzero(~np.asarray(compiled.is_seafloor)).astype(np.int32)
+        if objects.size == 0:
+            return None
+        centre, radius = bounding_spheres(compiled)
+        cand = np.full(len(compiled.labels), -1, dtype=np.int32)
+        cand[objects] = np.arange(objects.size, dtype=np.int32)
+        span = np.array([plan.s[0] - 0.5 * plan.ds, plan.s[-1] + 0.5 * plan.ds, plan.probe_beta[0],
+                         plan.probe_beta[-1], 0.0, plan.ds, plan.max_step_rad])
+        q = float(quality)
+        return cls(objects, centre[objects], radius[objects], cand, span, np.asarray(plan.sides, dtype=bool),
+                   float(math.ceil(RAYS_ACROSS * math.sqrt(q))), plan.dr_target_m, float(MAX_RAYS * max(q, 1.0)))
+
+
+def bounding_spheres(compiled):
+    """((n_objects, 3) centres, (n_objects,) radii) of the objects' bounding spheres: the centre of each object's
+    box and the farthest of its vertices from it (m, local frame; made once per compiled scene)."""
+    cache = compiled.__dict__
+    if "_bounding_spheres" not in cache:
+        box = compiled.object_bounds
+        centre = 0.5 * (box[:, 0] + box[:, 1])
+        obj = np.repeat(compiled.face_object, 3)
+        v = compiled.vertices[compiled.faces.ravel()]
+        r2 = np.zeros(len(compiled.labels))
+        np.maximum.at(r2, obj, ((v - centre[obj]) ** 2).sum(axis=1))
+        cache["_bounding_spheres"] = (centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6)
+    return cache["_bounding_spheres"]
+
+
+@dataclass(frozen=True, eq=False)
+class AimedEchoes:
+    """A block's aimed rays: their echoes (in the fan's rows), which candidates each row aims at, rays per ping."""
+
+    echoes: Echoes
+    aimed: np.ndarray    # (rows, k) bool
+    n_rays: np.ndarray   # (pings,) int64
+    seconds_cast: float  # in the caster
+
+
+def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tuple, max_range_m: float,
+              want_points: bool, frequency_hz: float, face_object_ids: bool = True) -> AimedEchoes:
+    """Lattices, casts and echoes of every object aimed at in a block of pings.
+
+    Parameters
+    ----------
+    caster : Caster
+    aim : AimPlan
+    plan : FanPlan
+    rot : (pings, 3, 3) float64; pos_local : (pings, 3) float64; rx_shift : (pings,) float64
+        As for :func:`sonar_embree.fan.cast_block`.
+    consts : tuple
+        As for :func:`sonar_embree.kernels.hit_terms` (its R_max the range searched).
+    max_range_m : float
+        Range searched, m.
+    want_points : bool
+        Keep the hit points (speckle, maps, textures).
+    frequency_hz : float
+        The carrier, for the laws.
+    face_object_ids : bool
+        Tag each echo with its object (always cheap here: every aimed echo is on its own object).
+    """
+    n_p, k = rot.shape[0], aim.objects.size
+    span = aim.span.copy()
+    span[4] = max_range_m
+    table = np.empty((2 * n_p, k, K.LATTICE_WIDTH))
+    K.aim_lattices(aim.centre, aim.radius, rot, pos_local, aim.sides, span, rx_shift, aim.n_across, aim.dr_m,
+                   aim.max_rays, table)
+    counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
+    start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
+    n = int(start[-1])
+    checks.check_rays_memory(n, n_p, "the rays aimed at objects")
+    dirs, org = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32)
+    K.aim_rays(table, start, rot, pos_local, dirs, org)
+    t = time.perf_counter()
+    prim, tfar = caster.cast_raw(org, dirs, max_range_m)
+    seconds = time.perf_counter() - t
+    c = caster.compiled
+    rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
+    K.aim_echoes(table, start, aim.objects, rot, pos_local, rx_shift, prim, tfar, c.face_object, c.vertices, c.faces,
+                 c.face_normals, c.face_two_sided, plan.beam, consts, rng, t_s, ext, w, cos_i, pts)
+    apply_laws(c, frequency_hz, prim, cos_i, w, pts)
+    if not plan.footprint:
+        ext[:] = 0.0
+    ids = (np.repeat(np.tile(aim.objects, 2 * n_p), counts.ravel()) if face_object_ids
+           else np.zeros(0, dtype=np.int32))
+    ray_start = start[::k] if k else np.zeros(2 * n_p + 1, dtype=np.int64)
+    echoes = Echoes(2, np.ascontiguousarray(ray_start), t_s, ext, w, pts, ids.astype(np.int32))
+    return AimedEchoes(echoes, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
+
+
+def drop_aimed(caster, aim: AimPlan, ray_start, prim, weight, aimed) -> np.ndarray:
+    """A copy of the fan's ``weight`` without the hits on objects their rows aim at (:func:`kernels.aim.drop_aimed`)."""
+    out = weight.copy()
+    K.drop_aimed(ray_start, prim, caster.compiled.face_object, aim.cand_of_object, aimed, out)
+    return out

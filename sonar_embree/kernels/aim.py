@@ -1,0 +1,246 @@
+"""Kernels of the object-aimed rays (docs/physics.md §7b): which objects each row's beam can see, the lattice of
+rays aimed at each, their echoes, and the fan's hits those lattices replace.
+
+A row is (ping, side) as in the fan (r = 2·b + side). Its body-frame directions are
+(s, side·√(1 − s²)·cos β, √(1 − s²)·sin β), whose solid angle element is exactly ds·dβ; an object's lattice is a
+uniform grid of cells in (s, β) tiling the part of the object's bounding cone inside the row's span, so its
+weights are exact solid angles, as the fan's are.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._numba import njit, prange
+from .rays import _sinc, hit_terms
+
+#: Columns of the lattice table: first s, s step, first β, β step (rad), rays in s, rays in β.
+S0, HS, B0, HB, NS, NB = range(6)
+LATTICE_WIDTH = 6
+
+
+@njit(cache=True, nogil=True)
+def _lattice(v0, v1, v2, side, radius, span, rx, n_across, dr_m, max_rays, out):
+    """The lattice of one object (bounding sphere of ``radius`` at body-frame offset v) in one row; NS = 0 when it
+    gets none (out of range or span, the sonar inside its sphere, or too big to aim at: the fan sees it).
+    ``span`` = (s_lo, s_hi, β_lo, β_hi, max range, along-track step cap, elevation step cap); ``rx`` the row's
+    receive shift δ (the span widens to cover the receive lobe too)."""
+    out[NS] = 0.0
+    out[NB] = 0.0
+    d = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if d <= radius * (1.0 + 1e-9) or d - radius > span[4]:
+        return
+    sin_g = radius / d
+    gam = math.asin(sin_g)
+    sc = v0 / d
+    cpsi = math.sqrt(max(1.0 - sc * sc, 0.0))
+    if sin_g >= 0.999 * cpsi:                       # the cone holds the along-track axis: no β interval
+        return
+    dbeta = math.asin(sin_g / cpsi)
+    bc = math.atan2(v2, side * v1)
+    s_lo = max(sc - gam, span[0] + min(rx, 0.0))
+    s_hi = min(sc + gam, span[1] + max(rx, 0.0))
+    b_lo = max(bc - dbeta, span[2])
+    b_hi = min(bc + dbeta, span[3])
+    if not (s_hi > s_lo and b_hi > b_lo):
+        return
+    h = 2.0 * gam / n_across
+    hs = min(h, span[5])
+    hb = min(h, span[6], 2.0 * gam * dr_m / (2.0 * radius))  # rays every dr in range over the object's depth
+    ns = math.ceil((s_hi - s_lo) / hs - 1e-9)
+    nb = math.ceil((b_hi - b_lo) / hb - 1e-9)
+    if ns * nb > max_rays:                          # too big to aim at: the fan's own rays see it
+        return
+    out[S0] = s_lo
+    out[HS] = (s_hi - s_lo) / ns
+    out[B0] = b_lo
+    out[HB] = (b_hi - b_lo) / nb
+    out[NS] = ns
+    out[NB] = nb
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m, max_rays, table):
+    """The lattice of every candidate object in every row of a block.
+
+    Parameters
+    ----------
+    centre : (k, 3) float64
+        Bounding-sphere centres of the candidate objects, local frame, m.
+    radius : (k,) float64
+        Their radii, m.
+    rot : (pings, 3, 3) float64
+        Body-to-world rotations.
+    pos : (pings, 3) float64
+        Sonar positions, local frame, m.
+    sides : (2,) bool
+        Which sides (port, starboard) have rays.
+    span : (7,) float64
+        s_lo, s_hi (the fan's along-track cells), β_lo, β_hi (its elevation span, rad), the range searched (m),
+        the largest along-track step (the fan's ds) and the largest elevation step (rad).
+    rx_shift : (pings,) float64
+        δ per ping (motion during the ping): the span reaches δ further on that side.
+    n_across : float
+        Rays across an object's bounding cone (each direction).
+    dr_m : float
+        Wanted range step between neighbouring elevation rays on an object, m.
+    max_rays : float
+        An object needing more rays than this in a row is left to the fan.
+    table : (2·pings, k, LATTICE_WIDTH) float64
+        Written: each lattice (:data:`S0` … :data:`NB`); NS = 0 where none.
+    """
+    for r in prange(table.shape[0]):
+        b = r // 2
+        side = 1.0 if r % 2 else -1.0
+        for k in range(table.shape[1]):
+            table[r, k, NS] = 0.0
+            table[r, k, NB] = 0.0
+            if not sides[r % 2]:
+                continue
+            w0 = centre[k, 0] - pos[b, 0]
+            w1 = centre[k, 1] - pos[b, 1]
+            w2 = centre[k, 2] - pos[b, 2]
+            v0 = rot[b, 0, 0] * w0 + rot[b, 1, 0] * w1 + rot[b, 2, 0] * w2    # Rᵀ·w: body frame
+            v1 = rot[b, 0, 1] * w0 + rot[b, 1, 1] * w1 + rot[b, 2, 1] * w2
+            v2 = rot[b, 0, 2] * w0 + rot[b, 1, 2] * w1 + rot[b, 2, 2] * w2
+            _lattice(v0, v1, v2, side, radius[k], span, rx_shift[b], n_across, dr_m, max_rays, table[r, k])
+
+
+@njit(cache=True, nogil=True)
+def _direction(table, r, k, j):
+    """(s, cos β, sin β, side) of ray j of lattice (r, k): s-major, β fastest."""
+    nb = int(table[r, k, NB])
+    sa = table[r, k, S0] + (j // nb + 0.5) * table[r, k, HS]
+    be = table[r, k, B0] + (j % nb + 0.5) * table[r, k, HB]
+    return sa, math.cos(be), math.sin(be), 1.0 if r % 2 else -1.0
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def aim_rays(table, start, rot, pos, dirs, origins):
+    """Float32 origins and world directions of every aimed ray of a block.
+
+    Parameters
+    ----------
+    table : (rows, k, LATTICE_WIDTH) float64
+        The lattices (:func:`aim_lattices`).
+    start : (rows·k + 1,) int64
+        Offset of lattice (r, k)'s rays at r·k + k (its NS·NB rays).
+    rot, pos
+        As for :func:`aim_lattices`.
+    dirs, origins : (start[-1], 3) float32
+        Written.
+    """
+    n_k = table.shape[1]
+    for r in prange(table.shape[0]):
+        b = r // 2
+        for k in range(n_k):
+            base = start[r * n_k + k]
+            for j in range(start[r * n_k + k + 1] - base):
+                sa, cb, sb, side = _direction(table, r, k, j)
+                cpsi = math.sqrt(1.0 - sa * sa)
+                d0, d1, d2 = sa, side * cpsi * cb, cpsi * sb
+                for q in range(3):
+                    dirs[base + j, q] = rot[b, q, 0] * d0 + rot[b, q, 1] * d1 + rot[b, q, 2] * d2
+                    origins[base + j, q] = pos[b, q]
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def aim_echoes(table, start, cand_object, rot, pos, rx_shift, prim, tfar, face_object, vertices, faces, face_normals,
+               face_two_sided, beam, consts, range_out, time_out, extent_out, weight_out, cos_out, points_out):
+    """Echoes of the aimed rays: a ray counts only where its first hit is on the object it was aimed at (what it
+    hits first elsewhere is the fan's), with the fan's physics per hit (:func:`~.rays.hit_terms`).
+
+    Parameters
+    ----------
+    table, start
+        As for :func:`aim_rays`.
+    cand_object : (k,) int32
+        Scene object of each candidate.
+    rx_shift : (pings,) float64
+        δ per ping.
+    prim, tfar : (n,) int32, float32
+        Embree's hits.
+    face_object : (f,) int32
+    vertices, faces, face_normals, face_two_sided
+        The scene, as for :func:`~.rays.fan_echoes`.
+    beam : (4,) float64
+        k·lx/2, k·ly/2, tilt, 0.
+    consts : tuple
+        As for :func:`~.rays.hit_terms`.
+    range_out, time_out, extent_out, weight_out, cos_out : (n,) float64
+        Written as by :func:`~.rays.fan_echoes` (no echo: inf, weight 0).
+    points_out : (n, 3) or (0, 3) float64
+        Written with the hit points when it has n rows.
+    """
+    n_k = table.shape[1]
+    want_points = points_out.shape[0] == range_out.shape[0]
+    for r in prange(table.shape[0]):
+        b = r // 2
+        for k in range(n_k):
+            base = start[r * n_k + k]
+            for j in range(start[r * n_k + k + 1] - base):
+                i = base + j
+                range_out[i] = math.inf
+                time_out[i] = math.inf
+                extent_out[i] = 0.0
+                weight_out[i] = 0.0
+                cos_out[i] = 0.0
+                if want_points:
+                    points_out[i, 0] = 0.0
+                    points_out[i, 1] = 0.0
+                    points_out[i, 2] = 0.0
+                t = prim[i]
+                if t < 0 or face_object[t] != cand_object[k]:
+                    continue
+                sa, cb, sb, side = _direction(table, r, k, j)
+                cpsi = math.sqrt(1.0 - sa * sa)
+                e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
+                f1, f2 = -side * cpsi * sb, cpsi * cb
+                dn, num, fn = 0.0, 0.0, 0.0
+                for q in range(3):
+                    nq = face_normals[t, q]
+                    dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
+                    num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
+                    fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
+                rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb,
+                                               _sinc(beam[0] * sa), _sinc(beam[0] * (sa - rx_shift[b])),
+                                               table[r, k, HS], table[r, k, HB], consts)
+                if cos_i == 0.0:
+                    continue
+                range_out[i] = rr
+                time_out[i] = rr * consts[7]
+                weight_out[i] = wt
+                cos_out[i] = cos_i
+                extent_out[i] = ext
+                if want_points:
+                    for q in range(3):
+                        points_out[i, q] = pos[b, q] + rr * (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def drop_aimed(ray_start, prim, face_object, cand_of_object, aimed, weight):
+    """Zero, in place, the weight of every fan ray whose first hit is on an object its row aims at (the aimed
+    lattice counts that part of the integral instead: no double counting).
+
+    Parameters
+    ----------
+    ray_start : (rows + 1,) int64
+        The fan's row offsets.
+    prim : (n,) int32
+        The fan's hits.
+    face_object : (f,) int32
+    cand_of_object : (n_objects,) int32
+        Candidate index of each object, −1 for none.
+    aimed : (rows, k) bool
+        Which candidates each row aims at.
+    weight : (n,) float64
+        The fan's weights, modified.
+    """
+    for r in prange(ray_start.shape[0] - 1):
+        for i in range(ray_start[r], ray_start[r + 1]):
+            t = prim[i]
+            if t >= 0:
+                k = cand_of_object[face_object[t]]
+                if k >= 0 and aimed[r, k]:
+                    weight[i] = 0.0
