@@ -81,6 +81,7 @@ class AimedEchoes:
     """A block's aimed rays: their echoes (in the fan's rows), which candidates each row aims at, rays per ping."""
 
     echoes: Echoes
+    s: np.ndarray        # (n,) along-track direction cosine of each echo's ray
     aimed: np.ndarray    # (rows, k) bool
     n_rays: np.ndarray   # (pings,) int64
     seconds_cast: float  # in the caster
@@ -118,8 +119,8 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
     start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
     n = int(start[-1])
     checks.check_rays_memory(n, n_p, "the rays aimed at objects")
-    dirs, org = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32)
-    K.aim_rays(table, start, rot, pos_local, dirs, org)
+    dirs, org, s = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32), np.empty(n)
+    K.aim_rays(table, start, rot, pos_local, dirs, org, s)
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     seconds = time.perf_counter() - t
@@ -135,7 +136,7 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
            else np.zeros(0, dtype=np.int32))
     ray_start = start[::k] if k else np.zeros(2 * n_p + 1, dtype=np.int64)
     echoes = Echoes(2, np.ascontiguousarray(ray_start), t_s, ext, w, pts, ids.astype(np.int32))
-    return AimedEchoes(echoes, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
+    return AimedEchoes(echoes, s, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
 
 
 def drop_aimed(caster, aim: AimPlan, ray_start, prim, weight, aimed) -> np.ndarray:

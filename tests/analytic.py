@@ -108,3 +108,35 @@ def kirchhoff_monostatic(theta_rad, r0, slope_rms):
     σ(θ) = R0²/(8π s²) · sec⁴θ · exp(−tan²θ / (2 s²))."""
     t = np.asarray(theta_rad, dtype=float)
     return r0 ** 2 / (8 * np.pi * slope_rms ** 2) / np.cos(t) ** 4 * np.exp(-np.tan(t) ** 2 / (2 * slope_rms ** 2))
+
+
+def sidescan_gamma(u, ping):
+    """Γ of the default side-scan on a line along +x (heading 90°: forward +x, starboard −y, down −z)."""
+    return gamma_membrane(u[:, 0], np.abs(u[:, 1]), -u[:, 2])
+
+
+def sphere_quadrature(a, centre, positions, alpha_db_m, mu_db, n=240, gamma=sidescan_gamma):
+    """Echo energy of a Lambertian sphere (docs/physics.md §7b), per ping:
+
+        E = ∫ Γ⁴(u) μ cos²θi 10^(−2αR/10) / R⁴ dA
+
+    over its lit surface above z = 0 (the floor), midpoint rule on an n × 2n (polar, azimuth) grid; for a sphere
+    small against the beam E → Γ⁴·10^(−2αR/10)·(2πa²μ/3)/R⁴. ``positions`` (pings, 3) the sonar's;
+    ``gamma(u, ping)`` the one-way gain of world unit directions u (m, 3) at a ping."""
+    th = (np.arange(n) + 0.5) * np.pi / n
+    ph = (np.arange(2 * n) + 0.5) * np.pi / n
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    nrm = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3)
+    dA = (a * a * np.sin(T) * (np.pi / n) ** 2).ravel()
+    pt = np.asarray(centre) + a * nrm
+    out = []
+    for i, p in enumerate(positions):
+        v = pt - p
+        R = np.linalg.norm(v, axis=1)
+        u = v / R[:, None]
+        ci = -(u * nrm).sum(axis=1)
+        lit = (ci > 0) & (pt[:, 2] >= 0.0)
+        g = gamma(u, i)
+        f = g ** 4 * 10 ** (mu_db / 10) * ci ** 2 * 10 ** (-2 * alpha_db_m * R / 10) / R ** 4 * dA
+        out.append(f[lit].sum())
+    return np.array(out)

@@ -346,9 +346,11 @@ def test_aim_kernels_match_naive(rng):
     counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
     start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
     n = int(start[-1])
-    dirs, org = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32)
-    K.aim_rays(table, start, rot, pos, dirs, org)
+    dirs, org, s_ray = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n)
+    K.aim_rays(table, start, rot, pos, dirs, org, s_ray)
     np.testing.assert_allclose(dirs, naive.aim_directions(table, rot), atol=1e-6)
+    np.testing.assert_allclose(s_ray, naive.aim_directions(table, np.tile(np.eye(3), (rot.shape[0], 1, 1)))[:, 0],
+                               rtol=1e-12, atol=1e-15)
     prim, tfar = caster.cast_raw(org, dirs, 50.0)
 
     out = [np.empty(n) for _ in range(5)]

@@ -117,7 +117,7 @@ def _direction(table, r, k, j):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def aim_rays(table, start, rot, pos, dirs, origins):
+def aim_rays(table, start, rot, pos, dirs, origins, s_out):
     """Float32 origins and world directions of every aimed ray of a block.
 
     Parameters
@@ -130,6 +130,8 @@ def aim_rays(table, start, rot, pos, dirs, origins):
         As for :func:`aim_lattices`.
     dirs, origins : (start[-1], 3) float32
         Written.
+    s_out : (start[-1],) float64
+        Written with each ray's along-track direction cosine s (a beamformer's line interpolation needs it).
     """
     n_k = table.shape[1]
     for r in prange(table.shape[0]):
@@ -138,6 +140,7 @@ def aim_rays(table, start, rot, pos, dirs, origins):
             base = start[r * n_k + k]
             for j in range(start[r * n_k + k + 1] - base):
                 sa, cb, sb, side = _direction(table, r, k, j)
+                s_out[base + j] = sa
                 cpsi = math.sqrt(1.0 - sa * sa)
                 d0, d1, d2 = sa, side * cpsi * cb, cpsi * sb
                 for q in range(3):

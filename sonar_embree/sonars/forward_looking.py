@@ -29,7 +29,7 @@ import numpy as np
 
 from .. import beam
 from ..config import FanSettings, Sonar, Transducer
-from ..echoes import Echoes
+from ..echoes import Echoes, row_of, row_starts
 from ..environment import Environment
 from ..errors import ConfigError
 from ..receiver import Receiver
@@ -163,7 +163,6 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
     steering direction, and the object echoes beamformed as the record is (:attr:`beam_power`)."""
 
     supports_labels = True
-    aims = False  # its echoes are synthesised per azimuth line: an aimed echo has no line (issue 34, open)
 
     def __init__(self, sonar: ForwardLooking, fan: FanSettings):
         if sonar.environment.surface is not None and not sonar.environment.surface.is_flat:
@@ -195,6 +194,29 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
         """The side-scan layout's echoes (aligned with its rays) as one row per ping and azimuth line."""
         return dataclasses.replace(e, n_channels=self.n_synth_channels,
                                    ray_start=azimuth_rows(el_start, self.plan.s.shape[0]))
+
+    def _aimed_rows(self, aimed) -> Echoes:
+        """The aimed rays' echoes shared between the two azimuth lines around each one's direction, linearly in s
+        (weights 1 − f and f, f its fractional position between the lines): the beamformer then weighs it with AF²
+        interpolated between the lines, so its response moves smoothly with its bearing (no snapping to a line,
+        no dark bearing between lines; docs/physics.md §7b)."""
+        e = aimed.echoes
+        lit = np.flatnonzero(e.weight > 0.0)
+        n_az = self.plan.s.shape[0]
+        p = (aimed.s[lit] - self.plan.s[0]) / self.plan.ds
+        a = np.clip(np.floor(p), 0, n_az - 2).astype(np.int64)
+        f = np.clip(p - a, 0.0, 1.0)
+        ping = row_of(e.ray_start)[lit] // 2
+        rows = np.concatenate([ping * n_az + a, ping * n_az + a + 1])
+        order = np.argsort(rows, kind="stable")
+        src = np.concatenate([lit, lit])[order]
+        w = np.concatenate([e.weight[lit] * (1.0 - f), e.weight[lit] * f])[order]
+        start = row_starts(rows[order], n_az * (e.ray_start.shape[0] - 1) // 2)
+
+        def part(x):
+            return x[src] if x.shape[0] == e.weight.shape[0] else x
+
+        return Echoes(n_az, start, e.travel_time_s[src], e.extent_s[src], w, part(e.point_m), part(e.object_id))
 
     def beamform(self, intensity, cplx, noise):
         """Beams (pings, n_beams, n_s) from the azimuth lines' intensities and, for coherent speckle, their complex

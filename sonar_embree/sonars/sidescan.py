@@ -81,7 +81,7 @@ class SideScanFrontEnd:
             direct = self._rows(echoes_of(blk, ids), blk.el_start)
             if blk.aimed is None:
                 return direct, blk
-            return multipath.PathEchoes([direct, blk.aimed.echoes], want_points, None, (0, 0)), blk
+            return multipath.PathEchoes([direct, self._aimed_rows(blk.aimed)], want_points, None, (0, 0)), blk
         return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
 
     def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
@@ -108,10 +108,15 @@ class SideScanFrontEnd:
             parts, layouts, paths = parts + [line], layouts + [lblk.el_start], (0, 1, 2, 0)
         parts = [self._rows(e, el) for e, el in zip(parts, layouts)]
         if blk.aimed is not None:                     # the rays aimed at objects: direct echoes too
-            parts, paths = parts + [blk.aimed.echoes], (paths or (0, 1, 2)) + (0,)
+            parts, paths = parts + [self._aimed_rows(blk.aimed)], (paths or (0, 1, 2)) + (0,)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
         return multipath.PathEchoes(parts, want_points, self.buffers, paths)
+
+    def _aimed_rows(self, aimed) -> Echoes:
+        """The echoes of the rays aimed at objects (:class:`~sonar_embree.aim.AimedEchoes`) in this type's rows (the
+        side-scan's: as cast)."""
+        return aimed.echoes
 
     def _rows(self, e: Echoes, el_start) -> Echoes:
         """A path's echoes in this type's rows (the side-scan's: two per ping, as cast); ``el_start`` the layout
