@@ -48,17 +48,26 @@ class AimPlan:
     def build(cls, compiled, plan, quality: float) -> "AimPlan | None":
         """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.fan.FanPlan`); None when every
         object is seafloor (nothing to aim at: the fan alone, at no cost)."""
+        span = (plan.s[0] - 0.5 * plan.ds, plan.s[-1] + 0.5 * plan.ds, plan.probe_beta[0], plan.probe_beta[-1],
+                plan.ds, plan.max_step_rad)
+        return cls.of(compiled, span, plan.sides, quality, plan.dr_target_m)
+
+    @classmethod
+    def of(cls, compiled, span, sides, quality: float, dr_m: float) -> "AimPlan | None":
+        """The plan of ``compiled`` for rows whose directions (s, ±√(1 − s²)·cos β, √(1 − s²)·sin β) span
+        ``span`` = (s_lo, s_hi, β_lo, β_hi, largest s step, largest β step) on the ``sides`` (port, starboard)
+        that have rays, with ``dr_m`` the wanted range step; None when every object is seafloor."""
         objects = np.flatnonzero(~np.asarray(compiled.is_seafloor)).astype(np.int32)
         if objects.size == 0:
             return None
         centre, radius = bounding_spheres(compiled)
         cand = np.full(len(compiled.labels), -1, dtype=np.int32)
         cand[objects] = np.arange(objects.size, dtype=np.int32)
-        span = np.array([plan.s[0] - 0.5 * plan.ds, plan.s[-1] + 0.5 * plan.ds, plan.probe_beta[0],
-                         plan.probe_beta[-1], 0.0, plan.ds, plan.max_step_rad])
+        s_lo, s_hi, b_lo, b_hi, hs, hb = (float(x) for x in span)
         q = float(quality)
-        return cls(objects, centre[objects], radius[objects], cand, span, np.asarray(plan.sides, dtype=bool),
-                   float(math.ceil(RAYS_ACROSS * math.sqrt(q))), plan.dr_target_m, float(MAX_RAYS * max(q, 1.0)))
+        return cls(objects, centre[objects], radius[objects], cand, np.array([s_lo, s_hi, b_lo, b_hi, 0.0, hs, hb]),
+                   np.asarray(sides, dtype=bool), float(math.ceil(RAYS_ACROSS * math.sqrt(q))), float(dr_m),
+                   float(MAX_RAYS * max(q, 1.0)))
 
 
 def bounding_spheres(compiled):
@@ -110,20 +119,11 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
         Tag each echo with its object (always cheap here: every aimed echo is on its own object).
     """
     n_p, k = rot.shape[0], aim.objects.size
-    span = aim.span.copy()
-    span[4] = max_range_m
-    table = np.empty((2 * n_p, k, K.LATTICE_WIDTH))
-    K.aim_lattices(aim.centre, aim.radius, rot, pos_local, aim.sides, span, rx_shift, aim.n_across, aim.dr_m,
-                   aim.max_rays, table)
-    counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
-    start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
-    n = int(start[-1])
-    checks.check_rays_memory(n, n_p, "the rays aimed at objects")
-    dirs, org, s = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32), np.empty(n)
-    K.aim_rays(table, start, rot, pos_local, dirs, org, s)
+    table, start, counts, dirs, org, s = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     seconds = time.perf_counter() - t
+    n = s.shape[0]
     c = caster.compiled
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
@@ -137,6 +137,24 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
     ray_start = start[::k] if k else np.zeros(2 * n_p + 1, dtype=np.int64)
     echoes = Echoes(2, np.ascontiguousarray(ray_start), t_s, ext, w, pts, ids.astype(np.int32))
     return AimedEchoes(echoes, s, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
+
+
+def lattice_rays(aim: AimPlan, rot, pos_local, rx_shift, max_range_m: float):
+    """The lattices of a block and their rays: (table (2·pings, k, LATTICE_WIDTH), ray offsets (2·pings·k + 1,),
+    rays per lattice (2·pings, k), float32 directions and origins (n, 3), along-track cosines s (n,))."""
+    n_p, k = rot.shape[0], aim.objects.size
+    span = aim.span.copy()
+    span[4] = max_range_m
+    table = np.empty((2 * n_p, k, K.LATTICE_WIDTH))
+    K.aim_lattices(aim.centre, aim.radius, rot, pos_local, aim.sides, span, rx_shift, aim.n_across, aim.dr_m,
+                   aim.max_rays, table)
+    counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
+    start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
+    n = int(start[-1])
+    checks.check_rays_memory(n, n_p, "the rays aimed at objects")
+    dirs, org, s = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32), np.empty(n)
+    K.aim_rays(table, start, rot, pos_local, dirs, org, s)
+    return table, start, counts, dirs, org, s
 
 
 def drop_aimed(caster, aim: AimPlan, ray_start, prim, weight, aimed) -> np.ndarray:

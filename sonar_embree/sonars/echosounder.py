@@ -17,7 +17,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import j1
 
+from .. import multipath
+from ..aim import AimPlan, lattice_rays
 from ..config import FanSettings, Transducer
+from ..kernels import aim as aim_kernels
 from ..receiver import Receiver
 from ..echoes import Echoes
 from ..environment import Environment
@@ -122,6 +125,30 @@ class EchoSounderFrontEnd:
         self.gain4 = sonar.directivity(self.theta) ** 4
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
+        self.span_rad, self.quality, self.aims = span, fan.quality, fan.aim_objects
+        self._aim = (None, None)  # (compiled scene, its AimPlan)
+
+    def aim_plan(self, compiled) -> AimPlan | None:
+        """The objects of ``compiled`` to aim rays at (docs/physics.md §7b), in the side-scan's coordinates about
+        the forward axis: s = u_fwd, β the depression in each side's half (β = 90° straight down), over the cone's
+        span; None for none."""
+        if not self.aims:
+            return None
+        if self._aim[0] is not compiled:
+            sp = self.span_rad
+            span = (-math.sin(sp), math.sin(sp), 0.5 * math.pi - sp, 0.5 * math.pi, self.d_theta, self.d_theta)
+            dr = self.sonar.sound_speed_m_s / (2.0 * self.sonar.sample_rate_hz) / self.quality
+            self._aim = (compiled, AimPlan.of(compiled, span, (True, True), self.quality, dr))
+        return self._aim[1]
+
+    def _gain_of(self, body: np.ndarray, rx_shift: np.ndarray | None) -> np.ndarray:
+        """b²(θ)·b²(θ_rx) of body-frame unit directions (n, 3) (``rx_shift`` (n,) per direction, or None)."""
+        theta = np.arccos(np.clip(body[:, 2], -1.0, 1.0))
+        b = self.sonar.directivity(theta)
+        if rx_shift is None or not np.any(rx_shift):
+            return b ** 4
+        b_rx = self.sonar.directivity(np.arcsin(np.minimum(np.hypot(body[:, 0] - rx_shift, body[:, 1]), 1.0)))
+        return b * b * b_rx * b_rx
 
     def _gain(self, rx_shift, n_p: int) -> np.ndarray:
         """b⁴·dΩ of every ray of the block, (n_p·n,); moving during the ping (``rx_shift`` (n_p,) δ = 2·v_fwd/c, not
@@ -136,29 +163,72 @@ class EchoSounderFrontEnd:
 
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """Echoes of a block of pings (one channel each); arguments as for the side-scan front end, ``rx_shift``
-        the receiver's motion during the ping (see :meth:`_gain`)."""
+        the receiver's motion during the ping (see :meth:`_gain`). With objects to aim at, their aimed rays'
+        echoes join the rings' (whose hits on those objects then count nothing; docs/physics.md §7b)."""
         n_p, n = rot.shape[0], self.body.shape[0]
         u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
         f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)
         hits = caster.cast(np.repeat(pos_local, n, axis=0), u, max_range_m)
+        w, ext, pts = self._weights(caster, hits, u, f, np.repeat(pos_local, n, axis=0),
+                                    self._gain(rx_shift, n_p), self.d_theta, want_points)
+        ids = np.where((w > 0), hits.object_id, -1).astype(np.int32) if want_ids else np.zeros(0, np.int32)
+        nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
+        per_m = 2.0 / self.sonar.sound_speed_m_s
+        r = np.where(w > 0, hits.range_m, np.inf)
+        rings = Echoes(1, np.arange(n_p + 1, dtype=np.int64) * n, r * per_m, ext * per_m, w, pts, ids)
+        aim = self.aim_plan(caster.compiled)
+        if aim is None:
+            return rings, _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
+        aimed, mask, n_aimed = self._aimed(caster, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids)
+        side = (self.body[:, 1] > 0).astype(np.int64)                      # the lattices' half each ring ray is in
+        k = aim.cand_of_object[np.maximum(hits.object_id, 0)]
+        drop = (hits.object_id >= 0) & (k >= 0) & mask[2 * np.repeat(np.arange(n_p), n) + np.tile(side, n_p),
+                                                       np.maximum(k, 0)]
+        w[drop] = 0.0
+        info = _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1) + n_aimed)
+        return multipath.PathEchoes([rings, aimed], want_points, None, (0, 0)), info
+
+    def _weights(self, caster, hits, u, f, origin, gain_domega, d_beta, want_points):
+        """(w, extent (m), points) of hits along world directions u (n, 3) with ∂u/∂θ ``f`` from ``origin``:
+        w = gain·dΩ·e^(−2α'R)/max(R, λ)² × σ/cos θi (eq. 1), extent = min(R·|n̂·f|/cos θi, cap)·dθ."""
         ok = hits.echo
         r = np.where(ok, hits.range_m, np.inf)
         cos_i = np.where(ok, hits.cos_inc, 0.0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            w = np.where(ok, self._gain(rx_shift, n_p) * np.exp(-self.two_way_np_per_m * r)
+            w = np.where(ok, gain_domega * np.exp(-self.two_way_np_per_m * r)
                          / np.maximum(r, self.sonar.wavelength_m) ** 2, 0.0)
             slope = np.abs(np.einsum("ij,ij->i", hits.normal, f)) * r / cos_i
         c = caster.compiled
-        pts = (np.repeat(pos_local, n, axis=0) + np.where(ok, r, 0.0)[:, None] * u) \
-            if want_points or c.needs_points else np.zeros((0, 3))
+        pts = (origin + np.where(ok, r, 0.0)[:, None] * u) if want_points or c.needs_points else np.zeros((0, 3))
         apply_laws(c, self.sonar.frequency_hz, hits.tri.astype(np.int32), cos_i, w, pts)
+        ext = np.where(ok, np.minimum(slope, 10.0 * self.sonar.max_range_m) * d_beta, 0.0)
+        return w, ext, np.ascontiguousarray(pts)
+
+    def _aimed(self, caster, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids):
+        """(Echoes of the rays aimed at objects, one row per ping; which candidates each (ping, side) aims at;
+        aimed rays per ping): only hits on the aimed object count, and only inside the rings' cone."""
+        n_p = rot.shape[0]
+        shift = np.zeros(n_p) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
+        table, start, counts, dirs, _, _ = lattice_rays(aim, rot, pos_local, shift, max_range_m)
+        row = np.repeat(np.arange(2 * n_p), counts.sum(axis=1))
+        ping, side = row // 2, np.where(row % 2, 1.0, -1.0)
+        obj = np.repeat(np.tile(aim.objects, 2 * n_p), counts.ravel())
+        u = dirs.astype(np.float64)
+        u /= np.linalg.norm(u, axis=1)[:, None]
+        body = np.einsum("nji,nj->ni", rot[ping], u)                       # Rᵀ·u
+        f = np.einsum("nij,nj->ni", rot[ping], np.stack([np.zeros(len(u)), -side * body[:, 2], side * body[:, 1]], 1))
+        hb = np.repeat(table[..., aim_kernels.HB].ravel(), counts.ravel())
+        hs = np.repeat(table[..., aim_kernels.HS].ravel(), counts.ravel())
+        inside = body[:, 2] >= math.cos(self.span_rad)
+        gain = np.where(inside, self._gain_of(body, shift[ping]), 0.0) * hs * hb
+        hits = caster.cast(pos_local[ping], u, max_range_m)
+        w, ext, pts = self._weights(caster, hits, u, f, pos_local[ping], gain, hb, want_points)
+        w[hits.object_id != obj] = 0.0
         per_m = 2.0 / self.sonar.sound_speed_m_s
-        ext = np.where(ok, np.minimum(slope, 10.0 * self.sonar.max_range_m) * self.d_theta, 0.0)
-        ids = np.where(ok & (w > 0), hits.object_id, -1).astype(np.int32) if want_ids else np.zeros(0, np.int32)
-        nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
-        info = _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
-        return Echoes(1, np.arange(n_p + 1, dtype=np.int64) * n, r * per_m, ext * per_m, w,
-                      np.ascontiguousarray(pts), ids), info
+        r = np.where(w > 0, hits.range_m, np.inf)
+        ids = np.where(w > 0, obj, -1).astype(np.int32) if want_ids else np.zeros(0, np.int32)
+        e = Echoes(1, np.ascontiguousarray(start[::2 * aim.objects.size]), r * per_m, ext * per_m, w, pts, ids)
+        return e, counts > 0, counts.reshape(n_p, -1).sum(axis=1)
 
 
 @dataclass(frozen=True, eq=False)
