@@ -87,10 +87,12 @@ def bounding_spheres(compiled):
 
 @dataclass(frozen=True, eq=False)
 class AimedEchoes:
-    """A block's aimed rays: their echoes (in the fan's rows), which candidates each row aims at, rays per ping."""
+    """A block's aimed rays: their echoes (in the fan's rows), their rays, which candidates each row aims at, rays
+    per ping."""
 
     echoes: Echoes
-    s: np.ndarray        # (n,) along-track direction cosine of each echo's ray
+    layout: np.ndarray   # (n, 5) s, cos β, sin β, dβ, ds of each echo's ray (kernels.aim.LAYOUT_WIDTH)
+    prim: np.ndarray     # (n,) int32 triangle each ray hit, −1 for none
     aimed: np.ndarray    # (rows, k) bool
     n_rays: np.ndarray   # (pings,) int64
     seconds_cast: float  # in the caster
@@ -119,11 +121,11 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
         Tag each echo with its object (always cheap here: every aimed echo is on its own object).
     """
     n_p, k = rot.shape[0], aim.objects.size
-    table, start, counts, dirs, org, s = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
+    table, start, counts, dirs, org, layout = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     seconds = time.perf_counter() - t
-    n = s.shape[0]
+    n = layout.shape[0]
     c = caster.compiled
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
@@ -136,12 +138,13 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
            else np.zeros(0, dtype=np.int32))
     ray_start = start[::k] if k else np.zeros(2 * n_p + 1, dtype=np.int64)
     echoes = Echoes(2, np.ascontiguousarray(ray_start), t_s, ext, w, pts, ids.astype(np.int32))
-    return AimedEchoes(echoes, s, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
+    return AimedEchoes(echoes, layout, prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
 
 
 def lattice_rays(aim: AimPlan, rot, pos_local, rx_shift, max_range_m: float):
     """The lattices of a block and their rays: (table (2·pings, k, LATTICE_WIDTH), ray offsets (2·pings·k + 1,),
-    rays per lattice (2·pings, k), float32 directions and origins (n, 3), along-track cosines s (n,))."""
+    rays per lattice (2·pings, k), float32 directions and origins (n, 3), layout (n, LAYOUT_WIDTH): s, cos β,
+    sin β, dβ, ds of each ray)."""
     n_p, k = rot.shape[0], aim.objects.size
     span = aim.span.copy()
     span[4] = max_range_m
@@ -152,9 +155,10 @@ def lattice_rays(aim: AimPlan, rot, pos_local, rx_shift, max_range_m: float):
     start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
     n = int(start[-1])
     checks.check_rays_memory(n, n_p, "the rays aimed at objects")
-    dirs, org, s = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32), np.empty(n)
-    K.aim_rays(table, start, rot, pos_local, dirs, org, s)
-    return table, start, counts, dirs, org, s
+    dirs, org = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32)
+    layout = np.empty((n, K.LAYOUT_WIDTH))
+    K.aim_rays(table, start, rot, pos_local, dirs, org, layout)
+    return table, start, counts, dirs, org, layout
 
 
 def drop_aimed(caster, aim: AimPlan, ray_start, prim, weight, aimed) -> np.ndarray:

@@ -346,11 +346,17 @@ def test_aim_kernels_match_naive(rng):
     counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
     start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
     n = int(start[-1])
-    dirs, org, s_ray = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty(n)
-    K.aim_rays(table, start, rot, pos, dirs, org, s_ray)
+    dirs, org, lay = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty((n, K.LAYOUT_WIDTH))
+    K.aim_rays(table, start, rot, pos, dirs, org, lay)
     np.testing.assert_allclose(dirs, naive.aim_directions(table, rot), atol=1e-6)
-    np.testing.assert_allclose(s_ray, naive.aim_directions(table, np.tile(np.eye(3), (rot.shape[0], 1, 1)))[:, 0],
-                               rtol=1e-12, atol=1e-15)
+    body = naive.aim_directions(table, np.tile(np.eye(3), (rot.shape[0], 1, 1)))   # (s, ±cψ cos β, cψ sin β)
+    cpsi = np.sqrt(1 - lay[:, 0] ** 2)
+    np.testing.assert_allclose(lay[:, 0], body[:, 0], rtol=1e-12, atol=1e-15)
+    side = np.where(np.repeat(np.arange(table.shape[0]), counts.sum(axis=1)) % 2, 1.0, -1.0)
+    np.testing.assert_allclose(side * lay[:, 1] * cpsi, body[:, 1], rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(lay[:, 2] * cpsi, body[:, 2], rtol=1e-9, atol=1e-12)
+    lattice = np.repeat(table.reshape(-1, K.LATTICE_WIDTH), counts.ravel(), axis=0)
+    np.testing.assert_array_equal(lay[:, 3:], lattice[:, [K.HB, K.HS]])
     prim, tfar = caster.cast_raw(org, dirs, 50.0)
 
     out = [np.empty(n) for _ in range(5)]

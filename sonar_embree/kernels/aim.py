@@ -18,6 +18,8 @@ from .rays import _sinc, hit_terms
 #: Columns of the lattice table: first s, s step, first β, β step (rad), rays in s, rays in β.
 S0, HS, B0, HB, NS, NB = range(6)
 LATTICE_WIDTH = 6
+#: Columns of an aimed ray's layout: s, cos β, sin β, dβ, ds.
+LAYOUT_WIDTH = 5
 
 
 @njit(cache=True, nogil=True)
@@ -117,7 +119,7 @@ def _direction(table, r, k, j):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def aim_rays(table, start, rot, pos, dirs, origins, s_out):
+def aim_rays(table, start, rot, pos, dirs, origins, layout):
     """Float32 origins and world directions of every aimed ray of a block.
 
     Parameters
@@ -130,8 +132,9 @@ def aim_rays(table, start, rot, pos, dirs, origins, s_out):
         As for :func:`aim_lattices`.
     dirs, origins : (start[-1], 3) float32
         Written.
-    s_out : (start[-1],) float64
-        Written with each ray's along-track direction cosine s (a beamformer's line interpolation needs it).
+    layout : (start[-1], LAYOUT_WIDTH) float64
+        Written with each ray's s, cos β, sin β, dβ and ds (what the paths built on a direct hit need of its ray:
+        a beamformer's line interpolation, the one-bounce surface path).
     """
     n_k = table.shape[1]
     for r in prange(table.shape[0]):
@@ -140,7 +143,11 @@ def aim_rays(table, start, rot, pos, dirs, origins, s_out):
             base = start[r * n_k + k]
             for j in range(start[r * n_k + k + 1] - base):
                 sa, cb, sb, side = _direction(table, r, k, j)
-                s_out[base + j] = sa
+                layout[base + j, 0] = sa
+                layout[base + j, 1] = cb
+                layout[base + j, 2] = sb
+                layout[base + j, 3] = table[r, k, HB]
+                layout[base + j, 4] = table[r, k, HS]
                 cpsi = math.sqrt(1.0 - sa * sa)
                 d0, d1, d2 = sa, side * cpsi * cb, cpsi * sb
                 for q in range(3):

@@ -20,7 +20,6 @@ from scipy.special import j1
 from .. import multipath
 from ..aim import AimPlan, lattice_rays
 from ..config import FanSettings, Transducer
-from ..kernels import aim as aim_kernels
 from ..receiver import Receiver
 from ..echoes import Echoes
 from ..environment import Environment
@@ -209,7 +208,7 @@ class EchoSounderFrontEnd:
         aimed rays per ping): only hits on the aimed object count, and only inside the rings' cone."""
         n_p = rot.shape[0]
         shift = np.zeros(n_p) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
-        table, start, counts, dirs, _, _ = lattice_rays(aim, rot, pos_local, shift, max_range_m)
+        table, start, counts, dirs, _, layout = lattice_rays(aim, rot, pos_local, shift, max_range_m)
         row = np.repeat(np.arange(2 * n_p), counts.sum(axis=1))
         ping, side = row // 2, np.where(row % 2, 1.0, -1.0)
         obj = np.repeat(np.tile(aim.objects, 2 * n_p), counts.ravel())
@@ -217,8 +216,7 @@ class EchoSounderFrontEnd:
         u /= np.linalg.norm(u, axis=1)[:, None]
         body = np.einsum("nji,nj->ni", rot[ping], u)                       # Rᵀ·u
         f = np.einsum("nij,nj->ni", rot[ping], np.stack([np.zeros(len(u)), -side * body[:, 2], side * body[:, 1]], 1))
-        hb = np.repeat(table[..., aim_kernels.HB].ravel(), counts.ravel())
-        hs = np.repeat(table[..., aim_kernels.HS].ravel(), counts.ravel())
+        hb, hs = layout[:, 3], layout[:, 4]
         inside = body[:, 2] >= math.cos(self.span_rad)
         gain = np.where(inside, self._gain_of(body, shift[ping]), 0.0) * hs * hb
         hits = caster.cast(pos_local[ping], u, max_range_m)

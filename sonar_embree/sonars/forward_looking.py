@@ -203,7 +203,7 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
         e = aimed.echoes
         lit = np.flatnonzero(e.weight > 0.0)
         n_az = self.plan.s.shape[0]
-        p = (aimed.s[lit] - self.plan.s[0]) / self.plan.ds
+        p = (aimed.layout[lit, 0] - self.plan.s[0]) / self.plan.ds
         a = np.clip(np.floor(p), 0, n_az - 2).astype(np.int64)
         f = np.clip(p - a, 0.0, 1.0)
         ping = row_of(e.ray_start)[lit] // 2
