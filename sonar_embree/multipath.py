@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import kernels
+from .kernels import aim as aim_kernels
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import BlockEchoes, cast_block
@@ -172,21 +173,35 @@ def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_i
 
 
 def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
-                 rx_shift=None) -> tuple[Echoes, BlockEchoes]:
+                 rx_shift=None, aim=None) -> tuple[Echoes, BlockEchoes]:
     """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked.
 
-    The image moves along track as the sonar does: ``rx_shift`` (pings,) δ = 2·v_fwd/c (None: stop-and-hop)."""
+    The image moves along track as the sonar does: ``rx_shift`` (pings,) δ = 2·v_fwd/c (None: stop-and-hop).
+    With ``aim`` (:class:`~sonar_embree.aim.AimPlan`) the image aims rays at the objects too (its block's
+    ``aimed``; :func:`image_aimed_echoes`) and its fan's hits on them count nothing."""
     s = front.sonar
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
     blk = cast_block(caster, front.plan, rot_i, pos_i, front.two_way_np_per_m, max_range_m,
                      2.0 / s.sound_speed_m_s, want_points=True, timings=clock, frequency_hz=s.frequency_hz,
-                     rx_shift=rx_shift)
+                     rx_shift=rx_shift, aim=aim)
     n, buf = blk.weight.shape[0], front.buffers
     w, up, leg = buf.take("image_w", n), buf.take("image_up", (n, 3)), buf.take("image_leg", n)
-    w[:] = blk.weight
+    w[:] = blk.echo_weight
     kernels.two_bounce(blk.ray_start, blk.point_m, pos_i, z_s_local, _wave_kh(s), w, up, leg)
     block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, up, leg, w)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
+
+
+def image_aimed_echoes(front, caster, iblk, rot, pos_local, z_s_local) -> Echoes:
+    """The two-bounce echoes of the rays the image transducer aimed at objects (``iblk.aimed``, from
+    :func:`image_echoes`): × |R_s|⁴, their upward legs checked; object ids kept."""
+    e = iblk.aimed.echoes
+    _, pos_i = mirror_pose(rot, pos_local, z_s_local)
+    n, buf = e.weight.shape[0], Buffers()
+    w, up, leg = e.weight.copy(), np.empty((n, 3)), np.empty(n)
+    kernels.two_bounce(e.ray_start, e.point_m, pos_i, z_s_local, _wave_kh(front.sonar), w, up, leg)
+    block_legs(caster, buf, e.ray_start, e.point_m, pos_local, True, up, leg, w)
+    return Echoes(2, e.ray_start, e.travel_time_s, e.extent_s, w, e.point_m, e.object_id)
 
 
 def _wave_kh(sonar) -> float:
@@ -244,10 +259,39 @@ def _law_at(compiled, o: int, frequency_hz: float):
 
 def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
     """S→X→S' and S'→X→S (one echo: twice the weight when stop-and-hop) of every direct echo of ``blk``, aligned
-    with its rays; ``rx_shift`` (pings,) δ = 2·v_fwd/c turns each path's receive beam (docs/physics.md §16)."""
+    with its rays; ``rx_shift`` (pings,) δ = 2·v_fwd/c turns each path's receive beam (docs/physics.md §16). The
+    fan's hits on objects its rows aim rays at count nothing here (their aimed rays' own one-bounce echoes,
+    :func:`mixed_aimed_echoes`, stand for them)."""
+    plan = front.plan
+    w, t, ext = _mixed(front, caster, front.buffers, blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta),
+                       np.sin(blk.beta), blk.dbeta, plan.ds, blk.range_m, blk.point_m, blk.prim, rot, pos_local,
+                       z_s_local, rx_shift, np.zeros((0, 5)))
+    if blk.aimed is not None and blk.aimed.aimed.any():
+        aim = front.aim_plan(caster.compiled)
+        aim_kernels.drop_aimed(blk.ray_start, blk.prim, caster.compiled.face_object, aim.cand_of_object,
+                           blk.aimed.aimed, w)
+    return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
+
+
+def mixed_aimed_echoes(front, caster, aimed, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
+    """The one-bounce echoes (:func:`mixed_echoes`) of the rays aimed at objects (``aimed``:
+    :class:`~sonar_embree.aim.AimedEchoes`, with points), each with its own cell (layout); object ids kept."""
+    e = aimed.echoes
+    r = np.where(np.isfinite(e.travel_time_s), 0.5 * front.sonar.sound_speed_m_s * e.travel_time_s, np.inf)
+    w, t, ext = _mixed(front, caster, Buffers(), e.ray_start, e.ray_start, front.plan.s, np.zeros(0), np.zeros(0),
+                       np.zeros(0), front.plan.ds, r, e.point_m, aimed.prim, rot, pos_local, z_s_local, rx_shift,
+                       aimed.layout)
+    return Echoes(2, e.ray_start, t, ext, w, e.point_m, e.object_id)
+
+
+def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, ds, r, x, prim, rot, pos_local,
+           z_s_local, rx_shift, layout):
+    """(w, t, ext) (n,) of the one-bounce paths of direct hits (ranges ``r``, points ``x``, triangles ``prim``) in
+    ``buf``: the kernel (:func:`kernels.mixed_legs`, the fan's layout or each ray's own ``layout``), the bistatic
+    law and the visibility of both legs."""
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     s, plan, c = front.sonar, front.plan, caster.compiled
-    n, buf = blk.range_m.shape[0], front.buffers
+    n = r.shape[0]
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
     v, u2 = buf.take("v", (n, 3)), buf.take("u2", (n, 3))
@@ -255,19 +299,18 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     lambert = mu.shape[0] > 0
     want_phi = wants_azimuth(c) and not lambert
     legs = (_can_block(caster, False, pos_local), _can_block(caster, True, pos_local))
-    kernels.mixed_legs(blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta), np.sin(blk.beta), blk.dbeta,
-                       blk.range_m, blk.point_m, blk.prim,
+    kernels.mixed_legs(ray_start, el_start, s_az, cos_b, sin_b, dbeta, r, x, prim,
                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
-                       plan.beam, plan.ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
+                       plan.beam, ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
                        s.sound_speed_m_s, _wave_kh(s), want_phi, mu, c.face_object,
-                       any(legs), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2)
+                       any(legs), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2, layout)
     if not lambert:
-        apply_bistatic(c, s.frequency_hz, blk.prim, blk.point_m, w, cos_i, cos_s, phi if want_phi else None)
+        apply_bistatic(c, s.frequency_hz, prim, x, w, cos_i, cos_s, phi if want_phi else None)
     if legs[0]:
-        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, False, v, leg1, w, blk.prim, True)
+        block_legs(caster, buf, ray_start, x, pos_local, False, v, leg1, w, prim, True)
     if legs[1]:
-        block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, u2, leg2, w, blk.prim, True)
-    return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
+        block_legs(caster, buf, ray_start, x, pos_local, True, u2, leg2, w, prim, True)
+    return w, t, ext
 
 
 class PathEchoes:

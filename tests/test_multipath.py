@@ -738,3 +738,46 @@ def test_chapman_harris_law_and_surface_backscatter_settings(tmp_path):
     assert rec.starboard[:, rec.slant_range_m < 5.9].max() > 0                 # the line, before the floor at 6 m
     rec.save(tmp_path / "r.npz")
     assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == s
+
+
+def test_mixed_legs_with_each_rays_own_layout_matches_naive(rng):
+    """kernels.mixed_legs for rays with their own s, β, dβ and ds (the rays aimed at objects, docs/physics.md §7b):
+    the same twin, each ray's cell its own."""
+    import naive
+    from scipy.spatial.transform import Rotation
+
+    from sonar_embree import kernels
+
+    n_p, n = 3, 400
+    rot = Rotation.from_euler("xyz", rng.uniform(-0.2, 0.2, (n_p, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
+    pos = np.column_stack([rng.uniform(-5, 5, (n_p, 2)), rng.uniform(8, 12, n_p)])
+    normals = rng.normal(size=(7, 3)) * [0.3, 0.3, 1.0]
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    row = np.sort(rng.integers(0, 2 * n_p, n))
+    ray_start = np.concatenate(([0], np.cumsum(np.bincount(row, minlength=2 * n_p)))).astype(np.int64)
+    ping, side = row // 2, np.where(row % 2 == 1, 1.0, -1.0)
+    s = np.repeat(rng.uniform(-0.02, 0.02, n // 4), 4)                 # runs of equal s, as a lattice has
+    beta, dbeta, ds = rng.uniform(0.05, 1.4, n), rng.uniform(1e-4, 1e-2, n), rng.uniform(1e-4, 1e-2, n)
+    layout = np.column_stack([s, np.cos(beta), np.sin(beta), dbeta, ds])
+    cpsi = np.sqrt(1 - s ** 2)
+    e = np.column_stack([s, side * cpsi * np.cos(beta), cpsi * np.sin(beta)])
+    r = rng.uniform(5, 60, n)
+    x = pos[ping] + r[:, None] * np.einsum("nij,nj->ni", rot[ping], e)
+    miss = rng.random(n) < 0.1
+    r[miss] = np.inf
+    prim = rng.integers(0, 7, n).astype(np.int32)
+    beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
+    rx_shift = np.array([0.0, 2e-3, -5e-3])
+    keys = ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")
+    out = {k: np.full(n, np.nan) for k in keys}
+    v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
+    kernels.mixed_legs(ray_start, ray_start, np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), r, x, prim, rot, pos,
+                       rx_shift, 15.0, normals, beam, 0.0, 0.0375, 0.044, 600.0, 1500.0, 0.3, True, np.zeros(0),
+                       np.zeros(7, np.int32), True, *[out[k] for k in keys[:6]], v, out["leg1"], u2, out["leg2"],
+                       layout)
+    hit = ~miss
+    ref = naive.mixed_legs(x[hit], r[hit], ping[hit], side[hit], dbeta[hit], prim[hit], rot, pos, rx_shift, 15.0,
+                           normals, beam, ds[hit], 0.0375, 0.044, 600.0, 1500.0, 0.3)
+    for k in keys:
+        np.testing.assert_allclose(out[k][hit], ref[k], rtol=1e-9, atol=1e-12, err_msg=k)
+    assert np.all(out["weight"][miss] == 0) and np.count_nonzero(out["weight"]) > n // 4

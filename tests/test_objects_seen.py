@@ -9,6 +9,7 @@ import pytest
 import trimesh
 
 import sonar_embree as se
+import analytic
 from analytic import gamma_membrane, sphere_quadrature
 from sonar_embree import sonars
 from sonar_embree.echoes import merged
@@ -365,3 +366,64 @@ def test_echo_sounder_sees_a_small_ball_in_every_ping():
     assert inside.sum() >= 20
     err = 10 * np.log10(np.maximum(got[inside], 1e-300) / ref[inside])
     assert np.abs(err).max() < 1.0, (err.min(), err.max())
+
+
+def _path_energy(scene, traj, sonar):
+    """(pings, 3) Σ weight of the ball's echoes per path (direct, one bounce, two bounces)."""
+    front = sonars.front_end(sonar, se.FanSettings())
+    comp = scene.compiled(survey_origin(traj.positions_m))
+    caster = RayCaster.for_scene(comp)
+    n = len(traj)
+    out = np.zeros((n, 3))
+    for a in range(0, n, 8):
+        b = min(a + 8, n)
+        e, _ = front.cast(caster, traj.rotations()[a:b], traj.positions_m[a:b] - comp.origin_m, sonar.max_range_m,
+                          False, True, {}, rx_shift=np.zeros(b - a))
+        e = merged(e)
+        ping = np.repeat(np.arange(e.ray_start.size - 1), np.diff(e.ray_start)) // e.n_channels
+        own = e.object_id == comp.labels.index("ball")
+        for p in range(3):
+            out[a:b, p] = np.bincount(ping, weights=np.where(own & (e.path == p), e.weight, 0.0), minlength=b - a)
+    return out
+
+
+def test_surface_paths_of_a_small_ball_follow_the_image_method():
+    """Under a flat, mirror-like sea surface 5 m above the sonar, a 5 cm ball 30 m out: per ping, its one-bounce
+    energy is the bistatic quadrature 2·∫ Γ²(u1)·Γ²(u2)·μ·cos θi·cos θs·e^(−α(r + r'))/(r²·r'²) dA over the points
+    facing both S and its image S' (u1 from S to X, u2 from S to the surface point, the mirror of S'→X), and its
+    two-bounce energy the monostatic quadrature seen from S' (the mirrored beam), both within 1 dB wherever within
+    −20 dB of their peaks, in every ping (docs/physics.md §13 with §7b)."""
+    z_s, a, centre = H + 5.0, 0.05, (0.0, -30.0, 4.0)
+    sonar = se.Sonar(max_range_m=45.0, environment=se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(
+        se.Pulse.cw())
+    traj = _pings_over(centre[1])
+    scene = _ball_scene(a, centre[1], centre[2], floor=False)
+    got = _path_energy(scene, traj, sonar)
+    alpha = sonar.alpha_db_per_m
+    image = traj.positions_m * [1, 1, -1] + [0, 0, 2 * z_s]
+
+    def mirrored_gamma(u, ping):                     # the image's beam: the sonar's, mirrored in the surface
+        return analytic.sidescan_gamma(u * [1, 1, -1], ping)
+
+    two = analytic.sphere_quadrature(a, centre, image, alpha, MU_DB, n=160, gamma=mirrored_gamma)
+    n = 160
+    th, ph = (np.arange(n) + 0.5) * np.pi / n, (np.arange(2 * n) + 0.5) * np.pi / n
+    T, P = np.meshgrid(th, ph, indexing="ij")
+    nrm = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], axis=-1).reshape(-1, 3)
+    dA = (a * a * np.sin(T) * (np.pi / n) ** 2).ravel()
+    X = np.asarray(centre) + a * nrm
+    one = []
+    for s, s_img in zip(traj.positions_m, image):
+        r1, r2 = np.linalg.norm(X - s, axis=1), np.linalg.norm(X - s_img, axis=1)
+        u1, v = (X - s) / r1[:, None], (s_img - X) / r2[:, None]
+        u2 = -v * [1, 1, -1]                         # S → P: the mirror of S' → X
+        ci, cs = -(u1 * nrm).sum(axis=1), (v * nrm).sum(axis=1)
+        g1, g2 = analytic.sidescan_gamma(u1, 0), analytic.sidescan_gamma(u2, 0)
+        f = (2 * g1 ** 2 * g2 ** 2 * 10 ** (MU_DB / 10) * ci * cs * 10 ** (-alpha * (r1 + r2) / 10)
+             / (r1 * r2) ** 2 * dA)
+        one.append(f[(ci > 0) & (cs > 0)].sum())
+    for k, ref in ((1, np.array(one)), (2, two)):
+        inside = ref >= 0.01 * ref.max()
+        assert inside.sum() >= 15
+        err = 10 * np.log10(np.maximum(got[inside, k], 1e-300) / ref[inside])
+        assert np.abs(err).max() < 1.0, (k, err.min(), err.max())

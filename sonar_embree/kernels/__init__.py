@@ -1,6 +1,7 @@
 """Numba kernels, grouped by stage: array in, array out, into buffers the caller allocated.
 
 - :mod:`.rays`: the side-scan fan (ray placement, directions, propagation per hit) — front end;
+- :mod:`.aim`: the rays aimed at objects (their lattices, directions, echoes, the fan hits they replace) — front end;
 - :mod:`.splat`: footprint splatting — back end, expected intensity;
 - :mod:`.speckle`: the frozen scatterer lattice and its synthesis — back end, speckle;
 - :mod:`.truth`: ground-truth labels of the centre line;

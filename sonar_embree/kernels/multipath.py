@@ -68,7 +68,7 @@ def _azimuth(n, u, v):
 def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals,
                beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, mu_obj,
                face_object, want_legs, time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out,
-               u2_out, leg2_out):
+               u2_out, leg2_out, layout=np.zeros((0, 5))):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
@@ -124,15 +124,20 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
     time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
     v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
         Written.
+    layout : (n, 5) float64, optional
+        Each ray's own s, cos β, sin β, dβ and ds (rays aimed at objects, :mod:`sonar_embree.aim`); then
+        ``el_start``, ``s_az``, ``cos_beta``, ``sin_beta``, ``dbeta`` and ``ds`` are not read. Default (0 rows):
+        the fan's layout.
     """
     for row in prange(ray_start.shape[0] - 1):
         sc = np.empty((8, _CHUNK))   # per echo: the four sincs' arguments (then values), Γ_az, Γ_az,rx, gate, σ_Lambert
-        j, az, cpsi, ga, gar = el_start[row + 1] - el_start[row] - 1, -1, 0.0, 0.0, 0.0
+        j, az, cpsi, ga, gar = (el_start[row + 1] - el_start[row] - 1 if layout.shape[0] == 0 else 0), -1, 0.0, 0.0, 0.0
+        s_prev = math.nan
         for c0 in range(ray_start[row], ray_start[row + 1], _CHUNK):
             c1 = min(c0 + _CHUNK, ray_start[row + 1])
-            j, az, cpsi, ga, gar = _mixed_chunk(
-                row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos,
-                rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad,
+            j, az, cpsi, ga, gar, s_prev = _mixed_chunk(
+                row, c0, c1, j, az, cpsi, ga, gar, s_prev, el_start, s_az, cos_beta, sin_beta, dbeta, layout, r, x,
+                prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad,
                 sound_speed_m_s, wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out,
                 cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc)
             sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per echo
@@ -143,33 +148,43 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
 
 
 @njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
-def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos,
-                 rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s,
-                 wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out, cos_i_out,
-                 cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc):
+def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, s_prev, el_start, s_az, cos_beta, sin_beta, dbeta, layout, r, x,
+                 prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad,
+                 sound_speed_m_s, wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out,
+                 cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc):
     """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`: everything but the gains, whose sinc arguments go to
     ``sc`` (rows 0–3: Γ_el(u1), Γ_az(u2), Γ_az,rx(u2), Γ_el(u2); 4, 5: the ray's Γ_az, Γ_az,rx; 6: 1 in front
     of the baffle along u2, else 0; 7: Lambert's σ = μ·cos θi·cos θs, or 1). ``j``, ``az`` (the ray's elevation
-    cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk and are returned."""
+    cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk and are returned; with a
+    per-ray ``layout`` the gains are those of the ray's own s, kept while s repeats (``s_prev``)."""
     ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 1.0 / sound_speed_m_s
     b, side, n_el = row // 2, 1.0 if row % 2 == 1 else -1.0, el_start[row + 1] - el_start[row]
     m = _rotation(rot, b)
     sx, sy, sz, shift = pos[b, 0], pos[b, 1], pos[b, 2], rx_shift[b]
+    per_ray = layout.shape[0] > 0
     for i in range(c0, c1):
         k = i - c0
-        if j == n_el - 1:
-            j, az = 0, az + 1
-            cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
-            ga, gar = _sinc(beam[0] * s_az[az]), _sinc(beam[0] * (s_az[az] - shift))
+        if per_ray:
+            if layout[i, 0] != s_prev:
+                s_prev = layout[i, 0]
+                cpsi = math.sqrt(1.0 - s_prev * s_prev)
+                ga, gar = _sinc(beam[0] * s_prev), _sinc(beam[0] * (s_prev - shift))
+            cb, sbeta, db, ds_i = layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
         else:
-            j += 1
-        cell = el_start[row] + j
-        sc[0, k], sc[4, k], sc[5, k] = beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st), ga, gar
+            if j == n_el - 1:
+                j, az = 0, az + 1
+                cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
+                ga, gar = _sinc(beam[0] * s_az[az]), _sinc(beam[0] * (s_az[az] - shift))
+            else:
+                j += 1
+            cell = el_start[row] + j
+            cb, sbeta, db, ds_i = cos_beta[cell], sin_beta[cell], dbeta[cell], ds
+        sc[0, k], sc[4, k], sc[5, k] = beam[1] * cpsi * (sbeta * ct - cb * st), ga, gar
         if not math.isfinite(r[i]):
             weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
             sc[1, k], sc[2, k], sc[3, k], sc[6, k], sc[7, k] = 0.0, 0.0, 0.0, 0.0, 0.0
             continue
-        db, ir = dbeta[cell], 1.0 / r[i]
+        ir = 1.0 / r[i]
         u = ((x[i, 0] - sx) * ir, (x[i, 1] - sy) * ir, (x[i, 2] - sz) * ir)
         vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
         r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
@@ -182,7 +197,7 @@ def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, si
         sc[1, k], sc[2, k], sc[3, k], sc[6, k] = _gain_args(m, side, -v[0], -v[1], v[2], beam[0], beam[1], ct, st,
                                                             shift)                                   # along S → P
         rb2 = max(r2, min_range_m)
-        w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2]) * ds * db
+        w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2]) * ds_i * db
              / (rb2 * rb2 * cos_i))
         sc[7, k] = mu_obj[face_object[p]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
         weight_out[i], time_out[i] = w, (r[i] + r2) * inv_c
@@ -195,7 +210,7 @@ def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, el_start, s_az, cos_beta, si
             v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
             u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = -v[0], -v[1], v[2]
             leg1_out[i], leg2_out[i] = (z_s - x[i, 2]) * q, (z_s - sz) * q   # X → P and S → P (= P → S')
-    return j, az, cpsi, ga, gar
+    return j, az, cpsi, ga, gar, s_prev
 
 
 @njit(cache=True, nogil=True, parallel=True)

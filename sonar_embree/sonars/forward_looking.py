@@ -195,12 +195,12 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
         return dataclasses.replace(e, n_channels=self.n_synth_channels,
                                    ray_start=azimuth_rows(el_start, self.plan.s.shape[0]))
 
-    def _aimed_rows(self, aimed) -> Echoes:
+    def _aimed_rows(self, aimed, echoes: Echoes | None = None) -> Echoes:
         """The aimed rays' echoes shared between the two azimuth lines around each one's direction, linearly in s
         (weights 1 − f and f, f its fractional position between the lines): the beamformer then weighs it with AF²
         interpolated between the lines, so its response moves smoothly with its bearing (no snapping to a line,
         no dark bearing between lines; docs/physics.md §7b)."""
-        e = aimed.echoes
+        e = aimed.echoes if echoes is None else echoes
         lit = np.flatnonzero(e.weight > 0.0)
         n_az = self.plan.s.shape[0]
         p = (aimed.layout[lit, 0] - self.plan.s[0]) / self.plan.ds

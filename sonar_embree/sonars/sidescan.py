@@ -90,33 +90,42 @@ class SideScanFrontEnd:
         rows (docs/physics.md §13)."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         direct = echoes_of(blk, ids)
+        aimed = []                           # the rays aimed at objects, path by path: (echoes, their rays, path)
         if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
             mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
             layouts = [blk.el_start, None, None]                      # the swell's paths: its own fan's up rays
         else:
             z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
-            image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
+            image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift,
+                                                 aim=self.aim_plan(caster.compiled))
             mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s, rx_shift)
             if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
                 mixed = dataclasses.replace(mixed, object_id=direct.object_id)
                 image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
             layouts = [blk.el_start, blk.el_start, iblk.el_start]
+            if blk.aimed is not None:
+                aimed.append((multipath.mixed_aimed_echoes(self, caster, blk.aimed, rot, pos_local, z_s, rx_shift),
+                              blk.aimed, 1))
+            if iblk.aimed is not None:
+                aimed.append((multipath.image_aimed_echoes(self, caster, iblk, rot, pos_local, z_s), iblk.aimed, 2))
         parts, paths = [direct, mixed, image], None
         if self.sonar.environment.surface.backscatter is not None:  # the surface line: a direct path
             line, lblk = multipath.surface_line(self, caster, rot, pos_local, max_range_m, want_points,
                                                 ids is not None, clock, rx_shift)
             parts, layouts, paths = parts + [line], layouts + [lblk.el_start], (0, 1, 2, 0)
         parts = [self._rows(e, el) for e, el in zip(parts, layouts)]
-        if blk.aimed is not None:                     # the rays aimed at objects: direct echoes too
-            parts, paths = parts + [self._aimed_rows(blk.aimed)], (paths or (0, 1, 2)) + (0,)
+        if blk.aimed is not None:                     # the rays aimed at objects: their direct echoes too
+            aimed.insert(0, (blk.aimed.echoes, blk.aimed, 0))
+        for e, rays, path in aimed:
+            parts, paths = parts + [self._aimed_rows(rays, e)], (paths or (0, 1, 2)) + (path,)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
         return multipath.PathEchoes(parts, want_points, self.buffers, paths)
 
-    def _aimed_rows(self, aimed) -> Echoes:
-        """The echoes of the rays aimed at objects (:class:`~sonar_embree.aim.AimedEchoes`) in this type's rows (the
-        side-scan's: as cast)."""
-        return aimed.echoes
+    def _aimed_rows(self, aimed, echoes: Echoes | None = None) -> Echoes:
+        """The echoes of the rays aimed at objects (:class:`~sonar_embree.aim.AimedEchoes`; ``echoes``: those of one
+        of their paths, aligned with them) in this type's rows (the side-scan's: as cast)."""
+        return aimed.echoes if echoes is None else echoes
 
     def _rows(self, e: Echoes, el_start) -> Echoes:
         """A path's echoes in this type's rows (the side-scan's: two per ping, as cast); ``el_start`` the layout
