@@ -38,25 +38,26 @@ class AimPlan:
     centre: np.ndarray           # (k, 3) float64 bounding-sphere centre, local frame, m
     radius: np.ndarray           # (k,) float64 bounding-sphere radius, m
     cand_of_object: np.ndarray   # (n_objects,) int32 candidate of each object, −1 for none
-    span: np.ndarray             # (7,) see kernels.aim.aim_lattices
+    span: np.ndarray             # (8,) see kernels.aim.aim_lattices
     sides: np.ndarray            # (2,) bool
     n_across: float
     dr_m: float
     max_rays: float
 
     @classmethod
-    def build(cls, compiled, plan, quality: float) -> "AimPlan | None":
-        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.fan.FanPlan`); None when every
-        object is seafloor (nothing to aim at: the fan alone, at no cost)."""
+    def build(cls, compiled, plan, quality: float, kappa: float = 0.0) -> "AimPlan | None":
+        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.fan.FanPlan`), rays of curvature up
+        to ``kappa`` (1/m); None when every object is seafloor (nothing to aim at: the fan alone, at no cost)."""
         span = (plan.s[0] - 0.5 * plan.ds, plan.s[-1] + 0.5 * plan.ds, plan.probe_beta[0], plan.probe_beta[-1],
                 plan.ds, plan.max_step_rad)
-        return cls.of(compiled, span, plan.sides, quality, plan.dr_target_m)
+        return cls.of(compiled, span, plan.sides, quality, plan.dr_target_m, kappa)
 
     @classmethod
-    def of(cls, compiled, span, sides, quality: float, dr_m: float) -> "AimPlan | None":
+    def of(cls, compiled, span, sides, quality: float, dr_m: float, kappa: float = 0.0) -> "AimPlan | None":
         """The plan of ``compiled`` for rows whose directions (s, ±√(1 − s²)·cos β, √(1 − s²)·sin β) span
         ``span`` = (s_lo, s_hi, β_lo, β_hi, largest s step, largest β step) on the ``sides`` (port, starboard)
-        that have rays, with ``dr_m`` the wanted range step; None when every object is seafloor."""
+        that have rays, with ``dr_m`` the wanted range step and ``kappa`` the largest curvature of a ray (1/m, a
+        sound-speed profile's max |dc/dz|/c; 0: straight rays); None when every object is seafloor."""
         objects = np.flatnonzero(~np.asarray(compiled.is_seafloor)).astype(np.int32)
         if objects.size == 0:
             return None
@@ -65,7 +66,8 @@ class AimPlan:
         cand[objects] = np.arange(objects.size, dtype=np.int32)
         s_lo, s_hi, b_lo, b_hi, hs, hb = (float(x) for x in span)
         q = float(quality)
-        return cls(objects, centre[objects], radius[objects], cand, np.array([s_lo, s_hi, b_lo, b_hi, 0.0, hs, hb]),
+        return cls(objects, centre[objects], radius[objects], cand,
+                   np.array([s_lo, s_hi, b_lo, b_hi, 0.0, hs, hb, float(kappa)]),
                    np.asarray(sides, dtype=bool), float(math.ceil(RAYS_ACROSS * math.sqrt(q))), float(dr_m),
                    float(MAX_RAYS * max(q, 1.0)))
 

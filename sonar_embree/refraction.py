@@ -21,7 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import checks, kernels
+from .aim import AimedEchoes, drop_aimed, lattice_rays
 from .buffers import Buffers
+from .echoes import Echoes
 from .fan import PROBE_LINES, BlockEchoes, FanPlan, elevation_rows, nadir_altitude
 from .laws import apply_laws
 
@@ -127,7 +129,7 @@ def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffe
 
 def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
                    sonar, want_points: bool, clock: dict, buffers: Buffers | None = None,
-                   rx_shift: np.ndarray | None = None) -> BlockEchoes:
+                   rx_shift: np.ndarray | None = None, aim=None) -> BlockEchoes:
     """:func:`~sonar_embree.fan.cast_block` for curved rays in ``environment.sound_speed``.
 
     Parameters
@@ -146,6 +148,9 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
         Working arrays to reuse (a front end keeps one).
     rx_shift : (pings,) float64, optional
         Motion during the ping, δ = 2·v_fwd/c per ping (:func:`~sonar_embree.fan.cast_block`); None: stop-and-hop.
+    aim : AimPlan, optional
+        The objects to aim curved rays at (:mod:`sonar_embree.aim`, its cones widened by the rays' bending);
+        None: the fan alone.
     """
     buffers = Buffers() if buffers is None else buffers
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
@@ -175,5 +180,43 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = n_az * np.diff(el_start).reshape(rot.shape[0], 2).sum(axis=1) + plan.n_probe
+    aimed, kept = None, None
+    if aim is not None:
+        aimed = _aimed(caster, aim, plan, rot, pos_local, rx_shift, m, two_way_np_per_m, max_range_m, sonar,
+                       want_points, clock, buffers)
+        kept = drop_aimed(caster, aim, n_az * el_start, hit_prim, w, aimed.aimed) if aimed.aimed.any() else None
+        n_rays = n_rays + aimed.n_rays
     clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
-    return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar)
+    return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar,
+                       aimed, kept)
+
+
+def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, max_range_m, sonar,
+           want_points, clock, buffers) -> AimedEchoes:
+    """The curved rays aimed at objects (docs/physics.md §7b, §12): each lattice's rays launched and marched as the
+    fan's, weighted by :func:`kernels.arc_echoes` with each ray's own cell; only hits on the aimed object count."""
+    n_p, k = rot.shape[0], aim.objects.size
+    table, start, counts, _, _, layout = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
+    ray_start, n = np.ascontiguousarray(start[::k]), layout.shape[0]
+    state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
+    ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
+    none = np.zeros(0)
+    kernels.arc_start(plan.s, none, none, ray_start, rot, pos_local, m.layers, m.z0, m.box_z, m.l_max, state, lay,
+                      ray, layout)
+    before = clock.get("embree", 0.0)
+    hit_prim, hit, _ = march(caster, m, state, lay, ray, clock, buffers)
+    c = caster.compiled
+    rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
+    pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
+    kernels.arc_echoes(plan.s, plan.ds, none, none, none, ray_start, rot, rx_shift, hit_prim, hit, ray,
+                       c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
+                       plan.slope_cap_m_rad, sonar.sound_speed_m_s, rng, t_s, ext, w, cos_i, pts, layout)
+    obj = np.repeat(np.tile(aim.objects, 2 * n_p), counts.ravel()).astype(np.int32)
+    other = (hit_prim < 0) | (c.face_object[np.maximum(hit_prim, 0)] != obj)
+    w[other], t_s[other] = 0.0, np.inf
+    apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
+    if not plan.footprint:
+        ext[:] = 0.0
+    echoes = Echoes(2, ray_start, t_s, ext, w, pts, obj)
+    return AimedEchoes(echoes, layout, hit_prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1),
+                       clock.get("embree", 0.0) - before)

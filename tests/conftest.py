@@ -16,6 +16,9 @@ H = 10.0  # sonar altitude of the reference cases, m
 SLOW = frozenset({
     "test_objects_seen.py::test_a_ball_at_shallow_depression_is_seen_in_every_ping",
     "test_objects_seen.py::test_sphere_echo_follows_the_two_way_pattern_in_every_ping",
+    "test_objects_seen.py::test_a_small_ball_in_a_sound_speed_profile_is_seen_in_every_ping",
+    "test_objects_seen.py::test_surface_paths_of_a_small_ball_follow_the_image_method",
+    "test_refraction.py::test_arc_kernels_with_each_rays_own_layout_give_the_fans_bits",
     "test_objects_seen.py::test_fls_sphere_swept_across_a_beam_traces_the_array_factor",
     "test_objects_seen.py::test_a_small_objects_labels_and_coco_box_cover_every_ping_of_its_echo",
     "test_batch.py::test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds",

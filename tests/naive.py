@@ -568,7 +568,8 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
     object's bounding cone (half-angle γ = asin(ρ/D) about its centre's body direction) spans s_c ± γ and
     β_c ± asin(sin γ / √(1 − s_c²)), clipped to the row's span (s widened by δ on its side); cells of at most
     2γ/n_across, the fan's steps and (in β) 2γ·dr/(2ρ); none beyond the range, inside the sphere, on the
-    along-track axis or above ``max_rays``."""
+    along-track axis or above ``max_rays``. With curved rays (span[7] = κ > 0) the cone widens by 0.6·κ·(D + ρ)
+    along the elevation direction."""
     n_p, k = rot.shape[0], centre.shape[0]
     out = np.zeros((2 * n_p, k, 6))
     for r in range(2 * n_p):
@@ -584,9 +585,16 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
             sc = v[j, 0] / d
             if np.sin(gam) >= 0.999 * np.sqrt(1 - sc ** 2):
                 continue
-            half_b = np.arcsin(np.sin(gam) / np.sqrt(1 - sc ** 2))
+            half_b, half_s = np.arcsin(np.sin(gam) / np.sqrt(1 - sc ** 2)), gam
+            bend = 0.6 * span[7] * (d + radius[j])          # curved rays: |launch − chord| ≤ κ·L/2 (+ 20 %)
+            if bend > 0:
+                u, up = v[j] / d, rot[b][2]                   # the world's vertical in the body frame
+                e_theta = up - (up @ u) * u                   # the elevation direction at u
+                half_s += min(abs(e_theta[0]) / np.linalg.norm(e_theta), 1.0) * bend + bend ** 2
+                half_b += bend / np.sqrt(1 - sc ** 2) + bend ** 2
             bc = np.arctan2(v[j, 2], side * v[j, 1])
-            s_lo, s_hi = max(sc - gam, span[0] + min(rx_shift[b], 0)), min(sc + gam, span[1] + max(rx_shift[b], 0))
+            s_lo = max(sc - half_s, span[0] + min(rx_shift[b], 0))
+            s_hi = min(sc + half_s, span[1] + max(rx_shift[b], 0))
             b_lo, b_hi = max(bc - half_b, span[2]), min(bc + half_b, span[3])
             if s_hi <= s_lo or b_hi <= b_lo:
                 continue

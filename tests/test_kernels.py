@@ -334,10 +334,16 @@ def test_aim_kernels_match_naive(rng):
     span[4] = 50.0
     shift = rng.uniform(-3e-3, 3e-3, rot.shape[0])
     table = np.empty((2 * rot.shape[0], aim.objects.size, K.LATTICE_WIDTH))
-    K.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, span, shift, aim.n_across, aim.dr_m, aim.max_rays,
-                   table)
-    ref = naive.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, span, shift, aim.n_across, aim.dr_m,
-                             aim.max_rays)
+    curved = span.copy()
+    curved[7] = 3e-4                                  # a 0.45 s⁻¹ gradient at 1500 m/s: the cones widen
+    for sp in (curved, span):                         # straight rays last: the rest of the test uses them
+        K.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, sp, shift, aim.n_across, aim.dr_m, aim.max_rays,
+                       table)
+        ref = naive.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, sp, shift, aim.n_across, aim.dr_m,
+                                 aim.max_rays)
+        np.testing.assert_array_equal(table[..., K.NS] * table[..., K.NB], ref[..., 4] * ref[..., 5])
+        lit = ref[..., 4] > 0
+        np.testing.assert_allclose(table[lit][:, :4], ref[lit][:, :4], rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(table[..., K.NS] * table[..., K.NB], ref[..., 4] * ref[..., 5])
     lit = ref[..., 4] > 0
     assert lit.sum() >= 3

@@ -433,3 +433,35 @@ def test_segment_turn_angle_series_matches_arctan2():
     got = np.array([kr._angle(a, b) for a, b in zip(y, x)])
     np.testing.assert_allclose(got, np.arctan2(y, x), rtol=1e-14, atol=1e-300)
     assert np.sum(np.abs(y) < kr.SERIES_MAX_U * x) > 400                # the series branch is exercised
+
+
+def test_arc_kernels_with_each_rays_own_layout_give_the_fans_bits(three_layer_block):
+    """arc_start and arc_echoes with a per-ray layout (the curved rays aimed at objects, docs/physics.md §7b): the
+    block's own fan written ray by ray (s, cos β, sin β, dβ, ds) gives the launch state and echoes of the fan's
+    layout to the bit (which test_arc_start_matches_its_twin and test_arc_echoes_matches_its_twin check)."""
+    from sonar_embree import kernels
+    b, plan, s = three_layer_block, three_layer_block["front"].plan, three_layer_block["sonar"]
+    el, n_az = b["el_start"], plan.s.size
+    n = n_az * int(el[-1])
+    row = np.repeat(np.arange(el.size - 1), n_az * np.diff(el))
+    j = np.arange(n) - n_az * el[row]
+    cell = el[row] + j % np.diff(el)[row]
+    layout = np.column_stack([plan.s[j // np.diff(el)[row]], np.cos(b["beta"][cell]), np.sin(b["beta"][cell]),
+                              b["dbeta"][cell], np.full(n, plan.ds)])
+    no_box = np.array([-np.inf, np.inf])
+    state, lay, ray = np.empty((n, kernels.STATE_WIDTH)), np.empty(n, np.int64), np.empty((n, kernels.RAY_WIDTH))
+    kernels.arc_start(plan.s, np.zeros(0), np.zeros(0), n_az * el, b["rot"], b["pos"], b["layers"], b["z0"], no_box,
+                      np.inf, state, lay, ray, layout)
+    np.testing.assert_array_equal(state, b["start"])
+    np.testing.assert_array_equal(ray, b["ray"])
+    c = b["caster"].compiled
+    args = (b["rot"], np.full(1, 2e-3), b["hit_prim"], b["hit"], b["ray"], c.face_normals, c.face_two_sided, plan.beam,
+            b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s)
+    fan, per_ray = [np.empty(n) for _ in range(5)], [np.empty(n) for _ in range(5)]
+    kernels.arc_echoes(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], el, *args, *fan,
+                       np.empty((0, 3)))
+    kernels.arc_echoes(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), n_az * el, *args, *per_ray,
+                       np.empty((0, 3)), layout)
+    for x, y in zip(fan, per_ray):
+        np.testing.assert_array_equal(x, y)
+    assert np.count_nonzero(fan[3]) > 50

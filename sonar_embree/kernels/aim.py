@@ -23,11 +23,16 @@ LAYOUT_WIDTH = 5
 
 
 @njit(cache=True, nogil=True)
-def _lattice(v0, v1, v2, side, radius, span, rx, n_across, dr_m, max_rays, out):
+def _lattice(v0, v1, v2, up0, up1, up2, side, radius, span, rx, n_across, dr_m, max_rays, out):
     """The lattice of one object (bounding sphere of ``radius`` at body-frame offset v) in one row; NS = 0 when it
     gets none (out of range or span, the sonar inside its sphere, or too big to aim at: the fan sees it).
-    ``span`` = (s_lo, s_hi, β_lo, β_hi, max range, along-track step cap, elevation step cap); ``rx`` the row's
-    receive shift δ (the span widens to cover the receive lobe too)."""
+    ``span`` = (s_lo, s_hi, β_lo, β_hi, max range, along-track step cap, elevation step cap, κ); ``rx`` the row's
+    receive shift δ (the span widens to cover the receive lobe too); ``up`` the world's vertical in the body frame.
+
+    Curved rays (κ > 0, the largest ray curvature |dc/dz|/c of a sound-speed profile, 1/m) stay in their launch
+    direction's vertical plane and leave within κ·L/2 of their chord over a path L (the tangent turns by at most
+    κ per metre; the chord is its mean): the cone widens by ``bend`` = 0.6·κ·(D + ρ) in elevation, mapped to s
+    and β by the elevation direction's body components (and bend² for what that linearisation leaves out)."""
     out[NS] = 0.0
     out[NB] = 0.0
     d = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
@@ -40,9 +45,16 @@ def _lattice(v0, v1, v2, side, radius, span, rx, n_across, dr_m, max_rays, out):
     if sin_g >= 0.999 * cpsi:                       # the cone holds the along-track axis: no β interval
         return
     dbeta = math.asin(sin_g / cpsi)
+    half_s = gam
+    bend = 0.6 * span[7] * (d + radius)
+    if bend > 0.0:                                  # curved rays: widen along the elevation direction
+        zu = (up0 * v0 + up1 * v1 + up2 * v2) / d
+        e_s = abs(up0 - zu * sc) / max(math.sqrt(max(1.0 - zu * zu, 0.0)), 1e-12)
+        half_s += min(e_s, 1.0) * bend + bend * bend
+        dbeta += bend / cpsi + bend * bend
     bc = math.atan2(v2, side * v1)
-    s_lo = max(sc - gam, span[0] + min(rx, 0.0))
-    s_hi = min(sc + gam, span[1] + max(rx, 0.0))
+    s_lo = max(sc - half_s, span[0] + min(rx, 0.0))
+    s_hi = min(sc + half_s, span[1] + max(rx, 0.0))
     b_lo = max(bc - dbeta, span[2])
     b_hi = min(bc + dbeta, span[3])
     if not (s_hi > s_lo and b_hi > b_lo):
@@ -78,9 +90,10 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
         Sonar positions, local frame, m.
     sides : (2,) bool
         Which sides (port, starboard) have rays.
-    span : (7,) float64
+    span : (8,) float64
         s_lo, s_hi (the fan's along-track cells), β_lo, β_hi (its elevation span, rad), the range searched (m),
-        the largest along-track step (the fan's ds) and the largest elevation step (rad).
+        the largest along-track step (the fan's ds), the largest elevation step (rad) and the largest ray
+        curvature κ (1/m; 0: straight rays).
     rx_shift : (pings,) float64
         δ per ping (motion during the ping): the span reaches δ further on that side.
     n_across : float
@@ -106,7 +119,8 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
             v0 = rot[b, 0, 0] * w0 + rot[b, 1, 0] * w1 + rot[b, 2, 0] * w2    # Rᵀ·w: body frame
             v1 = rot[b, 0, 1] * w0 + rot[b, 1, 1] * w1 + rot[b, 2, 1] * w2
             v2 = rot[b, 0, 2] * w0 + rot[b, 1, 2] * w1 + rot[b, 2, 2] * w2
-            _lattice(v0, v1, v2, side, radius[k], span, rx_shift[b], n_across, dr_m, max_rays, table[r, k])
+            _lattice(v0, v1, v2, rot[b, 2, 0], rot[b, 2, 1], rot[b, 2, 2], side, radius[k], span, rx_shift[b], n_across,
+                     dr_m, max_rays, table[r, k])
 
 
 @njit(cache=True, nogil=True)

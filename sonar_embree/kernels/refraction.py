@@ -87,7 +87,8 @@ def _layer_of(layers, depth):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_max, state, lay, ray):
+def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_max, state, lay, ray,
+              layout=np.zeros((0, 5))):
     """Launch state of every ray of a block of side-scan fans (directions as :func:`fan_rays`), moved in closed
     form to the scene's height range if it starts outside (:func:`_skip_outside`).
 
@@ -103,44 +104,51 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
         As for :func:`arc_chord`.
     state : (n, STATE_WIDTH) float64; lay : (n,) int64; ray : (n, RAY_WIDTH) float64
         Written.
+    layout : (n, 5) float64, optional
+        Each ray's own s, cos β, sin β (, dβ, ds): rays aimed at objects (:mod:`sonar_embree.aim`), row r's rays
+        ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``cos_beta``, ``sin_beta`` are then not read. Default (0
+        rows): the fan's layout.
     """
     n_az = s.shape[0]
+    per_ray = layout.shape[0] > 0
     for r in prange(el_start.shape[0] - 1):
         b = r // 2
         side = 1.0 if r % 2 else -1.0
         n_el = el_start[r + 1] - el_start[r]
-        base = n_az * el_start[r]
+        base = el_start[r] if per_ray else n_az * el_start[r]
         depth = z0 - pos[b, 2]
         k = _layer_of(layers, depth)
         c0 = _speed(_layer(layers, k), depth)
-        for a in range(n_az):
-            sa = s[a]
+        for i in range(base, base + (n_el if per_ray else n_az * n_el)):
+            if per_ray:
+                sa, cb, sb = layout[i, 0], layout[i, 1], layout[i, 2]
+            else:
+                sa = s[(i - base) // n_el]
+                cb, sb = cos_beta[el_start[r] + (i - base) % n_el], sin_beta[el_start[r] + (i - base) % n_el]
             cpsi = math.sqrt(1.0 - sa * sa)
-            for j in range(n_el):
-                i = base + a * n_el + j
-                e1 = side * cpsi * cos_beta[el_start[r] + j]
-                e2 = cpsi * sin_beta[el_start[r] + j]
-                ux = rot[b, 0, 0] * sa + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2
-                uy = rot[b, 1, 0] * sa + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2
-                uz = rot[b, 2, 0] * sa + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2
-                hz = math.sqrt(ux * ux + uy * uy)
-                ray[i, 0] = ux / hz if hz > 0.0 else 1.0
-                ray[i, 1] = uy / hz if hz > 0.0 else 0.0
-                ray[i, 2] = hz / c0
-                ray[i, 3] = -uz
-                ray[i, 4] = c0
-                state[i, 0] = pos[b, 0]
-                state[i, 1] = pos[b, 1]
-                state[i, 2] = pos[b, 2]
-                for q in range(S_L, STATE_WIDTH):
-                    state[i, q] = 0.0
-                state[i, S_D0] = depth
-                state[i, S_SN0] = -uz
-                state[i, S_XH0] = pos[b, 0] * ray[i, 0] + pos[b, 1] * ray[i, 1]
-                state[i, S_RA] = 1.0
-                state[i, S_CT] = hz
-                state[i, S_ST] = -uz
-                lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
+            e1 = side * cpsi * cb
+            e2 = cpsi * sb
+            ux = rot[b, 0, 0] * sa + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2
+            uy = rot[b, 1, 0] * sa + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2
+            uz = rot[b, 2, 0] * sa + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2
+            hz = math.sqrt(ux * ux + uy * uy)
+            ray[i, 0] = ux / hz if hz > 0.0 else 1.0
+            ray[i, 1] = uy / hz if hz > 0.0 else 0.0
+            ray[i, 2] = hz / c0
+            ray[i, 3] = -uz
+            ray[i, 4] = c0
+            state[i, 0] = pos[b, 0]
+            state[i, 1] = pos[b, 1]
+            state[i, 2] = pos[b, 2]
+            for q in range(S_L, STATE_WIDTH):
+                state[i, q] = 0.0
+            state[i, S_D0] = depth
+            state[i, S_SN0] = -uz
+            state[i, S_XH0] = pos[b, 0] * ray[i, 0] + pos[b, 1] * ray[i, 1]
+            state[i, S_RA] = 1.0
+            state[i, S_CT] = hz
+            state[i, S_ST] = -uz
+            lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
 
 
 @njit(cache=True, nogil=True)
@@ -520,7 +528,7 @@ def _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb):
 @njit(cache=True, nogil=True, parallel=True)
 def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray, face_normals, face_two_sided,
                beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom, range_out, time_out, extent_out,
-               weight_out, cos_out, points_out):
+               weight_out, cos_out, points_out, layout=np.zeros((0, 5))):
     """Weights of the curved rays of a block (docs/physics.md §12); the law multiplies σ(θi)/cos θi afterwards.
 
     w = Γ²(launch)·Γ_rx²(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
@@ -535,9 +543,11 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_pr
     and ``c_nom`` (the sonar's sound speed, m/s). Outputs as there; points are the hit points.
     Γ_rx: the receive beam moved on during the ping, its along-track cosine shifted by ``rx_shift`` (pings,)
     δ = 2·v_fwd/c (docs/physics.md §16; the horizontal slowness is conserved, so the ray reaching the moved
-    receiver leaves X with s − 2v·T/M ≈ s − 2v/c0); Γ_rx = Γ, bit for bit, when δ = 0.
+    receiver leaves X with s − 2v·T/M ≈ s − 2v/c0); Γ_rx = Γ, bit for bit, when δ = 0. With ``layout``
+    (:func:`arc_start`) each ray has its own s, β, dβ and ds.
     """
     n_az = s.shape[0]
+    per_ray = layout.shape[0] > 0
     want_points = points_out.shape[0] == range_out.shape[0]
     cos_t = math.cos(beam[2])
     sin_t = math.sin(beam[2])
@@ -545,50 +555,54 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_pr
         b = r // 2
         side = 1.0 if r % 2 else -1.0
         n_el = el_start[r + 1] - el_start[r]
-        base = n_az * el_start[r]
-        for a in range(n_az):
-            sa = s[a]
+        base = el_start[r] if per_ray else n_az * el_start[r]
+        s_prev = math.nan
+        g_az, g_az_rx = 0.0, 0.0
+        for i in range(base, base + (n_el if per_ray else n_az * n_el)):
+            if per_ray:
+                sa, cb, sb, db, ds_i = layout[i, 0], layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
+            else:
+                e = el_start[r] + (i - base) % n_el
+                sa, cb, sb, db, ds_i = s[(i - base) // n_el], cos_beta[e], sin_beta[e], dbeta[e], ds
+            if sa != s_prev:
+                s_prev = sa
+                g_az = _sinc(beam[0] * sa)
+                g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
             cpsi = math.sqrt(1.0 - sa * sa)
-            g_az = _sinc(beam[0] * sa)
-            g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
-            for j in range(n_el):
-                i = base + a * n_el + j
-                range_out[i] = math.inf
-                time_out[i] = math.inf
-                extent_out[i] = 0.0
-                weight_out[i] = 0.0
-                cos_out[i] = 0.0
-                if want_points:
-                    for q in range(3):
-                        points_out[i, q] = 0.0
-                t = hit_prim[i]
-                if t < 0:
-                    continue
-                e = el_start[r] + j
-                dn = 0.0
+            range_out[i] = math.inf
+            time_out[i] = math.inf
+            extent_out[i] = 0.0
+            weight_out[i] = 0.0
+            cos_out[i] = 0.0
+            if want_points:
                 for q in range(3):
-                    dn += hit[i, 3 + q] * face_normals[t, q]
-                cos_i = -dn
-                if cos_i < 0.0 and face_two_sided[t]:
-                    cos_i = dn
-                g = _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cos_beta[e], sin_beta[e])
-                if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or g == 0.0:
-                    continue
-                c0 = ray[i, 4]
-                area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
-                g_rx = g if rx_shift[b] == 0.0 else _membrane_gain(beam, cos_t, sin_t, g_az_rx, cpsi, cos_beta[e],
-                                                                    sin_beta[e])
-                g2 = g * g
-                weight_out[i] = (g2 * (g_rx * g_rx) * math.exp(-two_way_np_per_m * hit[i, 7]) * ds * dbeta[e]
-                                 / max(area, min_range_m * min_range_m))
-                range_out[i] = c_nom * hit[i, 6]
-                time_out[i] = 2.0 * hit[i, 6]
-                cos_out[i] = cos_i
-                slope = _tube_shift(rot[b], side, cpsi, cos_beta[e], sin_beta[e], sa, hit[i], ray[i], face_normals[t])
-                extent_out[i] = 2.0 * min(slope / cos_i, slope_cap_m_rad) * dbeta[e] / hit[i, 12]
-                if want_points:
-                    for q in range(3):
-                        points_out[i, q] = hit[i, q]
+                    points_out[i, q] = 0.0
+            t = hit_prim[i]
+            if t < 0:
+                continue
+            dn = 0.0
+            for q in range(3):
+                dn += hit[i, 3 + q] * face_normals[t, q]
+            cos_i = -dn
+            if cos_i < 0.0 and face_two_sided[t]:
+                cos_i = dn
+            g = _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb)
+            if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or g == 0.0:
+                continue
+            c0 = ray[i, 4]
+            area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
+            g_rx = g if rx_shift[b] == 0.0 else _membrane_gain(beam, cos_t, sin_t, g_az_rx, cpsi, cb, sb)
+            g2 = g * g
+            weight_out[i] = (g2 * (g_rx * g_rx) * math.exp(-two_way_np_per_m * hit[i, 7]) * ds_i * db
+                             / max(area, min_range_m * min_range_m))
+            range_out[i] = c_nom * hit[i, 6]
+            time_out[i] = 2.0 * hit[i, 6]
+            cos_out[i] = cos_i
+            slope = _tube_shift(rot[b], side, cpsi, cb, sb, sa, hit[i], ray[i], face_normals[t])
+            extent_out[i] = 2.0 * min(slope / cos_i, slope_cap_m_rad) * db / hit[i, 12]
+            if want_points:
+                for q in range(3):
+                    points_out[i, q] = hit[i, q]
 
 
 @njit(cache=True, nogil=True, inline='always')

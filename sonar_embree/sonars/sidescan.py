@@ -43,8 +43,16 @@ class SideScanFrontEnd:
         if not self.aims:
             return None
         if self._aim[0] is not compiled:
-            self._aim = (compiled, AimPlan.build(compiled, self.plan, self.quality))
+            self._aim = (compiled, AimPlan.build(compiled, self.plan, self.quality, self._curvature()))
         return self._aim[1]
+
+    def _curvature(self) -> float:
+        """The largest curvature of a ray in the medium, 1/m: max |dc/dz| / min c of its profile (0: straight)."""
+        env = self.sonar.environment
+        if not env.refracts:
+            return 0.0
+        layers = env.sound_speed.layers()
+        return float(np.abs(layers[:, 2]).max() / min(env.sound_speed.speed_m_s))
 
     def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
              want_ids: bool, clock: dict, rx_shift: np.ndarray | None = None):
@@ -67,15 +75,15 @@ class SideScanFrontEnd:
             Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) on every path.
         """
         surface = self.sonar.environment.surface
+        aim = self.aim_plan(caster.compiled)
         if self.sonar.environment.refracts:  # curved rays (never with a surface: Environment refuses both)
             blk = refraction.cast_refracted(caster, self.plan, rot, pos_local, self.sonar.environment,
                                             self.two_way_np_per_m, max_range_m, self.sonar, want_points, clock,
-                                            self.buffers, rx_shift)
-            return self._rows(echoes_of(blk, caster.compiled.face_object if want_ids else None), blk.el_start), blk
-        blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
-                         2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
-                         timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift,
-                         aim=self.aim_plan(caster.compiled))
+                                            self.buffers, rx_shift, aim)
+        else:
+            blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
+                             2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
+                             timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift, aim=aim)
         ids = caster.compiled.face_object if want_ids else None
         if surface is None:
             direct = self._rows(echoes_of(blk, ids), blk.el_start)
