@@ -241,8 +241,11 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
         aimed = aim_block(caster, aim, plan, rot, pos_local, rx_shift, consts, max_range_m,
                           want_points, frequency_hz)
         t_embree += aimed.seconds_cast
-        kept = drop_aimed(caster, aim, n_az * el_start, prim, w, aimed.aimed) if aimed.aimed.any() else None
-        n_rays = n_rays + aimed.n_rays
+        if aimed.aimed.any():
+            kept = drop_aimed(caster, aim, n_az * el_start, prim, w, aimed.aimed)
+            n_rays = n_rays + aimed.n_rays
+        else:                                  # nothing in reach to aim at: the fan's echoes alone, as without
+            aimed = None
     if timings is not None:
         timings["embree"] = timings.get("embree", 0.0) + t_embree
         timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree

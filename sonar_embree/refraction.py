@@ -184,8 +184,11 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     if aim is not None:
         aimed = _aimed(caster, aim, plan, rot, pos_local, rx_shift, m, two_way_np_per_m, max_range_m, sonar,
                        want_points, clock, buffers)
-        kept = drop_aimed(caster, aim, n_az * el_start, hit_prim, w, aimed.aimed) if aimed.aimed.any() else None
-        n_rays = n_rays + aimed.n_rays
+        if aimed.aimed.any():
+            kept = drop_aimed(caster, aim, n_az * el_start, hit_prim, w, aimed.aimed)
+            n_rays = n_rays + aimed.n_rays
+        else:
+            aimed = None
     clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
     return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar,
                        aimed, kept)

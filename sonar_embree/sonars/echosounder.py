@@ -179,6 +179,8 @@ class EchoSounderFrontEnd:
         if aim is None:
             return rings, _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
         aimed, mask, n_aimed = self._aimed(caster, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids)
+        if not mask.any():                                                 # nothing in reach to aim at
+            return rings, _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
         side = (self.body[:, 1] > 0).astype(np.int64)                      # the lattices' half each ring ray is in
         k = aim.cand_of_object[np.maximum(hits.object_id, 0)]
         drop = (hits.object_id >= 0) & (k >= 0) & mask[2 * np.repeat(np.arange(n_p), n) + np.tile(side, n_p),
