@@ -219,3 +219,15 @@ def test_msis_figure_script_draws_both_scans(tmp_path):
     stats = json.loads((tmp_path / "scan.json").read_text())
     assert set(stats) == {"still", "moving at 0.2 m/s"} and all(v["rays_per_ping"] > 1000 for v in stats.values())
     assert iio.imread(tmp_path / "polar.png").shape[0] > 100
+
+
+def test_bench_objects_script_reports_time_against_object_count_and_its_error():
+    """scripts/bench_objects.py --quick: the table of ms/ping against the number of balls, aimed and fan only, and
+    the reference ball's error both ways (dark pings only without the aimed rays)."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_objects.py"), "--quick"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = proc.stdout
+    assert "| objects | ms/ping, aimed |" in out and "\n| 10 |" in out
+    aimed = next(line for line in out.splitlines() if line.startswith("| aimed + fan |"))
+    assert aimed.split("|")[3].strip().startswith("0 of ")
