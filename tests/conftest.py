@@ -16,6 +16,8 @@ H = 10.0  # sonar altitude of the reference cases, m
 SLOW = frozenset({
     "test_objects_seen.py::test_a_ball_at_shallow_depression_is_seen_in_every_ping",
     "test_objects_seen.py::test_sphere_echo_follows_the_two_way_pattern_in_every_ping",
+    "test_multipath.py::test_mixed_legs_with_each_rays_own_layout_matches_naive",
+    "test_objects_seen.py::test_a_midwater_box_in_a_profile_starts_at_its_closed_form_arrival",
     "test_scripts.py::test_bench_objects_script_reports_time_against_object_count_and_its_error",
     "test_objects_seen.py::test_a_small_ball_in_a_sound_speed_profile_is_seen_in_every_ping",
     "test_objects_seen.py::test_surface_paths_of_a_small_ball_follow_the_image_method",

@@ -74,7 +74,7 @@ def _lattice(v0, v1, v2, up0, up1, up2, side, radius, span, rx, n_across, dr_m, 
     out[NB] = nb
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)  # rows × objects of a few flops each: serial (a parallel kernel compiles slower)
 def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m, max_rays, table):
     """The lattice of every candidate object in every row of a block.
 
@@ -105,7 +105,7 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
     table : (2·pings, k, LATTICE_WIDTH) float64
         Written: each lattice (:data:`S0` … :data:`NB`); NS = 0 where none.
     """
-    for r in prange(table.shape[0]):
+    for r in range(table.shape[0]):
         b = r // 2
         side = 1.0 if r % 2 else -1.0
         for k in range(table.shape[1]):
