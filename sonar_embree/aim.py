@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import checks
+from . import checks, kernels
 from .echoes import Echoes
 from .kernels import aim as K
 from .laws import apply_laws
@@ -101,9 +101,10 @@ class AimedEchoes:
     seconds_cast: float  # in the caster
 
 
-def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tuple, max_range_m: float,
-              want_points: bool, frequency_hz: float, face_object_ids: bool = True) -> AimedEchoes:
-    """Lattices, casts and echoes of every object aimed at in a block of pings.
+def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, two_way_np_per_m: float, max_range_m: float,
+              time_per_m: float, want_points: bool, frequency_hz: float) -> AimedEchoes:
+    """Lattices, casts and echoes of every object aimed at in a block of pings: the fan's own kernel
+    (:func:`kernels.fan_echoes`) with each ray's own layout, then only hits on the aimed object kept.
 
     Parameters
     ----------
@@ -111,37 +112,40 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, consts: tupl
     aim : AimPlan
     plan : FanPlan
     rot : (pings, 3, 3) float64; pos_local : (pings, 3) float64; rx_shift : (pings,) float64
-        As for :func:`sonar_embree.fan.cast_block`.
-    consts : tuple
-        As for :func:`sonar_embree.kernels.hit_terms` (its R_max the range searched).
-    max_range_m : float
-        Range searched, m.
+    two_way_np_per_m, max_range_m, time_per_m : float
+        As for :func:`sonar_embree.fan.cast_block` (``max_range_m`` the range searched).
     want_points : bool
         Keep the hit points (speckle, maps, textures).
     frequency_hz : float
         The carrier, for the laws.
-    face_object_ids : bool
-        Tag each echo with its object (always cheap here: every aimed echo is on its own object).
     """
     n_p, k = rot.shape[0], aim.objects.size
     table, start, counts, dirs, org, layout = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     seconds = time.perf_counter() - t
-    n = layout.shape[0]
-    c = caster.compiled
+    n, c, none = layout.shape[0], caster.compiled, np.zeros(0)
+    ray_start = np.ascontiguousarray(start[::k])
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    K.aim_echoes(table, start, aim.objects, rot, pos_local, rx_shift, prim, tfar, c.face_object, c.vertices, c.faces,
-                 c.face_normals, c.face_two_sided, plan.beam, consts, rng, t_s, ext, w, cos_i, pts)
+    kernels.fan_echoes(plan.s, plan.ds, none, none, none, ray_start, rot, pos_local, rx_shift, prim, tfar, c.vertices,
+                       c.faces, c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
+                       max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts, layout)
+    ids = keep_own(c, aim, counts, prim, w, t_s, cos_i)
     apply_laws(c, frequency_hz, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
-    ids = (np.repeat(np.tile(aim.objects, 2 * n_p), counts.ravel()) if face_object_ids
-           else np.zeros(0, dtype=np.int32))
-    ray_start = start[::k] if k else np.zeros(2 * n_p + 1, dtype=np.int64)
-    echoes = Echoes(2, np.ascontiguousarray(ray_start), t_s, ext, w, pts, ids.astype(np.int32))
+    echoes = Echoes(2, ray_start, t_s, ext, w, pts, ids)
     return AimedEchoes(echoes, layout, prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1), seconds)
+
+
+def keep_own(compiled, aim: AimPlan, counts, prim, weight, time_s, cos_i) -> np.ndarray:
+    """Keep, in place, only the echoes of aimed rays whose first hit is the object they were aimed at (what they
+    hit first elsewhere is the fan's); returns (n,) int32 the object each ray was aimed at."""
+    obj = np.repeat(np.tile(aim.objects, counts.shape[0]), counts.ravel()).astype(np.int32)
+    other = (prim < 0) | (compiled.face_object[np.maximum(prim, 0)] != obj)
+    weight[other], time_s[other], cos_i[other] = 0.0, np.inf, 0.0
+    return obj
 
 
 def lattice_rays(aim: AimPlan, rot, pos_local, rx_shift, max_range_m: float):

@@ -236,9 +236,7 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe
     aimed, kept = None, None
     if aim is not None:
-        consts = (plan.beam[1], math.cos(plan.beam[2]), math.sin(plan.beam[2]), two_way_np_per_m, plan.min_range_m,
-                  max_range_m, plan.slope_cap_m_rad, time_per_m)
-        aimed = aim_block(caster, aim, plan, rot, pos_local, rx_shift, consts, max_range_m,
+        aimed = aim_block(caster, aim, plan, rot, pos_local, rx_shift, two_way_np_per_m, max_range_m, time_per_m,
                           want_points, frequency_hz)
         t_embree += aimed.seconds_cast
         if aimed.aimed.any():

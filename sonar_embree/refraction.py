@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import checks, kernels
-from .aim import AimedEchoes, drop_aimed, lattice_rays
+from .aim import AimedEchoes, drop_aimed, keep_own, lattice_rays
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import PROBE_LINES, BlockEchoes, FanPlan, elevation_rows, nadir_altitude
@@ -214,9 +214,7 @@ def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_
     kernels.arc_echoes(plan.s, plan.ds, none, none, none, ray_start, rot, rx_shift, hit_prim, hit, ray,
                        c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
                        plan.slope_cap_m_rad, sonar.sound_speed_m_s, rng, t_s, ext, w, cos_i, pts, layout)
-    obj = np.repeat(np.tile(aim.objects, 2 * n_p), counts.ravel()).astype(np.int32)
-    other = (hit_prim < 0) | (c.face_object[np.maximum(hit_prim, 0)] != obj)
-    w[other], t_s[other] = 0.0, np.inf
+    obj = keep_own(c, aim, counts, hit_prim, w, t_s, cos_i)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

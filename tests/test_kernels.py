@@ -311,9 +311,10 @@ def _aim_scene(rng):
 
 
 def test_aim_kernels_match_naive(rng):
-    """The object-aimed rays (sonar_embree.aim): lattices, directions, echoes (against the fan's naive twin per
-    lattice, counting only hits on the lattice's own object) and the fan hits they replace."""
-    from sonar_embree.aim import AimPlan
+    """The object-aimed rays (sonar_embree.aim): lattices, directions, echoes (kernels.fan_echoes with each ray's own
+    layout, against the fan's naive twin per lattice, counting only hits on the lattice's own object) and the fan
+    hits they replace."""
+    from sonar_embree.aim import AimPlan, keep_own
     from sonar_embree.fan import FanPlan
     from sonar_embree.kernels import aim as K
     from sonar_embree.laws import apply_laws
@@ -367,10 +368,10 @@ def test_aim_kernels_match_naive(rng):
 
     out = [np.empty(n) for _ in range(5)]
     pts = np.empty((n, 3))
-    consts = (plan.beam[1], np.cos(plan.beam[2]), np.sin(plan.beam[2]), 0.02, plan.min_range_m, 50.0,
-              plan.slope_cap_m_rad, 2 / 1500.0)
-    K.aim_echoes(table, start, aim.objects, rot, pos, shift, prim, tfar, c.face_object, c.vertices, c.faces,
-                 c.face_normals, c.face_two_sided, plan.beam, consts, *out, pts)
+    kernels.fan_echoes(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), start[::table.shape[1]], rot, pos,
+                       shift, prim, tfar, c.vertices, c.faces, c.face_normals, c.face_two_sided, plan.beam, 0.02,
+                       plan.min_range_m, 50.0, plan.slope_cap_m_rad, 2 / 1500.0, *out, pts, lay)
+    keep_own(c, aim, counts, prim, out[3], out[1], out[4])
     apply_laws(c, sonar.frequency_hz, prim, out[4], out[3], pts)
     k_wave = 2 * np.pi / sonar.wavelength_m
     w_ref = np.zeros(n)

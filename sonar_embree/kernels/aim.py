@@ -1,5 +1,6 @@
 """Kernels of the object-aimed rays (docs/physics.md §7b): which objects each row's beam can see, the lattice of
-rays aimed at each, their echoes, and the fan's hits those lattices replace.
+rays aimed at each and the fan's hits those lattices replace (their echoes are the fan's kernel's,
+:func:`~.rays.fan_echoes` with each ray's own layout).
 
 A row is (ping, side) as in the fan (r = 2·b + side). Its body-frame directions are
 (s, side·√(1 − s²)·cos β, √(1 − s²)·sin β), whose solid angle element is exactly ds·dβ; an object's lattice is a
@@ -10,10 +11,7 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from ._numba import njit, prange
-from .rays import _sinc, hit_terms
 
 #: Columns of the lattice table: first s, s step, first β, β step (rad), rays in s, rays in β.
 S0, HS, B0, HB, NS, NB = range(6)
@@ -167,79 +165,6 @@ def aim_rays(table, start, rot, pos, dirs, origins, layout):
                 for q in range(3):
                     dirs[base + j, q] = rot[b, q, 0] * d0 + rot[b, q, 1] * d1 + rot[b, q, 2] * d2
                     origins[base + j, q] = pos[b, q]
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def aim_echoes(table, start, cand_object, rot, pos, rx_shift, prim, tfar, face_object, vertices, faces, face_normals,
-               face_two_sided, beam, consts, range_out, time_out, extent_out, weight_out, cos_out, points_out):
-    """Echoes of the aimed rays: a ray counts only where its first hit is on the object it was aimed at (what it
-    hits first elsewhere is the fan's), with the fan's physics per hit (:func:`~.rays.hit_terms`).
-
-    Parameters
-    ----------
-    table, start
-        As for :func:`aim_rays`.
-    cand_object : (k,) int32
-        Scene object of each candidate.
-    rx_shift : (pings,) float64
-        δ per ping.
-    prim, tfar : (n,) int32, float32
-        Embree's hits.
-    face_object : (f,) int32
-    vertices, faces, face_normals, face_two_sided
-        The scene, as for :func:`~.rays.fan_echoes`.
-    beam : (4,) float64
-        k·lx/2, k·ly/2, tilt, 0.
-    consts : tuple
-        As for :func:`~.rays.hit_terms`.
-    range_out, time_out, extent_out, weight_out, cos_out : (n,) float64
-        Written as by :func:`~.rays.fan_echoes` (no echo: inf, weight 0).
-    points_out : (n, 3) or (0, 3) float64
-        Written with the hit points when it has n rows.
-    """
-    n_k = table.shape[1]
-    want_points = points_out.shape[0] == range_out.shape[0]
-    for r in prange(table.shape[0]):
-        b = r // 2
-        for k in range(n_k):
-            base = start[r * n_k + k]
-            for j in range(start[r * n_k + k + 1] - base):
-                i = base + j
-                range_out[i] = math.inf
-                time_out[i] = math.inf
-                extent_out[i] = 0.0
-                weight_out[i] = 0.0
-                cos_out[i] = 0.0
-                if want_points:
-                    points_out[i, 0] = 0.0
-                    points_out[i, 1] = 0.0
-                    points_out[i, 2] = 0.0
-                t = prim[i]
-                if t < 0 or face_object[t] != cand_object[k]:
-                    continue
-                sa, cb, sb, side = _direction(table, r, k, j)
-                cpsi = math.sqrt(1.0 - sa * sa)
-                e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
-                f1, f2 = -side * cpsi * sb, cpsi * cb
-                dn, num, fn = 0.0, 0.0, 0.0
-                for q in range(3):
-                    nq = face_normals[t, q]
-                    dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
-                    num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
-                    fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
-                rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb,
-                                               _sinc(beam[0] * sa), _sinc(beam[0] * (sa - rx_shift[b])),
-                                               table[r, k, HS], table[r, k, HB], consts)
-                if cos_i == 0.0:
-                    continue
-                range_out[i] = rr
-                time_out[i] = rr * consts[7]
-                weight_out[i] = wt
-                cos_out[i] = cos_i
-                extent_out[i] = ext
-                if want_points:
-                    for q in range(3):
-                        points_out[i, q] = pos[b, q] + rr * (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2)
 
 
 @njit(cache=True, nogil=True, parallel=True)

@@ -132,10 +132,20 @@ def sinc_rows(a, rows, m):
             a[j, k] = _sinc_poly(a[j, k])
 
 
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def ray_cell(i, base, first, n_el, s, ds, cos_beta, sin_beta, dbeta, layout):
+    """(s, cos β, sin β, dβ, ds) of ray ``i`` of a row whose rays start at ``base``: its own (``layout`` rows, the
+    rays aimed at objects) or the fan's, azimuth-major over the row's ``n_el`` elevation cells from ``first``."""
+    if layout.shape[0] > 0:
+        return layout[i, 0], layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
+    e = first + (i - base) % n_el
+    return s[(i - base) // n_el], cos_beta[e], sin_beta[e], dbeta[e], ds
+
+
 @njit(cache=True, nogil=True)
 def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db, consts):
-    """The physics of one hit, on scalars only: the one home of the fan's echo per ray (the object-aimed rays
-    of :mod:`sonar_embree.aim` share it; docs/physics.md §2–3).
+    """The physics of one hit of :func:`fan_echoes`, on scalars only (no array arguments: no reference counting per
+    ray; docs/physics.md §2–3).
 
     Parameters
     ----------
@@ -187,7 +197,7 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, prim, tfar, vertices, faces, face_normals,
                face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,
-               time_out, extent_out, weight_out, cos_out, points_out):
+               time_out, extent_out, weight_out, cos_out, points_out, layout=np.zeros((0, 5))):
     """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
 
     (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
@@ -235,56 +245,59 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
         extent ΔR·2/c (s), w and cos θi (0 where w = 0).
     points_out : (n, 3) or (0, 3) float64
         Written with the hit points (local frame, m) when it has n rows.
+    layout : (n, 5) float64, optional
+        Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.aim`), row r's
+        rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
+        not read. Default (0 rows): the fan's layout.
     """
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
     consts = (beam[1], math.cos(beam[2]), math.sin(beam[2]), two_way_np_per_m, min_range_m, max_range_m,
               slope_cap_m_rad, time_per_m)
+    per_ray = layout.shape[0] > 0
     for r in prange(el_start.shape[0] - 1):
         b = r // 2
         side = 1.0 if r % 2 else -1.0
         n_el = el_start[r + 1] - el_start[r]
-        base = n_az * el_start[r]
-        for a in range(n_az):
-            sa = s[a]
-            cpsi = math.sqrt(1.0 - sa * sa)
-            g_az = _sinc(beam[0] * sa)
-            g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
-            for j in range(n_el):
-                i = base + a * n_el + j
-                range_out[i] = math.inf
-                time_out[i] = math.inf
-                extent_out[i] = 0.0
-                weight_out[i] = 0.0
-                cos_out[i] = 0.0
-                if want_points:
-                    points_out[i, 0] = 0.0
-                    points_out[i, 1] = 0.0
-                    points_out[i, 2] = 0.0
-                t = prim[i]
-                if t < 0:
-                    continue
-                cb = cos_beta[el_start[r] + j]
-                sb = sin_beta[el_start[r] + j]
-                db = dbeta[el_start[r] + j]
-                e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
-                f1, f2 = -side * cpsi * sb, cpsi * cb  # ∂u/∂β in body axes (0, f1, f2)
-                dn, num, fn = 0.0, 0.0, 0.0
-                for q in range(3):
-                    nq = face_normals[t, q]
-                    dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
-                    num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
-                    fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
-                rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb,
-                                               g_az, g_az_rx, ds, db, consts)
-                if cos_i == 0.0:
-                    continue
-                range_out[i] = rr
-                time_out[i] = rr * time_per_m
-                weight_out[i] = wt
-                cos_out[i] = cos_i
-                extent_out[i] = ext
-                if want_points:
-                    points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
-                    points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
-                    points_out[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)
+        base = el_start[r] if per_ray else n_az * el_start[r]
+        s_prev, cpsi, g_az, g_az_rx = math.nan, 0.0, 0.0, 0.0
+        for i in range(base, base + (n_el if per_ray else n_az * n_el)):
+            range_out[i] = math.inf
+            time_out[i] = math.inf
+            extent_out[i] = 0.0
+            weight_out[i] = 0.0
+            cos_out[i] = 0.0
+            if want_points:
+                points_out[i, 0] = 0.0
+                points_out[i, 1] = 0.0
+                points_out[i, 2] = 0.0
+            t = prim[i]
+            if t < 0:
+                continue
+            sa, cb, sb, db, ds_i = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
+            if sa != s_prev:
+                s_prev = sa
+                cpsi = math.sqrt(1.0 - sa * sa)
+                g_az = _sinc(beam[0] * sa)
+                g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
+            e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
+            f1, f2 = -side * cpsi * sb, cpsi * cb  # ∂u/∂β in body axes (0, f1, f2)
+            dn, num, fn = 0.0, 0.0, 0.0
+            for q in range(3):
+                nq = face_normals[t, q]
+                dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
+                num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
+                fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
+            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb,
+                                           g_az, g_az_rx, ds_i, db, consts)
+            if cos_i == 0.0:
+                continue
+            range_out[i] = rr
+            time_out[i] = rr * time_per_m
+            weight_out[i] = wt
+            cos_out[i] = cos_i
+            extent_out[i] = ext
+            if want_points:
+                points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
+                points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
+                points_out[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)

@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
-from .rays import _sinc
+from .rays import _sinc, ray_cell
 
 #: Columns of a ray's marching state (see the module docstring).
 STATE_WIDTH = 14
@@ -559,11 +559,7 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_pr
         s_prev = math.nan
         g_az, g_az_rx = 0.0, 0.0
         for i in range(base, base + (n_el if per_ray else n_az * n_el)):
-            if per_ray:
-                sa, cb, sb, db, ds_i = layout[i, 0], layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
-            else:
-                e = el_start[r] + (i - base) % n_el
-                sa, cb, sb, db, ds_i = s[(i - base) // n_el], cos_beta[e], sin_beta[e], dbeta[e], ds
+            sa, cb, sb, db, ds_i = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
             if sa != s_prev:
                 s_prev = sa
                 g_az = _sinc(beam[0] * sa)
