@@ -229,7 +229,7 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, rx_shift, prim, tfar, c.vertices,
                        c.faces, c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
-                       max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts)
+                       max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts, kernels.NO_LAYOUT)
     apply_laws(c, frequency_hz, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

@@ -265,7 +265,7 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     plan = front.plan
     w, t, ext = _mixed(front, caster, front.buffers, blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta),
                        np.sin(blk.beta), blk.dbeta, plan.ds, blk.range_m, blk.point_m, blk.prim, rot, pos_local,
-                       z_s_local, rx_shift, np.zeros((0, 5)))
+                       z_s_local, rx_shift, kernels.NO_LAYOUT)
     if blk.aimed is not None and blk.aimed.aimed.any():
         aim = front.aim_plan(caster.compiled)
         aim_kernels.drop_aimed(blk.ray_start, blk.prim, caster.compiled.face_object, aim.cand_of_object,

@@ -77,7 +77,7 @@ class Marching:
         state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
         ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
         kernels.arc_start(s, np.cos(beta), np.sin(beta), el_start, rot, pos_local, self.layers, self.z0, self.box_z,
-                          self.l_max, state, lay, ray)
+                          self.l_max, state, lay, ray, kernels.NO_LAYOUT)
         return state, lay, ray
 
 
@@ -175,7 +175,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.arc_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray,
                        c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
-                       plan.slope_cap_m_rad, c_nom, rng, t_s, ext, w, cos_i, pts)
+                       plan.slope_cap_m_rad, c_nom, rng, t_s, ext, w, cos_i, pts, kernels.NO_LAYOUT)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

@@ -201,7 +201,7 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     shift = rng.uniform(-3e-3, 3e-3, rot.shape[0])  # motion during the ping (0: stop-and-hop)
     kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, shift, prim, tfar, c.vertices,
                        c.faces, c.face_normals, two_sided, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02,
-                       0.004, 60.0, 500.0, per_m, rng_k, t_k, ext_k, w_k, cos_k, pts)
+                       0.004, 60.0, 500.0, per_m, rng_k, t_k, ext_k, w_k, cos_k, pts, kernels.NO_LAYOUT)
     ext_k = ext_k / per_m
     np.testing.assert_array_equal(t_k, rng_k * per_m)
     apply_laws(c, 100e3, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in

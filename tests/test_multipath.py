@@ -328,7 +328,7 @@ def test_mixed_legs_kernel_matches_naive(rng):
         kernels.mixed_legs(ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, r, x, prim,
                            *rest, want_phi, mu_obj, face_object, legs,
                            *[o[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], vv, o["leg1"], uu,
-                           o["leg2"])
+                           o["leg2"], kernels.NO_LAYOUT)
     for k in keys:                          # without φ (a scene of laws that ignore it): the rest to the bit
         np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.full(n, np.nan), err_msg=k)
         if k not in ("leg1", "leg2", "phi"):   # without the legs: none written, the rest to the bit

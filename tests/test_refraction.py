@@ -188,7 +188,7 @@ def three_layer_block():
     state, lay, ray = np.empty((n, kernels.STATE_WIDTH)), np.empty(n, np.int64), np.empty((n, kernels.RAY_WIDTH))
     no_box = np.array([-np.inf, np.inf])  # the launch itself (march skips to the scene's heights)
     kernels.arc_start(front.plan.s, np.cos(beta), np.sin(beta), el_start, rot, pos, layers, z0, no_box, np.inf,
-                      state, lay, ray)
+                      state, lay, ray, kernels.NO_LAYOUT)
     start = state.copy()
     t_max = 40.0 / sonar.sound_speed_m_s
     box = compiled.bounds_local[:, 2] + [-0.5, 0.5]
@@ -295,7 +295,7 @@ def test_arc_echoes_matches_its_twin(three_layer_block, delta):
     kernels.arc_echoes(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"], b["rot"],
                        rx_shift, b["hit_prim"], b["hit"], b["ray"], c.face_normals, c.face_two_sided, plan.beam,
                        b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"], plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, *out, np.empty((0, 3)))
+                       s.sound_speed_m_s, *out, np.empty((0, 3)), kernels.NO_LAYOUT)
     rng_k, t_k, ext_k, w_k, _ = out
     rays = _sample(b, seed=7)
     prim = np.full(n, -1, np.int32)
@@ -459,7 +459,7 @@ def test_arc_kernels_with_each_rays_own_layout_give_the_fans_bits(three_layer_bl
             b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s)
     fan, per_ray = [np.empty(n) for _ in range(5)], [np.empty(n) for _ in range(5)]
     kernels.arc_echoes(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], el, *args, *fan,
-                       np.empty((0, 3)))
+                       np.empty((0, 3)), kernels.NO_LAYOUT)
     kernels.arc_echoes(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), n_az * el, *args, *per_ray,
                        np.empty((0, 3)), layout)
     for x, y in zip(fan, per_ray):

@@ -14,7 +14,7 @@ from here). Kernels read no global state (named constants only), allocate nothin
 numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy twin in
 ``tests/naive.py``. Compiled code is cached on disk.
 """
-from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
+from ._numba import NO_LAYOUT, REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
 from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_legs
 from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start
 from .rays import _sinc, fan_echoes, fan_rays, place_rows, sinc_rows
@@ -23,6 +23,6 @@ from .splat import splat_rows, splat_table
 from .swell import swell_launch, swell_paths, swell_surface_hits
 from .truth import label_rows
 
-__all__ = ["HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
+__all__ = ["NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
            "splat_table", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows"]

@@ -8,6 +8,7 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 import numba  # noqa: E402
+import numpy as np  # noqa: E402
 from numba import njit, prange  # noqa: E402,F401 (re-exported)
 
 
@@ -21,6 +22,12 @@ from numba import njit, prange  # noqa: E402,F401 (re-exported)
 #: REFIT_REL_TOL·(1 m + distance) (then the plane is not the one hit: keep Embree's).
 REFIT_MIN_COS = 1e-6
 REFIT_REL_TOL = 1e-3
+
+
+#: The ``layout`` argument of the kernels that also take each ray's own layout (fan_echoes, mixed_legs, arc_start,
+#: arc_echoes) when the rays are the fan's: no rows. Always passed: an array default argument would make Numba
+#: compile the kernel again in every process (its on-disk cache cannot key an array default).
+NO_LAYOUT = np.zeros((0, 5))
 
 
 def num_threads() -> int:

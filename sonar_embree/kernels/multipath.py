@@ -68,7 +68,7 @@ def _azimuth(n, u, v):
 def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals,
                beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, mu_obj,
                face_object, want_legs, time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out,
-               u2_out, leg2_out, layout=np.zeros((0, 5))):
+               u2_out, leg2_out, layout):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
@@ -124,9 +124,9 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
     time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
     v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
         Written.
-    layout : (n, 5) float64, optional
+    layout : (n, 5) or (0, 5) float64
         Each ray's own s, cos β, sin β, dβ and ds (rays aimed at objects, :mod:`sonar_embree.aim`); then
-        ``el_start``, ``s_az``, ``cos_beta``, ``sin_beta``, ``dbeta`` and ``ds`` are not read. Default (0 rows):
+        ``el_start``, ``s_az``, ``cos_beta``, ``sin_beta``, ``dbeta`` and ``ds`` are not read. No rows (``NO_LAYOUT``):
         the fan's layout.
     """
     for row in prange(ray_start.shape[0] - 1):

@@ -197,7 +197,7 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, prim, tfar, vertices, faces, face_normals,
                face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,
-               time_out, extent_out, weight_out, cos_out, points_out, layout=np.zeros((0, 5))):
+               time_out, extent_out, weight_out, cos_out, points_out, layout):
     """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
 
     (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
@@ -245,10 +245,10 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
         extent ΔR·2/c (s), w and cos θi (0 where w = 0).
     points_out : (n, 3) or (0, 3) float64
         Written with the hit points (local frame, m) when it has n rows.
-    layout : (n, 5) float64, optional
+    layout : (n, 5) or (0, 5) float64
         Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.aim`), row r's
         rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
-        not read. Default (0 rows): the fan's layout.
+        not read. No rows (``NO_LAYOUT``): the fan's layout.
     """
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]

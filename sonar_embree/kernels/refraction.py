@@ -88,7 +88,7 @@ def _layer_of(layers, depth):
 
 @njit(cache=True, nogil=True, parallel=True)
 def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_max, state, lay, ray,
-              layout=np.zeros((0, 5))):
+              layout):
     """Launch state of every ray of a block of side-scan fans (directions as :func:`fan_rays`), moved in closed
     form to the scene's height range if it starts outside (:func:`_skip_outside`).
 
@@ -104,10 +104,10 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
         As for :func:`arc_chord`.
     state : (n, STATE_WIDTH) float64; lay : (n,) int64; ray : (n, RAY_WIDTH) float64
         Written.
-    layout : (n, 5) float64, optional
+    layout : (n, 5) or (0, 5) float64
         Each ray's own s, cos β, sin β (, dβ, ds): rays aimed at objects (:mod:`sonar_embree.aim`), row r's rays
-        ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``cos_beta``, ``sin_beta`` are then not read. Default (0
-        rows): the fan's layout.
+        ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``cos_beta``, ``sin_beta`` are then not read. No rows
+        (``NO_LAYOUT``): the fan's layout.
     """
     n_az = s.shape[0]
     per_ray = layout.shape[0] > 0
@@ -528,7 +528,7 @@ def _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb):
 @njit(cache=True, nogil=True, parallel=True)
 def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray, face_normals, face_two_sided,
                beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom, range_out, time_out, extent_out,
-               weight_out, cos_out, points_out, layout=np.zeros((0, 5))):
+               weight_out, cos_out, points_out, layout):
     """Weights of the curved rays of a block (docs/physics.md §12); the law multiplies σ(θi)/cos θi afterwards.
 
     w = Γ²(launch)·Γ_rx²(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
