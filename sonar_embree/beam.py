@@ -107,9 +107,13 @@ def azimuth_samples(wavelength_m: float, length_m: float, oversample: float, n_n
     s_max = min(n_nulls * wavelength_m / length_m, 0.999)
     m = int(math.floor(s_max / ds + 1e-9))
     s = np.arange(-m, m + 1, dtype=np.float64) * ds
-    x = np.pi * length_m / wavelength_m * s
-    on_null = (np.abs(np.sin(x)) < 1e-9) & (np.abs(x) > 1e-9)
-    return s[~on_null], ds
+    return s[~on_null(np.pi * length_m / wavelength_m * s)], ds
+
+
+def on_null(x) -> np.ndarray:
+    """Where sinc(x) = sin(x)/x is exactly zero (x = π·lx·s/λ a nonzero multiple of π): rays there weigh 0."""
+    x = np.asarray(x, dtype=np.float64)
+    return (np.abs(np.sin(x)) < 1e-9) & (np.abs(x) > 1e-9)
 
 
 def elevation_span_rad(wavelength_m: float, height_m: float, tilt_rad: float, n_nulls: int = 1):

@@ -10,6 +10,7 @@ rays or samples.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass
@@ -49,6 +50,7 @@ class FanPlan:
     min_range_m: float       # near-field bound on R in the weights
     footprint: bool          # spread echoes over their cells' range intervals (else point echoes)
     sides: tuple = (True, True)  # which sides get rays (port, starboard); a side without has empty rows
+    spans_motion: bool = True    # lines added for the receive beam's turn under motion (moving_lines)
 
     @classmethod
     def build(cls, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1) -> "FanPlan":
@@ -72,6 +74,65 @@ class FanPlan:
     def n_probe(self) -> int:
         """Probe rays per ping (both sides and the nadir ray)."""
         return self.probe_body.shape[0] + 1
+
+    @property
+    def edge_s(self) -> float:
+        """sin ψ of the transmit span's outermost line: the probes' edge lines (:data:`PROBE_LINES`)."""
+        return float(np.abs(self.probe_body[:, 0]).max())
+
+
+def moving_lines(plan: FanPlan, rx_shift: np.ndarray):
+    """The azimuth lines of a block of pings moving during the ping (docs/physics.md §7c).
+
+    The receive beam is turned by δ = 2·v_fwd/c (``rx_shift``, (pings,)), so the two-way pattern lives on the
+    union of the transmit lines and those lines shifted by δ. The block's fan takes lines of the same lattice
+    k·ds past the transmit span's edge on δ's side, ⌈|δ|/ds⌉ of them (those on a transmit null weigh nothing and
+    are left out; the span's edge is its outermost null). Each ping counts only its own lines, so its bits do not
+    depend on the other pings of its block.
+
+    Returns
+    -------
+    plan : FanPlan
+        ``plan`` with the block's lines (``plan`` itself when nothing moves or the fan does not follow motion).
+    keep : (pings, 2) float64 or None
+        The s-interval of each ping's own lines where they differ between the block's pings (its rays on the other
+        lines are dropped: :func:`drop_lines`); None where every ping keeps every line.
+    """
+    if not plan.spans_motion or rx_shift is None or not np.any(rx_shift):
+        return plan, None
+    k = np.ceil(np.abs(rx_shift) / plan.ds - 1e-9)
+    lo, hi = np.where(rx_shift < 0, k, 0.0), np.where(rx_shift > 0, k, 0.0)
+    i0, i1 = round(plan.s[0] / plan.ds), round(plan.s[-1] / plan.ds)
+    null = beam.on_null(plan.beam[0] * plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null
+    i0, i1 = i0 - int(null[0]), i1 + int(null[1])
+    extra = [np.arange(i0 - int(lo.max()), i0) * plan.ds, np.arange(i1 + 1, i1 + int(hi.max()) + 1) * plan.ds]
+    extra = [x[~beam.on_null(plan.beam[0] * x)] for x in extra]
+    moved = dataclasses.replace(plan, s=np.concatenate([extra[0], plan.s, extra[1]]))
+    if lo.min() == lo.max() and hi.min() == hi.max():
+        return moved, None
+    return moved, np.stack([(i0 - lo - 0.5) * plan.ds, (i1 + hi + 0.5) * plan.ds], axis=1)
+
+
+def own_lines(s: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """(pings, n_az) bool: which of the block's lines ``s`` each ping counts (``keep`` from :func:`moving_lines`)."""
+    return (s[None, :] >= keep[:, :1]) & (s[None, :] <= keep[:, 1:])
+
+
+def drop_lines(prim: np.ndarray, s: np.ndarray, keep: np.ndarray, el_start: np.ndarray) -> None:
+    """Mark the rays of each ping on lines it does not count as misses (``prim`` = −1, in place).
+
+    ``prim`` (n,) the fan's hits, azimuth-major within each row of ``el_start`` (rows + 1,) (rows = 2·pings);
+    ``s`` (n_az,) the block's lines; ``keep`` (pings, 2) from :func:`moving_lines`."""
+    n_el = np.diff(el_start)
+    own = np.repeat(own_lines(s, keep), 2, axis=0)                 # (rows, n_az)
+    prim[~np.repeat(own.ravel(), np.repeat(n_el, s.shape[0]))] = -1
+
+
+def rays_per_ping(plan: FanPlan, keep, el_start: np.ndarray) -> np.ndarray:
+    """(pings,) rays each ping counts: its own lines × its elevation rays, and the probes."""
+    n_el = np.diff(el_start).reshape(-1, 2).sum(axis=1)
+    lines = plan.s.shape[0] if keep is None else own_lines(plan.s, keep).sum(axis=1)
+    return lines * n_el + plan.n_probe
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,6 +158,7 @@ class BlockEchoes:
     tfar: np.ndarray        # (n,) float32 Embree's hit distance, m
     aimed: object = None    # AimedEchoes of the rays aimed at objects (sonar_embree.aim), or None
     kept_weight: np.ndarray | None = None  # (n,) ``weight`` without the hits on aimed objects (None: none aimed)
+    plan: FanPlan | None = None  # the block's fan: the plan's lines and those added under motion (moving_lines)
 
     @property
     def echo_weight(self) -> np.ndarray:
@@ -207,6 +269,7 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     t0 = time.perf_counter()
     n_p = rot.shape[0]
     rx_shift = np.zeros(n_p) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
+    plan, keep = moving_lines(plan, rx_shift)
     # hits a little beyond the window still reach into it with their footprints; the splatting crops them
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
@@ -223,6 +286,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)
     t_embree += time.perf_counter() - t
+    if keep is not None:
+        drop_lines(prim, plan.s, keep, el_start)
 
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     c = caster.compiled
@@ -233,7 +298,7 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     apply_laws(c, frequency_hz, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
-    n_rays = n_az * np.diff(el_start).reshape(n_p, 2).sum(axis=1) + plan.n_probe
+    n_rays = rays_per_ping(plan, keep, el_start)
     aimed, kept = None, None
     if aim is not None:
         aimed = aim_block(caster, aim, plan, rot, pos_local, rx_shift, two_way_np_per_m, max_range_m, time_per_m,
@@ -248,4 +313,4 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
         timings["embree"] = timings.get("embree", 0.0) + t_embree
         timings["rays"] = timings.get("rays", 0.0) + time.perf_counter() - t0 - t_embree
     return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, prim, tfar,
-                       aimed, kept)
+                       aimed, kept, plan)

@@ -457,8 +457,8 @@ def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel
 class GroundTruth:
     """Per-sample ground truth of a record, block by block (each channel's label line and object echoes).
 
-    A front end may declare ``label_lines()`` (its channels' fan sides and azimuth lines, :func:`label_block`;
-    default the side-scan's centre lines) and ``beam_power`` (a beamformer's AF² from its echo channels to its
+    A front end may declare ``label_lines(plan)`` (its channels' sides and lines in the block's fan,
+    :func:`label_block`; default the side-scan's centre lines) and ``beam_power`` (a beamformer's AF² from its echo channels to its
     record's, :func:`object_echo_block`).
 
     Parameters
@@ -478,9 +478,9 @@ class GroundTruth:
         """Labels of pings a … a + e.n_pings − 1 from the side-scan block ``blk`` and its echoes ``e``."""
         e = merged(e)
         b, c, s = a + e.n_pings, self.compiled, front.sonar
-        label_block(caster, front.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
+        label_block(caster, blk.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
                     s.sound_speed_m_s / (2.0 * s.sample_rate_hz), float(c.origin_m[2]),
-                    tuple(x[a:b] for x in self.arrays[:5]), getattr(front, "label_lines", lambda: None)())
+                    tuple(x[a:b] for x in self.arrays[:5]), getattr(front, "label_lines", lambda plan: None)(blk.plan))
         object_echo_block(e, c.is_seafloor, s.sample_rate_hz, self.kernel, self.lead, self.arrays[5][a:b],
                           self.arrays[6][a:b], getattr(front, "beam_power", None))
 

@@ -262,7 +262,7 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
     with its rays; ``rx_shift`` (pings,) δ = 2·v_fwd/c turns each path's receive beam (docs/physics.md §16). The
     fan's hits on objects its rows aim rays at count nothing here (their aimed rays' own one-bounce echoes,
     :func:`mixed_aimed_echoes`, stand for them)."""
-    plan = front.plan
+    plan = blk.plan
     w, t, ext = _mixed(front, caster, front.buffers, blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta),
                        np.sin(blk.beta), blk.dbeta, plan.ds, blk.range_m, blk.point_m, blk.prim, rot, pos_local,
                        z_s_local, rx_shift, kernels.NO_LAYOUT)

@@ -24,7 +24,8 @@ from . import checks, kernels
 from .aim import AimedEchoes, drop_aimed, keep_own, lattice_rays
 from .buffers import Buffers
 from .echoes import Echoes
-from .fan import PROBE_LINES, BlockEchoes, FanPlan, elevation_rows, nadir_altitude
+from .fan import (PROBE_LINES, BlockEchoes, FanPlan, drop_lines, elevation_rows, moving_lines, nadir_altitude,
+                  rays_per_ping)
 from .laws import apply_laws
 
 #: A chord stands off its arc by at most this many of the sonar's range bins (its hits are moved onto the arc;
@@ -117,7 +118,7 @@ def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
 def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffers):
     """Apparent range c·T (NaN: nothing in the window) of the curved probes, (rows, lines·m) as for straight ones."""
     rows, n_beta = 2 * rot.shape[0], plan.probe_beta.shape[0]
-    lines = PROBE_LINES * np.abs(plan.s).max()
+    lines = PROBE_LINES * plan.edge_s
     el = np.arange(rows + 1, dtype=np.int64) * n_beta
     state, lay, ray = m.launch(lines, np.tile(plan.probe_beta, rows), el, rot, pos_local, buffers)
     hit_prim, hit, _ = march(caster, m, state, lay, ray, clock, buffers)
@@ -154,6 +155,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     """
     buffers = Buffers() if buffers is None else buffers
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
+    plan, keep = moving_lines(plan, rx_shift)
     t0, before = time.perf_counter(), clock.get("embree", 0.0)
     c_nom = sonar.sound_speed_m_s
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
@@ -169,7 +171,8 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     state, lay, ray = m.launch(plan.s, beta, el_start, rot, pos_local, buffers)
     hit_prim, hit, tfar = march(caster, m, state, lay, ray, clock, buffers)
-
+    if keep is not None:
+        drop_lines(hit_prim, plan.s, keep, el_start)
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
@@ -179,7 +182,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
-    n_rays = n_az * np.diff(el_start).reshape(rot.shape[0], 2).sum(axis=1) + plan.n_probe
+    n_rays = rays_per_ping(plan, keep, el_start)
     aimed, kept = None, None
     if aim is not None:
         aimed = _aimed(caster, aim, plan, rot, pos_local, rx_shift, m, two_way_np_per_m, max_range_m, sonar,
@@ -191,7 +194,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
             aimed = None
     clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
     return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar,
-                       aimed, kept)
+                       aimed, kept, plan)
 
 
 def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, max_range_m, sonar,

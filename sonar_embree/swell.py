@@ -23,7 +23,7 @@ import numpy as np
 
 from . import kernels
 from .echoes import Echoes
-from .fan import elevation_rows, probe_ranges
+from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
 from .laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
                         surface_caster, surface_strips, wants_azimuth)
@@ -41,13 +41,14 @@ def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
     return (*elevation_rows(plan, np.concatenate(lines, axis=1)), t_embree)
 
 
-def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock):
+def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shift):
     """The image fan's rays cast up from the sonar to the swell: a dict of the fan and of the rays that reached it.
 
     A one-bounce echo at range (R + r)/2 in the window may have travelled R up to twice the range on its bounce
     (r ≤ R): the fan is cast out to that (``max_range_m`` of the result), its rays placed densely only where one of
     its paths lies within the window (:func:`_image_rows`)."""
-    plan, surface = front.plan, front.sonar.environment.surface
+    surface = front.sonar.environment.surface
+    plan, keep = moving_lines(front.plan, rx_shift)                  # the lines under motion, as the direct fan's
     z_s = surface.z_m - float(caster.compiled.origin_m[2])
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s)
     window_m = max_range_m * (1.0 + 1e-3) + 0.05 + 2.0 * surface.swell_height_m   # a wave moves a path by < 2H
@@ -61,9 +62,11 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock):
     # the real, upward rays from S: the image fan's directions with z negated, i.e. the fan of the real attitude
     kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot), pos_local, dirs, org)
     prim_s, t1 = _surface_hits(buf, caster.compiled.origin_m, strips, org, dirs, max_range_m)
+    if keep is not None:
+        drop_lines(prim_s, plan.s, keep, el_start)
     up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
     return dict(el_start=el_start, ray_start=ray_start, beta=beta, dbeta=dbeta, dirs=dirs, prim_s=prim_s, t1=t1,
-                up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m)
+                up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m, s=plan.s)
 
 
 def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
@@ -101,8 +104,7 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
     o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
     o["mu"] = lambert_mu(c)                                        # Lambert's σ in the kernel
     o["want_phi"] = wants_azimuth(c) and o["mu"].shape[0] == 0
-    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
-    kernels.swell_paths(fan["up_start"], fan["up"], fan["ray_start"], fan["el_start"], plan.s, np.cos(fan["beta"]),
+    kernels.swell_paths(fan["up_start"], fan["up"], fan["ray_start"], fan["el_start"], fan["s"], np.cos(fan["beta"]),
                         np.sin(fan["beta"]), fan["dbeta"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"], b["prim"],
                         b["t2"], b["seen"], swell.compiled.face_normals, c.face_normals,
                         np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, plan.beam, plan.ds,
@@ -116,9 +118,10 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
 def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
     """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan; ``rx_shift``
     (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
+    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     swell = surface_caster(caster, front.sonar.environment.surface, max_range_m)
     fan = _image_fan(front, surface_strips(caster, front.sonar.environment.surface, max_range_m), caster, rot,
-                     pos_local, max_range_m, clock)
+                     pos_local, max_range_m, clock, rx_shift)
     b = _bounce(front, caster, swell, fan, pos_local)
     o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
     if o["mu"].shape[0] == 0:

@@ -100,3 +100,33 @@ def test_timings_report_every_stage_without_changing_the_record():
     assert all(v >= 0 for v in t.values()) and t["embree"] > 0
     np.testing.assert_array_equal(a.starboard, b.starboard)
     assert a.attrs == b.attrs  # timings stay out of the record: same inputs, same bits
+
+
+def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
+    """Under motion the block's fan takes ⌈|δ|/ds⌉ more lines of the lattice k·ds on δ's side (those on a transmit
+    null left out: they weigh nothing), the transmit lines unchanged to the bit; pings of one speed keep every line,
+    pings of several speeds each keep the interval of their own lines; the forward-looking fan adds none."""
+    from sonar_embree.fan import moving_lines, own_lines
+    from sonar_embree import sonars
+
+    sonar = se.Sonar().for_pulse(se.Pulse.cw())
+    plan = sonars.front_end(sonar, se.FanSettings()).plan
+    ds, null = plan.ds, sonar.wavelength_m / sonar.length_m
+    same, keep = moving_lines(plan, np.zeros(3))
+    assert same is plan and keep is None
+    delta = 2 * 10.0 / 1500.0
+    moved, keep = moving_lines(plan, np.full(3, delta))
+    assert keep is None
+    new = np.setdiff1d(moved.s, plan.s)
+    np.testing.assert_array_equal(moved.s, np.concatenate([plan.s, new]))            # added past the edge only
+    np.testing.assert_allclose(new / ds, np.round(new / ds), atol=1e-9)             # on the lattice
+    assert np.all(np.abs(np.sin(np.pi * new / null)) > 1e-6)                        # none on a transmit null
+    assert moved.s[-1] + ds / 2 >= null + delta > moved.s[-1] - ds / 2 - ds         # the receive lobe's edge, no more
+    moved, keep = moving_lines(plan, np.array([-delta, 0.0, delta / 2]))
+    assert moved.s[0] <= -null - delta and moved.s[-1] >= null + delta / 2
+    own = own_lines(moved.s, keep)
+    np.testing.assert_array_equal(own[1], np.isin(moved.s, plan.s))                 # δ = 0: the transmit lines
+    assert own[0, 0] and not own[0, -1] and own[2, -1] and not own[2, 0]           # each its own side's lines
+    assert moved.s[own[2]][-1] + ds / 2 >= null + delta / 2
+    fls = sonars.front_end(se.ForwardLooking().for_pulse(se.Pulse.cw()), se.FanSettings()).plan
+    assert moving_lines(fls, np.full(3, delta))[0] is fls

@@ -174,16 +174,18 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
                                                      / sonar.wavelength_m)) + 1)
         lines = np.linspace(-s[-1], s[-1], n_lines)
         body = np.concatenate([beam.fan_body(lines, self.plan.probe_beta, side) for side in (-1, +1)])
-        self.plan = dataclasses.replace(self.plan, s=s, ds=ds, probe_body=body)
+        # its lines span the field of view, one synthesised channel each: none added under motion (δ ≪ the span)
+        self.plan = dataclasses.replace(self.plan, s=s, ds=ds, probe_body=body, spans_motion=False)
         self.fls, self.channels = sonar, sonar.channels
         self.n_synth_channels = s.shape[0]
         self.af = sonar.array_factor(-s)                           # u to starboard = −s (HEAD_FROM_SIDESCAN)
         self.beam_power = self.af ** 2
 
-    def label_lines(self):
-        """Each beam's label line: the fan's (starboard) azimuth line nearest its steering direction."""
+    def label_lines(self, plan):
+        """Each beam's label line: the (starboard) azimuth line of the block's fan ``plan`` nearest its steering
+        direction."""
         u_k = np.sin(np.radians(self.fls.beam_angles_deg()))
-        az = np.argmin(np.abs(self.plan.s[None, :] + u_k[:, None]), axis=1)
+        az = np.argmin(np.abs(plan.s[None, :] + u_k[:, None]), axis=1)
         return (1,) * u_k.shape[0], tuple(int(a) for a in az)
 
     def mount(self, rot: np.ndarray, pings: np.ndarray) -> np.ndarray:

@@ -159,9 +159,9 @@ class MSISFrontEnd(SideScanFrontEnd):
         turn[:, 0, 0], turn[:, 0, 1], turn[:, 1, 0], turn[:, 1, 1], turn[:, 2, 2] = c, -s, s, c, 1.0
         return np.einsum("pij,pjk,kl->pil", np.asarray(rot, dtype=np.float64), turn, HEAD_FROM_SIDESCAN)
 
-    def label_lines(self):
-        """Ground truth along the beam's centre line: the fan's starboard boresight line."""
-        return (1,), (int(np.flatnonzero(self.plan.s == 0.0)[0]),)
+    def label_lines(self, plan):
+        """Ground truth along the beam's centre line: the starboard boresight line of the block's fan ``plan``."""
+        return (1,), (int(np.flatnonzero(plan.s == 0.0)[0]),)
 
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """The side-scan block's echoes with its (empty) port rows dropped: one channel per ping."""
