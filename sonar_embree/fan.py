@@ -86,8 +86,10 @@ def moving_lines(plan: FanPlan, rx_shift: np.ndarray):
 
     The receive beam is turned by δ = 2·v_fwd/c (``rx_shift``, (pings,)), so the two-way pattern lives on the
     union of the transmit lines and those lines shifted by δ. The block's fan takes lines of the same lattice
-    k·ds past the transmit span's edge on δ's side, ⌈|δ|/ds⌉ of them (those on a transmit null weigh nothing and
-    are left out; the span's edge is its outermost null). Each ping counts only its own lines, so its bits do not
+    k·ds past the transmit span's edge (its outermost null) on δ's side, ⌊|δ|/ds⌋ of them (those on a transmit
+    null weigh nothing and are left out): the span's cells then end within half a spacing of the receive lobe's
+    edge, as they end at the transmit lobe's, the nearest the lattice comes to symmetric about δ/2 (a line more
+    only adds the side lobes' tail on one side). Each ping counts only its own lines, so its bits do not
     depend on the other pings of its block.
 
     Returns
@@ -100,7 +102,7 @@ def moving_lines(plan: FanPlan, rx_shift: np.ndarray):
     """
     if not plan.spans_motion or rx_shift is None or not np.any(rx_shift):
         return plan, None
-    k = np.ceil(np.abs(rx_shift) / plan.ds - 1e-9)
+    k = np.floor(np.abs(rx_shift) / plan.ds + 1e-9)
     lo, hi = np.where(rx_shift < 0, k, 0.0), np.where(rx_shift > 0, k, 0.0)
     i0, i1 = round(plan.s[0] / plan.ds), round(plan.s[-1] / plan.ds)
     null = beam.on_null(plan.beam[0] * plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null

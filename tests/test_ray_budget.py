@@ -103,8 +103,9 @@ def test_timings_report_every_stage_without_changing_the_record():
 
 
 def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
-    """Under motion the block's fan takes ⌈|δ|/ds⌉ more lines of the lattice k·ds on δ's side (those on a transmit
-    null left out: they weigh nothing), the transmit lines unchanged to the bit; pings of one speed keep every line,
+    """Under motion the block's fan takes ⌊|δ|/ds⌋ more lines of the lattice k·ds on δ's side, so that its cells end
+    within half a spacing of the receive lobe's null as they do at the transmit lobe's (lines on a transmit null left
+    out: they weigh nothing), the transmit lines unchanged to the bit; pings of one speed keep every line,
     pings of several speeds each keep the interval of their own lines; the forward-looking fan adds none."""
     from sonar_embree.fan import moving_lines, own_lines
     from sonar_embree import sonars
@@ -121,9 +122,10 @@ def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
     np.testing.assert_array_equal(moved.s, np.concatenate([plan.s, new]))            # added past the edge only
     np.testing.assert_allclose(new / ds, np.round(new / ds), atol=1e-9)             # on the lattice
     assert np.all(np.abs(np.sin(np.pi * new / null)) > 1e-6)                        # none on a transmit null
-    assert moved.s[-1] + ds / 2 >= null + delta > moved.s[-1] - ds / 2 - ds         # the receive lobe's edge, no more
+    edge = null + ds / 2 + np.floor(delta / ds) * ds                                 # the last cell's far edge
+    assert moved.s[-1] == pytest.approx(edge - ds / 2) and abs(null + delta - edge) <= ds / 2   # the receive lobe's
     moved, keep = moving_lines(plan, np.array([-delta, 0.0, delta / 2]))
-    assert moved.s[0] <= -null - delta and moved.s[-1] >= null + delta / 2
+    assert moved.s[0] - ds / 2 <= -null - delta + ds / 2 and moved.s[-1] + ds / 2 >= null + delta / 2 - ds / 2
     own = own_lines(moved.s, keep)
     np.testing.assert_array_equal(own[1], np.isin(moved.s, plan.s))                 # δ = 0: the transmit lines
     assert own[0, 0] and not own[0, -1] and own[2, -1] and not own[2, 0]           # each its own side's lines
