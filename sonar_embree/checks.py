@@ -15,9 +15,14 @@ import os
 
 import numpy as np
 
+from .beam import beamwidth_deg
+from .config import Sonar
 from .errors import ConfigError
 
 log = logging.getLogger(__name__)
+
+#: Pings from which a run is a waterfall whose along-track gaps are worth a warning (:func:`check_ping_spacing`).
+MIN_IMAGE_PINGS = 10
 
 #: (low, high) plausible values of side-scan sonar settings, for the warnings.
 PLAUSIBLE = {"frequency_hz": (20e3, 3e6), "max_range_m": (2.0, 1500.0), "tilt_deg": (2.0, 60.0)}
@@ -189,6 +194,28 @@ def check_setup(caster, sonar, pos_local: np.ndarray, reach_m: float | None = No
     check_in_range(c, pos_local, sonar.max_range_m if reach_m is None else reach_m)
     check_altitude(check_poses(caster, pos_local), sonar.max_range_m)
     check_back_faces(caster, pos_local, sonar.max_range_m)
+
+
+def check_ping_spacing(sonar, positions_m: np.ndarray) -> float | None:
+    """Warn when a side-scan's pings are farther apart than its beam's footprint along track: the record then has
+    gaps between pings (a navigation log taken row by row as pings, at 1 Hz where the device pings at 10 Hz).
+
+    The footprint is the two-way −3 dB along-track width at the far end of the window, 2·R_max·tan(θ₃/2), θ₃ the
+    full angle where sinc⁴ = ½ (:func:`sonar_embree.beam.beamwidth_deg`); the spacing is the
+    median horizontal distance between consecutive pings. Runs of fewer than :data:`MIN_IMAGE_PINGS` pings (probes
+    and tests, not images) are not judged. Returns the footprint (m), or None for sonars without an along-track
+    membrane (MSIS, forward-looking, echo sounder) or runs not judged.
+    """
+    if not isinstance(sonar, Sonar) or positions_m.shape[0] < MIN_IMAGE_PINGS:
+        return None
+    foot = sonar.max_range_m * 2.0 * np.tan(np.radians(0.5 * beamwidth_deg(sonar.length_m, sonar.wavelength_m,
+                                                                           -3.0, two_way=True)))
+    step = float(np.median(np.hypot(*np.diff(positions_m[:, :2], axis=0).T)))
+    if step > foot:
+        log.warning("pings are %.3g m apart along track, wider than the beam's %.3g m footprint (two-way -3 dB) at "
+                    "%.3g m range: the record has gaps; resample the navigation at the ping rate "
+                    "(Trajectory.resampled)", step, foot, sonar.max_range_m)
+    return foot
 
 
 def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:

@@ -145,6 +145,8 @@ class Record:
             extra["samples"] = self.samples
         if t.velocity_m_s is not None:
             extra["velocity_m_s"] = t.velocity_m_s
+        if t.ship_positions_m is not None:
+            extra["ship_positions_m"] = t.ship_positions_m
         series = {ch: self.channel(ch) for ch in self.channels}
 
         def write(tmp):
@@ -169,7 +171,7 @@ class Record:
         geo = meta.get("trajectory", {})
         traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
                           arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"), geo.get("crs"),
-                          geo.get("start_time"))
+                          geo.get("start_time"), arrays.get("ship_positions_m"))
         labels = None
         if "labels" in meta:
             shape = arrays["labels_kind"].shape  # files of format 1 have no echo truth

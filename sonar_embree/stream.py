@@ -45,7 +45,7 @@ def _fingerprint(scene, trajectory, sonar, pulse, kwargs) -> str:
         h.update(np.ascontiguousarray(obj.vertices).tobytes())
         h.update(np.ascontiguousarray(obj.faces).tobytes())
         h.update(repr(obj.material).encode())
-    for name in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s"):
+    for name in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s", "ship_positions_m"):
         a = getattr(trajectory, name)
         h.update(b"none" if a is None else np.ascontiguousarray(a).tobytes())
     h.update(repr((trajectory.crs, trajectory.start_time, sonar, pulse, sorted(kwargs.items()))).encode())

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ConfigError
-from .validation import iso_utc  # noqa: F401 (re-exported: its old home)
+from .validation import check_number, iso_utc  # noqa: F401 (iso_utc re-exported: its old home)
 
 # World (east, north, up) from aerospace NED (north, east, down).
 _ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -106,6 +106,10 @@ class Trajectory:
     start_time : datetime or str or None
         The UTC time of ``times_s`` = 0 (ISO 8601), when known (navigation logs): :func:`~sonar_embree.simulate`
         takes it as the record's start time unless given one.
+    ship_positions_m : (n, 3) float or None
+        Where the ship (its GPS antenna) is at each ping when the sonar is towed behind it (:meth:`with_layback`),
+        world m; ``None``: the sonar is where the navigation is (hull mount, AUV). XTF writes it as the Ship
+        coordinates.
     """
 
     positions_m: np.ndarray
@@ -116,6 +120,7 @@ class Trajectory:
     velocity_m_s: np.ndarray | None = None
     crs: str | None = None
     start_time: str | None = None
+    ship_positions_m: np.ndarray | None = None
 
     def __post_init__(self):
         pos = _as_float_array("positions_m", self.positions_m)
@@ -140,6 +145,11 @@ class Trajectory:
             if v.shape != (n, 3):
                 raise ConfigError(f"Trajectory.velocity_m_s must have shape ({n}, 3), got {v.shape}")
             object.__setattr__(self, "velocity_m_s", v)
+        if self.ship_positions_m is not None:
+            ship = _as_float_array("ship_positions_m", self.ship_positions_m)
+            if ship.shape != (n, 3):
+                raise ConfigError(f"Trajectory.ship_positions_m must have shape ({n}, 3), got {ship.shape}")
+            object.__setattr__(self, "ship_positions_m", ship)
         if self.crs is not None:
             from .geo import crs_name
 
@@ -159,7 +169,8 @@ class Trajectory:
             raise ConfigError(f"Trajectory slice {index} selects no ping of {len(self)}")
         return Trajectory(self.positions_m[idx], self.heading_deg[idx], self.pitch_deg[idx], self.roll_deg[idx],
                           self.times_s[idx], None if self.velocity_m_s is None else self.velocity_m_s[idx],
-                          self.crs, self.start_time)
+                          self.crs, self.start_time,
+                          None if self.ship_positions_m is None else self.ship_positions_m[idx])
 
     @classmethod
     def concatenate(cls, parts) -> "Trajectory":
@@ -167,18 +178,21 @@ class Trajectory:
         parts = list(parts)
         if len({(p.crs, p.start_time) for p in parts}) > 1:
             raise ConfigError("Trajectory.concatenate: the pieces differ in CRS or start time")
-        v = (np.concatenate([p.velocity_m_s for p in parts]) if all(p.velocity_m_s is not None for p in parts)
-             else None)
-        return cls(*(np.concatenate([getattr(p, k) for p in parts])
-                     for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s")), v,
-                   parts[0].crs, parts[0].start_time)
+        def joined(name):
+            return (np.concatenate([getattr(p, name) for p in parts])
+                    if all(getattr(p, name) is not None for p in parts) else None)
+
+        return cls(*(joined(k) for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s",
+                                         "velocity_m_s")), parts[0].crs, parts[0].start_time,
+                   joined("ship_positions_m"))
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, Trajectory):
             return NotImplemented
         return (self.crs, self.start_time) == (other.crs, other.start_time) and all(
             np.array_equal(getattr(self, k), getattr(other, k))
-            for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s"))
+            for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s",
+                      "ship_positions_m"))
 
     @property
     def n_pings(self) -> int:
@@ -241,7 +255,7 @@ class Trajectory:
 
     @classmethod
     def survey(cls, waypoints_m, speed_m_s: float, ping_rate_hz: float | None = None, *, sonar=None,
-               pitch_deg=0.0, roll_deg=0.0) -> "Trajectory":
+               pitch_deg=0.0, roll_deg=0.0, crs=None, start_time=None) -> "Trajectory":
         """Pings timed by a ping rate along a path flown at a speed (docs/physics.md §16).
 
         The path is that of :meth:`through_waypoints`; ping k is at arc length k·v/PRF and time k/PRF, so the
@@ -259,6 +273,9 @@ class Trajectory:
             Pings per second.
         sonar : Sonar or EchoSounder, optional
             Its range window and sound speed limit (and by default set) the ping rate.
+        crs, start_time : optional
+            The waypoints' projected CRS and the UTC time of the first ping, kept on the trajectory (as in
+            the constructor).
         """
         if not (isinstance(speed_m_s, (int, float)) and math.isfinite(speed_m_s) and 0 < speed_m_s <= 50):
             raise ConfigError(f"Trajectory.survey speed_m_s must be in (0, 50] m/s, got {speed_m_s!r}")
@@ -269,7 +286,7 @@ class Trajectory:
             raise ConfigError(f"Trajectory.survey: {n} pings; split the path or lower the ping rate")
         t = np.arange(n) / prf
         pos, heading, tangent = sample(t * speed_m_s, True)
-        return cls(pos, heading, pitch_deg, roll_deg, t if n > 1 else None, speed_m_s * tangent)
+        return cls(pos, heading, pitch_deg, roll_deg, t if n > 1 else None, speed_m_s * tangent, crs, start_time)
 
     def with_motion(self, motion, seed: int = 0) -> "Trajectory":
         """This trajectory with the attitude and heave jitter of ``motion`` (:class:`~sonar_embree.Motion`)
@@ -287,6 +304,73 @@ class Trajectory:
         the closed forms of docs/physics.md §3; motion during the ping, §16, switched off)."""
         return dataclasses.replace(self, velocity_m_s=None)
 
+    def at_times(self, times_s) -> "Trajectory":
+        """The poses at ``times_s`` (s on this trajectory's clock, strictly increasing, within its first and last
+        time), interpolated as :func:`~sonar_embree.motion.interpolate_poses` does (positions by PCHIP through the
+        fixes, heading along the shorter turn, the rest linearly); the CRS and start time are kept. At the
+        trajectory's own times the poses are its own."""
+        t = _as_float_array("times_s", times_s)
+        if t.ndim != 1 or t.size < 1:
+            raise ConfigError(f"Trajectory.at_times: times_s must be a non-empty 1-D array, got shape {t.shape}")
+        lo, hi = self.times_s[0], self.times_s[-1]
+        if t[0] < lo - 1e-9 or t[-1] > hi + 1e-9:
+            raise ConfigError(f"Trajectory.at_times: times {t[0]:g}…{t[-1]:g} s reach outside the trajectory's "
+                              f"{lo:g}…{hi:g} s")
+        from .motion import interpolate_poses
+
+        t = np.clip(t, lo, hi)
+        pos, heading, pitch, roll, vel = interpolate_poses(self.times_s, self.positions_m, self.heading_deg,
+                                                           self.pitch_deg, self.roll_deg, self.velocity_m_s, t)
+        ship = None
+        if self.ship_positions_m is not None:
+            ship = interpolate_poses(self.times_s, self.ship_positions_m, self.heading_deg, self.pitch_deg,
+                                     self.roll_deg, None, t)[0]
+        return Trajectory(pos, heading, pitch, roll, t, vel, self.crs, self.start_time, ship)
+
+    def resampled(self, ping_rate_hz: float) -> "Trajectory":
+        """The poses at a ping rate (Hz) from the first time to the last: pings at t₀ + k/rate, interpolated as
+        :meth:`at_times` does. A navigation log's fixes (often 1 Hz) become the device's pings."""
+        check_number("Trajectory.resampled", "ping_rate_hz", ping_rate_hz, positive=True, hi=1e4)
+        span = float(self.times_s[-1] - self.times_s[0])
+        n = int(math.floor(span * ping_rate_hz * (1 + 1e-12))) + 1
+        if n > 50_000_000:
+            raise ConfigError(f"Trajectory.resampled: {n} pings; lower the ping rate or split the log")
+        return self.at_times(self.times_s[0] + np.arange(n) / float(ping_rate_hz))
+
+    def with_layback(self, layback_m: float | None = None, *, cable_out_m: float | None = None,
+                     tow_point_z_m: float = 0.0) -> "Trajectory":
+        """The sonar towed behind the navigation: this trajectory's positions become the ship's
+        (:attr:`ship_positions_m`) and the sonar follows the ship's track ``layback_m`` behind along it
+        (:func:`~sonar_embree.motion.layback_positions`), at this trajectory's heights, heading along the track.
+
+        Give ``layback_m`` (horizontal distance, m) or ``cable_out_m``: a straight cable from a tow point at
+        height ``tow_point_z_m`` (world m; default 0, the sea surface of a DEM's vertical datum) to the sonar,
+        layback = √(cable² − Δz²) per ping (no catenary: a taut cable, the simplest layback model).
+        """
+        if (layback_m is None) == (cable_out_m is None):
+            raise ConfigError("Trajectory.with_layback: give layback_m or cable_out_m (one of them)")
+        if layback_m is not None:
+            check_number("Trajectory.with_layback", "layback_m", layback_m, nonneg=True, hi=1e4)
+            back = float(layback_m)
+        else:
+            check_number("Trajectory.with_layback", "cable_out_m", cable_out_m, positive=True, hi=1e4)
+            check_number("Trajectory.with_layback", "tow_point_z_m", tow_point_z_m)
+            dz = np.abs(tow_point_z_m - self.positions_m[:, 2])
+            if np.any(dz > cable_out_m):
+                raise ConfigError(f"Trajectory.with_layback: cable_out_m={cable_out_m:g} is shorter than the sonar's "
+                                  f"depth below the tow point ({dz.max():.4g} m)")
+            back = np.sqrt(cable_out_m ** 2 - dz ** 2)
+        from .motion import layback_positions
+
+        pos, heading = layback_positions(self.positions_m, back)
+        ship = self.positions_m if self.ship_positions_m is None else self.ship_positions_m
+        vel = self.velocity_m_s
+        if vel is not None:                           # the ship's speed, along the sonar's own track
+            speed, h = np.hypot(vel[:, 0], vel[:, 1]), np.radians(heading)
+            vel = np.stack([speed * np.sin(h), speed * np.cos(h), vel[:, 2]], axis=1)
+        return dataclasses.replace(self, positions_m=pos, heading_deg=heading, velocity_m_s=vel,
+                                   ship_positions_m=ship)
+
     def forward_speed_m_s(self, rotations: np.ndarray | None = None) -> np.ndarray:
         """(n,) the velocity's component along each ping's forward axis, m/s (zeros when unknown); ``rotations``
         (n, 3, 3): the transducer's body frames when they are not the vehicle's (an MSIS head's)."""
@@ -302,7 +386,9 @@ class Trajectory:
         Columns (any order): the position as ``x_m, y_m`` (world metres, in ``crs`` when given) or as
         ``lat_deg, lon_deg`` (WGS 84, projected into ``crs``; default the UTM zone of the first fix,
         :func:`sonar_embree.geo.utm_crs`), and its height as ``z_m`` (up) or ``depth_m`` (down from z = 0, the
-        vertical datum of a DEM); ``heading_deg``, ``pitch_deg``, ``roll_deg`` (default 0); the ping times as
+        vertical datum of a DEM); ``heading_deg`` (without it: the track's heading over ground,
+        :func:`~sonar_embree.motion.track_heading_deg`, with a one-line notice), ``pitch_deg``, ``roll_deg``
+        (default 0); the ping times as
         ``time_s`` (s) or ``time`` (ISO 8601, e.g. 2026-05-01T12:00:00.25Z: ``times_s`` from the first, which
         becomes ``start_time``); the velocity ``vx_m_s, vy_m_s, vz_m_s`` (all three or none). Without velocity
         columns but with times, the velocity is the positions' time derivative (second-order differences,
@@ -315,8 +401,14 @@ class Trajectory:
         try:
             xyz, crs = _csv_position(col, crs)
             times, start = _csv_times(col)
-            traj = cls(xyz, col.get("heading_deg", 0.0), col.get("pitch_deg", 0.0), col.get("roll_deg", 0.0),
-                       times, None, crs, start)
+            heading = col.get("heading_deg")
+            if heading is None and xyz.shape[0] > 1:
+                from .motion import track_heading_deg
+
+                heading = track_heading_deg(xyz, np.arange(xyz.shape[0], dtype=float) if times is None else times)
+                log.warning("%s: no heading_deg column: the sonar's heading follows the track over ground", path)
+            traj = cls(xyz, 0.0 if heading is None else heading, col.get("pitch_deg", 0.0),
+                       col.get("roll_deg", 0.0), times, None, crs, start)
             v = _csv_velocity(col, traj, path)
             return traj if v is None else dataclasses.replace(traj, velocity_m_s=v)
         except ConfigError as exc:

@@ -262,15 +262,17 @@ def _packets(record, when, surface_z_m, ints) -> np.ndarray:
     h["PingNumber"] = np.arange(n_p)
     h["EventNumber"] = np.arange(n_p)
     h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
-    x, y = t.positions_m[:, 0], t.positions_m[:, 1]
-    if t.crs is not None:
-        from ..geo import to_lonlat
+    ship = t.positions_m if t.ship_positions_m is None else t.ship_positions_m   # towed: the ship ahead
+    for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
+        x, y = where[:, 0], where[:, 1]
+        if t.crs is not None:
+            from ..geo import to_lonlat
 
-        x, y = to_lonlat(t.crs, x, y)
-        surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
-    for prefix in ("Sensor", "Ship"):
+            x, y = to_lonlat(t.crs, x, y)
         h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
         h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
+    if t.crs is not None:
+        surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
     h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
     h["SensorPrimaryAltitude"] = np.nan_to_num(record.altitude_m, nan=0.0)
     h["SensorHeading"], h["SensorPitch"], h["SensorRoll"] = t.heading_deg, t.pitch_deg, t.roll_deg
