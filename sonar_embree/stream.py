@@ -186,7 +186,7 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
                                               compute=False)
     if xtf_path is not None:
         scale = _scale_of(first, xtf_scale)                          # fixed by the first block for the line
-        header, _ = xtf_bytes(first, scale=scale)
+        header, _ = xtf_bytes(first, scale=scale, file_name=os.path.basename(xtf_path))
         try:
             with open(xtf_path, "wb") as fh:
                 fh.write(header)

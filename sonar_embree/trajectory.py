@@ -340,7 +340,8 @@ class Trajectory:
     def with_layback(self, layback_m: float | None = None, *, cable_out_m: float | None = None,
                      tow_point_z_m: float = 0.0) -> "Trajectory":
         """The sonar towed behind the navigation: this trajectory's positions become the ship's
-        (:attr:`ship_positions_m`) and the sonar follows the ship's track ``layback_m`` behind along it
+        (:attr:`ship_positions_m`, at the tow point's height) and the sonar follows the ship's track ``layback_m``
+        behind along it
         (:func:`~sonar_embree.motion.layback_positions`), at this trajectory's heights, heading along the track.
 
         Give ``layback_m`` (horizontal distance, m) or ``cable_out_m``: a straight cable from a tow point at
@@ -363,7 +364,8 @@ class Trajectory:
         from .motion import layback_positions
 
         pos, heading = layback_positions(self.positions_m, back)
-        ship = self.positions_m if self.ship_positions_m is None else self.ship_positions_m
+        ship = self.positions_m.copy() if self.ship_positions_m is None else self.ship_positions_m
+        ship[:, 2] = tow_point_z_m if self.ship_positions_m is None else ship[:, 2]     # the tow point
         vel = self.velocity_m_s
         if vel is not None:                           # the ship's speed, along the sonar's own track
             speed, h = np.hypot(vel[:, 0], vel[:, 1]), np.radians(heading)

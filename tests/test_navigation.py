@@ -88,7 +88,8 @@ def test_layback_puts_the_sonar_behind_the_ship_along_its_track():
     ship = np.array([[0.0, 0, -30], [50, 0, -30], [100, 0, -30], [100, 10, -30], [100, 60, -30]])
     traj = se.Trajectory(ship, 0.0, times_s=np.arange(5.0))
     towed = traj.with_layback(30.0)
-    np.testing.assert_allclose(towed.ship_positions_m, ship)
+    np.testing.assert_allclose(towed.ship_positions_m[:, :2], ship[:, :2])
+    np.testing.assert_allclose(towed.ship_positions_m[:, 2], 0.0)                 # the tow point, at the surface
     np.testing.assert_allclose(towed.positions_m[:, :2], [[-30, 0], [20, 0], [70, 0], [80, 0], [100, 30]], atol=1e-9)
     np.testing.assert_allclose(towed.positions_m[:, 2], -30.0)
     np.testing.assert_allclose(towed.heading_deg, [90, 90, 90, 90, 0], atol=1e-9)

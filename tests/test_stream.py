@@ -45,8 +45,9 @@ def test_streamed_line_equals_the_in_memory_run(tmp_path):
     assert ds["port"].encoding["chunks"] == (8, rec.port.shape[1])          # one chunk per block
     for name in ("port", "starboard", "altitude_m", "x_m", "ping_time_s", "label_kind", "label_ground_range_m"):
         np.testing.assert_array_equal(ds[name].values, rec.to_xarray()[name].values, err_msg=name)
-    rec.to_xtf(tmp_path / "m.xtf", scale=1.0)
-    assert (tmp_path / "s.xtf").read_bytes() == (tmp_path / "m.xtf").read_bytes()
+    (tmp_path / "mem").mkdir()
+    rec.to_xtf(tmp_path / "mem" / "s.xtf", scale=1.0)             # the same name (the header's ThisFileName)
+    assert (tmp_path / "s.xtf").read_bytes() == (tmp_path / "mem" / "s.xtf").read_bytes()
 
 
 class _Killed(Exception):
@@ -83,7 +84,9 @@ def test_killed_and_resumed_gives_the_same_bytes(tmp_path, monkeypatch):
 
 def test_xtf_is_cut_back_on_resume(tmp_path, monkeypatch):
     kw = dict(block_pings=8, xtf_scale=1.0, start_time=START)
-    se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf", **kw)
+    for d in "ab":                                            # the same XTF name in two folders (ThisFileName)
+        (tmp_path / d).mkdir()
+    se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a" / "l.xtf", **kw)
     saved = stream._save_progress
 
     def dies(path, progress):
@@ -93,11 +96,12 @@ def test_xtf_is_cut_back_on_resume(tmp_path, monkeypatch):
 
     monkeypatch.setattr(stream, "_save_progress", dies)
     with pytest.raises(_Killed):
-        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", **kw)
+        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b" / "l.xtf", **kw)
     monkeypatch.undo()
-    assert (tmp_path / "b.xtf").stat().st_size > (tmp_path / "a.xtf").stat().st_size * 16 / 30 - 1   # block 2 in
-    se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", **kw)
-    assert (tmp_path / "b.xtf").read_bytes() == (tmp_path / "a.xtf").read_bytes()
+    a_xtf, b_xtf = tmp_path / "a" / "l.xtf", tmp_path / "b" / "l.xtf"
+    assert b_xtf.stat().st_size > a_xtf.stat().st_size * 16 / 30 - 1   # block 2 in
+    se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=b_xtf, **kw)
+    assert b_xtf.read_bytes() == a_xtf.read_bytes()
 
 
 def test_other_inputs_are_refused_unless_started_over(tmp_path):

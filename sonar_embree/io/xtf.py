@@ -22,18 +22,26 @@ Conventions of what is written:
   range to nadir (its last sample is time 0), the XTF convention readers such as
   pyxtf assume, so ``hstack([port, starboard])`` is the waterfall.
 - Navigation of a trajectory with a CRS (:mod:`sonar_embree.geo`) in latitude and longitude (NavUnits 3):
-  SensorXcoordinate = longitude, SensorYcoordinate = latitude, WGS 84 degrees as float64, also in the Ship
-  fields; otherwise in metres (NavUnits 0): world x (east) and y (north).
+  SensorXcoordinate = longitude, SensorYcoordinate = latitude, WGS 84 degrees as float64; the Ship fields
+  hold the ship's position of a towed sonar (:meth:`~sonar_embree.Trajectory.with_layback`, with Layback the
+  horizontal ship–sensor distance and CableOut the straight cable's length, m), else the sensor's; without a
+  CRS in metres (NavUnits 0): world x (east) and y (north). FixTime is each ping's own time (its pose is its
+  nav fix).
   SensorDepth = surface_z_m − z, positive down from the sea surface at world height
-  ``surface_z_m``; without a surface given the depth of a georeferenced trajectory is −z (its vertical
-  datum, z = 0, taken as the sea surface) when it lies below z = 0, otherwise unknown and written as 0, as
-  devices without a pressure sensor do;
+  ``surface_z_m`` (default: the sonar's own sea surface, ``environment.surface``); without one the depth of a
+  georeferenced trajectory is −z (its vertical datum, z = 0, taken as the sea surface) when it lies below
+  z = 0, otherwise unknown and written as 0, as devices without a pressure sensor do;
   SensorPrimaryAltitude = the record's nadir altitude (0 where none);
   SensorSpeed and ShipSpeed in knots from the trajectory (its velocity, else distance
   over time between pings); SensorHeading, SensorPitch, SensorRoll in degrees
   (docs/physics.md §1 is the XTF convention).
 - SoundVelocity holds c/2 (the XTF convention); the channel header's SlantRange
-  is the range window, TimeDuration its length, Frequency in kHz.
+  is the range window, TimeDuration its length, SecondsPerPing = SlantRange/SoundVelocity (the spec's
+  "SlantRange/750", which readers build their range axis from), Frequency in kHz, ProcessingFlags 4 (TVG)
+  where the samples are a TVG receiver's codes. CHANINFO: CorrectionFlags 1 (slant range), UniPolar 1
+  (intensities and codes are ≥ 0), HorizBeamAngle the along-track and BeamWidth the vertical one-way −3 dB
+  width (the spec's "typically 1 degree" and "3dB beam width, typically 50 degrees"), TiltAngle the
+  depression, ThisFileName the file's name; BeamsPerArray 0 ("for forward look only").
 - Ping times: ``start`` (default: the record's ``attrs["start_time"]``, set by
   :func:`~sonar_embree.simulate`) plus the trajectory's ``times_s``.
 """
@@ -45,6 +53,7 @@ import os
 
 import numpy as np
 
+from ..beam import beamwidth_deg
 from ..errors import ConfigError
 from ..validation import check_bool
 from .files import atomic_write
@@ -104,6 +113,8 @@ assert (_CHAN_INFO.itemsize, _FILE_HEADER.itemsize, _PING_HEADER.itemsize, _CHAN
     (128, 1024, 256, 64)
 
 PORT_CHANNEL, STARBOARD_CHANNEL = 1, 2  # XTF TypeOfChannel
+CORRECTION_SLANT_RANGE = 1  # CHANINFO CorrectionFlags: "1 = sonar imagery stored as slant-range" (2: ground range)
+PROCESSING_TVG = 4  # XTFPINGCHANHEADER ProcessingFlags: "4 = TVG; 8 = BAC&GAC; 16 = filter"
 SAMPLE_FORMAT_FLOAT32 = 5
 SAMPLE_FORMAT = {np.dtype(np.uint16): 3, np.dtype(np.uint8): 8}  # XTF word, byte
 KNOT_M_S = 1852.0 / 3600.0
@@ -136,7 +147,7 @@ def speed_m_s(trajectory) -> np.ndarray:
     return np.concatenate([v[:1], 0.5 * (v[1:] + v[:-1]), v[-1:]])
 
 
-def _file_header(record, factor: float, ints) -> np.ndarray:
+def _file_header(record, factor: float, ints, file_name: str = "") -> np.ndarray:
     from .._version import __version__
 
     h = np.zeros((), dtype=_FILE_HEADER)
@@ -149,17 +160,19 @@ def _file_header(record, factor: float, ints) -> np.ndarray:
     h["NavUnits"] = NAV_UNITS_LATLON if record.trajectory.crs is not None else NAV_UNITS_METRES
     h["NumberOfSonarChannels"] = 2
     s = record.sonar
-    beam_deg = math.degrees(s.wavelength_m / s.length_m)  # first-null to first-null / 2, along track
+    h["ThisFileName"] = file_name.encode()[:64]
+    along, across = (beamwidth_deg(size, s.wavelength_m) for size in (s.length_m, s.height_m))   # one-way −3 dB
     for i, (kind, name) in enumerate(((PORT_CHANNEL, b"port"), (STARBOARD_CHANNEL, b"starboard"))):
         c = h["ChanInfo"][i]
         c["TypeOfChannel"], c["SubChannelNumber"] = kind, i
+        c["CorrectionFlags"], c["UniPolar"] = CORRECTION_SLANT_RANGE, 1     # slant range; intensities are ≥ 0
         c["BytesPerSample"] = 4 if ints is None else ints.dtype.itemsize
         c["Reserved"] = record.port.shape[1]  # legacy samples-per-channel field
         c["ChannelName"], c["VoltScale"], c["Frequency"] = name, 1.0, s.frequency_hz / 1e3
-        c["HorizBeamAngle"], c["TiltAngle"], c["BeamWidth"] = beam_deg, s.tilt_deg, beam_deg
+        c["HorizBeamAngle"], c["TiltAngle"], c["BeamWidth"] = along, s.tilt_deg, across
         c["SampleFormat"] = SAMPLE_FORMAT_FLOAT32 if ints is None else SAMPLE_FORMAT[ints.dtype]
         if ints is not None:
-            c["UniPolar"], c["VoltScale"] = 1, record.sonar.receiver.full_scale_v
+            c["VoltScale"] = record.sonar.receiver.full_scale_v
     for i in range(2, 6):
         h["ChanInfo"][i]["Reserved"] = 1024
     return h
@@ -182,6 +195,8 @@ def _ping_times(h, start: dt.datetime, times_s) -> None:
         h[i]["Year"], h[i]["Month"], h[i]["Day"] = when.year, when.month, when.day
         h[i]["Hour"], h[i]["Minute"], h[i]["Second"] = when.hour, when.minute, when.second
         h[i]["HSeconds"] = when.microsecond // 10000
+        h[i]["FixTimeHour"], h[i]["FixTimeMinute"], h[i]["FixTimeSecond"] = when.hour, when.minute, when.second
+        h[i]["FixTimeHsecond"] = when.microsecond // 10000                 # the nav fix is the ping's pose
         h[i]["JulianDay"] = when.timetuple().tm_yday
         h[i]["NavFixMilliseconds"] = int(round(float(ts) * 1e3)) % 2**32
 
@@ -206,7 +221,8 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         Write the device's integer samples when the record has them (default); False:
         the float intensities.
     """
-    header, packets = xtf_bytes(record, start, scale=scale, surface_z_m=surface_z_m, samples=samples)
+    header, packets = xtf_bytes(record, start, scale=scale, surface_z_m=surface_z_m, samples=samples,
+                                file_name=os.path.basename(os.fspath(path)))
 
     def write(tmp):
         with open(tmp, "wb") as fh:
@@ -216,9 +232,11 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
     atomic_write(path, write, suffix=".xtf")
 
 
-def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0):
+def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0,
+              file_name: str = ""):
     """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
-    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.stream`)."""
+    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.stream`); ``file_name`` goes into the
+    header's ThisFileName."""
     if tuple(record.channels) != ("port", "starboard"):
         names = ", ".join(record.channels[:3]) + (f", … ({len(record.channels)} channels)"
                                                    if len(record.channels) > 3 else "")
@@ -229,6 +247,8 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
     ints = record.samples if samples and record.samples is not None else None
     factor = sample_scale(record, scale) if ints is None else 1.0
     t = record.trajectory
+    sea = record.sonar.environment.surface
+    surface_z_m = sea.z_m if surface_z_m is None and sea is not None else surface_z_m   # depth below its surface
     if surface_z_m is not None:
         if isinstance(surface_z_m, bool) or not isinstance(surface_z_m, (int, float)) or not math.isfinite(surface_z_m):
             raise ConfigError(f"to_xtf: surface_z_m must be a number (m), got {surface_z_m!r}")
@@ -244,7 +264,31 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
     else:
         packet["port"] = ints[:, 0, ::-1]
         packet["stbd"] = ints[:, 1]
-    return _file_header(record, factor, ints).tobytes(), packet.tobytes()
+    return _file_header(record, factor, ints, file_name).tobytes(), packet.tobytes()
+
+
+def _navigation(h, record, surface_z_m) -> None:
+    """The ping headers' navigation: Sensor and Ship positions (lat/lon with a CRS), speeds, depth, altitude,
+    attitude, and a towed sonar's Layback (horizontal ship–sensor distance, m) and CableOut (m, a taut cable)."""
+    t = record.trajectory
+    ship = t.positions_m if t.ship_positions_m is None else t.ship_positions_m   # towed: the ship ahead
+    for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
+        x, y = where[:, 0], where[:, 1]
+        if t.crs is not None:
+            from ..geo import to_lonlat
+
+            x, y = to_lonlat(t.crs, x, y)
+        h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
+        h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
+    if t.ship_positions_m is not None:
+        h["Layback"] = np.hypot(*(ship[:, :2] - t.positions_m[:, :2]).T)
+        h["CableOut"] = np.clip(np.round(np.linalg.norm(ship - t.positions_m, axis=1)), 0, 65535)
+    if t.crs is not None:
+        surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
+    h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
+    h["SensorPrimaryAltitude"] = np.nan_to_num(record.altitude_m, nan=0.0)
+    h["SensorHeading"], h["SensorPitch"], h["SensorRoll"] = t.heading_deg, t.pitch_deg, t.roll_deg
+    h["ShipGyro"] = t.heading_deg
 
 
 def _packets(record, when, surface_z_m, ints) -> np.ndarray:
@@ -262,29 +306,15 @@ def _packets(record, when, surface_z_m, ints) -> np.ndarray:
     h["PingNumber"] = np.arange(n_p)
     h["EventNumber"] = np.arange(n_p)
     h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
-    ship = t.positions_m if t.ship_positions_m is None else t.ship_positions_m   # towed: the ship ahead
-    for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
-        x, y = where[:, 0], where[:, 1]
-        if t.crs is not None:
-            from ..geo import to_lonlat
-
-            x, y = to_lonlat(t.crs, x, y)
-        h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
-        h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
-    if t.crs is not None:
-        surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
-    h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
-    h["SensorPrimaryAltitude"] = np.nan_to_num(record.altitude_m, nan=0.0)
-    h["SensorHeading"], h["SensorPitch"], h["SensorRoll"] = t.heading_deg, t.pitch_deg, t.roll_deg
-    h["ShipGyro"] = t.heading_deg
-    dt_ping = np.diff(t.times_s)
-    per_ping = np.concatenate([dt_ping, dt_ping[-1:]]) if n_p > 1 else np.ones(1)
+    _navigation(h, record, surface_z_m)
     codes = {} if ints is None else s.receiver.header_codes()
+    tvg = ints is not None and codes.get("GainCode", 0) > 0             # the codes carry the receiver's TVG
     for side, number in (("port_head", 0), ("stbd_head", 1)):
         c = packet[side]
         c["ChannelNumber"], c["SlantRange"] = number, s.max_range_m
         c["TimeDuration"] = n_s / s.sample_rate_hz
-        c["SecondsPerPing"] = per_ping
+        c["SecondsPerPing"] = s.max_range_m / h["SoundVelocity"]        # the spec's SlantRange/750: 2R/c
+        c["ProcessingFlags"] = PROCESSING_TVG if tvg else 0
         c["Frequency"] = min(int(round(s.frequency_hz / 1e3)), 65535)
         c["NumSamples"] = n_s
         for name, value in codes.items():

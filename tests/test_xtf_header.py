@@ -1,0 +1,78 @@
+"""XTF header fields as the X41 specification defines them (issue 35, build item 7), read back with pyxtf.
+
+The expected values are written here from the specification's own words (Triton Imaging, eXtended Triton Format
+rev. X41, CHANINFO, XTFPINGHEADER and XTFPINGCHANHEADER), quoted beside each check.
+"""
+import math
+
+import numpy as np
+import pyxtf
+import pytest
+from scipy.optimize import brentq
+
+import sonar_embree as se
+
+
+def _width_deg(size_m, wavelength_m):
+    """One-way −3 dB full width of a membrane of ``size_m``: sinc²(x₃) = 10^(−0.3), θ = 2·asin(x₃λ/(π·L))."""
+    x3 = brentq(lambda x: (math.sin(x) / x) ** 2 - 10 ** -0.3, 1e-6, math.pi)
+    return 2 * math.degrees(math.asin(x3 * wavelength_m / (math.pi * size_m)))
+
+
+@pytest.fixture(scope="module")
+def lines(tmp_path_factory):
+    """(a TVG receiver's integer line, a float line with a flat sea surface, a towed line), written as XTF and read
+    back with pyxtf: {name: (record, file header, sonar packets, path)}."""
+    out = tmp_path_factory.mktemp("xtf")
+    scene = se.Scene().add(se.seafloor.flat((300, 300), z_m=-22.0), label="seafloor")   # 10 m under the sonar
+    traj = se.Trajectory.survey([(-3, 0, -12), (3, 0, -12)], 2.0, 4.0, crs=32631,
+                                start_time="2026-05-01T12:00:07.25Z")
+    rx = se.Receiver(gain=se.TVG(k=30.0, g0_db=20.0))
+    recs = {"codes": se.simulate(scene, traj, se.Sonar(max_range_m=30.0, receiver=rx, source_level_db=215.0),
+                                 speckle=False),
+            "floats": se.simulate(scene, traj, se.Sonar(max_range_m=30.0, environment=se.Environment(
+                surface=se.SeaSurface(z_m=-2.0))), speckle=False),
+            "towed": se.simulate(scene, traj.with_layback(cable_out_m=15.0), se.Sonar(max_range_m=30.0),
+                                 speckle=False)}
+    read = {}
+    for name, rec in recs.items():
+        path = out / f"{name}_line.xtf"
+        rec.to_xtf(path)
+        header, packets = pyxtf.xtf_read(str(path))
+        read[name] = (rec, header, packets[pyxtf.XTFHeaderType.sonar], path)
+    return read
+
+
+def test_channel_info_as_the_spec_defines_it(lines):
+    for name, (rec, header, _, path) in lines.items():
+        s = rec.sonar
+        assert header.ThisFileName.decode().rstrip("\x00") == path.name           # "ThisFileName": the file's name
+        for ci in header.ChanInfo[:2]:
+            assert ci.CorrectionFlags == 1            # "1 = sonar imagery stored as slant-range, 2 = ground range"
+            assert ci.UniPolar == 1                   # "0 = data is polar, 1 = data is unipolar": intensities ≥ 0
+            # "HorizBeamAngle: typically 1 degree or so" (along track); "BeamWidth: 3dB beam width, typically 50
+            # degrees" (the vertical fan); "TiltAngle: typically 30 degrees" (depression)
+            assert ci.HorizBeamAngle == pytest.approx(_width_deg(s.length_m, s.wavelength_m), rel=1e-5)
+            assert ci.BeamWidth == pytest.approx(_width_deg(s.height_m, s.wavelength_m), rel=1e-5)
+            assert ci.TiltAngle == pytest.approx(s.tilt_deg)
+            assert ci.BeamsPerArray == 0              # "BeamsPerArray: for forward look only (i.e., Sonatech DDS)"
+        assert header.NavUnits == 3                   # "0 = meters, 3 = degrees" (a line with a CRS)
+
+
+def test_ping_and_channel_headers_as_the_spec_defines_them(lines):
+    for name, (rec, _, pings, _) in lines.items():
+        s = rec.sonar
+        first = pings[0]
+        # "FixTimeHour/Minute/Second/Hsecond: time of the most recent nav update": the nav fix at the ping
+        assert (first.FixTimeHour, first.FixTimeMinute, first.FixTimeSecond, first.FixTimeHsecond) == (12, 0, 7, 25)
+        for chan in first.ping_chan_headers:
+            # "SecondsPerPing: amount of time, in seconds, from ping to ping (SlantRange/750)", 750 the SoundVelocity
+            assert chan.SecondsPerPing == pytest.approx(chan.SlantRange / first.SoundVelocity, rel=1e-6)
+            assert first.SoundVelocity == pytest.approx(s.sound_speed_m_s / 2)
+            # "ProcessingFlags: 4 = TVG; 8 = BAC&GAC; 16 = filter": TVG only where the receiver applied one
+            assert chan.ProcessingFlags == (4 if name == "codes" else 0)
+    _, _, pings, _ = lines["floats"]                  # "SensorDepth: towfish depth (m)" below its sea surface
+    assert pings[0].SensorDepth == pytest.approx(10.0)
+    rec, _, pings, _ = lines["towed"]                  # "Layback: distance from ship to sensor (m)", "CableOut (m)"
+    np.testing.assert_allclose([p.Layback for p in pings], math.sqrt(15.0 ** 2 - 12.0 ** 2), rtol=1e-6)
+    assert {p.CableOut for p in pings} == {15}
