@@ -250,17 +250,20 @@ def test_a_full_disk_gives_one_line_and_the_resume_is_exact(tmp_path):
     import subprocess
 
     kw = dict(block_pings=8, xtf_scale=1.0, start_time=START)
-    se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf", **kw)
-    size = (tmp_path / "a.xtf").stat().st_size
+    for d in "ab":                                            # the same XTF name in two folders (ThisFileName)
+        (tmp_path / d).mkdir()
+    a_xtf, b_xtf = tmp_path / "a" / "l.xtf", tmp_path / "b" / "l.xtf"
+    se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=a_xtf, **kw)
+    size = a_xtf.stat().st_size
     code = _SMALL_DISK_STREAM.format(tests=os.path.dirname(__file__), limit=size // 2, store=str(tmp_path / "b.zarr"),
-                                     xtf=str(tmp_path / "b.xtf"))
+                                     xtf=str(b_xtf))
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 3, proc.stderr[-2000:]
     err = proc.stderr.strip().splitlines()
-    assert len(err) == 1 and "b.xtf: cannot write (File too large)" in err[0], proc.stderr
+    assert len(err) == 1 and "l.xtf: cannot write (File too large)" in err[0], proc.stderr
     assert 0 < stream._progress(str(tmp_path / "b.zarr"))["pings_done"] < len(LINE)
-    se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", **kw)
-    assert (tmp_path / "b.xtf").read_bytes() == (tmp_path / "a.xtf").read_bytes()
+    se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=b_xtf, **kw)
+    assert b_xtf.read_bytes() == a_xtf.read_bytes()
     assert _files(tmp_path / "b.zarr") == {k: v for k, v in _files(tmp_path / "a.zarr").items()
                                             if k != "stream.json"} | {"stream.json": (tmp_path / "b.zarr" /
                                                                                       "stream.json").read_bytes()}
