@@ -19,10 +19,14 @@ The per-ray arithmetic between and after the casts is :mod:`sonar_embree.kernels
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from . import kernels
+from . import checks, kernels
+from .buffers import Buffers
 from .echoes import Echoes
+from .kernels import aim as K
 from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
 from .laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
@@ -79,10 +83,10 @@ def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     return prim, t
 
 
-def _bounce(front, caster, swell, fan, pos_local):
+def _bounce(front, caster, swell, fan, pos_local, buf):
     """The rays that reached the swell, mirrored on their facets and cast through the scene (the leg S → P
-    checked too): a dict of per-entry arrays, aligned with ``fan["up"]``."""
-    m, buf = fan["up"].shape[0], front.buffers
+    checked too): a dict of per-entry arrays, aligned with ``fan["up"]`` (working arrays from ``buf``)."""
+    m = fan["up"].shape[0]
     u, p, ur = (buf.take(k, (m, 3)) for k in ("swell_u", "swell_p", "swell_ur"))
     org, dr = buf.take("swell_borg", (m, 3), np.float32), buf.take("swell_bdir", (m, 3), np.float32)
     kernels.swell_launch(fan["up_start"], fan["up"], fan["dirs"], fan["t1"], fan["prim_s"], pos_local,
@@ -96,9 +100,9 @@ def _bounce(front, caster, swell, fan, pos_local):
     return dict(u=u, p=p, ur=ur, prim=prim, t2=t2, seen=seen)
 
 
-def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
+def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift, buf):
     """kernels.swell_paths over the bounced rays: a dict of its outputs (the one bounce without σ and legs)."""
-    s, plan, c, buf = front.sonar, front.plan, caster.compiled, front.buffers
+    s, plan, c = front.sonar, front.plan, caster.compiled
     m = fan["up"].shape[0]
     o = {k: buf.take("swell_" + k, m) for k in ("w1", "t1", "e1", "w2", "t2", "e2", "cos_i", "cos_s", "phi", "r")}
     o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
@@ -111,28 +115,121 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift):
                         plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad, s.sound_speed_m_s, _wave_kh(s),
                         fan["max_range_m"], LEG_EPSILON_M, o["want_phi"], o["mu"], c.face_object, o["x"], o["w1"],
                         o["t1"], o["e1"], o["w2"],
-                        o["t2"], o["e2"], o["cos_i"], o["cos_s"], o["phi"], o["leg"], o["r"])
+                        o["t2"], o["e2"], o["cos_i"], o["cos_s"], o["phi"], o["leg"], o["r"],
+                        fan.get("layout", kernels.NO_LAYOUT))
     return o
 
 
-def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
-    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan; ``rx_shift``
-    (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
-    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
-    swell = surface_caster(caster, front.sonar.environment.surface, max_range_m)
-    fan = _image_fan(front, surface_strips(caster, front.sonar.environment.surface, max_range_m), caster, rot,
-                     pos_local, max_range_m, clock, rx_shift)
-    b = _bounce(front, caster, swell, fan, pos_local)
-    o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift)
+def _bounced_paths(front, caster, swell, fan, rot, pos_local, rx_shift, buf):
+    """The bounced rays' one- and two-bounce weights with their laws and legs: (bounce dict, paths dict)."""
+    b = _bounce(front, caster, swell, fan, pos_local, buf)
+    o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift, buf)
     if o["mu"].shape[0] == 0:
         apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
                        o["phi"] if o["want_phi"] else None)
-    block_legs(caster, front.buffers, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"],  # X → S
+    block_legs(caster, buf, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"],  # X → S
                b["prim"])
     apply_laws(caster.compiled, front.sonar.frequency_hz, b["prim"], o["cos_i"], o["w2"], o["x"])
+    return b, o
+
+
+def _echo_pair(fan, b, o, ids):
+    """(one-bounce, two-bounce) Echoes of the bounced rays, in the rows of ``fan["up_start"]``."""
     out = []
     for w, t, ext in ((o["w1"], o["t1"], o["e1"]), (o["w2"], o["t2"], o["e2"])):
         obj = np.zeros(0, np.int32) if ids is None else np.where(w > 0, ids[np.maximum(b["prim"], 0)], -1).astype(
             np.int32)
         out.append(Echoes(2, fan["up_start"], t, ext, w, o["x"], obj))
     return out[0], out[1]
+
+
+def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
+    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan, and those of the rays
+    aimed at objects through the swell (a list of (Echoes, path): 1 one bounce, 2 two bounces; empty without any);
+    ``rx_shift`` (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
+    rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
+    surface = front.sonar.environment.surface
+    swell, strips = surface_caster(caster, surface, max_range_m), surface_strips(caster, surface, max_range_m)
+    fan = _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shift)
+    b, o = _bounced_paths(front, caster, swell, fan, rot, pos_local, rx_shift, front.buffers)
+    aim, aimed = front.aim_plan(caster.compiled), []
+    if aim is not None:
+        glints = _aimed(front, caster, swell, strips, aim, rot, pos_local, rx_shift, fan["max_range_m"], ids)
+        if glints is not None:                       # the fan's hits on those objects count nothing in those rows
+            for w in (o["w1"], o["w2"]):
+                K.drop_aimed(fan["up_start"], b["prim"], caster.compiled.face_object, aim.cand_of_object, glints[2],
+                             w)
+            aimed = [(glints[0], 1), (glints[1], 2)]
+    return (*_echo_pair(fan, b, o, ids), aimed)
+
+
+#: The most swell strips one object may be seen through from one ping (its glints); more leave it to the fan.
+MAX_GLINTS = 16
+
+
+def _glints(aim, surface, g, origin, pos_local, reach_m):
+    """Every glint of the block (kernels.swell_glints): (lattices (e, GLINT_WIDTH), ping (e,), candidate (e,),
+    (pings, k) bool where an object is left to the fan: too many glints, or one too big to aim at)."""
+    n_p, k = pos_local.shape[0], aim.objects.size
+    table, count = np.empty((n_p, k, MAX_GLINTS, kernels.GLINT_WIDTH)), np.empty((n_p, k), np.int32)
+    slope = math.pi * surface.swell_height_m / surface.swell_length_m     # max |dz/da| of H/2·sin(2πa/Λ)
+    steps = np.array([aim.span[5], aim.span[6], aim.dr_m])
+    kernels.swell_glints(aim.centre + origin, aim.radius, pos_local + origin, g.k, float(g.a[0]),
+                         float(g.a[1] - g.a[0]), g.z, slope, reach_m, aim.n_across, steps, aim.max_rays, table, count)
+    ping, cand, slot = np.nonzero(np.arange(MAX_GLINTS)[None, None, :] < count[..., None])   # ping-major
+    return table[ping, cand, slot], ping.astype(np.int64), cand, count < 0
+
+
+def _glint_rays(aim, g, rot, pos_local, rx_shift, glints, ping, cand, refused):
+    """The rays of the glints' lattices, grouped by fan row: (row offsets (rows + 1,), glint of each ray, float32
+    directions and origins, layout, (rows, k) bool: which candidates each row aims at through the swell).
+
+    A row aims at an object when some glint ray of it lies in the row (within the fan's span) and the object is
+    not left to the fan in that ping (:func:`_glints`)."""
+    n_p, k = rot.shape[0], aim.objects.size
+    counts = (glints[:, kernels.G_NS] * glints[:, kernels.G_NB]).astype(np.int64)
+    counts[refused[ping, cand]] = 0
+    start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
+    n = int(start[-1])
+    checks.check_rays_memory(n, n_p, "the rays aimed at objects through the swell")
+    dirs, org, layout = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty((n, K.LAYOUT_WIDTH))
+    row = np.empty(n, np.int64)
+    kernels.glint_rays(glints, ping, start, g.k, rot, pos_local, aim.span[:4].copy(), aim.sides, rx_shift, dirs, org,
+                       layout, row)
+    glint = np.repeat(np.arange(ping.size), counts)
+    keep = np.flatnonzero(row >= 0)
+    order = keep[np.argsort(row[keep], kind="stable")]
+    aimed = np.zeros((2 * n_p, k), bool)
+    aimed[row[order], cand[glint[order]]] = True
+    ray_start = np.searchsorted(row[order], np.arange(2 * n_p + 1)).astype(np.int64)
+    return ray_start, glint[order], dirs[order], org[order], layout[order], aimed
+
+
+def _aimed(front, caster, swell, g, aim, rot, pos_local, rx_shift, reach_m, ids):
+    """The rays aimed at objects through the swell (docs/physics.md §7b): per ping and object, each strip that can
+    mirror it to the sonar (a glint) gets a lattice aimed at the object's image in the strip's plane, clipped to the
+    directions that meet the strip; a ray counts only where its first hit on the swell is on that strip and its
+    bounced ray first hits that object. (one-bounce Echoes, two-bounce Echoes, (rows, k) aimed) or None when no row
+    aims at anything."""
+    c = caster.compiled
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
+    glints, ping, cand, refused = _glints(aim, front.sonar.environment.surface, g, c.origin_m, pos_local, reach_m)
+    ray_start, glint, dirs, org, layout, aimed = _glint_rays(aim, g, rot, pos_local, rx_shift, glints, ping, cand,
+                                                             refused)
+    if not aimed.any():
+        return None
+    buf = Buffers()
+    prim_s, t1 = _surface_hits(buf, c.origin_m, g, org, dirs, reach_m)
+    na = g.a.size
+    n_q = (na - 1) * (g.b.size - 1)
+    own_strip = (prim_s % n_q) % (na - 1) == glints[glint, kernels.G_STRIP].astype(np.int64)
+    up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0) & own_strip)
+    fan = dict(el_start=ray_start, ray_start=ray_start, beta=np.zeros(0), dbeta=np.zeros(0), dirs=dirs,
+               prim_s=prim_s, t1=t1, up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64),
+               max_range_m=reach_m, s=np.zeros(1), layout=layout)
+    b, o = _bounced_paths(front, caster, swell, fan, rot, pos_local, rx_shift, buf)
+    mine = c.face_object[np.maximum(b["prim"], 0)] == aim.objects[cand[glint[up]]]
+    for w in (o["w1"], o["w2"]):                          # only hits on the aimed object count
+        w[~mine | (b["prim"] < 0)] = 0.0
+    one, two = _echo_pair(fan, b, o, ids)
+    return one, two, aimed

@@ -632,3 +632,75 @@ def drop_aimed(ray_start, prim, face_object, cand_of_object, aimed, weight):
                 if k >= 0 and aimed[r, k]:
                     out[i] = 0.0
     return out
+
+
+def swell_glints(centre, radius, pos, k, a_nodes, z, reach_m, n_across, steps, max_rays):
+    """Every glint by brute force over every strip (twin of kernels.swell_glints, which searches a window): a dict
+    {(ping, object): list of (strip, [s0, hs, β0, hβ, ns, nβ])} in the crest frame (c along the crests, k across,
+    ẑ up: u = s'·c + √(1 − s'²)(cos β'·k + sin β'·ẑ)), or the string "refused" (the object left to the fan)."""
+    c = np.array([-k[1], k[0], 0.0])
+    k3 = np.array([k[0], k[1], 0.0])
+    out = {}
+    for b in range(len(pos)):
+        s = pos[b]
+        for j in range(len(centre)):
+            found = []
+            for i in range(len(a_nodes) - 1):
+                p0 = np.array([a_nodes[i] * k[0], a_nodes[i] * k[1], z[i]])
+                edge = np.array([(a_nodes[i + 1] - a_nodes[i]) * k[0], (a_nodes[i + 1] - a_nodes[i]) * k[1],
+                                 z[i + 1] - z[i]])
+                nv = np.cross(edge, c)
+                nv = nv / np.linalg.norm(nv) * np.sign(nv[2])            # the strip plane's upward normal
+                if (s - p0) @ nv >= 0 or (centre[j] - p0) @ nv >= 0:
+                    continue
+                img = centre[j] - 2 * ((centre[j] - p0) @ nv) * nv
+                v = img - s
+                d = np.linalg.norm(v)
+                if d - radius[j] > reach_m:
+                    continue
+                if d <= radius[j] * (1 + 1e-9):
+                    found = "refused"
+                    break
+                gam = np.arcsin(radius[j] / d)
+                sc = v @ c / d
+                bc, db = np.arctan2(v[2], v @ k3), np.arcsin(np.sin(gam) / np.sqrt(1 - sc ** 2))
+                a_s = s @ k3
+                e = [np.arctan2(z[q] - s[2], a_nodes[q] - a_s) for q in (i, i + 1)]
+                b_lo, b_hi = max(bc - db, min(e)), min(bc + db, max(e))
+                if b_hi <= b_lo:
+                    continue
+                s_lo, s_hi = max(sc - gam, -1.0), min(sc + gam, 1.0)
+                hs = min(2 * gam / n_across, steps[0])
+                hb = min(2 * gam / n_across, steps[1], 2 * gam * steps[2] / (2 * radius[j]))
+                ns, nb = np.ceil((s_hi - s_lo) / hs - 1e-9), np.ceil((b_hi - b_lo) / hb - 1e-9)
+                if ns * nb > max_rays:
+                    found = "refused"
+                    break
+                found.append((i, [s_lo, (s_hi - s_lo) / ns, b_lo, (b_hi - b_lo) / nb, ns, nb]))
+            out[b, j] = found
+    return out
+
+
+def glint_rays(glints, ping, k, rot, pos, span, sides, rx_shift):
+    """(world directions, body layout [s, cos β, sin β, dβ', ds'], row or −1) of every glint lattice's rays (twin of
+    kernels.glint_rays): cell centres in the crest frame, s'-major, β' fastest."""
+    c, k3 = np.array([-k[1], k[0], 0.0]), np.array([k[0], k[1], 0.0])
+    dirs, lay, rows = [], [], []
+    for g, row in enumerate(glints):
+        ns, nb = int(row[5]), int(row[6])
+        sp = np.repeat(row[1] + (np.arange(ns) + 0.5) * row[2], nb)
+        bp = np.tile(row[3] + (np.arange(nb) + 0.5) * row[4], ns)
+        cp = np.sqrt(1 - sp ** 2)
+        u = sp[:, None] * c + cp[:, None] * (np.cos(bp)[:, None] * k3 + np.sin(bp)[:, None] * [0, 0, 1.0])
+        b = ping[g]
+        body = u @ rot[b]                                          # (forward, starboard, down)
+        side = (body[:, 1] >= 0).astype(int)
+        beta = np.arctan2(body[:, 2], np.abs(body[:, 1]))
+        cpsi = np.sqrt(1 - body[:, 0] ** 2)
+        inside = ((span[0] + min(rx_shift[b], 0) <= body[:, 0]) & (body[:, 0] <= span[1] + max(rx_shift[b], 0))
+                  & (span[2] <= beta) & (beta <= span[3]))
+        rows.append(np.where(np.asarray(sides)[side] & inside, 2 * b + side, -1))
+        dirs.append(u)
+        lay.append(np.column_stack([body[:, 0], np.abs(body[:, 1]) / cpsi, body[:, 2] / cpsi,
+                                    np.full(len(u), row[4]), np.full(len(u), row[2])]))
+    return np.concatenate(dirs), np.concatenate(lay), np.concatenate(rows)

@@ -407,7 +407,17 @@ def test_swell_kernels_match_naive(rng):
     for want_phi, o, mu_obj in ((True, out, np.zeros(0)), (False, no_phi, np.zeros(0)), (False, lam, mu)):
         kernels.swell_paths(up_start, up, ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell,
                             u, p, ur, t1, prim_s, prim, t2, seen, surf, normals, rot, pos, rx_shift, *consts, want_phi,
-                            mu_obj, face_object, x, *[o[k] for k in keys[:-1]], leg, o["r"])
+                            mu_obj, face_object, x, *[o[k] for k in keys[:-1]], leg, o["r"], kernels.NO_LAYOUT)
+    # each ray with its own layout (the rays aimed at objects via the swell): the fan grid's bits
+    layout = np.column_stack([s_az[a], np.cos(beta_cell[cell]), np.sin(beta_cell[cell]), dbeta_cell[cell],
+                              np.full(n, consts[1])])
+    own = {k: np.full(m, np.nan) for k in keys}
+    x_own, leg_own = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
+    kernels.swell_paths(up_start, up, ray_start, el_start, np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), u, p,
+                        ur, t1, prim_s, prim, t2, seen, surf, normals, rot, pos, rx_shift, *consts, True, np.zeros(0),
+                        face_object, x_own, *[own[k] for k in keys[:-1]], leg_own, own["r"], layout)
+    for k in keys:
+        np.testing.assert_array_equal(own[k], out[k], err_msg=k)
     for k in keys:                        # without φ (laws that ignore it): the rest to the bit, φ left at 0
         np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.zeros(m), err_msg=k)
     sigma = mu[face_object[np.maximum(prim, 0)]] * np.maximum(out["cos_i"], 0) * np.maximum(out["cos_s"], 0)
@@ -781,3 +791,49 @@ def test_mixed_legs_with_each_rays_own_layout_matches_naive(rng):
     for k in keys:
         np.testing.assert_allclose(out[k][hit], ref[k], rtol=1e-9, atol=1e-12, err_msg=k)
     assert np.all(out["weight"][miss] == 0) and np.count_nonzero(out["weight"]) > n // 4
+
+
+def test_swell_glint_kernels_match_naive():
+    """kernels.swell_glints (a window of strips) finds every glint that a brute-force search over every strip finds,
+    with the same lattices, for random sonars and spheres under a steep swell; kernels.glint_rays places the same
+    rays (directions, body-frame layouts and rows) as the NumPy twin."""
+    import naive
+    from sonar_embree import kernels
+
+    rng = np.random.default_rng(7)
+    sea = se.SeaSurface(z_m=0.0, swell_height_m=1.0, swell_length_m=8.0, swell_direction_deg=30.0)
+    g = sea.strips((-60.0, 60.0), (-60.0, 60.0))
+    pos = np.column_stack([rng.uniform(-10, 10, 4), rng.uniform(-10, 10, 4), rng.uniform(-8, -3, 4)])
+    centre = np.column_stack([rng.uniform(-30, 30, 6), rng.uniform(-30, 30, 6), rng.uniform(-12, -2, 6)])
+    radius = rng.uniform(0.02, 0.6, 6)
+    steps, slope = np.array([0.005, 0.01, 0.0375]), np.pi * 1.0 / 8.0
+    table, count = np.empty((4, 6, 16, kernels.GLINT_WIDTH)), np.empty((4, 6), np.int32)
+    kernels.swell_glints(centre, radius, pos, g.k, float(g.a[0]), float(g.a[1] - g.a[0]), g.z, slope, 80.0, 8.0,
+                         steps, 4096.0, table, count)
+    ref = naive.swell_glints(centre, radius, pos, g.k, g.a, g.z, 80.0, 8.0, steps, 4096.0)
+    n_glints = 0
+    for (b, j), want in ref.items():
+        if want == "refused" or len(want) > 16:
+            assert count[b, j] == -1
+            continue
+        assert count[b, j] == len(want), (b, j)
+        for q, (strip, lattice) in enumerate(want):
+            assert table[b, j, q, kernels.G_STRIP] == strip
+            np.testing.assert_allclose(table[b, j, q, 1:], lattice, rtol=1e-9, atol=1e-12)
+        n_glints += len(want)
+    assert n_glints >= 6                                  # the case has glints to compare
+    ping, cand, slot = np.nonzero(np.arange(16)[None, None, :] < count[..., None])
+    glints = table[ping, cand, slot]
+    counts = (glints[:, kernels.G_NS] * glints[:, kernels.G_NB]).astype(np.int64)
+    start = np.concatenate(([0], np.cumsum(counts)))
+    rot = se.Trajectory(pos, rng.uniform(0, 360, 4), rng.uniform(-5, 5, 4), rng.uniform(-5, 5, 4)).rotations()
+    span, sides, shift = np.array([-0.05, 0.05, -1.2, 1.5]), np.array([True, False]), np.array([0.0, 0.01, -0.02, 0.0])
+    n = int(start[-1])
+    dirs, org, lay, row = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty((n, 5)), np.empty(n, int)
+    kernels.glint_rays(glints, ping.astype(np.int64), start, g.k, rot, pos, span, sides, shift, dirs, org, lay, row)
+    want_dirs, want_lay, want_row = naive.glint_rays(glints, ping, g.k, rot, pos, span, sides, shift)
+    np.testing.assert_allclose(dirs, want_dirs, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(lay, want_lay, rtol=1e-9, atol=1e-12)
+    np.testing.assert_array_equal(row, want_row)
+    np.testing.assert_array_equal(org, pos[np.repeat(ping, counts)].astype(np.float32))
+    assert (row >= 0).any() and (row < 0).any()

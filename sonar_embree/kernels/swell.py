@@ -73,7 +73,8 @@ def _footprint(m, side, cpsi, cb, sb, nx, ny, nz, ur, n_x, cos_i, big_r):
 def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p, ur, t1, prim_s, prim, t2,
                 seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m, two_way_np_per_m,
                 slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj, face_object, x_out,
-                w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, leg_out, r_out):
+                w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, leg_out, r_out,
+                layout):
     """The one- and two-bounce paths of every bounced ray, without σ (but Lambert's, see ``mu_obj``), maps or the
     direct leg's visibility.
 
@@ -128,6 +129,9 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
     w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, r_out : (m,) float64
     leg_out : (m, 3) float64
         Written; ``leg_out`` = −u_d and ``r_out`` = r are the direct leg X → S for the visibility check.
+    layout : (n, 5) float64 or (0, 5)
+        Each launch ray's own s, cos β, sin β, dβ and ds (rays aimed at objects via the swell,
+        :mod:`sonar_embree.swell`); no rows (``NO_LAYOUT``): the fan's grid (``s_az``, ``cos_beta``, … and ``ds``).
     """
     for row in prange(up_start.shape[0] - 1):
         sc = np.empty((9, _CHUNK))      # per ray: the four sincs' arguments (then values), Γ_az, Γ_az,rx, two gates, σ
@@ -139,7 +143,7 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
                 t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m,
                 two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj,
                 face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out,
-                phi_out, leg_out, r_out, sc)
+                phi_out, leg_out, r_out, sc, layout)
             sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per ray
             for k in range(c1 - c0):
                 g, g_rx = sc[4, k] * sc[0, k] * sc[6, k], sc[5, k] * sc[0, k] * sc[6, k]
@@ -153,7 +157,7 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
                  ur, t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds,
                  min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi,
                  mu_obj, face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out,
-                 cos_s_out, phi_out, leg_out, r_out, sc):
+                 cos_s_out, phi_out, leg_out, r_out, sc, layout):
     """Bounced rays c0 … c1 − 1 of a row of :func:`swell_paths`: everything but the gains, whose sinc arguments go
     to ``sc`` (rows 0–3: Γ_el(u), Γ_az(u_d), Γ_az,rx(u_d), Γ_el(u_d); 4, 5: the launch's Γ_az, Γ_az,rx; 6, 7: 1
     where u, u_d are in front of the baffle and the path lit, else 0; 8: Lambert's one-bounce σ, or 1); w1 and w2
@@ -172,9 +176,6 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         big_r = np.float64(t1[up[k]]) + eps + np.float64(t2[k])
         if prim[k] < 0 or not seen[k] > 0.0 or big_r > max_range_m:
             continue
-        ray = up[k] - ray_start[row]
-        a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el      # the azimuth, divided only when it moves on
-        cell = el_start[row] + ray - a * n_el
         urk = (ur[k, 0], ur[k, 1], ur[k, 2])
         d = eps + np.float64(t2[k])
         x = (p[k, 0] + d * urk[0], p[k, 1] + d * urk[1], p[k, 2] + d * urk[2])
@@ -188,14 +189,23 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         nx, ny, nz = surface_normals[qs, 0], surface_normals[qs, 1], surface_normals[qs, 2]
         sg = u[k, 0] * nx + u[k, 1] * ny + u[k, 2] * nz
         half = math.exp(-0.5 * two_way_np_per_m * big_r - 4.0 * wave_kh * wave_kh * sg * sg)  # e^(−α'R/2)·|R_s|²
-        if a != a_now:
-            a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
-            ga, gar = _sinc(beam[0] * s_az[a]), _sinc(beam[0] * (s_az[a] - shift))
+        if layout.shape[0] > 0:                          # a ray aimed at an object: its own cell
+            i = up[k]
+            cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
+            ga, gar = _sinc(beam[0] * layout[i, 0]), _sinc(beam[0] * (layout[i, 0] - shift))
+            cb, sb, db, ds = layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
+        else:
+            ray = up[k] - ray_start[row]
+            a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el      # the azimuth, divided when it moves on
+            cell = el_start[row] + ray - a * n_el
+            if a != a_now:
+                a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
+                ga, gar = _sinc(beam[0] * s_az[a]), _sinc(beam[0] * (s_az[a] - shift))
+            cb, sb, db = cos_beta[cell], sin_beta[cell], dbeta[cell]
         sc[4, c], sc[5, c] = ga, gar                     # Γ(u) from the fan grid: the mirror maps the image ray onto u
-        sc[0, c] = beam[1] * cpsi * (sin_beta[cell] * ct - cos_beta[cell] * st)
-        sc[6, c] = 1.0 if cos_beta[cell] * ct + sin_beta[cell] * st > 0.0 else 0.0      # 0 behind the baffle
-        dx = _footprint(m, side, cpsi, cos_beta[cell], sin_beta[cell], nx, ny, nz, urk, n_x, cos_i, big_r)
-        db = dbeta[cell]
+        sc[0, c] = beam[1] * cpsi * (sb * ct - cb * st)
+        sc[6, c] = 1.0 if cb * ct + sb * st > 0.0 else 0.0      # 0 behind the baffle
+        dx = _footprint(m, side, cpsi, cb, sb, nx, ny, nz, urk, n_x, cos_i, big_r)
         rb = max(big_r, min_range_m)
         w2_out[k] = half * half * ds * db / (rb * rb)
         slope = min(abs(urk[0] * dx[0] + urk[1] * dx[1] + urk[2] * dx[2]), slope_cap_m_rad)
@@ -304,3 +314,163 @@ def swell_surface_hits(org, dirs, shift, k, c, a0, a_step, z, b0, b_step, n_b, t
         q = ib * (na - 1) + ia
         prim_out[i] = q if fa >= fb else n_q + q
         t_out[i] = np.float32(t)
+
+
+
+#: Columns of a glint's lattice (:func:`swell_glints`): the strip, first s', s' step, first β', β' step (rad), rays in
+#: s', rays in β' — in the crest frame of the swell (along the crests, across them, up), where every direction through
+#: one strip has its β' within the strip's wedge seen from the sonar.
+G_STRIP, G_S0, G_HS, G_B0, G_HB, G_NS, G_NB = range(7)
+GLINT_WIDTH = 7
+
+
+@njit(cache=True, nogil=True)  # pings × objects × strips in a window, a few flops each: serial
+def swell_glints(centre, radius, pos, k, a0, a_step, z, max_slope, reach_m, n_across, steps, max_rays, table, n_out):
+    """The strips through which each object can be seen from each ping by one reflection (its glints), and the
+    lattice of rays for each.
+
+    The swell is long-crested: strip ia (between the profile's nodes a0 + ia·a_step and the next, heights ``z``)
+    is a plane containing lines along the crests, so from the sonar S every direction that meets it lies in a
+    wedge of angles β' about the crest axis. Directions are u = s'·c + √(1 − s'²)·(cos β'·k + sin β'·ẑ)
+    (c along the crests, k across them; dΩ = ds'·dβ' exactly). A reflection in the strip maps the object's
+    bounding sphere (C, ρ) onto its image (C', ρ); the rays towards the image lie in the cone of half-angle
+    asin(ρ/|SC'|) about it. A glint is a strip whose wedge meets that cone (S and C both below the strip's
+    plane): its lattice tiles the cone's (s', β') box clipped to the wedge, so that its rays reach the strip
+    between its edges exactly, with cells at most 2γ/n across, no wider than ``steps`` and, in β', fine
+    enough for one ray per range step over the object's depth (as :func:`~.aim.aim_lattices`). Only strips within
+    W = (z_max − min(z_S, z_C))·tan(2·atan(max_slope)) + ρ outside [min(a_S, a_C), max(a_S, a_C)] can mirror
+    C to S (a facet of slope ≤ max_slope turns a ray by at most twice its angle).
+
+    Parameters
+    ----------
+    centre : (k, 3) float64; radius : (k,) float64
+        Bounding spheres, world frame (the strips' frame), m.
+    pos : (pings, 3) float64
+        Sonar positions, world frame, m.
+    k : (2,) float64
+        Unit vector across the crests (world x, y).
+    a0, a_step : float; z : (na,) float64
+        The profile's first node and spacing across the crests (m) and its heights (world z, m).
+    max_slope : float
+        The largest |dz/da| of the swell.
+    reach_m : float
+        The farthest unfolded path |SC'| − ρ searched, m.
+    n_across : float; steps : (3,) float64; max_rays : float
+        Rays across a cone each way; the largest s' step, the largest β' step (rad) and the wanted range step (m);
+        the most rays of one lattice.
+    table : (pings, k, g, GLINT_WIDTH) float64
+        Written: the glints of each (ping, object), the first ``n_out`` of them.
+    n_out : (pings, k) int32
+        Written: the number of glints; −1 where there are more than g, or one needs more than ``max_rays`` rays or
+        holds the sonar (the object is then left to the fan in that ping).
+    """
+    na = z.shape[0]
+    spread = math.tan(2.0 * math.atan(max_slope))
+    z_max = z.max()
+    for b in range(pos.shape[0]):
+        a_s, z_s = pos[b, 0] * k[0] + pos[b, 1] * k[1], pos[b, 2]
+        for j in range(centre.shape[0]):
+            n_out[b, j] = 0
+            a_c, z_c = centre[j, 0] * k[0] + centre[j, 1] * k[1], centre[j, 2]
+            w = (z_max - min(z_s, z_c)) * spread + radius[j]
+            lo = int(math.floor((min(a_s, a_c) - w - a0) / a_step))
+            hi = int(math.ceil((max(a_s, a_c) + w - a0) / a_step))
+            for ia in range(max(lo, 0), min(hi, na - 2) + 1):
+                n = n_out[b, j]
+                row = table[b, j, min(n, table.shape[2] - 1)]
+                got = _glint(pos[b], centre[j], radius[j], k, a0 + ia * a_step, a_step, z[ia], z[ia + 1], reach_m,
+                             n_across, steps, max_rays, row)
+                if got == 0:
+                    continue
+                if got < 0 or n == table.shape[2]:
+                    n_out[b, j] = -1
+                    break
+                row[G_STRIP] = ia
+                n_out[b, j] = n + 1
+
+
+@njit(cache=True, nogil=True)
+def _glint(s3, c3, rho, k, a_i, a_step, z_i, z_j, reach_m, n_across, steps, max_rays, out):
+    """The lattice of strip (a_i, z_i)–(a_i + a_step, z_j) for the sphere (C, ρ) seen from S (:func:`swell_glints`)
+    in ``out``: 1 a lattice, 0 none, −1 one too big to aim at (or the sonar inside the image's sphere)."""
+    dz = z_j - z_i
+    ln = math.sqrt(a_step * a_step + dz * dz)
+    n0, n1, n2 = -dz / ln * k[0], -dz / ln * k[1], a_step / ln          # the strip plane's upward normal
+    p0, p1 = a_i * k[0], a_i * k[1]
+    d_s = n0 * (s3[0] - p0) + n1 * (s3[1] - p1) + n2 * (s3[2] - z_i)
+    d_c = n0 * (c3[0] - p0) + n1 * (c3[1] - p1) + n2 * (c3[2] - z_i)
+    if d_s >= 0.0 or d_c >= 0.0:                                  # S and C below the strip's plane, else no mirror
+        return 0
+    v0, v1, v2 = c3[0] - 2.0 * d_c * n0 - s3[0], c3[1] - 2.0 * d_c * n1 - s3[1], c3[2] - 2.0 * d_c * n2 - s3[2]
+    d = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if d - rho > reach_m:
+        return 0
+    if d <= rho * (1.0 + 1e-9):
+        return -1
+    vc, vk = -k[1] * v0 + k[0] * v1, k[0] * v0 + k[1] * v1          # along and across the crests
+    gam = math.asin(rho / d)
+    sc = vc / d
+    cpsi = math.sqrt(max(1.0 - sc * sc, 0.0))
+    if math.sin(gam) >= 0.999 * cpsi:
+        return -1
+    bc, db = math.atan2(v2, vk), math.asin(math.sin(gam) / cpsi)
+    a_s = k[0] * s3[0] + k[1] * s3[1]
+    e0, e1 = math.atan2(z_i - s3[2], a_i - a_s), math.atan2(z_j - s3[2], a_i + a_step - a_s)   # the wedge
+    b_lo, b_hi = max(bc - db, min(e0, e1)), min(bc + db, max(e0, e1))
+    if not b_hi > b_lo:
+        return 0
+    s_lo, s_hi = max(sc - gam, -1.0), min(sc + gam, 1.0)
+    h = 2.0 * gam / n_across
+    hs, hb = min(h, steps[0]), min(h, steps[1], 2.0 * gam * steps[2] / (2.0 * rho))
+    ns, nb = math.ceil((s_hi - s_lo) / hs - 1e-9), math.ceil((b_hi - b_lo) / hb - 1e-9)
+    if ns * nb > max_rays:
+        return -1
+    out[G_S0], out[G_HS], out[G_NS] = s_lo, (s_hi - s_lo) / ns, ns
+    out[G_B0], out[G_HB], out[G_NB] = b_lo, (b_hi - b_lo) / nb, nb
+    return 1
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def glint_rays(glints, ping, start, k, rot, pos, span, sides, rx_shift, dirs, origins, layout, row_out):
+    """The rays of every glint's lattice (:func:`swell_glints`), glint g's at ``start[g]`` … ``start[g + 1]`` − 1:
+    float32 world directions and origins, the layout of each in its fan row's body frame (s, cos β, sin β of the
+    direction; dβ', ds' of its cell: the cell's solid angle is ds'·dβ') and its row 2·ping + side (side by the
+    direction's starboard component), −1 where the row has no rays or the direction lies outside the fan's span
+    (``span`` = s_lo, s_hi, β_lo, β_hi, with s reaching δ further on its side as for :func:`~.aim.aim_lattices`).
+
+    Parameters
+    ----------
+    glints : (e, GLINT_WIDTH) float64; ping : (e,) int64
+        The lattices and the ping of each.
+    start : (e + 1,) int64
+    k : (2,) float64
+        Unit vector across the crests (world x, y); c = (−k_y, k_x, 0) runs along them.
+    rot : (pings, 3, 3) float64; pos : (pings, 3) float64
+    span : (4,) float64; sides : (2,) bool; rx_shift : (pings,) float64
+    dirs, origins : (n, 3) float32; layout : (n, 5) float64; row_out : (n,) int64
+        Written.
+    """
+    for g in prange(glints.shape[0]):
+        b = ping[g]
+        nb = int(glints[g, G_NB])
+        for j in range(start[g + 1] - start[g]):
+            i = start[g] + j
+            sp = glints[g, G_S0] + (j // nb + 0.5) * glints[g, G_HS]
+            bp = glints[g, G_B0] + (j % nb + 0.5) * glints[g, G_HB]
+            cp = math.sqrt(1.0 - sp * sp)
+            ck, cz = cp * math.cos(bp), cp * math.sin(bp)
+            w0, w1, w2 = -k[1] * sp + k[0] * ck, k[0] * sp + k[1] * ck, cz
+            for q in range(3):
+                origins[i, q] = pos[b, q]
+            dirs[i, 0], dirs[i, 1], dirs[i, 2] = w0, w1, w2
+            f = rot[b, 0, 0] * w0 + rot[b, 1, 0] * w1 + rot[b, 2, 0] * w2          # body frame: forward,
+            st = rot[b, 0, 1] * w0 + rot[b, 1, 1] * w1 + rot[b, 2, 1] * w2         # starboard, down
+            dn = rot[b, 0, 2] * w0 + rot[b, 1, 2] * w1 + rot[b, 2, 2] * w2
+            side = 1 if st >= 0.0 else 0
+            be = math.atan2(dn, abs(st))
+            ch = math.sqrt(max(1.0 - f * f, 1e-300))
+            layout[i, 0], layout[i, 1], layout[i, 2] = f, abs(st) / ch, dn / ch
+            layout[i, 3], layout[i, 4] = glints[g, G_HB], glints[g, G_HS]
+            d = rx_shift[b]
+            inside = span[0] + min(d, 0.0) <= f <= span[1] + max(d, 0.0) and span[2] <= be <= span[3]
+            row_out[i] = 2 * b + side if sides[side] and inside else -1

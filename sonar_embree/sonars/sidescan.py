@@ -100,8 +100,9 @@ class SideScanFrontEnd:
         direct = echoes_of(blk, ids)
         aimed = []                           # the rays aimed at objects, path by path: (echoes, their rays, path)
         if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
-            mixed, image = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
+            mixed, image, glints = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
             layouts = [blk.el_start, None, None]                      # the swell's paths: its own fan's up rays
+            aimed += [(e, None, path) for e, path in glints]          # rays aimed at objects through the swell
         else:
             z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
             image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift,
