@@ -231,3 +231,14 @@ def test_bench_objects_script_reports_time_against_object_count_and_its_error():
     assert "| objects | ms/ping, aimed |" in out and "\n| 10 |" in out
     aimed = next(line for line in out.splitlines() if line.startswith("| aimed + fan |"))
     assert aimed.split("|")[3].strip().startswith("0 of ")
+
+
+def test_bench_swell_objects_script_reports_ms_per_ping_with_and_without_balls():
+    """scripts/bench_swell_objects.py --quick: ms per ping under a swell with 0 and 10 balls, as JSON."""
+    import json
+
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_swell_objects.py"), "--quick"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert set(out) == {"0", "10"} and all(v > 0 for v in out.values())
