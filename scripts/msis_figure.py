@@ -57,8 +57,10 @@ def main(argv=None) -> int:
         x0, y0 = rec.trajectory.positions_m[0, :2]
         n = img.shape[0]
         r = np.hypot(*np.meshgrid((np.arange(n) + 0.5 - n / 2) * 0.05, (np.arange(n) + 0.5 - n / 2) * 0.05))
-        db = 10 * np.log10(np.where(img > 0, img * r ** 3, np.nan))
-        top = np.nanpercentile(db, 99.9)
+        with np.errstate(divide="ignore"):             # a shadow (zero) is black; NaN only outside the scan
+            db = 10 * np.log10(img * r ** 3)
+        top = np.nanpercentile(db[np.isfinite(db)], 99.9)
+        db = np.where(np.isnan(img), np.nan, np.maximum(db, top - 30))
         ax.imshow(db, extent=(ext[0] - x0, ext[1] - x0, ext[2] - y0, ext[3] - y0), cmap="copper", vmin=top - 30,
                   vmax=top)
         ax.plot(traj.positions_m[:, 0] - x0, traj.positions_m[:, 1] - y0, "c-", lw=1.5)

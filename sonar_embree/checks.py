@@ -118,15 +118,19 @@ def check_poses(caster, pos_local: np.ndarray) -> np.ndarray:
     return np.where(down.tri >= 0, down.range_m, np.nan)
 
 
-def check_in_range(compiled, pos_local: np.ndarray, max_range_m: float) -> None:
-    """Refuse a run where no ping has any of the scene's bounding box within ``max_range_m``."""
+def check_in_range(compiled, pos_local: np.ndarray, max_range_m: float, window_m: float | None = None) -> None:
+    """Refuse a run where no ping has any of the scene's bounding box within ``max_range_m`` (the record's reach:
+    the window, plus the pulse's length for a compressed pulse); the message quotes the configured ``window_m``
+    (default ``max_range_m``)."""
     bounds_local, origin_m = compiled.bounds_local, compiled.origin_m
     gap = np.maximum(np.maximum(bounds_local[0] - pos_local, pos_local - bounds_local[1]), 0.0)
     dist = np.linalg.norm(gap, axis=1)
     if dist.size and dist.min() > max_range_m:  # max_range_m: the reach of the record
         k = int(np.argmin(dist))
         p = pos_local[k] + origin_m
-        raise ConfigError(f"nothing of the scene lies within Sonar.max_range_m = {max_range_m:g} m of any ping "
+        window = max_range_m if window_m is None else window_m
+        reach = "" if abs(max_range_m - window) < 1e-9 * window else f", reach {max_range_m:.4g} m with the pulse"
+        raise ConfigError(f"nothing of the scene lies within Sonar.max_range_m = {window:g} m{reach} of any ping "
                           f"(nearest: {dist[k]:.1f} m from ping {k} at ({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) m); "
                           "check the trajectory's coordinates and units")
 
@@ -191,7 +195,7 @@ def check_setup(caster, sonar, pos_local: np.ndarray, reach_m: float | None = No
     c = caster.compiled
     check_sonar(sonar)
     check_scene(c)
-    check_in_range(c, pos_local, sonar.max_range_m if reach_m is None else reach_m)
+    check_in_range(c, pos_local, sonar.max_range_m if reach_m is None else reach_m, sonar.max_range_m)
     check_altitude(check_poses(caster, pos_local), sonar.max_range_m)
     check_back_faces(caster, pos_local, sonar.max_range_m)
 

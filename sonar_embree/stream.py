@@ -281,8 +281,9 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     block_pings : int
         Pings per block: one Zarr chunk each, and what is redone after a kill (at most the line's length).
     xtf_path : str or PathLike, optional
-        Also write an XTF file as the blocks come (float samples × a factor fixed by the first block for
-        ``xtf_scale="auto"``, see :func:`sonar_embree.io.xtf.sample_scale`). An existing non-empty file that
+        Also write an XTF file as the blocks come: a sonar with a :class:`~sonar_embree.Receiver` writes its integer
+        codes (uint8/uint16, as the device stores them); otherwise float samples × a factor fixed by the first
+        block for ``xtf_scale="auto"`` (:func:`sonar_embree.io.xtf.sample_scale`). An existing non-empty file that
         this stream did not write is refused unless ``overwrite``.
     resume : bool
         Continue a store left by a killed run with the same inputs, the same ``xtf_path`` included (default);

@@ -160,6 +160,18 @@ class Trajectory:
     def __len__(self) -> int:
         return self.positions_m.shape[0]
 
+    def __repr__(self) -> str:
+        """A summary (pings, span, times, CRS), not every array: a long line prints in one line."""
+        lo, hi = self.positions_m.min(axis=0), self.positions_m.max(axis=0)
+        span = ", ".join(f"{a:.6g}…{b:.6g}" for a, b in zip(lo, hi))
+        extra = [f"crs={self.crs}"] if self.crs else []
+        extra += [f"start_time={self.start_time}"] if self.start_time else []
+        extra += ["moving during the ping"] if self.velocity_m_s is not None else []
+        extra += ["towed (ship positions)"] if self.ship_positions_m is not None else []
+        t = self.times_s
+        return (f"Trajectory({len(self)} pings, x/y/z {span} m, t {t[0]:.6g}…{t[-1]:.6g} s"
+                + "".join(", " + e for e in extra) + ")")
+
     def __getitem__(self, index) -> "Trajectory":
         """The poses of a slice of pings (``traj[a:b]``), as a trajectory; times are kept."""
         if not isinstance(index, slice):

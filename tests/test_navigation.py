@@ -143,3 +143,21 @@ def test_pings_wider_apart_than_the_beam_are_warned_about(caplog):
         se.simulate(scene, se.Trajectory.line((0, 0, 10), (1.8, 0, 10), 10), sonar, speckle=False)
         se.simulate(scene, se.Trajectory.line((0, 0, 10), (16, 0, 10), 9), sonar, speckle=False)   # a probe, not an image
     assert not [r for r in caplog.records if "footprint" in r.getMessage()]
+
+
+def test_a_trajectory_prints_as_one_line_summary():
+    """print(trajectory) of a 10 000-ping line is one short line (pings, span, times, CRS), not every array."""
+    t = se.Trajectory.survey([(0, 0, -5), (2000, 0, -5)], 2.0, 10.0, crs=32631)
+    text = repr(t)
+    assert "\n" not in text and len(text) < 200 and "10001 pings" in text and "EPSG:32631" in text
+    assert "x/y/z 0…2000, 0…0, -5…-5 m" in text
+
+
+def test_out_of_range_quotes_the_configured_window():
+    """A compressed chirp reaches a pulse length past the window; the error names the configured 75 m, and the
+    reach separately (it said 78 m)."""
+    scene = se.Scene().add(se.seafloor.flat((20, 20)), label="seafloor")
+    far = se.Trajectory.line((500, 0, 10), (502, 0, 10), 3)
+    with pytest.raises(se.ConfigError, match=r"max_range_m = 75 m, reach \d+\.?\d* m with the pulse of"):
+        se.simulate(scene, far, se.Sonar(max_range_m=75.0), se.Pulse.lfm(bandwidth_hz=20e3, duration_s=4e-3),
+                    speckle=False)
