@@ -124,8 +124,9 @@ class Record:
                    np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels, ints)
 
     # ------------------------------------------------------------------ files
-    def save(self, path) -> None:
-        """Write the record to ``path`` (.npz); written atomically."""
+    def metadata(self) -> dict:
+        """What a file needs beside the arrays to make this record again: format, sonar, pulse, settings, channels,
+        the trajectory's CRS and start time, the labels' names (JSON-serialisable)."""
         from ._version import __version__
 
         meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
@@ -133,11 +134,17 @@ class Record:
                 "attrs": self.attrs}
         if type(self.sonar).__name__ != "Sonar" or self.channels != ("port", "starboard"):
             meta["sonar_type"], meta["channels"] = type(self.sonar).__name__, list(self.channels)
-        t = self.trajectory
-        meta["trajectory"] = {"crs": t.crs, "start_time": t.start_time}
-        extra = {}
+        meta["trajectory"] = {"crs": self.trajectory.crs, "start_time": self.trajectory.start_time}
         if self.labels is not None:
             meta["labels"] = {"names": list(self.labels.names), "is_seafloor": list(self.labels.is_seafloor)}
+        return meta
+
+    def save(self, path) -> None:
+        """Write the record to ``path`` (.npz); written atomically."""
+        meta = self.metadata()
+        t = self.trajectory
+        extra = {}
+        if self.labels is not None:
             extra = {f"labels_{k}": getattr(self.labels, k) for k in Labels.ARRAYS}
         if self.complex_data is not None:
             extra.update({f"{ch}_complex": self.channel(ch, complex_=True) for ch in self.channels})
@@ -160,8 +167,14 @@ class Record:
 
     @classmethod
     def load(cls, path) -> "Record":
-        """Read a record written by :meth:`save`."""
+        """Read a record written by :meth:`save` (.npz), or open a Zarr store written by :meth:`to_zarr` or streamed
+        by :func:`~sonar_embree.stream.render_line` (a folder) lazily: its intensities (and labels) stay on disk as
+        dask arrays, read a block of pings at a time by what uses them (:meth:`save_png` draws any length)."""
         path = os.fspath(path)
+        if os.path.isdir(path):
+            from .io.dataset import open_record
+
+            return open_record(path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))

@@ -265,7 +265,7 @@ def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
 
 def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings: int = 512, xtf_path=None,
                 xtf_scale="auto", resume: bool = True, overwrite: bool = False, progress_bar: bool = False,
-                **simulate_kwargs) -> str:
+                png_path=None, **simulate_kwargs) -> str:
     """Simulate ``trajectory`` block by block into a Zarr store at ``path`` (and an XTF file), memory bounded by
     one block.
 
@@ -290,6 +290,10 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         False starts over. A resume first checks the store and that the XTF holds every ping counted as done.
     overwrite : bool
         Replace a folder's or an XTF file's contents that this function did not write.
+    png_path : str or PathLike, optional
+        Also draw the finished line's waterfall PNG from the store (:meth:`Record.load`, a block of pings at a
+        time) at the ground's aspect, at most :data:`PNG_MAX_ROWS` rows (atomic; a file that is not a PNG is
+        refused).
 
     Returns
     -------
@@ -311,7 +315,15 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
                         progress_bar, simulate_kwargs)
         except OSError as exc:
             raise os_error_line(exc, exc.filename or path) from None
+    if png_path is not None:
+        from .record import Record
+
+        Record.load(path).save_png(png_path, aspect=True, max_rows=PNG_MAX_ROWS)
     return path
+
+
+#: The most rows of a streamed line's waterfall PNG (:func:`render_line`): longer lines average more pings a row.
+PNG_MAX_ROWS = 8192
 
 
 def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_scale, progress, bar,

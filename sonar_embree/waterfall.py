@@ -10,11 +10,12 @@ import numpy as np
 from .errors import ConfigError
 
 
-def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None):
+def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None, ground_m=None):
     """Resample (n_pings, n_samples) slant-range data onto a common ground-range grid.
 
     Ground range x = √(R² − h²) with the per-ping altitude h. Samples nearer than the
     altitude, pings without altitude (NaN) and grid points beyond the record are 0.
+    ``ground_m``: the grid to use (default: 0 to the farthest ground range of the lowest altitude).
 
     Returns
     -------
@@ -23,11 +24,9 @@ def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None):
     image : (n_pings, n_columns) float
     """
     r = np.asarray(slant_range_m)
-    n_cols = n_columns or r.shape[0]
     h = np.asarray(altitude_m, dtype=np.float64)
-    hmin = np.nanmin(h) if np.any(np.isfinite(h)) else 0.0
-    xmax = np.sqrt(max(r[-1] ** 2 - hmin ** 2, 0.0))
-    ground = np.linspace(0.0, xmax, n_cols)
+    ground = ground_grid(r, h, n_columns) if ground_m is None else np.asarray(ground_m)
+    n_cols = ground.shape[0]
     out = np.zeros((intensity.shape[0], n_cols))
     for i in range(intensity.shape[0]):
         if not np.isfinite(h[i]):
@@ -35,6 +34,14 @@ def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None):
         rr = np.sqrt(ground ** 2 + h[i] ** 2)
         out[i] = np.interp(rr, r, intensity[i], left=0.0, right=0.0)
     return ground, out
+
+
+def ground_grid(slant_range_m, altitude_m, n_columns=None) -> np.ndarray:
+    """The ground-range grid of :func:`to_ground_range`: ``n_columns`` (default one per sample) from 0 to the
+    farthest ground range at the lowest altitude, m."""
+    r, h = np.asarray(slant_range_m), np.asarray(altitude_m, dtype=np.float64)
+    hmin = np.nanmin(h) if np.any(np.isfinite(h)) else 0.0
+    return np.linspace(0.0, np.sqrt(max(r[-1] ** 2 - hmin ** 2, 0.0)), n_columns or r.shape[0])
 
 
 def block_mean(x, block: int):
@@ -91,12 +98,14 @@ def check_display(scale: str = "db", dynamic_range_db: float = 35.0, gamma: floa
 
 def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, gamma: float = 0.5,
                     ground_range: bool = False, tvg: bool = True, reference_percentile: float = 99.99,
-                    max_columns: int | None = 1024, floor_headroom_db: float = 12.0):
+                    max_columns: int | None = 1024, floor_headroom_db: float = 12.0, aspect: bool = False,
+                    max_rows: int | None = None):
     """An 8-bit grey waterfall of both channels.
 
     Parameters
     ----------
     record : Record
+        In memory, or opened lazily from a Zarr store (:meth:`Record.load`): the pings are read a block at a time.
     scale : {"db", "gamma"}
         "db": 10·log10 intensity over ``dynamic_range_db`` below the reference
         level; "gamma": (I / reference)^gamma.
@@ -118,23 +127,24 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, g
     max_columns : int or None
         Most columns per side; longer records are averaged (in intensity) over
         blocks of whole samples. None keeps one column per sample.
+    aspect : bool
+        Rows at the ground's aspect: a row stands for as much distance along track as a column across (the
+        column's range step): pings closer than that are averaged (in intensity) in groups, pings farther apart
+        are repeated. False: one row per ping.
+    max_rows : int or None
+        Most rows: more pings are averaged in groups (with ``aspect``, the groups grow and the aspect is kept as
+        near as that allows). None: no limit.
 
     Returns
     -------
-    (n_pings, 2·n_columns) uint8
+    (rows, 2·n_columns) uint8
+        rows = n_pings without ``aspect`` or ``max_rows``.
     """
     check_display(scale, dynamic_range_db, gamma, reference_percentile, max_columns)
-    r = record.slant_range_m
-    sides = [np.asarray(record.channel(ch), dtype=np.float64) for ch in record.channels]
-    if tvg and not record.attrs.get("tvg", False):
-        with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
-            decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0
-        gain = 10.0 ** (decades - decades[np.isfinite(decades)].max(initial=0.0))
-        sides = [s * gain for s in sides]
-    if ground_range:
-        sides = [to_ground_range(s, r, record.altitude_m)[1] for s in sides]
-    sides = [block_mean(s, waterfall_block(s.shape[1], max_columns)) for s in sides]
-    both = np.concatenate(sides, axis=1)
+    if max_rows is not None and (isinstance(max_rows, bool) or not isinstance(max_rows, int) or max_rows < 1):
+        raise ConfigError(f"waterfall max_rows must be an integer >= 1, got {max_rows!r}")
+    group, repeat = _row_groups(record, max_columns, ground_range, aspect, max_rows)
+    both, n = _reduced(record, tvg, ground_range, max_columns, group)
     pos = both[both > 0]
     ref = 1.0
     if pos.size:
@@ -145,8 +155,66 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, g
         v = np.clip(1.0 + db / dynamic_range_db, 0.0, 1.0)
     else:
         v = np.clip(np.maximum(both, 0.0) / ref, 0.0, 1.0) ** gamma
-    img = np.round(255.0 * v).astype(np.uint8)
-    n = sides[0].shape[1]
+    img = np.repeat(np.round(255.0 * v).astype(np.uint8), repeat, axis=0)
     if tuple(record.channels) != ("port", "starboard"):
         return img  # other sonar types: the channels side by side, near range on the left
     return np.concatenate([img[:, :n][:, ::-1], img[:, n:]], axis=1)
+
+
+#: Pings read at a time by :func:`waterfall_image` (a lazily opened record holds them in memory one block at a time).
+PING_BLOCK = 1024
+
+
+def _row_groups(record, max_columns, ground_range: bool, aspect: bool, max_rows):
+    """(pings averaged per row, times each row is repeated) for :func:`waterfall_image`."""
+    n_p = record.n_pings
+    group, repeat = 1, 1
+    if aspect and n_p > 1:
+        xy = np.asarray(record.trajectory.positions_m)[:, :2]
+        along = float(np.median(np.hypot(*np.diff(xy, axis=0).T)))
+        r = record.slant_range_m
+        if ground_range:
+            r = ground_grid(r, record.altitude_m)
+        width = (r[-1] - r[0]) / max(r.shape[0] - 1, 1) * waterfall_block(r.shape[0], max_columns)
+        if along > 0.0:
+            k = width / along
+            group, repeat = (max(1, int(round(k))), 1) if k >= 1.0 else (1, max(1, int(round(1.0 / k))))
+    if max_rows is not None:
+        rows = -(-n_p // group) * repeat
+        if rows > max_rows:
+            shrink = rows / max_rows
+            if repeat > 1:
+                repeat = max(1, int(repeat // shrink))
+            rows = -(-n_p // group) * repeat
+            group = max(group, int(np.ceil(group * rows / max_rows)))
+    return group, repeat
+
+
+def _reduced(record, tvg: bool, ground_range: bool, max_columns, group: int):
+    """The display's linear image, block of pings by block: display TVG, ground range, columns averaged over
+    whole samples and rows over ``group`` pings; (rows, 2·n_columns) float64 and n_columns per side."""
+    r = record.slant_range_m
+    gain = None
+    if tvg and not record.attrs.get("tvg", False):
+        with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
+            decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0
+        gain = 10.0 ** (decades - decades[np.isfinite(decades)].max(initial=0.0))
+    altitude = np.asarray(record.altitude_m, dtype=np.float64)
+    ground = ground_grid(r, altitude) if ground_range else None
+    step = max(group, PING_BLOCK // group * group)
+    rows = []
+    for a in range(0, record.n_pings, step):
+        b = min(a + step, record.n_pings)
+        sides = [np.asarray(record.channel(ch)[a:b], dtype=np.float64) for ch in record.channels]
+        if gain is not None:
+            sides = [s * gain for s in sides]
+        if ground_range:
+            sides = [to_ground_range(s, r, altitude[a:b], ground_m=ground)[1] for s in sides]
+        sides = [block_mean(s, waterfall_block(s.shape[1], max_columns)) for s in sides]
+        rows.append(_row_mean(np.concatenate(sides, axis=1), group))
+    return np.concatenate(rows), sides[0].shape[1]
+
+
+def _row_mean(x, group: int):
+    """Mean over consecutive groups of ``group`` rows (the last may be shorter)."""
+    return x if group <= 1 else block_mean(x.T, group).T

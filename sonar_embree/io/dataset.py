@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import shutil
 import tempfile
@@ -13,6 +14,9 @@ from ..labels import KIND_NAMES, SIDES, Labels
 #: Pings per Zarr chunk (each chunk holds whole pings).
 PING_CHUNK = 256
 
+
+#: The global attribute holding the record's metadata as JSON (sonar, pulse, settings; :meth:`Record.metadata`).
+RECORD_ATTR = "sonar_embree_record"
 
 #: CF conventions the datasets follow.
 CONVENTIONS = "CF-1.10"
@@ -147,6 +151,7 @@ def to_xarray(record):
                                     {"units": "degree", "long_name": "steering angle of the beam, to starboard"})
     attrs = _flat_attrs(record)
     attrs["channels"] = "intensity" if beams else " ".join(record.channels)
+    attrs[RECORD_ATTR] = json.dumps(record.metadata())   # what Record.load needs to open the store as a record
     if record.trajectory.crs is not None:  # CF: data on projected x, y name their grid mapping
         data["crs"] = _crs_variable(record.trajectory.crs)
         for ch in (("intensity",) if beams else record.channels):
@@ -259,3 +264,60 @@ def to_zarr(record, path) -> None:
     encoding = {name: {"chunks": tuple(chunk if d == "ping" else ds.sizes[d] for d in var.dims)}
                 for name, var in ds.data_vars.items()}
     replace_dir(path, lambda tmp: ds.to_zarr(tmp, mode="w", zarr_format=2, consolidated=True, encoding=encoding))
+
+
+def open_record(path):
+    """The record of a Zarr store this package wrote (:meth:`Record.to_zarr`, a streamed line), opened lazily:
+    intensities, complex signals, codes and labels as dask arrays; axes, poses and settings read in full.
+    A store without the record's metadata (another tool's, or an unfinished stream) is refused in one line."""
+    import xarray as xr
+
+    from ..config import Pulse
+    from ..record import Record
+    from ..sonars import SONAR_TYPES
+    from ..trajectory import Trajectory
+
+    from ..errors import ConfigError
+
+    if not _is_own_store(path):
+        raise ConfigError(f"{path}: not a Zarr store written by sonar_embree")
+    ds = xr.open_zarr(path)
+    if RECORD_ATTR not in ds.attrs:
+        raise ConfigError(f"{path}: the store has no record metadata (written by an older sonar_embree)")
+    meta = json.loads(ds.attrs[RECORD_ATTR])
+    channels = tuple(meta.get("channels", ("port", "starboard")))
+    beams = ds.attrs.get("channels") == "intensity"
+    data, cplx, ints = _lazy_arrays(ds, channels, beams)
+    geo = meta.get("trajectory", {})
+    ship = (np.column_stack([ds["ship_x_m"].values, ds["ship_y_m"].values, np.zeros(ds.sizes["ping"])])
+            if "ship_x_m" in ds.coords else None)
+    traj = Trajectory(np.column_stack([ds[f"{a}_m"].values for a in "xyz"]), ds["heading_deg"].values,
+                      ds["pitch_deg"].values, ds["roll_deg"].values, ds["ping_time_s"].values, None,
+                      geo.get("crs"), geo.get("start_time"), ship)
+    sonar = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")](**meta["sonar"])
+    labels = _lazy_labels(ds, meta, channels) if "labels" in meta else None
+    return Record(data, ds["time_s"].values, traj, sonar, Pulse(**meta["pulse"]), ds["altitude_m"].values,
+                  meta.get("attrs", {}), labels, cplx, channels, ints)
+
+
+def _lazy_arrays(ds, channels, beams: bool):
+    """(data, complex data or None, codes or None) of a store as (ping, channel, sample) dask arrays."""
+    import dask.array as da
+
+    if beams:
+        pick = [("intensity",), ("intensity_complex",), ("samples",)]
+        return tuple(ds[n[0]].data if n[0] in ds else None for n in pick)
+    out = []
+    for suffix in ("", "_complex", "_samples"):
+        names = [f"{ch}{suffix}" for ch in channels]
+        out.append(da.stack([ds[n].data for n in names], axis=1) if all(n in ds for n in names) else None)
+    return tuple(out)
+
+
+def _lazy_labels(ds, meta, channels):
+    """The store's labels (channel, ping, sample) as dask arrays, in the record's channel order."""
+    arrays = {}
+    for k in Labels.ARRAYS:
+        v = ds[f"label_{k}"]
+        arrays[k] = v.data
+    return Labels(**arrays, names=tuple(meta["labels"]["names"]), is_seafloor=tuple(meta["labels"]["is_seafloor"]))
