@@ -47,9 +47,12 @@ def directivity(u_along, u_height, u_bore, wavenumber_rad_m, length_m, height_m)
     return np.where(np.asarray(u_bore) > 0.0, g, 0.0)
 
 
-def _sinc_root(level: float) -> float:
-    """x in (0, π) with sinc(x) = level."""
+def sinc_root(level: float) -> float:
+    """x in (0, π) with sinc(x) = sin(x)/x = level."""
     return brentq(lambda x: math.sin(x) / x - level, 1e-12, math.pi)
+
+
+_sinc_root = sinc_root
 
 
 def beamwidth_deg(size_m: float, wavelength_m: float, level_db: float = -3.0,

@@ -208,7 +208,7 @@ class Sonar(Transducer):
         d = device(name)
         kw = dict(frequency_hz=d.frequency_hz, tilt_deg=d.tilt_deg, max_range_m=d.ranges_m[0],
                   source_level_db=d.source_level_db)
-        return cls.from_beamwidths(d.azimuth_deg, d.elevation_deg, rule="exact", **{**kw, **overrides})
+        return cls.from_beamwidths(d.azimuth_one_way_deg, d.elevation_deg, rule="exact", **{**kw, **overrides})
 
     @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,

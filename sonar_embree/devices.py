@@ -14,6 +14,7 @@ should override them (``Sonar.preset(name, source_level_db=…)``).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 from .errors import ConfigError
@@ -45,7 +46,17 @@ class Device:
     source_level_db : float
         dB re 1 µPa at 1 m.
     assumed : tuple of str
-        The fields not stated in ``source`` (representative values).
+        The fields not stated in ``source`` (representative values), or inferred from it (``note`` says how).
+    ping_rates_hz : tuple of float
+        The stated ping rate at each of ``ranges_m`` (0 where not stated); empty: none stated
+        (:meth:`ping_rate_hz` then pings back to back).
+    samples_per_channel : int or None
+        Samples the device records per side and ping, when stated (the record is not decimated to it yet).
+    azimuth_two_way : bool
+        ``azimuth_deg`` is the datasheet's two-way −3 dB width (converted to the one-way width by
+        :attr:`azimuth_one_way_deg`).
+    note : str
+        How inferred fields were inferred.
     """
 
     name: str
@@ -59,7 +70,40 @@ class Device:
     pulse: tuple
     source_level_db: float
     assumed: tuple = ()
+    ping_rates_hz: tuple = ()
+    samples_per_channel: int | None = None
+    azimuth_two_way: bool = False
+    note: str = ""
 
+    @property
+    def azimuth_one_way_deg(self) -> float:
+        """The one-way −3 dB along-track width, degrees: ``azimuth_deg``, or the one-way width of the membrane
+        whose two-way −3 dB width it is (sinc(x₁) = 2^(−1/2), sinc(x₂) = 2^(−1/4): sin(θ₁/2) = sin(θ₂/2)·x₁/x₂)."""
+        if not self.azimuth_two_way:
+            return self.azimuth_deg
+        from .beam import sinc_root
+
+        s = math.sin(math.radians(0.5 * self.azimuth_deg)) * sinc_root(2 ** -0.5) / sinc_root(2 ** -0.25)
+        return 2.0 * math.degrees(math.asin(s))
+
+    def ping_rate_hz(self, range_m: float, sound_speed_m_s: float = 1500.0) -> float:
+        """Pings per second at the range setting ``range_m``: the stated rate of that setting, else back to back
+        (c/(2·R), the fastest a window of R allows)."""
+        for r, rate in zip(self.ranges_m, self.ping_rates_hz):
+            if abs(r - range_m) < 1e-9 and rate > 0:
+                return float(rate)
+        return sound_speed_m_s / (2.0 * float(range_m))
+
+
+_CM2 = "C-MAX, CM2 Sidescan Sonar, Towfish Specification, Issue 7; CM2 user manual"
+_CM2_NOTE = ("tilt and vertical width inferred from the stated vertical coverage (−10° through −90° each side); the "
+             "manual's adjustable 10°/20° depression is not used; 53 µs is the stated pulse at 50 m, used at every range; "
+             "the widths at 325 and 780 kHz give membranes of the stated 0.37 and 0.21 m, the 1.0° at 100 kHz one of "
+             "0.55 m against the stated 0.37 m (the preset keeps the stated width)")
+_YF = "Imagenex Technology, YellowFin 872 side scan sonar manual (rev. Feb 2011)"
+_YF_ASSUMED = ("ranges_m", "pulse", "source_level_db")
+_YF_NOTE = ("the manual gives no range settings (coverage up to 400 m in all), pulse or source level; its beamwidths "
+            "are taken as one-way −3 dB widths")
 
 DEVICES = {d.name: d for d in (
     Device("klein-3000-100", "Klein Associates, System 3000 Digital Side Scan Sonar datasheet (100 kHz channel)",
@@ -81,6 +125,21 @@ DEVICES = {d.name: d for d in (
            "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), 205.0, ("source_level_db",)),
     Device("marine-sonic-arc-1800", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 1.8 MHz",
            "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), 200.0, ("source_level_db",)),
+    # C-MAX CM2: "CM2 Sidescan Sonar, Towfish Specification, Issue 7" and the CM2 user manual. Its horizontal
+    # widths are two-way −3 dB. Vertical coverage "−10° through −90°": a fan 80° wide centred 50° down.
+    Device("cmax-cm2-100", _CM2, "towfish", 100e3, 1.0, 80.0, 50.0, (100.0, 500.0), ("cw", 53e-6), 217.0,
+           ("tilt_deg", "elevation_deg", "pulse duration"), (6.9, 1.46), None, True, _CM2_NOTE),
+    Device("cmax-cm2-325", _CM2, "towfish", 325e3, 0.45, 80.0, 50.0, (25.0, 150.0), ("cw", 53e-6), 217.0,
+           ("tilt_deg", "elevation_deg", "pulse duration"), (13.5, 4.8), None, True, _CM2_NOTE),
+    Device("cmax-cm2-780", _CM2, "towfish", 780e3, 0.32, 80.0, 50.0, (12.5, 37.5), ("cw", 53e-6), 217.0,
+           ("tilt_deg", "elevation_deg", "pulse duration"), (), None, True, _CM2_NOTE),
+    # Imagenex YellowFin 872, manual rev. Feb 2011: beamwidths (horizontal × vertical), 20° down, 1000 points a side.
+    Device("imagenex-872-260", _YF, "towfish", 260e3, 2.2, 75.0, 20.0, (100.0, 200.0), ("cw", 100e-6), 210.0,
+           _YF_ASSUMED, (), 1000, False, _YF_NOTE),
+    Device("imagenex-872-330", _YF, "towfish", 330e3, 1.8, 60.0, 20.0, (60.0, 120.0), ("cw", 100e-6), 210.0,
+           _YF_ASSUMED, (), 1000, False, _YF_NOTE),
+    Device("imagenex-872-800", _YF, "towfish", 800e3, 0.7, 30.0, 20.0, (20.0, 40.0), ("cw", 50e-6), 210.0,
+           _YF_ASSUMED, (), 1000, False, _YF_NOTE),
 )}
 
 
