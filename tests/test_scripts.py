@@ -242,3 +242,13 @@ def test_bench_swell_objects_script_reports_ms_per_ping_with_and_without_balls()
     assert proc.returncode == 0, proc.stderr[-2000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert set(out) == {"0", "10"} and all(v > 0 for v in out.values())
+
+
+def test_bench_chirp_script_reports_the_chirp_beside_cw():
+    """scripts/bench_chirp.py --quick: ms per ping of the preset chirp (compressed and not) and of the CW pulse of
+    its resolution."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_chirp.py"), "--quick"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rows = [line for line in proc.stdout.splitlines() if line.startswith("| ") and "ms/ping" not in line]
+    assert len(rows) == 3 and all(float(r.split("|")[2]) > 0 for r in rows)
