@@ -8,6 +8,7 @@ from a vertical ray cast through the scene (for a DEM: the DEM resampled onto th
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +34,10 @@ class Mosaic:
         Pixel size, m.
     crs : str or None
         The records' CRS.
+    values : str
+        What ``intensity`` holds (:func:`mosaic`'s ``values``): "intensity", "normalised" or "codes".
+    units : str
+        Its unit ("1" unit-source intensity, "uPa^2" with a source level, "1" for normalised and codes).
     """
 
     intensity: np.ndarray
@@ -42,6 +47,8 @@ class Mosaic:
     y0_m: float
     pixel_m: float
     crs: str | None
+    values: str = "intensity"
+    units: str = "1"
 
     def centres(self):
         """(x (nx,), y (ny,)) world coordinates of the pixel centres, m (y decreasing: north-up)."""
@@ -49,11 +56,30 @@ class Mosaic:
         return (self.x0_m + (np.arange(nx) + 0.5) * self.pixel_m, self.y0_m - (np.arange(ny) + 0.5) * self.pixel_m)
 
     def to_geotiff(self, path) -> None:
-        """Write the mosaic as a two-band GeoTIFF (intensity, height_m; NaN where no sample) with its CRS."""
+        """Write the mosaic as a two-band GeoTIFF with its CRS: the values (named by ``values``, unit ``units``) and
+        height_m (m); NaN (the nodata value) where no sample; average overviews down to about 256 pixels."""
         from .io.geotiff import write_grid
 
         write_grid(path, np.stack([self.intensity, self.height_m]), self.x0_m, self.y0_m, self.pixel_m, self.crs,
-                   names=("intensity", "height_m"))
+                   names=(self.values, "height_m"), units=(self.units, "m"), overviews=True)
+
+    def save_png(self, path, dynamic_range_db: float = 40.0) -> None:
+        """A quick-look PNG of the values (grey, north-up, dB: white at the 99.5th percentile, black
+        ``dynamic_range_db`` below; transparent where no sample); atomic."""
+        import imageio.v3 as iio
+
+        from .io.files import atomic_write
+
+        v = self.intensity
+        lit = np.isfinite(v) & (v > 0)
+        grey = np.zeros(v.shape, dtype=np.uint8)
+        if lit.any():
+            db = 10.0 * np.log10(v[lit])
+            top = np.percentile(db, 99.5)
+            grey[lit] = np.round(255 * np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0, 1))
+        alpha = np.where(np.isfinite(v), 255, 0).astype(np.uint8)
+        img = np.stack([grey, alpha], axis=-1)
+        atomic_write(path, lambda tmp: iio.imwrite(tmp, img, extension=".png"), suffix=".png")
 
 
 def _side_xy(t_pos, rot, ground_range):
@@ -92,23 +118,63 @@ def _check(record) -> None:
         raise ConfigError(f"mosaic: side-scan records only (channels {', '.join(record.channels)})")
 
 
-def _blocks(source, block: int = 1000):
-    """Blocks of placed samples of a Record, or of a streamed line's Zarr store (a path or an xarray Dataset
-    with labels), read a block of pings at a time."""
+#: What :func:`mosaic` can place: the record's intensity, the same divided by the line's mean at each slant range
+#: (empirical gain normalisation), or the receiver's codes.
+MOSAIC_VALUES = ("intensity", "normalised", "codes")
+
+
+def _raw_blocks(source, values: str, block: int = 1000):
+    """(positions, rotations, ground range, heights, port, starboard) of a Record or a streamed line's store (a
+    path or an xarray Dataset with labels), a block of pings at a time; port/starboard the record's intensities,
+    or its receiver's codes (``values="codes"``)."""
     if hasattr(source, "trajectory"):
         _check(source)
         t, lab = source.trajectory, source.labels
-        yield _placed(t.positions_m, t.rotations(), lab.ground_range_m, lab.height_m, source.port, source.starboard)
+        if values == "codes":
+            if source.samples is None:
+                raise ConfigError("mosaic: values='codes' needs a record from a sonar with a Receiver")
+            sides = (source.samples[:, 0], source.samples[:, 1])
+        else:
+            sides = (source.port, source.starboard)
+        yield t.positions_m, t.rotations(), lab.ground_range_m, lab.height_m, *sides
         return
     from .trajectory import body_to_world
 
     ds = _dataset(source)
+    names = ("port_samples", "starboard_samples") if values == "codes" else ("port", "starboard")
+    if names[0] not in ds:
+        raise ConfigError("mosaic: values='codes' needs a store from a sonar with a Receiver")
     for a in range(0, ds.sizes["ping"], block):
         d = ds.isel(ping=slice(a, a + block))
         pos = np.column_stack([d["x_m"].values, d["y_m"].values, d["z_m"].values])
         rot = body_to_world(d["heading_deg"].values, d["pitch_deg"].values, d["roll_deg"].values)
-        yield _placed(pos, rot, d["label_ground_range_m"].values, d["label_height_m"].values, d["port"].values,
-                      d["starboard"].values)
+        yield (pos, rot, d["label_ground_range_m"].values, d["label_height_m"].values, d[names[0]].values,
+               d[names[1]].values)
+
+
+def _line_profile(source) -> np.ndarray:
+    """(2, samples) the line's mean intensity at each slant range sample over its pings, per side, counting only
+    samples with a seafloor point (the empirical gain normalisation of :func:`mosaic`)."""
+    sums, counts = 0.0, 0.0
+    for _, _, ground, _, port, starboard in _raw_blocks(source, "intensity"):
+        lit = np.isfinite(np.asarray(ground, dtype=np.float64))
+        vals = np.where(lit, np.stack([port, starboard]).astype(np.float64), 0.0)
+        sums, counts = sums + vals.sum(axis=1), counts + lit.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
+
+
+def _blocks(source, values: str = "intensity", block: int = 1000):
+    """Blocks of placed samples (x, y, value, height) of a Record or a streamed line's store, a block of pings at a
+    time; ``values`` as for :func:`mosaic`."""
+    profile = _line_profile(source) if values == "normalised" else None
+    for pos, rot, ground, heights, port, starboard in _raw_blocks(source, "codes" if values == "codes" else
+                                                                  "intensity", block):
+        if profile is not None:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                port, starboard = (np.asarray(s, dtype=np.float64) / np.where(p > 0, p, np.nan)
+                                   for s, p in zip((port, starboard), profile))
+        yield _placed(pos, rot, ground, heights, port, starboard)
 
 
 def _dataset(source):
@@ -141,7 +207,7 @@ def _crs_of(source):
     return ds["crs"].attrs.get("epsg_code") if "crs" in ds else None
 
 
-def mosaic(records, pixel_m: float = 0.5, bounds_m=None) -> Mosaic:
+def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensity") -> Mosaic:
     """Average the samples of one or more side-scan lines (with labels) onto a north-up grid.
 
     Parameters
@@ -154,7 +220,13 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None) -> Mosaic:
     bounds_m : (xmin, ymin, xmax, ymax), optional
         The mosaic's extent in world metres; default: every placed sample, snapped out to whole pixels (this
         reads the lines twice).
+    values : {"intensity", "normalised", "codes"}
+        What is averaged: the records' intensity; the same divided, line by line and side by side, by the line's
+        mean intensity at each slant range over its pings (an empirical gain normalisation: range and angle
+        trends out, a uniform floor uniform; dimensionless); or the receiver's codes (a sonar with a Receiver).
     """
+    if values not in MOSAIC_VALUES:
+        raise ConfigError(f"mosaic: values must be one of {', '.join(MOSAIC_VALUES)}, got {values!r}")
     records = _record_list(records)
     if isinstance(pixel_m, bool) or not (isinstance(pixel_m, (int, float)) and 0 < pixel_m < 1e4):
         raise ConfigError(f"mosaic: pixel_m must be a positive size in m, got {pixel_m!r}")
@@ -163,21 +235,33 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None) -> Mosaic:
     crs = {_crs_of(r) for r in records}
     if len(crs) > 1:
         raise ConfigError(f"mosaic: the records are in different CRSs ({', '.join(sorted(map(str, crs)))})")
-    if bounds_m is None:
-        lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
-        for r in records:
-            for x, y, _, _ in _blocks(r):
-                if x.size:
-                    lo, hi = np.minimum(lo, [x.min(), y.min()]), np.maximum(hi, [x.max(), y.max()])
-        if not np.all(np.isfinite(lo)):
-            raise ConfigError("mosaic: no sample of the records has a seafloor point")
-        bounds_m = (lo[0], lo[1], hi[0], hi[1])
-    acc = _Accumulator(bounds_m, float(pixel_m))
+    acc = _Accumulator(_bounds_of(records) if bounds_m is None else bounds_m, float(pixel_m))
     acc.check_size()
     for r in records:
-        for block in _blocks(r):
+        for block in _blocks(r, values):
             acc.add(*block)
-    return acc.result(crs.pop())
+    return dataclasses.replace(acc.result(crs.pop()), values=values, units=_units(records[0], values))
+
+
+def _bounds_of(records) -> tuple:
+    """(xmin, ymin, xmax, ymax) of every placed sample of the records, m."""
+    lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
+    for r in records:
+        for x, y, _, _ in _blocks(r):
+            if x.size:
+                lo, hi = np.minimum(lo, [x.min(), y.min()]), np.maximum(hi, [x.max(), y.max()])
+    if not np.all(np.isfinite(lo)):
+        raise ConfigError("mosaic: no sample of the records has a seafloor point")
+    return lo[0], lo[1], hi[0], hi[1]
+
+
+def _units(source, values: str) -> str:
+    """The unit of the mosaic's values: uPa^2 for intensities with a source level, else 1."""
+    if values != "intensity":
+        return "1"
+    level = (source.sonar.source_level_db if hasattr(source, "sonar")
+             else _dataset(source).attrs.get("sonar.source_level_db"))
+    return "1" if level is None else "uPa^2"
 
 
 #: Largest mosaic grid, pixels: its three float64 sums take 24 bytes a pixel (2.4 GB here).

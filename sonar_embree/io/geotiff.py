@@ -102,10 +102,11 @@ def _check_transform(path: str, t) -> None:
 
 
 def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None, nodata: float = np.nan,
-               names=None) -> None:
+               names=None, units=None, overviews: bool = False) -> None:
     """Write a north-up float32 GeoTIFF (atomic): ``values`` (ny, nx) or (bands, ny, nx), ``values[…, i, j]`` at
-    the pixel whose upper-left corner is (x0 + j·pixel, y0 − i·pixel), NaN written as ``nodata``; ``names``
-    (one per band) become the band descriptions."""
+    the pixel whose upper-left corner is (x0 + j·pixel, y0 − i·pixel), NaN written as ``nodata``; ``names`` and
+    ``units`` (one per band) become the band descriptions and units; ``overviews``: average overviews, factors
+    2, 4, … down to about 256 pixels on the smaller side (at least one level)."""
     import rasterio
     from rasterio.transform import Affine
 
@@ -119,10 +120,21 @@ def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None,
                    transform=Affine(pixel_m, 0.0, x0_m, 0.0, -pixel_m, y0_m), nodata=nodata,
                    crs=None if crs is None else rasterio.crs.CRS.from_user_input(crs))
 
+    factors = []
+    while overviews and (not factors or min(v.shape[1:]) // factors[-1] >= 512):
+        factors.append(2 ** (len(factors) + 1))
+
     def write(tmp):
+        from rasterio.enums import Resampling
+
         with rasterio.open(tmp, "w", **profile) as dst:
             dst.write(v)
             for i, name in enumerate(names or ()):
                 dst.set_band_description(i + 1, name)
+            for i, unit in enumerate(units or ()):
+                dst.set_band_unit(i + 1, unit)
+            if factors:
+                dst.build_overviews(factors, Resampling.average)
+                dst.update_tags(ns="rio_overview", resampling="average")
 
     atomic_write(path, write, suffix=".tif")
