@@ -85,6 +85,19 @@ with height truth); sonar-embree examples --copy detection.toml . to edit one.
 """
 
 
+SURVEY_HELP = r"""Simulate a survey: each navigation log is one line, projected into the DEM's CRS, its heading
+taken from the track when it has none, resampled at the device's ping rate, towed behind the navigation with
+--layback or --cable-out, and streamed (resumable) into OUT/line_KK/ as line.zarr, line.xtf (lat/lon, ship and
+sensor positions) and line.png. Then OUT/mosaic.tif (normalised values and placed heights, units, overviews),
+OUT/mosaic.png (a quick look), OUT/truth.tif (the DEM on the mosaic's grid) and OUT/survey.json. The device's
+receiver is assumed (no datasheet states it): an AGC at 16 bits.
+
+example:
+  sonar-embree survey --dem harbour.tif --nav line1.csv --nav line2.csv --device edgetech-4125-400 \
+      --range 75 --cable-out 40 -o out/harbour
+"""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="sonar-embree",
                                 description="Physically based side-scan sonar simulator (Embree ray casting).",
@@ -125,12 +138,40 @@ def _parser() -> argparse.ArgumentParser:
     b.add_argument("--dashboard", nargs="?", const=":8787", metavar="ADDRESS",
                    help="serve the local cluster's Dask dashboard (default address :8787; off unless given)")
     b.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    _add_survey_parser(sub)
     x = sub.add_parser("examples", help="list the shipped scenes, configs and sweeps, or copy one out",
                        description="The files shipped with the package. Configs and sweeps name their meshes "
                                    "as asset:NAME, so a copy works from any folder; render or batch them as "
                                    "asset:NAME.toml or as the copy.")
     x.add_argument("--copy", nargs=2, metavar=("NAME", "DEST"), help="copy a shipped file to DEST (a file or folder)")
     return p
+
+
+def _add_survey_parser(sub) -> None:
+    s = sub.add_parser("survey", help="a DEM + navigation logs + a device preset -> per line XTF, Zarr, PNG and "
+                                      "the survey's mosaic", description=SURVEY_HELP,
+                       formatter_class=argparse.RawDescriptionHelpFormatter)
+    s.add_argument("--dem", required=True, metavar="DEM.tif", help="GeoTIFF DEM, projected CRS in metres, z = 0 "
+                                                                   "the sea surface")
+    s.add_argument("--nav", required=True, action="append", metavar="LOG",
+                   help="navigation log of one line (.csv: time, lat_deg/lon_deg or x_m/y_m, depth_m or z_m, "
+                        "optional heading_deg; .xtf); repeat for more lines")
+    s.add_argument("--device", required=True, metavar="PRESET", help="device preset, e.g. edgetech-4125-400 "
+                                                                     "(see README, Device presets)")
+    s.add_argument("--range", type=float, metavar="M", dest="range_m", help="range setting, m (default: the "
+                                                                           "preset's first)")
+    s.add_argument("--ping-rate", type=float, metavar="HZ", help="pings per second (default: the device's rate "
+                                                                 "for the range, else back to back)")
+    tow = s.add_mutually_exclusive_group()
+    tow.add_argument("--layback", type=float, metavar="M", help="towed: the sonar this far behind the navigation")
+    tow.add_argument("--cable-out", type=float, metavar="M", help="towed: this much cable from the surface")
+    s.add_argument("--pixel", type=float, default=0.5, metavar="M", help="mosaic pixel, m (default 0.5)")
+    s.add_argument("--quality", type=float, default=1.0, help="ray budget (default 1)")
+    s.add_argument("--speckle", action="store_true", help="coherent speckle (default: expected intensity)")
+    s.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new, empty or an earlier "
+                                                                        "survey's: resumed)")
+    s.add_argument("--overwrite", action="store_true", help="replace what is in OUT")
+    s.add_argument("--no-progress", action="store_true", help="hide the progress bars")
 
 
 def _examples(args) -> list:
@@ -218,6 +259,13 @@ def _run(args) -> list:
         ids = batch.run(args.sweep, args.output, scheduler=args.scheduler, workers=args.workers,
                         resume=args.resume, progress=not args.no_progress, dashboard=args.dashboard)
         return [os.path.join(args.output, i) for i in ids]
+    if args.command == "survey":
+        from .survey import run_survey
+
+        return run_survey(args.dem, args.nav, args.output, args.device, range_m=args.range_m,
+                          ping_rate_hz=args.ping_rate, layback_m=args.layback, cable_out_m=args.cable_out,
+                          pixel_m=args.pixel, quality=args.quality, speckle=args.speckle, overwrite=args.overwrite,
+                          progress=not args.no_progress)
     if args.command == "demo":
         from .demo import DEMO_PNG, anchor_mine_setup
 

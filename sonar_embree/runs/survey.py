@@ -1,0 +1,136 @@
+"""A survey as a surveyor runs it: a DEM, navigation logs and a device preset → per line XTF, Zarr and a waterfall
+PNG, and the survey's mosaic, bathymetry truth and quick look (``sonar-embree survey``; docs in the README).
+
+Each navigation log (CSV with lat/lon or projected positions and times, or an XTF) is one line: projected into
+the DEM's CRS, its heading taken from the track where it has none, resampled at the device's ping rate for the
+range setting (its stated rate, else back to back), the sonar towed ``layback_m`` (or a ``cable_out_m`` cable)
+behind it when given, and streamed with labels into the line's folder (resumable: a rerun continues each line
+where it stopped). The preset's sonar records through a receiver: the datasheets state none, so it is assumed —
+an AGC at 16 bits (``SURVEY_RECEIVER``), which keeps the codes within full scale whatever the scene.
+"""
+from __future__ import annotations
+
+import json
+import os
+
+from ..errors import ConfigError
+
+#: The receiver a survey records with (assumed: no datasheet states the device's gain): an AGC bringing the moving
+#: RMS to a quarter of full scale, 16-bit ADC.
+SURVEY_RECEIVER = dict(gain=dict(kind="agc", target=0.25), adc_bits=16)
+#: The file marking a folder as a survey's output (refused otherwise unless overwrite).
+SUMMARY = "survey.json"
+
+
+def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, ping_rate_hz: float | None = None,
+               layback_m: float | None = None, cable_out_m: float | None = None, pixel_m: float = 0.5,
+               quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True) -> list:
+    """Run the survey; returns the files written (the summary last).
+
+    Parameters
+    ----------
+    dem : str or PathLike
+        A GeoTIFF DEM in a projected CRS (metres; z = 0 the sea surface), read tile by tile.
+    navs : sequence of str or PathLike
+        Navigation logs, one per line (.csv as :meth:`Trajectory.from_csv`, .xtf as :meth:`Trajectory.from_xtf`).
+    out : str or PathLike
+        Output folder: new, empty, or an earlier survey's (its survey.json); anything else is refused unless
+        ``overwrite``.
+    device : str
+        A preset of :data:`sonar_embree.devices.DEVICES`: its sonar, pulse and ping rates.
+    range_m, ping_rate_hz : float, optional
+        The range setting (default the preset's first) and the ping rate (default the device's for that range).
+    layback_m, cable_out_m : float, optional
+        A towed sonar (:meth:`Trajectory.with_layback`): its horizontal distance behind the navigation, or the
+        cable out from the surface.
+    pixel_m : float
+        The mosaic's pixel, m.
+    quality, speckle
+        As for :func:`~sonar_embree.simulate`.
+    overwrite, progress : bool
+    """
+    import sonar_embree as se
+
+    navs = [os.fspath(n) for n in ([navs] if isinstance(navs, (str, os.PathLike)) else navs)]
+    if not navs:
+        raise ConfigError("survey: give at least one navigation log")
+    out = os.fspath(out)
+    _claim(out, overwrite)
+    tiles = se.TiledDEM(dem)
+    sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
+    written, lines = [], []
+    for k, nav in enumerate(navs):
+        traj = _line(nav, tiles.crs, rate, layback_m, cable_out_m)
+        folder = os.path.join(out, f"line_{k:02d}")
+        os.makedirs(folder, exist_ok=True)
+        files = {ext: os.path.join(folder, f"line.{ext}") for ext in ("zarr", "xtf", "png")}
+        se.stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"],
+                              png_path=files["png"], labels=True, speckle=speckle, quality=quality,
+                              overwrite=overwrite, progress_bar=progress)
+        written += list(files.values())
+        lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "files": files})
+    written += _products(se, tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)
+    summary = {"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
+               "cable_out_m": cable_out_m, "receiver": SURVEY_RECEIVER, "dem": os.path.abspath(os.fspath(dem)),
+               "crs": tiles.crs, "lines": lines}
+    return written + [_write_summary(out, summary)]
+
+
+def _claim(out: str, overwrite: bool) -> None:
+    """Refuse an output folder that is neither new, empty nor an earlier survey's, unless ``overwrite``."""
+    if os.path.isfile(out):
+        raise ConfigError(f"{out}: is a file, not a folder")
+    if os.path.isdir(out) and os.listdir(out) and not os.path.exists(os.path.join(out, SUMMARY)) and not overwrite:
+        raise ConfigError(f"{out}: a non-empty folder that is not a survey's output; choose another or pass "
+                          "--overwrite")
+    os.makedirs(out, exist_ok=True)
+
+
+def _device(name: str, range_m, ping_rate_hz):
+    """(sonar with the assumed receiver, the device's pulse, ping rate) of a preset at a range setting."""
+    import sonar_embree as se
+
+    d = se.devices.device(name)
+    rng = float(d.ranges_m[0] if range_m is None else range_m)
+    sonar = se.Sonar.preset(name, max_range_m=rng, receiver=se.Receiver(**SURVEY_RECEIVER))
+    rate = d.ping_rate_hz(rng, sonar.sound_speed_m_s) if ping_rate_hz is None else float(ping_rate_hz)
+    return sonar, se.Pulse.preset(name), rate
+
+
+def _line(nav: str, crs, rate: float, layback_m, cable_out_m):
+    """The line of one navigation log: in the DEM's CRS, resampled at ``rate``, towed when asked."""
+    from ..trajectory import Trajectory
+
+    if not os.path.isfile(nav):
+        raise ConfigError(f"{nav}: no such navigation log")
+    ext = os.path.splitext(nav)[1].lower()
+    if ext not in (".csv", ".xtf"):
+        raise ConfigError(f"{nav}: a navigation log is .csv or .xtf, got {ext or 'no extension'!r}")
+    traj = Trajectory.from_csv(nav, crs=crs) if ext == ".csv" else Trajectory.from_xtf(nav, crs=crs)
+    traj = traj.resampled(rate)
+    if layback_m is not None or cable_out_m is not None:
+        traj = traj.with_layback(layback_m, cable_out_m=cable_out_m)
+    return traj
+
+
+def _products(se, tiles, stores, out: str, pixel_m: float) -> list:
+    """The survey's normalised mosaic (GeoTIFF and quick look) and the DEM's truth on the same grid."""
+    grid = se.mosaic.mosaic(stores, pixel_m=pixel_m, values="normalised")
+    files = [os.path.join(out, name) for name in ("mosaic.tif", "mosaic.png", "truth.tif")]
+    grid.to_geotiff(files[0])
+    grid.save_png(files[1])
+    se.mosaic.write_truth(files[2], tiles, grid)
+    return files
+
+
+def _write_summary(out: str, summary: dict) -> str:
+    from ..io.files import atomic_write
+
+    path = os.path.join(out, SUMMARY)
+
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump(summary, fh, indent=2)
+
+    atomic_write(path, write, suffix=".json")
+    return path
