@@ -172,9 +172,7 @@ class Record:
         dask arrays, read a block of pings at a time by what uses them (:meth:`save_png` draws any length)."""
         path = os.fspath(path)
         if os.path.isdir(path):
-            from .io.dataset import open_record
-
-            return open_record(path)
+            return cls._open_store(path)
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
@@ -199,6 +197,24 @@ class Record:
         return cls(np.stack([arrays[ch] for ch in channels], axis=1), arrays["time_s"], traj,
                    sonar_cls(**meta["sonar"]), Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}),
                    labels, cplx, channels, arrays.get("samples"))
+
+    @classmethod
+    def _open_store(cls, path) -> "Record":
+        """The record of a Zarr store, its arrays left on disk (:func:`sonar_embree.io.dataset.open_parts`)."""
+        from .io.dataset import open_parts
+
+        p = open_parts(path)
+        meta = p["meta"]
+        geo = meta.get("trajectory", {})
+        traj = Trajectory(p["positions_m"], p["heading_deg"], p["pitch_deg"], p["roll_deg"], p["times_s"], None,
+                          geo.get("crs"), geo.get("start_time"), p["ship_positions_m"])
+        labels = None
+        if p["labels"] is not None:
+            labels = Labels(**p["labels"], names=tuple(meta["labels"]["names"]),
+                            is_seafloor=tuple(meta["labels"]["is_seafloor"]))
+        sonar = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")](**meta["sonar"])
+        return cls(p["data"], p["time_s"], traj, sonar, Pulse(**meta["pulse"]), p["altitude_m"], meta.get("attrs", {}),
+                   labels, p["complex_data"], tuple(meta.get("channels", ("port", "starboard"))), p["samples"])
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""

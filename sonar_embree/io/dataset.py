@@ -266,16 +266,13 @@ def to_zarr(record, path) -> None:
     replace_dir(path, lambda tmp: ds.to_zarr(tmp, mode="w", zarr_format=2, consolidated=True, encoding=encoding))
 
 
-def open_record(path):
-    """The record of a Zarr store this package wrote (:meth:`Record.to_zarr`, a streamed line), opened lazily:
-    intensities, complex signals, codes and labels as dask arrays; axes, poses and settings read in full.
-    A store without the record's metadata (another tool's, or an unfinished stream) is refused in one line."""
+def open_parts(path) -> dict:
+    """What :meth:`Record.load` needs to open a Zarr store this package wrote (:meth:`Record.to_zarr`, a streamed
+    line) as a record, lazily: the metadata (``meta``), ``data``, ``complex_data``, ``samples`` (ping, channel,
+    sample) and the labels' arrays (``labels``: name → (channel, ping, sample)) as dask arrays; the axes and poses
+    (``time_s``, ``altitude_m``, ``positions_m``, ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``times_s``,
+    ``ship_positions_m``) read in full. A store without the record's metadata is refused in one line."""
     import xarray as xr
-
-    from ..config import Pulse
-    from ..record import Record
-    from ..sonars import SONAR_TYPES
-    from ..trajectory import Trajectory
 
     from ..errors import ConfigError
 
@@ -286,18 +283,15 @@ def open_record(path):
         raise ConfigError(f"{path}: the store has no record metadata (written by an older sonar_embree)")
     meta = json.loads(ds.attrs[RECORD_ATTR])
     channels = tuple(meta.get("channels", ("port", "starboard")))
-    beams = ds.attrs.get("channels") == "intensity"
-    data, cplx, ints = _lazy_arrays(ds, channels, beams)
-    geo = meta.get("trajectory", {})
-    ship = (np.column_stack([ds["ship_x_m"].values, ds["ship_y_m"].values, np.zeros(ds.sizes["ping"])])
+    data, cplx, ints = _lazy_arrays(ds, channels, ds.attrs.get("channels") == "intensity")
+    n = ds.sizes["ping"]
+    ship = (np.column_stack([ds["ship_x_m"].values, ds["ship_y_m"].values, np.zeros(n)])
             if "ship_x_m" in ds.coords else None)
-    traj = Trajectory(np.column_stack([ds[f"{a}_m"].values for a in "xyz"]), ds["heading_deg"].values,
-                      ds["pitch_deg"].values, ds["roll_deg"].values, ds["ping_time_s"].values, None,
-                      geo.get("crs"), geo.get("start_time"), ship)
-    sonar = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")](**meta["sonar"])
-    labels = _lazy_labels(ds, meta, channels) if "labels" in meta else None
-    return Record(data, ds["time_s"].values, traj, sonar, Pulse(**meta["pulse"]), ds["altitude_m"].values,
-                  meta.get("attrs", {}), labels, cplx, channels, ints)
+    labels = {k: ds[f"label_{k}"].data for k in Labels.ARRAYS} if "labels" in meta else None
+    return dict(meta=meta, data=data, complex_data=cplx, samples=ints, labels=labels, time_s=ds["time_s"].values,
+                altitude_m=ds["altitude_m"].values, positions_m=np.column_stack([ds[f"{a}_m"].values for a in "xyz"]),
+                heading_deg=ds["heading_deg"].values, pitch_deg=ds["pitch_deg"].values,
+                roll_deg=ds["roll_deg"].values, times_s=ds["ping_time_s"].values, ship_positions_m=ship)
 
 
 def _lazy_arrays(ds, channels, beams: bool):
@@ -312,12 +306,3 @@ def _lazy_arrays(ds, channels, beams: bool):
         names = [f"{ch}{suffix}" for ch in channels]
         out.append(da.stack([ds[n].data for n in names], axis=1) if all(n in ds for n in names) else None)
     return tuple(out)
-
-
-def _lazy_labels(ds, meta, channels):
-    """The store's labels (channel, ping, sample) as dask arrays, in the record's channel order."""
-    arrays = {}
-    for k in Labels.ARRAYS:
-        v = ds[f"label_{k}"]
-        arrays[k] = v.data
-    return Labels(**arrays, names=tuple(meta["labels"]["names"]), is_seafloor=tuple(meta["labels"]["is_seafloor"]))
