@@ -82,3 +82,28 @@ def test_a_survey_from_a_dem_and_a_nav_log_runs_from_the_cli(tmp_path):
     bad = subprocess.run(cmd[:-1] + [str(tmp_path / "mine")], capture_output=True, text=True, timeout=120)
     assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "not a survey's output" in bad.stderr
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
+
+
+def test_a_survey_toml_gives_the_same_keywords_and_refuses_unknown_keys(tmp_path):
+    """[survey] in TOML: paths relative to the file, a nav list, numbers; an unknown key, a missing dem and a
+    string where a number belongs are one-line errors naming the file and key."""
+    import pytest
+
+    import sonar_embree as se
+    from sonar_embree.runs.survey import load_survey_config
+
+    (tmp_path / "s.toml").write_text('[survey]\ndem = "dem.tif"\nnav = ["a.csv", "b.csv"]\ndevice = "cmax-cm2-325"\n'
+                                     'layback_m = 10\nspeckle = true\n')
+    kw = load_survey_config(tmp_path / "s.toml")
+    assert kw == dict(dem=str(tmp_path / "dem.tif"), navs=[str(tmp_path / "a.csv"), str(tmp_path / "b.csv")],
+                      device="cmax-cm2-325", layback_m=10, speckle=True)
+    for text, match in (('[survey]\ndem = "d.tif"\nnav = "a.csv"\ndevice = "x"\nlayback = 3\n', "unknown key 'layback'"),
+                        ('[survey]\nnav = "a.csv"\ndevice = "x"\n', "needs 'dem'"),
+                        ('[survey]\ndem = "d.tif"\nnav = "a.csv"\ndevice = "x"\nrange_m = "75"\n', "range_m must be a number")):
+        (tmp_path / "bad.toml").write_text(text)
+        with pytest.raises(se.ConfigError, match=match) as err:
+            load_survey_config(tmp_path / "bad.toml")
+        assert "bad.toml" in str(err.value) and "\n" not in str(err.value)
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--nav", "x.csv", "-o",
+                           str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "give --dem" in proc.stderr

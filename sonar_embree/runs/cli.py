@@ -151,12 +151,16 @@ def _add_survey_parser(sub) -> None:
     s = sub.add_parser("survey", help="a DEM + navigation logs + a device preset -> per line XTF, Zarr, PNG and "
                                       "the survey's mosaic", description=SURVEY_HELP,
                        formatter_class=argparse.RawDescriptionHelpFormatter)
-    s.add_argument("--dem", required=True, metavar="DEM.tif", help="GeoTIFF DEM, projected CRS in metres, z = 0 "
+    s.add_argument("--config", metavar="SURVEY.toml", help="a [survey] table with the keys dem, nav (a path or a "
+                                                           "list), device, range_m, ping_rate_hz, layback_m, "
+                                                           "cable_out_m, pixel_m, quality, speckle; flags given "
+                                                           "as well override it")
+    s.add_argument("--dem", metavar="DEM.tif", help="GeoTIFF DEM, projected CRS in metres, z = 0 "
                                                                    "the sea surface")
-    s.add_argument("--nav", required=True, action="append", metavar="LOG",
+    s.add_argument("--nav", action="append", metavar="LOG",
                    help="navigation log of one line (.csv: time, lat_deg/lon_deg or x_m/y_m, depth_m or z_m, "
                         "optional heading_deg; .xtf); repeat for more lines")
-    s.add_argument("--device", required=True, metavar="PRESET", help="device preset, e.g. edgetech-4125-400 "
+    s.add_argument("--device", metavar="PRESET", help="device preset, e.g. edgetech-4125-400 "
                                                                      "(see README, Device presets)")
     s.add_argument("--range", type=float, metavar="M", dest="range_m", help="range setting, m (default: the "
                                                                            "preset's first)")
@@ -165,13 +169,30 @@ def _add_survey_parser(sub) -> None:
     tow = s.add_mutually_exclusive_group()
     tow.add_argument("--layback", type=float, metavar="M", help="towed: the sonar this far behind the navigation")
     tow.add_argument("--cable-out", type=float, metavar="M", help="towed: this much cable from the surface")
-    s.add_argument("--pixel", type=float, default=0.5, metavar="M", help="mosaic pixel, m (default 0.5)")
-    s.add_argument("--quality", type=float, default=1.0, help="ray budget (default 1)")
-    s.add_argument("--speckle", action="store_true", help="coherent speckle (default: expected intensity)")
+    s.add_argument("--pixel", type=float, metavar="M", help="mosaic pixel, m (default 0.5)")
+    s.add_argument("--quality", type=float, help="ray budget (default 1)")
+    s.add_argument("--speckle", action="store_true", default=None, help="coherent speckle (default: expected "
+                                                                        "intensity)")
     s.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new, empty or an earlier "
                                                                         "survey's: resumed)")
     s.add_argument("--overwrite", action="store_true", help="replace what is in OUT")
     s.add_argument("--no-progress", action="store_true", help="hide the progress bars")
+
+
+def _survey(args) -> list:
+    """``sonar-embree survey``: the config's [survey] table (if any), overridden by the flags given."""
+    from .survey import load_survey_config, run_survey
+
+    kw = load_survey_config(args.config) if args.config else {}
+    flags = dict(dem=args.dem, navs=args.nav, device=args.device, range_m=args.range_m, ping_rate_hz=args.ping_rate,
+                 layback_m=args.layback, cable_out_m=args.cable_out, pixel_m=args.pixel, quality=args.quality,
+                 speckle=args.speckle)
+    kw.update({k: v for k, v in flags.items() if v is not None})
+    for key, flag in (("dem", "--dem"), ("navs", "--nav"), ("device", "--device")):
+        if key not in kw:
+            raise SonarEmbreeError(f"survey: give {flag} (or a --config with it)")
+    return run_survey(kw.pop("dem"), kw.pop("navs"), args.output, kw.pop("device"), overwrite=args.overwrite,
+                      progress=not args.no_progress, **kw)
 
 
 def _examples(args) -> list:
@@ -260,12 +281,7 @@ def _run(args) -> list:
                         resume=args.resume, progress=not args.no_progress, dashboard=args.dashboard)
         return [os.path.join(args.output, i) for i in ids]
     if args.command == "survey":
-        from .survey import run_survey
-
-        return run_survey(args.dem, args.nav, args.output, args.device, range_m=args.range_m,
-                          ping_rate_hz=args.ping_rate, layback_m=args.layback, cable_out_m=args.cable_out,
-                          pixel_m=args.pixel, quality=args.quality, speckle=args.speckle, overwrite=args.overwrite,
-                          progress=not args.no_progress)
+        return _survey(args)
     if args.command == "demo":
         from .demo import DEMO_PNG, anchor_mine_setup
 

@@ -134,3 +134,39 @@ def _write_summary(out: str, summary: dict) -> str:
 
     atomic_write(path, write, suffix=".json")
     return path
+
+
+#: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).
+SURVEY_KEYS = ("dem", "nav", "device", "range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality",
+               "speckle")
+
+
+def load_survey_config(path) -> dict:
+    """The ``[survey]`` table of a TOML file as :func:`run_survey` keywords (dem, navs, device, …), paths resolved
+    against the file's folder; unknown keys, a missing dem/nav/device and values of the wrong type are one-line
+    errors naming the file and key."""
+    from .runconfig import _check_keys, _resolve, read_toml
+
+    source, data = read_toml(path, "survey config")
+    _check_keys("the top level", data, ("survey",), source)
+    table = data.get("survey")
+    if table is None:
+        raise ConfigError(f"{source}: no [survey] table")
+    _check_keys("[survey]", table, SURVEY_KEYS, source)
+    for key in ("dem", "nav", "device"):
+        if key not in table:
+            raise ConfigError(f"{source}: [survey] needs {key!r}")
+    base = os.path.dirname(os.path.abspath(source))
+    navs = table["nav"] if isinstance(table["nav"], list) else [table["nav"]]
+    for key, value in [("dem", table["dem"]), ("device", table["device"])] + [("nav", n) for n in navs]:
+        if not isinstance(value, str):
+            raise ConfigError(f"{source}: [survey] {key} must be a string, got {value!r}")
+    for key in ("range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality"):
+        v = table.get(key)
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
+            raise ConfigError(f"{source}: [survey] {key} must be a number, got {v!r}")
+    if not isinstance(table.get("speckle", False), bool):
+        raise ConfigError(f"{source}: [survey] speckle must be true or false, got {table['speckle']!r}")
+    kw = {k: table[k] for k in SURVEY_KEYS[3:] if k in table}
+    return dict(dem=_resolve(base, table["dem"]), navs=[_resolve(base, n) for n in navs], device=table["device"],
+                **kw)
