@@ -3,6 +3,7 @@
 The expected values are written here from the specification's own words (Triton Imaging, eXtended Triton Format
 rev. X41, CHANINFO, XTFPINGHEADER and XTFPINGCHANHEADER), quoted beside each check.
 """
+import dataclasses
 import math
 
 import numpy as np
@@ -76,3 +77,33 @@ def test_ping_and_channel_headers_as_the_spec_defines_them(lines):
     rec, _, pings, _ = lines["towed"]                  # "Layback: distance from ship to sensor (m)", "CableOut (m)"
     np.testing.assert_allclose([p.Layback for p in pings], math.sqrt(15.0 ** 2 - 12.0 ** 2), rtol=1e-6)
     assert {p.CableOut for p in pings} == {15}
+
+
+def test_the_demos_xtf_has_latitude_and_longitude(tmp_path):
+    """`sonar-embree demo` writes record.xtf with NavUnits 3 and its local metres placed at its geographic origin
+    (the Kiel Bight): the first ping's position is the origin's UTM coordinates plus the ping's offset, inverted by
+    pyproj; a record's ``geo_origin_deg`` that is not (lat, lon) in degrees is refused in one line."""
+    import subprocess
+    import sys
+
+    import pyproj
+
+    from sonar_embree.runs.demo import DEMO_ORIGIN_DEG
+
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "demo", "--pings", "4", "--no-progress",
+                           "-o", str(tmp_path / "demo")], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    header, packets = pyxtf.xtf_read(str(tmp_path / "demo" / "record.xtf"))
+    first = packets[pyxtf.XTFHeaderType.sonar][0]
+    assert header.NavUnits == 3
+    rec = se.Record.load(tmp_path / "demo" / "record.npz")
+    lat0, lon0 = DEMO_ORIGIN_DEG
+    utm = pyproj.CRS.from_dict({"proj": "utm", "zone": int((lon0 + 180) // 6) + 1, "ellps": "WGS84"})
+    fwd = pyproj.Transformer.from_crs("EPSG:4326", utm, always_xy=True)
+    e0, n0 = fwd.transform(lon0, lat0)
+    x, y = rec.trajectory.positions_m[0, :2]
+    lon, lat = fwd.transform(e0 + x, n0 + y, direction="INVERSE")
+    assert (first.SensorXcoordinate, first.SensorYcoordinate) == pytest.approx((lon, lat), abs=1e-8)
+    bad = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": [95.0, 10.0]})
+    with pytest.raises(se.ConfigError, match="geo_origin_deg"):
+        bad.to_xtf(tmp_path / "bad.xtf")

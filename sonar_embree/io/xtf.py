@@ -157,7 +157,7 @@ def _file_header(record, factor: float, ints, file_name: str = "") -> np.ndarray
     h["SonarName"] = b"sonar_embree"
     h["NoteString"] = (f"simulated side-scan, unit-source intensity x {factor:.6g}" if ints is None else
                        f"simulated side-scan, {record.sonar.receiver.adc_bits}-bit ADC codes").encode()[:64]
-    h["NavUnits"] = NAV_UNITS_LATLON if record.trajectory.crs is not None else NAV_UNITS_METRES
+    h["NavUnits"] = NAV_UNITS_LATLON if geographic(record) is not None else NAV_UNITS_METRES
     h["NumberOfSonarChannels"] = 2
     s = record.sonar
     h["ThisFileName"] = file_name.encode()[:64]
@@ -267,17 +267,46 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
     return _file_header(record, factor, ints, file_name).tobytes(), packet.tobytes()
 
 
+#: A record attribute: (latitude, longitude) in degrees of the local frame's origin, for a record without a CRS
+#: (a scene in local metres, the demo's): its x and y are then metres east and north of that point in its UTM zone.
+GEO_ORIGIN_ATTR = "geo_origin_deg"
+
+
+def geographic(record):
+    """(CRS, (east, north) offset in m) that place the record's positions on the Earth, or None: the trajectory's
+    CRS, else the UTM zone of ``attrs[GEO_ORIGIN_ATTR]`` with the local origin at that point."""
+    if record.trajectory.crs is not None:
+        return record.trajectory.crs, (0.0, 0.0)
+    origin = record.attrs.get(GEO_ORIGIN_ATTR)
+    if origin is None:
+        return None
+    from ..geo import from_lonlat, utm_crs
+
+    try:
+        lat, lon = (float(v) for v in origin)
+    except (TypeError, ValueError):
+        raise ConfigError(f"to_xtf: attrs[{GEO_ORIGIN_ATTR!r}] must be (latitude, longitude) in degrees, "
+                          f"got {origin!r}") from None
+    if not (abs(lat) <= 84.0 and abs(lon) <= 180.0):
+        raise ConfigError(f"to_xtf: attrs[{GEO_ORIGIN_ATTR!r}] = {origin!r} is not (latitude, longitude) in degrees "
+                          "within the UTM zones")
+    crs = utm_crs(lon, lat)
+    e0, n0 = from_lonlat(crs, lon, lat)
+    return crs, (float(e0), float(n0))
+
+
 def _navigation(h, record, surface_z_m) -> None:
-    """The ping headers' navigation: Sensor and Ship positions (lat/lon with a CRS), speeds, depth, altitude,
-    attitude, and a towed sonar's Layback (horizontal ship–sensor distance, m) and CableOut (m, a taut cable)."""
-    t = record.trajectory
+    """The ping headers' navigation: Sensor and Ship positions (lat/lon with a CRS or a geographic origin,
+    :func:`geographic`), speeds, depth, altitude, attitude, and a towed sonar's Layback (horizontal ship–sensor
+    distance, m) and CableOut (m, a taut cable)."""
+    t, geo = record.trajectory, geographic(record)
     ship = t.positions_m if t.ship_positions_m is None else t.ship_positions_m   # towed: the ship ahead
     for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
         x, y = where[:, 0], where[:, 1]
-        if t.crs is not None:
+        if geo is not None:
             from ..geo import to_lonlat
 
-            x, y = to_lonlat(t.crs, x, y)
+            x, y = to_lonlat(geo[0], x + geo[1][0], y + geo[1][1])
         h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
         h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
     if t.ship_positions_m is not None:

@@ -283,7 +283,9 @@ def _run(args) -> list:
     if args.command == "survey":
         return _survey(args)
     if args.command == "demo":
-        from .demo import DEMO_PNG, anchor_mine_setup
+        import dataclasses
+
+        from .demo import DEMO_ORIGIN_DEG, DEMO_PNG, anchor_mine_setup
 
         if args.pings < 1:
             raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
@@ -291,7 +293,8 @@ def _run(args) -> list:
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
         rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress,
                        start_time=args.start_time)
-        return registry.write_set(rec, args.output, ("npz", "png"), registry.WriteOptions(DEMO_PNG))
+        rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(DEMO_ORIGIN_DEG)})
+        return registry.write_set(rec, args.output, ("npz", "png", "xtf"), registry.WriteOptions(DEMO_PNG))
     from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)

@@ -16,6 +16,10 @@ from ..trajectory import Trajectory
 #: so the floor is grey and the shadows show.
 DEMO_PNG = {"max_columns": 540}  # the display defaults (waterfall.DISPLAY_DEFAULTS), narrower
 
+#: Where the demo's local frame lies on the Earth (latitude, longitude; the Kiel Bight, 20 m of water): its XTF
+#: carries latitude/longitude (record attribute ``geo_origin_deg``, :func:`sonar_embree.io.xtf.geographic`).
+DEMO_ORIGIN_DEG = (54.45, 10.30)
+
 #: Object positions (m): sinker cube edge 1 m; spheres (centre, radius).
 MINE_GROUND_RANGE_M = 24.0
 SINKER = {"center": (0.0, -MINE_GROUND_RANGE_M, 0.5), "edge": 1.0}
