@@ -87,3 +87,12 @@ def test_a_long_run_states_its_time_after_the_first_block(caplog, monkeypatch):
     se.simulate(scene, se.Trajectory.line((-1.0, 0.0, 10.0), (1.0, 0.0, 10.0), 12), se.Sonar(max_range_m=20.0))
     lines = [r.getMessage() for r in caplog.records if "simulate: about" in r.getMessage()]
     assert len(lines) == 1 and " s for 12 pings (" in lines[0] and "ms per ping in the first block" in lines[0]
+
+
+def test_render_help_lists_every_output_key():
+    """`sonar-embree render --help` names every [output] format key (it left out zarr, xtf, polar and fan)."""
+    from sonar_embree.io.registry import FORMATS
+    from sonar_embree.runs.cli import RENDER_HELP
+
+    block = RENDER_HELP[RENDER_HELP.index("[output]"):RENDER_HELP.index("Relative paths")]
+    assert all(name in block for name in FORMATS)

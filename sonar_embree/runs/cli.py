@@ -47,7 +47,9 @@ dataclasses (units in the key names):
                 optional label, material = { backscatter_db = -27 }, and for mesh files
                 is_seafloor (default: label "seafloor" or "seafloor/...", for ground-truth
                 shadows) and materials = { name = { backscatter_db = -15 }, ... } per object
-  [output]      png, npz, scale ("db"|"gamma"), dynamic_range_db (35), gamma,
+  [output]      formats, each true/false: png (default true), npz (true), zarr, xtf,
+                labels, coco, polar (MSIS), fan (forward-looking);
+                display: scale ("db"|"gamma"), dynamic_range_db (35), gamma,
                 ground_range, tvg (display only; default true), reference_percentile
                 (99.99: the level shown white), floor_headroom_db (12: white at least
                 this far above the median), max_columns (1024 per side)
