@@ -107,3 +107,24 @@ def test_a_survey_toml_gives_the_same_keywords_and_refuses_unknown_keys(tmp_path
     proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--nav", "x.csv", "-o",
                            str(tmp_path / "o")], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "give --dem" in proc.stderr
+
+
+def test_a_planned_survey_covers_a_polygon(tmp_path):
+    """--plan: a lat/lon polygon inside the DEM becomes planned lines (run in and out by the range), flown 10 m deep
+    at 2 m/s at the device's rate; each line's XTF and the mosaic are written, the mosaic over the polygon."""
+    _dem(tmp_path / "dem.tif")
+    lon, lat = pyproj.Transformer.from_crs(CRS, "EPSG:4326", always_xy=True).transform(
+        [E0 - 10, E0 + 10, E0 + 10, E0 - 10], [N0 - 5, N0 - 5, N0 + 5, N0 + 5])
+    (tmp_path / "area.csv").write_text("lat_deg,lon_deg\n" + "".join(f"{float(a)!r},{float(o)!r}\n"
+                                                                     for a, o in zip(lat, lon)))
+    out = tmp_path / "out"
+    proc = subprocess.run([sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--dem", str(tmp_path / "dem.tif"),
+                           "--plan", str(tmp_path / "area.csv"), "--depth", "10", "--device", "cmax-cm2-325",
+                           "--no-progress", "-o", str(out)], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = json.loads((out / "survey.json").read_text())
+    assert len(summary["lines"]) >= 1 and all(line["pings"] > 100 for line in summary["lines"])
+    header, packets = pyxtf.xtf_read(str(out / "line_00" / "line.xtf"))
+    assert header.NavUnits == 3 and len(packets[pyxtf.XTFHeaderType.sonar]) == summary["lines"][0]["pings"]
+    with rasterio.open(out / "mosaic.tif") as m:
+        assert m.bounds.left < E0 - 10 and m.bounds.right > E0 + 10

@@ -162,6 +162,11 @@ def _add_survey_parser(sub) -> None:
     s.add_argument("--nav", action="append", metavar="LOG",
                    help="navigation log of one line (.csv: time, lat_deg/lon_deg or x_m/y_m, depth_m or z_m, "
                         "optional heading_deg; .xtf); repeat for more lines")
+    s.add_argument("--plan", metavar="POLYGON.csv", help="instead of --nav: a polygon (x_m, y_m in the DEM's CRS, or "
+                                                         "lat_deg, lon_deg) covered by planned parallel lines")
+    s.add_argument("--depth", type=float, metavar="M", help="with --plan: the sonar's depth below the surface, m")
+    s.add_argument("--speed", type=float, metavar="M_S", help="with --plan: survey speed, m/s (default 2)")
+    s.add_argument("--overlap", type=float, help="with --plan: swath overlap between lines (default 0.2)")
     s.add_argument("--device", metavar="PRESET", help="device preset, e.g. edgetech-4125-400 "
                                                                      "(see README, Device presets)")
     s.add_argument("--range", type=float, metavar="M", dest="range_m", help="range setting, m (default: the "
@@ -188,12 +193,14 @@ def _survey(args) -> list:
     kw = load_survey_config(args.config) if args.config else {}
     flags = dict(dem=args.dem, navs=args.nav, device=args.device, range_m=args.range_m, ping_rate_hz=args.ping_rate,
                  layback_m=args.layback, cable_out_m=args.cable_out, pixel_m=args.pixel, quality=args.quality,
-                 speckle=args.speckle)
+                 speckle=args.speckle, plan=args.plan, depth_m=args.depth, speed_m_s=args.speed, overlap=args.overlap)
     kw.update({k: v for k, v in flags.items() if v is not None})
-    for key, flag in (("dem", "--dem"), ("navs", "--nav"), ("device", "--device")):
+    for key, flag in (("dem", "--dem"), ("device", "--device")):
         if key not in kw:
             raise SonarEmbreeError(f"survey: give {flag} (or a --config with it)")
-    return run_survey(kw.pop("dem"), kw.pop("navs"), args.output, kw.pop("device"), overwrite=args.overwrite,
+    if "navs" not in kw and "plan" not in kw:
+        raise SonarEmbreeError("survey: give --nav or --plan (or a --config with nav or plan)")
+    return run_survey(kw.pop("dem"), kw.pop("navs", None), args.output, kw.pop("device"), overwrite=args.overwrite,
                       progress=not args.no_progress, **kw)
 
 

@@ -13,6 +13,8 @@ from __future__ import annotations
 import json
 import os
 
+import numpy as np
+
 from ..errors import ConfigError
 
 #: The receiver a survey records with (assumed: no datasheet states the device's gain): an AGC bringing the moving
@@ -24,7 +26,8 @@ SUMMARY = "survey.json"
 
 def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, ping_rate_hz: float | None = None,
                layback_m: float | None = None, cable_out_m: float | None = None, pixel_m: float = 0.5,
-               quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True) -> list:
+               quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True,
+               plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2) -> list:
     """Run the survey; returns the files written (the summary last).
 
     Parameters
@@ -32,7 +35,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     dem : str or PathLike
         A GeoTIFF DEM in a projected CRS (metres; z = 0 the sea surface), read tile by tile.
     navs : sequence of str or PathLike
-        Navigation logs, one per line (.csv as :meth:`Trajectory.from_csv`, .xtf as :meth:`Trajectory.from_xtf`).
+        Navigation logs, one per line (.csv as :meth:`Trajectory.from_csv`, .xtf as :meth:`Trajectory.from_xtf`);
+        empty with ``plan``.
     out : str or PathLike
         Output folder: new, empty, or an earlier survey's (its survey.json); anything else is refused unless
         ``overwrite``.
@@ -48,19 +52,28 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     quality, speckle
         As for :func:`~sonar_embree.simulate`.
     overwrite, progress : bool
+    plan : str or PathLike, optional
+        Instead of logs: a polygon CSV (columns x_m, y_m in the DEM's CRS, or lat_deg, lon_deg) covered by
+        parallel lines (:func:`~sonar_embree.planning.plan_lines`, ``overlap`` of the swaths) flown at
+        ``speed_m_s`` with the sonar ``depth_m`` below the surface.
     """
     import sonar_embree as se
 
-    navs = [os.fspath(n) for n in ([navs] if isinstance(navs, (str, os.PathLike)) else navs)]
-    if not navs:
-        raise ConfigError("survey: give at least one navigation log")
+    navs = [os.fspath(n) for n in ([navs] if isinstance(navs, (str, os.PathLike)) else (navs or []))]
+    if bool(navs) == (plan is not None):
+        raise ConfigError("survey: give navigation logs or a planned polygon (one of them)")
     out = os.fspath(out)
     _claim(out, overwrite)
     tiles = se.TiledDEM(dem)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
+    if plan is not None:
+        sources = _planned(plan, tiles.crs, sonar.max_range_m, overlap, depth_m, speed_m_s, rate)
+    else:
+        sources = [(nav, _line(nav, tiles.crs, rate)) for nav in navs]
     written, lines = [], []
-    for k, nav in enumerate(navs):
-        traj = _line(nav, tiles.crs, rate, layback_m, cable_out_m)
+    for k, (nav, traj) in enumerate(sources):
+        if layback_m is not None or cable_out_m is not None:
+            traj = traj.with_layback(layback_m, cable_out_m=cable_out_m)
         folder = os.path.join(out, f"line_{k:02d}")
         os.makedirs(folder, exist_ok=True)
         files = {ext: os.path.join(folder, f"line.{ext}") for ext in ("zarr", "xtf", "png")}
@@ -97,8 +110,8 @@ def _device(name: str, range_m, ping_rate_hz):
     return sonar, se.Pulse.preset(name), rate
 
 
-def _line(nav: str, crs, rate: float, layback_m, cable_out_m):
-    """The line of one navigation log: in the DEM's CRS, resampled at ``rate``, towed when asked."""
+def _line(nav: str, crs, rate: float):
+    """The line of one navigation log: in the DEM's CRS, resampled at ``rate``."""
     from ..trajectory import Trajectory
 
     if not os.path.isfile(nav):
@@ -107,10 +120,29 @@ def _line(nav: str, crs, rate: float, layback_m, cable_out_m):
     if ext not in (".csv", ".xtf"):
         raise ConfigError(f"{nav}: a navigation log is .csv or .xtf, got {ext or 'no extension'!r}")
     traj = Trajectory.from_csv(nav, crs=crs) if ext == ".csv" else Trajectory.from_xtf(nav, crs=crs)
-    traj = traj.resampled(rate)
-    if layback_m is not None or cable_out_m is not None:
-        traj = traj.with_layback(layback_m, cable_out_m=cable_out_m)
-    return traj
+    return traj.resampled(rate)
+
+
+def _planned(plan, crs, range_m: float, overlap: float, depth_m, speed_m_s: float, rate: float) -> list:
+    """(the polygon's path, trajectory) of each line planned over the polygon of ``plan``."""
+    from ..geo import from_lonlat
+    from ..planning import line_trajectories, plan_lines
+    from ..validation import read_numeric_csv
+
+    if depth_m is None:
+        raise ConfigError("survey: a planned survey needs depth_m (the sonar's depth below the surface, m)")
+    plan = os.fspath(plan)
+    cols, v = read_numeric_csv(plan, (), ("x_m", "y_m", "lat_deg", "lon_deg"), "survey polygon",
+                               "x_m, y_m (the DEM's CRS) or lat_deg, lon_deg")
+    if {"x_m", "y_m"} <= set(cols):
+        xy = v[:, [cols.index("x_m"), cols.index("y_m")]]
+    elif {"lat_deg", "lon_deg"} <= set(cols):
+        xy = np.column_stack(from_lonlat(crs, v[:, cols.index("lon_deg")], v[:, cols.index("lat_deg")]))
+    else:
+        raise ConfigError(f"{plan}: a survey polygon needs the columns x_m, y_m (the DEM's CRS) or lat_deg, lon_deg")
+    lines = plan_lines(xy, range_m, overlap)
+    trajs = line_trajectories(lines, -float(depth_m), speed_m_s, rate, crs=crs)
+    return [(os.path.abspath(plan), t) for t in trajs]
 
 
 def _products(se, tiles, stores, out: str, pixel_m: float) -> list:
@@ -138,7 +170,7 @@ def _write_summary(out: str, summary: dict) -> str:
 
 #: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).
 SURVEY_KEYS = ("dem", "nav", "device", "range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality",
-               "speckle")
+               "speckle", "plan", "depth_m", "speed_m_s", "overlap")
 
 
 def load_survey_config(path) -> dict:
@@ -153,20 +185,27 @@ def load_survey_config(path) -> dict:
     if table is None:
         raise ConfigError(f"{source}: no [survey] table")
     _check_keys("[survey]", table, SURVEY_KEYS, source)
-    for key in ("dem", "nav", "device"):
+    for key in ("dem", "device"):
         if key not in table:
             raise ConfigError(f"{source}: [survey] needs {key!r}")
+    if ("nav" in table) == ("plan" in table):
+        raise ConfigError(f"{source}: [survey] needs 'nav' or 'plan' (one of them)")
     base = os.path.dirname(os.path.abspath(source))
-    navs = table["nav"] if isinstance(table["nav"], list) else [table["nav"]]
-    for key, value in [("dem", table["dem"]), ("device", table["device"])] + [("nav", n) for n in navs]:
+    navs = [] if "nav" not in table else table["nav"] if isinstance(table["nav"], list) else [table["nav"]]
+    named = [("dem", table["dem"]), ("device", table["device"])] + [("nav", n) for n in navs]
+    for key, value in named + ([("plan", table["plan"])] if "plan" in table else []):
         if not isinstance(value, str):
             raise ConfigError(f"{source}: [survey] {key} must be a string, got {value!r}")
-    for key in ("range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality"):
+    for key in ("range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality", "depth_m", "speed_m_s",
+                "overlap"):
         v = table.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
             raise ConfigError(f"{source}: [survey] {key} must be a number, got {v!r}")
     if not isinstance(table.get("speckle", False), bool):
         raise ConfigError(f"{source}: [survey] speckle must be true or false, got {table['speckle']!r}")
     kw = {k: table[k] for k in SURVEY_KEYS[3:] if k in table}
-    return dict(dem=_resolve(base, table["dem"]), navs=[_resolve(base, n) for n in navs], device=table["device"],
-                **kw)
+    if "plan" in kw:
+        kw["plan"] = _resolve(base, kw["plan"])
+    else:
+        kw["navs"] = [_resolve(base, n) for n in navs]
+    return dict(dem=_resolve(base, table["dem"]), device=table["device"], **kw)
