@@ -57,6 +57,8 @@ class Device:
         :attr:`azimuth_one_way_deg`).
     note : str
         How inferred fields were inferred.
+    adc_bits : int
+        Bits of the codes the device records (16 unless stated; ``"adc_bits"`` in ``assumed`` when not).
     """
 
     name: str
@@ -74,6 +76,16 @@ class Device:
     samples_per_channel: int | None = None
     azimuth_two_way: bool = False
     note: str = ""
+    adc_bits: int = 16
+
+    def receiver(self):
+        """The device's receive chain (:class:`~sonar_embree.Receiver`) for a record of codes as it stores them:
+        its ADC's bits (:attr:`adc_bits`), and what no datasheet found states, assumed (:data:`ASSUMED_RECEIVER`):
+        an AGC bringing the moving RMS to a quarter of full scale, a −190 dB re 1 V/µPa hydrophone, 1 V full
+        scale. ``Sonar.preset(name, receiver=device(name).receiver())``."""
+        from .receiver import Receiver
+
+        return Receiver(adc_bits=self.adc_bits, **ASSUMED_RECEIVER)
 
     @property
     def azimuth_one_way_deg(self) -> float:
@@ -95,44 +107,53 @@ class Device:
         return sound_speed_m_s / (2.0 * float(range_m))
 
 
+_JSF_NOTE = ("15-bit codes: EdgeTech's JSF stores the envelope as one (signed) short per sample (MB-System's JSF "
+             "reader), codes 0 … 32767")
+_MST_NOTE = "6-bit codes: Marine Sonic records 8 bits per sample with the two most significant bits zero (MB-System)"
 _CM2 = "C-MAX, CM2 Sidescan Sonar, Towfish Specification, Issue 7; CM2 user manual"
 _CM2_NOTE = ("tilt and vertical width inferred from the stated vertical coverage (−10° through −90° each side); the "
              "manual's adjustable 10°/20° depression is not used; 53 µs is the stated pulse at 50 m, used at every range; "
              "the widths at 325 and 780 kHz give membranes of the stated 0.37 and 0.21 m, the 1.0° at 100 kHz one of "
              "0.55 m against the stated 0.37 m (the preset keeps the stated width)")
 _YF = "Imagenex Technology, YellowFin 872 side scan sonar manual (rev. Feb 2011)"
-_YF_ASSUMED = ("ranges_m", "pulse", "source_level_db")
+_YF_ASSUMED = ("ranges_m", "pulse", "source_level_db", "adc_bits")
 _YF_NOTE = ("the manual gives no range settings (coverage up to 400 m in all), pulse or source level; its beamwidths "
             "are taken as one-way −3 dB widths")
+
+#: The receive chain's values no datasheet found states (:meth:`Device.receiver`): an AGC (the gain of a real
+#: device is set by its operator or its own AGC), a representative hydrophone sensitivity and a 1 V full scale.
+ASSUMED_RECEIVER = dict(sensitivity_db=-190.0, gain=dict(kind="agc", target=0.25), full_scale_v=1.0)
 
 DEVICES = {d.name: d for d in (
     Device("klein-3000-100", "Klein Associates, System 3000 Digital Side Scan Sonar datasheet (100 kHz channel)",
            "towfish", 100e3, 1.0, 40.0, 10.0, (150.0, 300.0, 600.0), ("cw", 400e-6), 228.0,
-           ("source_level_db",)),
+           ("source_level_db", "adc_bits")),
     Device("klein-3000-500", "Klein Associates, System 3000 Digital Side Scan Sonar datasheet (500 kHz channel)",
            "towfish", 500e3, 0.2, 40.0, 10.0, (50.0, 100.0, 150.0), ("cw", 100e-6), 219.0,
-           ("source_level_db",)),
+           ("source_level_db", "adc_bits")),
     Device("edgetech-4125-400", "EdgeTech 4125 Side Scan Sonar System datasheet (400 kHz, Full Spectrum CHIRP)",
            "towfish", 400e3, 0.46, 50.0, 20.0, (75.0, 150.0), ("lfm", 2e-3, 32e3), 210.0,
-           ("source_level_db", "pulse duration")),
+           ("source_level_db", "pulse duration"), adc_bits=15, note=_JSF_NOTE),
     Device("edgetech-4125-900", "EdgeTech 4125 Side Scan Sonar System datasheet (900 kHz, Full Spectrum CHIRP)",
            "towfish", 900e3, 0.28, 50.0, 20.0, (50.0, 75.0), ("lfm", 1e-3, 50e3), 210.0,
-           ("source_level_db", "pulse duration")),
+           ("source_level_db", "pulse duration"), adc_bits=15, note=_JSF_NOTE),
     Device("starfish-450f", "Tritech StarFish 450F Side Scan Sonar datasheet (450 kHz CHIRP)",
            "towfish", 450e3, 0.8, 60.0, 30.0, (50.0, 100.0), ("lfm", 1e-3, 50e3), 205.0,
-           ("source_level_db", "pulse duration")),
+           ("source_level_db", "pulse duration", "adc_bits")),
     Device("marine-sonic-arc-900", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 900 kHz",
-           "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), 205.0, ("source_level_db",)),
+           "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), 205.0, ("source_level_db",), adc_bits=6,
+           note=_MST_NOTE),
     Device("marine-sonic-arc-1800", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 1.8 MHz",
-           "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), 200.0, ("source_level_db",)),
+           "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), 200.0, ("source_level_db",), adc_bits=6,
+           note=_MST_NOTE),
     # C-MAX CM2: "CM2 Sidescan Sonar, Towfish Specification, Issue 7" and the CM2 user manual. Its horizontal
     # widths are two-way −3 dB. Vertical coverage "−10° through −90°": a fan 80° wide centred 50° down.
     Device("cmax-cm2-100", _CM2, "towfish", 100e3, 1.0, 80.0, 50.0, (100.0, 500.0), ("cw", 53e-6), 217.0,
-           ("tilt_deg", "elevation_deg", "pulse duration"), (6.9, 1.46), None, True, _CM2_NOTE),
+           ("tilt_deg", "elevation_deg", "pulse duration", "adc_bits"), (6.9, 1.46), None, True, _CM2_NOTE),
     Device("cmax-cm2-325", _CM2, "towfish", 325e3, 0.45, 80.0, 50.0, (25.0, 150.0), ("cw", 53e-6), 217.0,
-           ("tilt_deg", "elevation_deg", "pulse duration"), (13.5, 4.8), None, True, _CM2_NOTE),
+           ("tilt_deg", "elevation_deg", "pulse duration", "adc_bits"), (13.5, 4.8), None, True, _CM2_NOTE),
     Device("cmax-cm2-780", _CM2, "towfish", 780e3, 0.32, 80.0, 50.0, (12.5, 37.5), ("cw", 53e-6), 217.0,
-           ("tilt_deg", "elevation_deg", "pulse duration"), (), None, True, _CM2_NOTE),
+           ("tilt_deg", "elevation_deg", "pulse duration", "adc_bits"), (), None, True, _CM2_NOTE),
     # Imagenex YellowFin 872, manual rev. Feb 2011: beamwidths (horizontal × vertical), 20° down, 1000 points a side.
     Device("imagenex-872-260", _YF, "towfish", 260e3, 2.2, 75.0, 20.0, (100.0, 200.0), ("cw", 100e-6), 210.0,
            _YF_ASSUMED, (), 1000, False, _YF_NOTE),

@@ -86,3 +86,18 @@ def test_cm2_and_yellowfin_presets_carry_their_sourced_values():
         y = se.devices.DEVICES[f"imagenex-872-{f}"]
         assert (y.frequency_hz, y.tilt_deg, y.samples_per_channel) == (f * 1e3, 20.0, 1000)
         assert "ranges_m" in y.assumed and y.note
+
+
+def test_a_devices_receiver_records_codes_in_its_own_range():
+    """device(name).receiver(): EdgeTech's codes span 0 … 32767 (JSF: one signed short per sample), Marine Sonic's
+    0 … 63 in 8-bit words (two top bits zero), others 16 bits with adc_bits marked assumed; a flat floor recorded
+    through the Marine Sonic's receiver stays within its 6-bit range, away from its top."""
+    dev = se.devices.DEVICES
+    assert dev["edgetech-4125-400"].receiver().adc_bits == 15 and dev["marine-sonic-arc-900"].receiver().adc_bits == 6
+    for d in dev.values():
+        assert (d.adc_bits == 16) == ("adc_bits" in d.assumed)
+    sonar = se.Sonar.preset("marine-sonic-arc-900", receiver=dev["marine-sonic-arc-900"].receiver())
+    scene = se.Scene().add(se.seafloor.flat((200, 200)), label="seafloor")
+    rec = se.simulate(scene, se.Trajectory.line((0, 0, 8), (1, 0, 8), 4), sonar, se.Pulse.preset("marine-sonic-arc-900"),
+                      speckle=True)
+    assert rec.samples.dtype == np.uint8 and rec.samples.max() <= 63 and (rec.samples == 63).mean() < 0.01

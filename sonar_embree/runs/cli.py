@@ -91,8 +91,9 @@ SURVEY_HELP = r"""Simulate a survey: each navigation log is one line, projected 
 taken from the track when it has none, resampled at the device's ping rate, towed behind the navigation with
 --layback or --cable-out, and streamed (resumable) into OUT/line_KK/ as line.zarr, line.xtf (lat/lon, ship and
 sensor positions) and line.png. Then OUT/mosaic.tif (normalised values and placed heights, units, overviews),
-OUT/mosaic.png (a quick look), OUT/truth.tif (the DEM on the mosaic's grid) and OUT/survey.json. The device's
-receiver is assumed (no datasheet states it): an AGC at 16 bits.
+OUT/mosaic.png (a quick look), OUT/truth.tif (the DEM on the mosaic's grid) and OUT/survey.json. The device
+records its codes at its ADC's bits where stated (EdgeTech 15, Marine Sonic 6, else 16); its gain is assumed (no
+datasheet states it): an AGC.
 
 example:
   sonar-embree survey --dem harbour.tif --nav line1.csv --nav line2.csv --device edgetech-4125-400 \

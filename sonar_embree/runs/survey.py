@@ -5,8 +5,8 @@ Each navigation log (CSV with lat/lon or projected positions and times, or an XT
 the DEM's CRS, its heading taken from the track where it has none, resampled at the device's ping rate for the
 range setting (its stated rate, else back to back), the sonar towed ``layback_m`` (or a ``cable_out_m`` cable)
 behind it when given, and streamed with labels into the line's folder (resumable: a rerun continues each line
-where it stopped). The preset's sonar records through a receiver: the datasheets state none, so it is assumed —
-an AGC at 16 bits (``SURVEY_RECEIVER``), which keeps the codes within full scale whatever the scene.
+where it stopped). The preset's sonar records through the device's receiver (:meth:`Device.receiver`: its ADC's
+bits where stated, an AGC assumed), which keeps the codes within full scale whatever the scene.
 """
 from __future__ import annotations
 
@@ -17,9 +17,6 @@ import numpy as np
 
 from ..errors import ConfigError
 
-#: The receiver a survey records with (assumed: no datasheet states the device's gain): an AGC bringing the moving
-#: RMS to a quarter of full scale, 16-bit ADC.
-SURVEY_RECEIVER = dict(gain=dict(kind="agc", target=0.25), adc_bits=16)
 #: The file marking a folder as a survey's output (refused otherwise unless overwrite).
 SUMMARY = "survey.json"
 
@@ -84,7 +81,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "files": files})
     written += _products(se, tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)
     summary = {"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
-               "cable_out_m": cable_out_m, "receiver": SURVEY_RECEIVER, "dem": os.path.abspath(os.fspath(dem)),
+               "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits, "dem": os.path.abspath(os.fspath(dem)),
                "crs": tiles.crs, "lines": lines}
     return written + [_write_summary(out, summary)]
 
@@ -105,7 +102,7 @@ def _device(name: str, range_m, ping_rate_hz):
 
     d = se.devices.device(name)
     rng = float(d.ranges_m[0] if range_m is None else range_m)
-    sonar = se.Sonar.preset(name, max_range_m=rng, receiver=se.Receiver(**SURVEY_RECEIVER))
+    sonar = se.Sonar.preset(name, max_range_m=rng, receiver=d.receiver())
     rate = d.ping_rate_hz(rng, sonar.sound_speed_m_s) if ping_rate_hz is None else float(ping_rate_hz)
     return sonar, se.Pulse.preset(name), rate
 
