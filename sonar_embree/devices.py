@@ -51,7 +51,8 @@ class Device:
         The stated ping rate at each of ``ranges_m`` (0 where not stated); empty: none stated
         (:meth:`ping_rate_hz` then pings back to back).
     samples_per_channel : int or None
-        Samples the device records per side and ping, when stated (the record is not decimated to it yet).
+        Samples the device records per side and ping, when stated: its XTF is decimated to them (by the largest of
+        each run; ``to_xtf(samples_per_channel=…)``, the survey command); the record keeps every sample.
     azimuth_two_way : bool
         ``azimuth_deg`` is the datasheet's two-way −3 dB width (converted to the one-way width by
         :attr:`azimuth_one_way_deg`).

@@ -168,7 +168,7 @@ def _template(ds, n_pings: int, block: int):
                       coords={k: whole(v.variable) for k, v in ds.coords.items()}, attrs=ds.attrs)
 
 
-def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
+def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_opts):
     """Create the store (metadata, sample coordinates) and the XTF header from the first block's record.
 
     The progress file (the marker that makes the folder this stream's) is written before anything else."""
@@ -185,14 +185,14 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_scale):
         _template(ds, n_pings, block).to_zarr(path, mode="a", zarr_format=2, consolidated=True, encoding=encoding,
                                               compute=False)
     if xtf_path is not None:
-        scale = _scale_of(first, xtf_scale)                          # fixed by the first block for the line
-        header, _ = xtf_bytes(first, scale=scale, file_name=os.path.basename(xtf_path))
+        scale = _scale_of(first, xtf_opts[0])                        # fixed by the first block for the line
+        header, _ = xtf_bytes(first, scale=scale, file_name=os.path.basename(xtf_path), samples_per_channel=xtf_opts[1])
         try:
             with open(xtf_path, "wb") as fh:
                 fh.write(header)
         except OSError as exc:
             raise os_error_line(exc, xtf_path) from None
-        progress["xtf"] = {"header_bytes": len(header), "scale": scale,
+        progress["xtf"] = {"header_bytes": len(header), "scale": scale, "samples": xtf_opts[1],
                            "header_sha256": hashlib.sha256(header).hexdigest()}
     _save_progress(path, progress)
     return progress
@@ -237,7 +237,8 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
     with _own_files_quiet():
         ds.to_zarr(path, region={"ping": slice(a, a + rec.n_pings)}, zarr_format=2)
     if xtf_path is not None:
-        _, packets = xtf_bytes(rec, scale=progress["xtf"]["scale"], first_ping=a)
+        _, packets = xtf_bytes(rec, scale=progress["xtf"]["scale"], first_ping=a,
+                               samples_per_channel=progress["xtf"].get("samples"))
         per_ping = progress["xtf"].setdefault("ping_bytes", len(packets) // rec.n_pings)
         try:
             with open(xtf_path, "r+b") as fh:
@@ -265,7 +266,7 @@ def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
 
 def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings: int = 512, xtf_path=None,
                 xtf_scale="auto", resume: bool = True, overwrite: bool = False, progress_bar: bool = False,
-                png_path=None, **simulate_kwargs) -> str:
+                png_path=None, xtf_samples: int | None = None, **simulate_kwargs) -> str:
     """Simulate ``trajectory`` block by block into a Zarr store at ``path`` (and an XTF file), memory bounded by
     one block.
 
@@ -290,6 +291,9 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         False starts over. A resume first checks the store and that the XTF holds every ping counted as done.
     overwrite : bool
         Replace a folder's or an XTF file's contents that this function did not write.
+    xtf_samples : int, optional
+        Samples per side written to the XTF, decimated as a device does (:func:`sonar_embree.io.xtf.decimate_max`);
+        default every sample.
     png_path : str or PathLike, optional
         Also draw the finished line's waterfall PNG from the store (:meth:`Record.load`, a block of pings at a
         time) at the ground's aspect, at most :data:`PNG_MAX_ROWS` rows (atomic; a file that is not a PNG is
@@ -306,13 +310,14 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
                   simulate_kwargs)
     n = len(trajectory)
     block = int(min(block_pings, max(n, 1)))
-    key = _fingerprint(scene, trajectory, sonar, pulse, simulate_kwargs | {"block_pings": block, "xtf": xtf_path})
+    key = _fingerprint(scene, trajectory, sonar, pulse, simulate_kwargs | {"block_pings": block, "xtf": xtf_path,
+                                                                           "xtf_samples": xtf_samples})
     _claim(path, overwrite)
     with folder_lock(path):
         progress = _resumed(path, key, xtf_path, resume, overwrite)
         try:
-            _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_scale, progress,
-                        progress_bar, simulate_kwargs)
+            _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, (xtf_scale, xtf_samples),
+                        progress, progress_bar, simulate_kwargs)
         except OSError as exc:
             raise os_error_line(exc, exc.filename or path) from None
     if png_path is not None:
@@ -326,7 +331,7 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
 PNG_MAX_ROWS = 8192
 
 
-def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_scale, progress, bar,
+def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
                 simulate_kwargs) -> None:
     from .simulate import progress_bar as pings_bar, simulate
 
@@ -339,7 +344,7 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
         rec = simulate(_block_scene(scene, trajectory[a:b], sonar), trajectory[a:b], sonar, pulse, ping_offset=a,
                        **simulate_kwargs)
         if progress is None:
-            progress = _start(path, rec, n, block, key, xtf_path, xtf_scale)
+            progress = _start(path, rec, n, block, key, xtf_path, xtf_opts)
         _write_block(path, rec, a, progress, xtf_path)
         if bar is not None:
             bar.update(b - a)

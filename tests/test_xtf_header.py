@@ -107,3 +107,28 @@ def test_the_demos_xtf_has_latitude_and_longitude(tmp_path):
     bad = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": [95.0, 10.0]})
     with pytest.raises(se.ConfigError, match="geo_origin_deg"):
         bad.to_xtf(tmp_path / "bad.xtf")
+
+
+def test_an_xtf_decimated_to_the_devices_samples_per_channel(tmp_path):
+    """to_xtf(samples_per_channel=1000) (the YellowFin 872's 1000 points a side): 1000 samples per channel in the
+    packets and the header, each the largest of its run of the record's samples (np.maximum over the runs
+    between ⌊k·n/1000⌋), the time span kept; a streamed line writes the same bytes."""
+    scene = se.Scene().add(se.seafloor.flat((300, 300), z_m=-22.0), label="seafloor")
+    traj = se.Trajectory.line((-1, 0, -12), (1, 0, -12), 6)
+    sonar = se.Sonar.preset("imagenex-872-800", max_range_m=30.0,
+                            receiver=se.devices.device("imagenex-872-800").receiver())
+    kw = dict(speckle=True, seed=1, start_time="2026-05-01T12:00:00Z")
+    rec = se.simulate(scene, traj, sonar, se.Pulse.preset("imagenex-872-800"), **kw)
+    rec.to_xtf(tmp_path / "y.xtf", samples_per_channel=1000)
+    header, packets = pyxtf.xtf_read(str(tmp_path / "y.xtf"))
+    ping = packets[pyxtf.XTFHeaderType.sonar][2]
+    n = rec.samples.shape[2]
+    assert n > 1000 and header.ChanInfo[0].Reserved == 1000 and ping.ping_chan_headers[1].NumSamples == 1000
+    edges = [k * n // 1000 for k in range(1001)]
+    want = [rec.samples[2, 1, edges[k]:edges[k + 1]].max() for k in range(1000)]
+    np.testing.assert_array_equal(ping.data[1], want)
+    assert ping.ping_chan_headers[1].TimeDuration == pytest.approx(n / rec.sonar.sample_rate_hz)
+    (tmp_path / "s").mkdir()
+    se.stream.render_line(scene, traj, tmp_path / "y.zarr", sonar, se.Pulse.preset("imagenex-872-800"),
+                          block_pings=4, xtf_path=tmp_path / "s" / "y.xtf", xtf_samples=1000, **kw)
+    assert (tmp_path / "s" / "y.xtf").read_bytes()[1024:] == (tmp_path / "y.xtf").read_bytes()[1024:]

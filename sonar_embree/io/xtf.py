@@ -147,7 +147,7 @@ def speed_m_s(trajectory) -> np.ndarray:
     return np.concatenate([v[:1], 0.5 * (v[1:] + v[:-1]), v[-1:]])
 
 
-def _file_header(record, factor: float, ints, file_name: str = "") -> np.ndarray:
+def _file_header(record, factor: float, ints, file_name: str = "", n_s: int | None = None) -> np.ndarray:
     from .._version import __version__
 
     h = np.zeros((), dtype=_FILE_HEADER)
@@ -167,7 +167,7 @@ def _file_header(record, factor: float, ints, file_name: str = "") -> np.ndarray
         c["TypeOfChannel"], c["SubChannelNumber"] = kind, i
         c["CorrectionFlags"], c["UniPolar"] = CORRECTION_SLANT_RANGE, 1     # slant range; intensities are ≥ 0
         c["BytesPerSample"] = 4 if ints is None else ints.dtype.itemsize
-        c["Reserved"] = record.port.shape[1]  # legacy samples-per-channel field
+        c["Reserved"] = record.port.shape[1] if n_s is None else n_s  # legacy samples-per-channel field
         c["ChannelName"], c["VoltScale"], c["Frequency"] = name, 1.0, s.frequency_hz / 1e3
         c["HorizBeamAngle"], c["TiltAngle"], c["BeamWidth"] = along, s.tilt_deg, across
         c["SampleFormat"] = SAMPLE_FORMAT_FLOAT32 if ints is None else SAMPLE_FORMAT[ints.dtype]
@@ -202,7 +202,7 @@ def _ping_times(h, start: dt.datetime, times_s) -> None:
 
 
 def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto",
-           surface_z_m: float | None = None, samples: bool = True) -> None:
+           surface_z_m: float | None = None, samples: bool = True, samples_per_channel: int | None = None) -> None:
     """Write ``record`` as an XTF file (atomic); conventions in this module's docstring.
 
     Parameters
@@ -220,9 +220,12 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
     samples : bool
         Write the device's integer samples when the record has them (default); False:
         the float intensities.
+    samples_per_channel : int, optional
+        Decimate each side to this many samples as a device does (the largest of each run, :func:`decimate_max`;
+        a preset's :attr:`~sonar_embree.devices.Device.samples_per_channel`); default every sample.
     """
     header, packets = xtf_bytes(record, start, scale=scale, surface_z_m=surface_z_m, samples=samples,
-                                file_name=os.path.basename(os.fspath(path)))
+                                file_name=os.path.basename(os.fspath(path)), samples_per_channel=samples_per_channel)
 
     def write(tmp):
         with open(tmp, "wb") as fh:
@@ -233,10 +236,10 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
 
 
 def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0,
-              file_name: str = ""):
+              file_name: str = "", samples_per_channel: int | None = None):
     """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
     start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.stream`); ``file_name`` goes into the
-    header's ThisFileName."""
+    header's ThisFileName; ``samples_per_channel``: decimate each side to that many samples (:func:`decimate_max`)."""
     if tuple(record.channels) != ("port", "starboard"):
         names = ", ".join(record.channels[:3]) + (f", … ({len(record.channels)} channels)"
                                                    if len(record.channels) > 3 else "")
@@ -255,16 +258,25 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
         if np.any(t.positions_m[:, 2] > surface_z_m):
             raise ConfigError(f"to_xtf: the sonar rises to z = {t.positions_m[:, 2].max():.2f} m, above the sea "
                               f"surface at surface_z_m = {surface_z_m} m")
-    packet = _packets(record, when, surface_z_m, ints)
+    sides = (record.port * factor, record.starboard * factor) if ints is None else (ints[:, 0], ints[:, 1])
+    if samples_per_channel is not None:
+        sides = tuple(decimate_max(s, samples_per_channel) for s in sides)
+    packet = _packets(record, when, surface_z_m, ints, sides[0].shape[1])
     packet["head"]["PingNumber"] += first_ping
     packet["head"]["EventNumber"] += first_ping
-    if ints is None:
-        packet["port"] = record.port[:, ::-1] * factor
-        packet["stbd"] = record.starboard * factor
-    else:
-        packet["port"] = ints[:, 0, ::-1]
-        packet["stbd"] = ints[:, 1]
-    return _file_header(record, factor, ints, file_name).tobytes(), packet.tobytes()
+    packet["port"], packet["stbd"] = sides[0][:, ::-1], sides[1]
+    return _file_header(record, factor, ints, file_name, sides[0].shape[1]).tobytes(), packet.tobytes()
+
+
+def decimate_max(x, n: int) -> np.ndarray:
+    """(pings, ≤ n) the largest sample of each of ``n`` nearly equal runs of the samples of ``x`` (pings, samples):
+    a device's decimation by MAX to its stated samples per side (``x`` as is when it has no more than ``n``)."""
+    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+        raise ConfigError(f"to_xtf: samples_per_channel must be an integer >= 1, got {n!r}")
+    if x.shape[1] <= n:
+        return x
+    edges = np.linspace(0, x.shape[1], n + 1).astype(np.int64)[:-1]
+    return np.maximum.reduceat(x, edges, axis=1)
 
 
 #: A record attribute: (latitude, longitude) in degrees of the local frame's origin, for a record without a CRS
@@ -320,10 +332,11 @@ def _navigation(h, record, surface_z_m) -> None:
     h["ShipGyro"] = t.heading_deg
 
 
-def _packets(record, when, surface_z_m, ints) -> np.ndarray:
-    """One sonar packet per ping with its headers filled in; the samples left to the caller."""
+def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
+    """One sonar packet per ping of ``n_s`` samples per side with its headers filled in; the samples left to the
+    caller (the record's time span in TimeDuration whatever ``n_s``)."""
     t, s = record.trajectory, record.sonar
-    n_p, n_s = record.port.shape
+    n_p = record.port.shape[0]
     kind = "<f4" if ints is None else ints.dtype.newbyteorder("<")
     packet = np.zeros(n_p, dtype=np.dtype([("head", _PING_HEADER), ("port_head", _CHAN_HEADER),
                                            ("port", kind, (n_s,)), ("stbd_head", _CHAN_HEADER),
@@ -341,7 +354,7 @@ def _packets(record, when, surface_z_m, ints) -> np.ndarray:
     for side, number in (("port_head", 0), ("stbd_head", 1)):
         c = packet[side]
         c["ChannelNumber"], c["SlantRange"] = number, s.max_range_m
-        c["TimeDuration"] = n_s / s.sample_rate_hz
+        c["TimeDuration"] = record.port.shape[1] / s.sample_rate_hz
         c["SecondsPerPing"] = s.max_range_m / h["SoundVelocity"]        # the spec's SlantRange/750: 2R/c
         c["ProcessingFlags"] = PROCESSING_TVG if tvg else 0
         c["Frequency"] = min(int(round(s.frequency_hz / 1e3)), 65535)

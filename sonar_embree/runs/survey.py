@@ -63,6 +63,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     _claim(out, overwrite)
     tiles = se.TiledDEM(dem)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
+    samples = se.devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
     if plan is not None:
         sources = _planned(plan, tiles.crs, sonar.max_range_m, overlap, depth_m, speed_m_s, rate)
     else:
@@ -75,8 +76,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         os.makedirs(folder, exist_ok=True)
         files = {ext: os.path.join(folder, f"line.{ext}") for ext in ("zarr", "xtf", "png")}
         se.stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"],
-                              png_path=files["png"], labels=True, speckle=speckle, quality=quality,
-                              overwrite=overwrite, progress_bar=progress)
+                              png_path=files["png"], xtf_samples=samples, labels=True, speckle=speckle,
+                              quality=quality, overwrite=overwrite, progress_bar=progress)
         written += list(files.values())
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "files": files})
     written += _products(se, tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)
