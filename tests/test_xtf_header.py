@@ -132,3 +132,24 @@ def test_an_xtf_decimated_to_the_devices_samples_per_channel(tmp_path):
     se.stream.render_line(scene, traj, tmp_path / "y.zarr", sonar, se.Pulse.preset("imagenex-872-800"),
                           block_pings=4, xtf_path=tmp_path / "s" / "y.xtf", xtf_samples=1000, **kw)
     assert (tmp_path / "s" / "y.xtf").read_bytes()[1024:] == (tmp_path / "y.xtf").read_bytes()[1024:]
+
+
+def test_shipped_side_scan_configs_write_latitude_and_longitude(tmp_path):
+    """The shipped side-scan configs carry a geographic origin ([output] geo_origin_deg): rendered with xtf = true,
+    the XTF has NavUnits 3 and positions near 54.45° N, 10.30° E; a malformed origin is a one-line error."""
+    from sonar_embree import assets
+    from sonar_embree.runs.cli import main
+    from sonar_embree.runs.runconfig import load_run_config
+
+    for name in ("anchor_mine", "anchor_mine_curved", "shipwreck_perlin_straight", "shipwreck_ripples_curved"):
+        assert load_run_config(f"asset:{name}.toml").output.geo_origin_deg == [54.45, 10.30]
+    text = open(assets.path("asset:anchor_mine.toml")).read()
+    text = text.replace("n_pings = 240", "n_pings = 3").replace("[output]\n", "[output]\nxtf = true\n")
+    (tmp_path / "a.toml").write_text(text)                       # its meshes are asset:NAME: they resolve anywhere
+    assert main(["render", str(tmp_path / "a.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
+    header, packets = pyxtf.xtf_read(str(tmp_path / "out" / "record.xtf"))
+    first = packets[pyxtf.XTFHeaderType.sonar][0]
+    assert header.NavUnits == 3 and abs(first.SensorYcoordinate - 54.45) < 1e-3 and abs(first.SensorXcoordinate - 10.30) < 1e-3
+    (tmp_path / "b.toml").write_text(text.replace("[54.45, 10.30]", "[95.0, 10.0]"))
+    with pytest.raises(se.ConfigError, match="geo_origin_deg"):
+        load_run_config(tmp_path / "b.toml")

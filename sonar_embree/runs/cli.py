@@ -6,6 +6,7 @@ with status 2; no traceback.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import logging
 import os
 import sys
@@ -52,7 +53,8 @@ dataclasses (units in the key names):
                 display: scale ("db"|"gamma"), dynamic_range_db (35), gamma,
                 ground_range, tvg (display only; default true), reference_percentile
                 (99.99: the level shown white), floor_headroom_db (12: white at least
-                this far above the median), max_columns (1024 per side)
+                this far above the median), max_columns (1024 per side);
+                geo_origin_deg = [lat, lon]: where a local scene's origin lies (XTF in lat/lon)
 
 Relative paths are relative to CONFIG.toml; asset:NAME names a shipped file.
 Examples: sonar-embree examples (list), sonar-embree render asset:anchor_mine.toml -o OUT,
@@ -293,8 +295,6 @@ def _run(args) -> list:
     if args.command == "survey":
         return _survey(args)
     if args.command == "demo":
-        import dataclasses
-
         from .demo import DEMO_ORIGIN_DEG, DEMO_PNG, anchor_mine_setup
 
         if args.pings < 1:
@@ -315,6 +315,8 @@ def _run(args) -> list:
     rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
                    fan=_fan(args, cfg.fan), progress=not args.no_progress, start_time=args.start_time,
                    labels=o.needs_labels())
+    if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
+        rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
     return registry.write_set(rec, args.output, o.formats(), registry.WriteOptions(o.png_kwargs()))
 
 

@@ -46,7 +46,7 @@ TRAJECTORY_KINDS = {
 }
 TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
 OUTPUT_KEYS = tuple(registry.FORMATS) + ("scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
-               "floor_headroom_db", "max_columns")
+               "floor_headroom_db", "max_columns", "geo_origin_deg")
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,7 @@ class OutputOptions:
     reference_percentile: float = DISPLAY_DEFAULTS["reference_percentile"]
     floor_headroom_db: float = DISPLAY_DEFAULTS["floor_headroom_db"]
     max_columns: int | None = DISPLAY_DEFAULTS["max_columns"]
+    geo_origin_deg: tuple | None = None  # (lat, lon) of a local scene's origin: the XTF then holds lat/lon
 
     def __post_init__(self):
         for name in (*registry.FORMATS, "ground_range", "tvg"):
@@ -78,6 +79,11 @@ class OutputOptions:
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
         check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns,
                       self.floor_headroom_db)
+        g = self.geo_origin_deg
+        if g is not None and not (isinstance(g, (list, tuple)) and len(g) == 2
+                                  and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in g)
+                                  and abs(g[0]) <= 84.0 and abs(g[1]) <= 180.0):
+            raise ConfigError(f"geo_origin_deg must be [latitude, longitude] in degrees (|lat| <= 84), got {g!r}")
 
     def formats(self) -> tuple:
         """The output formats switched on (names of :data:`sonar_embree.io.registry.FORMATS`)."""
