@@ -128,3 +128,23 @@ def test_a_planned_survey_covers_a_polygon(tmp_path):
     assert header.NavUnits == 3 and len(packets[pyxtf.XTFHeaderType.sonar]) == summary["lines"][0]["pings"]
     with rasterio.open(out / "mosaic.tif") as m:
         assert m.bounds.left < E0 - 10 and m.bounds.right > E0 + 10
+
+
+def test_a_survey_over_a_mesh_seabed_from_a_projected_log(tmp_path):
+    """run_survey with a mesh file as the seabed (its CRS given) and a projected log with numeric times: the line
+    streams at the given ping rate, the mosaic and truth carry the CRS, the truth is the mesh's depth."""
+    import trimesh
+
+    from sonar_embree.runs.survey import run_survey
+
+    floor = trimesh.creation.box(extents=(120.0, 120.0, 1.0))
+    floor.apply_translation((E0, N0, -20.5))                            # its top at z = −20
+    floor.export(tmp_path / "seabed.ply")
+    rows = "".join(f"{float(t)!r},{E0 - 10 + 2.0 * t!r},{N0!r},-12.0\n" for t in range(11))
+    (tmp_path / "nav.csv").write_text("time_s,x_m,y_m,z_m\n" + rows)
+    files = run_survey(tmp_path / "seabed.ply", [tmp_path / "nav.csv"], tmp_path / "out", "cmax-cm2-780",
+                       ping_rate_hz=5.0, crs=32631, progress=False, pixel_m=1.0)
+    assert files[-1].endswith("survey.json") and json.loads((tmp_path / "out" / "survey.json").read_text())[
+        "lines"][0]["pings"] == 51
+    with rasterio.open(tmp_path / "out" / "truth.tif") as t:
+        assert t.crs.to_epsg() == 32631 and np.nanmax(np.abs(t.read(1) + 20.0)) < 1e-6

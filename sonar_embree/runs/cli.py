@@ -160,11 +160,12 @@ def _add_survey_parser(sub) -> None:
                                                            "list), device, range_m, ping_rate_hz, layback_m, "
                                                            "cable_out_m, pixel_m, quality, speckle; flags given "
                                                            "as well override it")
-    s.add_argument("--dem", metavar="DEM.tif", help="GeoTIFF DEM, projected CRS in metres, z = 0 "
-                                                                   "the sea surface")
+    s.add_argument("--dem", metavar="DEM.tif", help="GeoTIFF DEM, projected CRS in metres, z = 0 the sea surface; "
+                                                   "or a mesh file (OBJ/PLY/STL/GLB, projected metres) with --crs")
     s.add_argument("--nav", action="append", metavar="LOG",
                    help="navigation log of one line (.csv: time, lat_deg/lon_deg or x_m/y_m, depth_m or z_m, "
                         "optional heading_deg; .xtf); repeat for more lines")
+    s.add_argument("--crs", metavar="EPSG", help="with a mesh --dem: its projected CRS (e.g. 32631)")
     s.add_argument("--plan", metavar="POLYGON.csv", help="instead of --nav: a polygon (x_m, y_m in the DEM's CRS, or "
                                                          "lat_deg, lon_deg) covered by planned parallel lines")
     s.add_argument("--depth", type=float, metavar="M", help="with --plan: the sonar's depth below the surface, m")
@@ -196,7 +197,8 @@ def _survey(args) -> list:
     kw = load_survey_config(args.config) if args.config else {}
     flags = dict(dem=args.dem, navs=args.nav, device=args.device, range_m=args.range_m, ping_rate_hz=args.ping_rate,
                  layback_m=args.layback, cable_out_m=args.cable_out, pixel_m=args.pixel, quality=args.quality,
-                 speckle=args.speckle, plan=args.plan, depth_m=args.depth, speed_m_s=args.speed, overlap=args.overlap)
+                 speckle=args.speckle, plan=args.plan, depth_m=args.depth, speed_m_s=args.speed, overlap=args.overlap,
+                 crs=args.crs)
     kw.update({k: v for k, v in flags.items() if v is not None})
     for key, flag in (("dem", "--dem"), ("device", "--device")):
         if key not in kw:

@@ -24,13 +24,15 @@ SUMMARY = "survey.json"
 def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, ping_rate_hz: float | None = None,
                layback_m: float | None = None, cable_out_m: float | None = None, pixel_m: float = 0.5,
                quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True,
-               plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2) -> list:
+               plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2,
+               crs=None) -> list:
     """Run the survey; returns the files written (the summary last).
 
     Parameters
     ----------
     dem : str or PathLike
-        A GeoTIFF DEM in a projected CRS (metres; z = 0 the sea surface), read tile by tile.
+        A GeoTIFF DEM in a projected CRS (metres; z = 0 the sea surface), read tile by tile; or a mesh file
+        (OBJ, PLY, STL, GLB in projected metres, z up) taken whole as the seafloor, in ``crs``.
     navs : sequence of str or PathLike
         Navigation logs, one per line (.csv as :meth:`Trajectory.from_csv`, .xtf as :meth:`Trajectory.from_xtf`);
         empty with ``plan``.
@@ -53,6 +55,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         Instead of logs: a polygon CSV (columns x_m, y_m in the DEM's CRS, or lat_deg, lon_deg) covered by
         parallel lines (:func:`~sonar_embree.planning.plan_lines`, ``overlap`` of the swaths) flown at
         ``speed_m_s`` with the sonar ``depth_m`` below the surface.
+    crs : int or str, optional
+        The CRS of a mesh ``dem`` (an EPSG code or a CRS string); needed for latitude/longitude logs.
     """
     import sonar_embree as se
 
@@ -61,7 +65,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         raise ConfigError("survey: give navigation logs or a planned polygon (one of them)")
     out = os.fspath(out)
     _claim(out, overwrite)
-    tiles = se.TiledDEM(dem)
+    tiles = _seabed(dem, crs)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
     samples = se.devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
     if plan is not None:
@@ -95,6 +99,24 @@ def _claim(out: str, overwrite: bool) -> None:
         raise ConfigError(f"{out}: a non-empty folder that is not a survey's output; choose another or pass "
                           "--overwrite")
     os.makedirs(out, exist_ok=True)
+
+
+def _seabed(path, crs):
+    """The survey's seabed: a GeoTIFF DEM tile by tile, or a mesh file whole (labelled seafloor) in ``crs``."""
+    import sonar_embree as se
+
+    path = os.fspath(path)
+    if os.path.splitext(path)[1].lower() in (".tif", ".tiff"):
+        if crs is not None:
+            raise ConfigError(f"{path}: a GeoTIFF DEM carries its own CRS; give crs only with a mesh")
+        return se.TiledDEM(path)
+    from ..geo import crs_name
+    from ..scene import load_mesh
+
+    mesh = load_mesh(path)
+    if crs is not None:
+        mesh.metadata["crs"] = crs_name(crs)
+    return se.Scene().add(mesh, label="seafloor")
 
 
 def _device(name: str, range_m, ping_rate_hz):
@@ -168,7 +190,7 @@ def _write_summary(out: str, summary: dict) -> str:
 
 #: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).
 SURVEY_KEYS = ("dem", "nav", "device", "range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality",
-               "speckle", "plan", "depth_m", "speed_m_s", "overlap")
+               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs")
 
 
 def load_survey_config(path) -> dict:
