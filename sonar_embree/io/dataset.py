@@ -295,8 +295,9 @@ def open_parts(path) -> dict:
 
 
 def _lazy_arrays(ds, channels, beams: bool):
-    """(data, complex data or None, codes or None) of a store as (ping, channel, sample) dask arrays."""
-    import dask.array as da
+    """(data, complex data or None, codes or None) of a store as (ping, channel, sample) dask arrays (stacked by
+    xarray: batch.py stays the one module importing dask)."""
+    import xarray as xr
 
     if beams:
         pick = [("intensity",), ("intensity_complex",), ("samples",)]
@@ -304,5 +305,6 @@ def _lazy_arrays(ds, channels, beams: bool):
     out = []
     for suffix in ("", "_complex", "_samples"):
         names = [f"{ch}{suffix}" for ch in channels]
-        out.append(da.stack([ds[n].data for n in names], axis=1) if all(n in ds for n in names) else None)
+        out.append(xr.concat([ds[n] for n in names], dim="channel").transpose("ping", "channel", "sample").data
+                   if all(n in ds for n in names) else None)
     return tuple(out)
