@@ -113,7 +113,8 @@ _JSF_NOTE = ("15-bit codes: EdgeTech's JSF stores the envelope as one (signed) s
 _MST_NOTE = "6-bit codes: Marine Sonic records 8 bits per sample with the two most significant bits zero (MB-System)"
 _CM2 = "C-MAX, CM2 Sidescan Sonar, Towfish Specification, Issue 7; CM2 user manual"
 _CM2_NOTE = ("tilt and vertical width inferred from the stated vertical coverage (−10° through −90° each side); the "
-             "manual's adjustable 10°/20° depression is not used; 53 µs is the stated pulse at 50 m, used at every range; "
+             "manual's adjustable 10°/20° depression is not used; 53 µs is the stated pulse at 50 m, used at every "
+             "range; "
              "the widths at 325 and 780 kHz give membranes of the stated 0.37 and 0.21 m, the 1.0° at 100 kHz one of "
              "0.55 m against the stated 0.37 m (the preset keeps the stated width)")
 _YF = "Imagenex Technology, YellowFin 872 side scan sonar manual (rev. Feb 2011)"

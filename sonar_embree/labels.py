@@ -458,8 +458,8 @@ class GroundTruth:
     """Per-sample ground truth of a record, block by block (each channel's label line and object echoes).
 
     A front end may declare ``label_lines(plan)`` (its channels' sides and lines in the block's fan,
-    :func:`label_block`; default the side-scan's centre lines) and ``beam_power`` (a beamformer's AF² from its echo channels to its
-    record's, :func:`object_echo_block`).
+    :func:`label_block`; default the side-scan's centre lines) and ``beam_power`` (a beamformer's AF² from its
+    echo channels to its record's, :func:`object_echo_block`).
 
     Parameters
     ----------

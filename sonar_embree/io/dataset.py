@@ -72,8 +72,8 @@ def _ping_coords(record) -> dict:
             meta["standard_name"] = std
         coords[f"{axis}_m"] = (("ping",), t.positions_m[:, i], meta)
         if t.ship_positions_m is not None and axis != "z":          # towed: the ship's antenna ahead of it
-            coords[f"ship_{axis}_m"] = (("ping",), t.ship_positions_m[:, i],
-                                        {"units": "m", "long_name": f"ship (navigation) position, world {axis} ({way})"})
+            coords[f"ship_{axis}_m"] = (("ping",), t.ship_positions_m[:, i], {
+                "units": "m", "long_name": f"ship (navigation) position, world {axis} ({way})"})
     for name, std, what in (("heading_deg", "platform_yaw", "clockwise from north"),
                             ("pitch_deg", "platform_pitch", "positive nose up"),
                             ("roll_deg", "platform_roll", "positive starboard down")):

@@ -26,4 +26,5 @@ from .truth import label_rows
 
 __all__ = ["NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "fan_echoes", "fan_rays",
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "num_threads", "place_rows", "prange", "speckle_block", "splat_rows",
-           "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays", "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows"]
+           "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
+           "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows"]
