@@ -52,8 +52,6 @@ def sinc_root(level: float) -> float:
     return brentq(lambda x: math.sin(x) / x - level, 1e-12, math.pi)
 
 
-_sinc_root = sinc_root
-
 
 def beamwidth_deg(size_m: float, wavelength_m: float, level_db: float = -3.0,
                   two_way: bool = False) -> float:
@@ -64,7 +62,7 @@ def beamwidth_deg(size_m: float, wavelength_m: float, level_db: float = -3.0,
     Returns 180 when the pattern never falls to ``level_db`` inside the half-space.
     """
     power = 4.0 if two_way else 2.0
-    x = _sinc_root(10.0 ** (level_db / (10.0 * power)))
+    x = sinc_root(10.0 ** (level_db / (10.0 * power)))
     s = x * wavelength_m / (math.pi * size_m)
     if s >= 1.0:
         return 180.0
@@ -85,7 +83,7 @@ def membrane_size_for_beamwidth(width_rad: float, wavelength_m: float, rule: str
     """
     if rule == "small-angle":
         return 0.886 * wavelength_m / width_rad
-    x = _sinc_root(10.0 ** (-3.0 / 20.0))
+    x = sinc_root(10.0 ** (-3.0 / 20.0))
     return x * wavelength_m / (math.pi * math.sin(0.5 * width_rad))
 
 

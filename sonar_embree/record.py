@@ -179,42 +179,39 @@ class Record:
                 arrays = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, KeyError) as exc:
             raise ConfigError(f"{path}: not a sonar_embree record ({exc})") from None
-        geo = meta.get("trajectory", {})
-        traj = Trajectory(arrays["positions_m"], arrays["heading_deg"], arrays["pitch_deg"],
-                          arrays["roll_deg"], arrays["times_s"], arrays.get("velocity_m_s"), geo.get("crs"),
-                          geo.get("start_time"), arrays.get("ship_positions_m"))
-        labels = None
+        channels = tuple(meta.get("channels", ("port", "starboard")))
+        parts = dict(arrays, data=np.stack([arrays[ch] for ch in channels], axis=1), labels=None,
+                     complex_data=(np.stack([arrays[f"{ch}_complex"] for ch in channels], axis=1)
+                                   if f"{channels[0]}_complex" in arrays else None))
         if "labels" in meta:
             shape = arrays["labels_kind"].shape  # files of format 1 have no echo truth
             fill = {"echo_object": np.full(shape, -1, np.int32), "echo_intensity": np.zeros(shape, np.float32)}
-            labels = Labels(**{k: arrays.get(f"labels_{k}", fill.get(k)) for k in Labels.ARRAYS},
-                            names=tuple(meta["labels"]["names"]),
-                            is_seafloor=tuple(meta["labels"]["is_seafloor"]))
-        channels = tuple(meta.get("channels", ("port", "starboard")))
-        sonar_cls = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")]
-        cplx = (np.stack([arrays[f"{ch}_complex"] for ch in channels], axis=1) if f"{channels[0]}_complex" in arrays
-                else None)
-        return cls(np.stack([arrays[ch] for ch in channels], axis=1), arrays["time_s"], traj,
-                   sonar_cls(**meta["sonar"]), Pulse(**meta["pulse"]), arrays["altitude_m"], meta.get("attrs", {}),
-                   labels, cplx, channels, arrays.get("samples"))
+            parts["labels"] = {k: arrays.get(f"labels_{k}", fill.get(k)) for k in Labels.ARRAYS}
+        return cls._assemble(meta, parts)
 
     @classmethod
     def _open_store(cls, path) -> "Record":
         """The record of a Zarr store, its arrays left on disk (:func:`sonar_embree.io.dataset.open_parts`)."""
         from .io.dataset import open_parts
 
-        p = open_parts(path)
-        meta = p["meta"]
+        parts = open_parts(path)
+        return cls._assemble(parts.pop("meta"), parts)
+
+    @classmethod
+    def _assemble(cls, meta: dict, p: dict) -> "Record":
+        """A record from its :meth:`metadata` and its arrays ``p``: data, complex_data and samples (or None),
+        labels (name → array, or None), time_s, altitude_m and the trajectory's positions_m, heading_deg,
+        pitch_deg, roll_deg, times_s (velocity_m_s and ship_positions_m when present)."""
         geo = meta.get("trajectory", {})
-        traj = Trajectory(p["positions_m"], p["heading_deg"], p["pitch_deg"], p["roll_deg"], p["times_s"], None,
-                          geo.get("crs"), geo.get("start_time"), p["ship_positions_m"])
+        traj = Trajectory(p["positions_m"], p["heading_deg"], p["pitch_deg"], p["roll_deg"], p["times_s"],
+                          p.get("velocity_m_s"), geo.get("crs"), geo.get("start_time"), p.get("ship_positions_m"))
         labels = None
-        if p["labels"] is not None:
+        if p.get("labels") is not None:
             labels = Labels(**p["labels"], names=tuple(meta["labels"]["names"]),
                             is_seafloor=tuple(meta["labels"]["is_seafloor"]))
         sonar = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")](**meta["sonar"])
         return cls(p["data"], p["time_s"], traj, sonar, Pulse(**meta["pulse"]), p["altitude_m"], meta.get("attrs", {}),
-                   labels, p["complex_data"], tuple(meta.get("channels", ("port", "starboard"))), p["samples"])
+                   labels, p.get("complex_data"), tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"))
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""
