@@ -179,14 +179,10 @@ def _row_groups(record, max_columns, ground_range: bool, aspect: bool, max_rows)
         if along > 0.0:
             k = width / along
             group, repeat = (max(1, int(round(k))), 1) if k >= 1.0 else (1, max(1, int(round(1.0 / k))))
-    if max_rows is not None:
-        rows = -(-n_p // group) * repeat
-        if rows > max_rows:
-            shrink = rows / max_rows
-            if repeat > 1:
-                repeat = max(1, int(repeat // shrink))
-            rows = -(-n_p // group) * repeat
-            group = max(group, int(np.ceil(group * rows / max_rows)))
+    if max_rows is not None and -(-n_p // group) * repeat > max_rows:
+        repeat = max(1, max_rows // -(-n_p // group))               # fewer repeats first
+        if -(-n_p // group) * repeat > max_rows:                    # still too many: average more pings a row
+            group = -(-n_p // max_rows)
     return group, repeat
 
 

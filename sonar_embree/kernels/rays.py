@@ -133,6 +133,15 @@ def sinc_rows(a, rows, m):
 
 
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def row_rays(r, el_start, n_az, per_ray):
+    """(ping, side ±1, elevation cells, first ray, end ray) of row ``r``: its rays are the fan's azimuth-major
+    n_az·n_el from n_az·el_start[r], or with each ray's own layout (``per_ray``) el_start[r] … el_start[r + 1]."""
+    n_el = el_start[r + 1] - el_start[r]
+    base = el_start[r] if per_ray else n_az * el_start[r]
+    return r // 2, 1.0 if r % 2 else -1.0, n_el, base, base + (n_el if per_ray else n_az * n_el)
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
 def ray_cell(i, base, first, n_el, s, ds, cos_beta, sin_beta, dbeta, layout):
     """(s, cos β, sin β, dβ, ds) of ray ``i`` of a row whose rays start at ``base``: its own (``layout`` rows, the
     rays aimed at objects) or the fan's, azimuth-major over the row's ``n_el`` elevation cells from ``first``."""
@@ -256,12 +265,9 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
               slope_cap_m_rad, time_per_m)
     per_ray = layout.shape[0] > 0
     for r in prange(el_start.shape[0] - 1):
-        b = r // 2
-        side = 1.0 if r % 2 else -1.0
-        n_el = el_start[r + 1] - el_start[r]
-        base = el_start[r] if per_ray else n_az * el_start[r]
+        b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
         s_prev, cpsi, g_az, g_az_rx = math.nan, 0.0, 0.0, 0.0
-        for i in range(base, base + (n_el if per_ray else n_az * n_el)):
+        for i in range(base, end):
             range_out[i] = math.inf
             time_out[i] = math.inf
             extent_out[i] = 0.0

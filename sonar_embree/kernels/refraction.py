@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
-from .rays import _sinc, ray_cell
+from .rays import _sinc, ray_cell, row_rays
 
 #: Columns of a ray's marching state (see the module docstring).
 STATE_WIDTH = 14
@@ -552,13 +552,10 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_pr
     cos_t = math.cos(beam[2])
     sin_t = math.sin(beam[2])
     for r in prange(el_start.shape[0] - 1):
-        b = r // 2
-        side = 1.0 if r % 2 else -1.0
-        n_el = el_start[r + 1] - el_start[r]
-        base = el_start[r] if per_ray else n_az * el_start[r]
+        b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
         s_prev = math.nan
         g_az, g_az_rx = 0.0, 0.0
-        for i in range(base, base + (n_el if per_ray else n_az * n_el)):
+        for i in range(base, end):
             sa, cb, sb, db, ds_i = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
             if sa != s_prev:
                 s_prev = sa
