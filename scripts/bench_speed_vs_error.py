@@ -30,7 +30,7 @@ import analytic  # noqa: E402
 
 import sonar_embree as se  # noqa: E402
 from sonar_embree import kernels, shipwreck  # noqa: E402
-from sonar_embree.fan import FanPlan  # noqa: E402
+from sonar_embree.propagation.fan import FanPlan  # noqa: E402
 from sonar_embree.raycast import RayCaster  # noqa: E402  (the Embree caster)
 
 QUALITIES = (0.1, 0.2, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0)
@@ -109,7 +109,7 @@ def embree_throughput(scene, n_rays=100_000, repeat=5):
     traj = shipwreck.straight_pass(1) if "wreck" in c.labels else se.Trajectory.line((0, 0, 10.0), (1, 0, 10.0), 1)
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
     plan = FanPlan.build(sonar, se.FanSettings())
-    from sonar_embree.fan import elevation_rows
+    from sonar_embree.propagation.fan import elevation_rows
 
     rot = traj.rotations()
     pos = traj.positions_m - c.origin_m
@@ -258,7 +258,7 @@ def main(argv=None) -> int:
     long = long_run(ship_scene_, long_pings)
     md = os.path.join(args.output, "benchmarks.md")
     write_report(md, flat, ship, ship_ref, thr_flat, thr_ship, long, (n_tri, t_build, t_bvh), args)
-    from sonar_embree.plotting import speed_error_png
+    from sonar_embree.display.plotting import speed_error_png
 
     series = {f"flat, {k}": {key: [r[key] for r in v] for key in ("rays", "ms", "max_db", "rms_db")}
               for k, v in flat.items()}

@@ -63,7 +63,7 @@ def records(se, length_m):
 
 def device_image(rec, columns=300):
     """The device's codes as it stores them, port mirrored, block means across track, 8-bit linear."""
-    from sonar_embree.waterfall import block_mean
+    from sonar_embree.display.waterfall import block_mean
 
     block = max(rec.time_s.size // columns, 1)
     full = float(2 ** rec.sonar.receiver.adc_bits - 1)
@@ -91,7 +91,7 @@ def main(argv=None) -> int:
     sys.path.insert(0, ROOT)
     import sonar_embree as se
     from multipath_figure import _images  # the gallery's common display grey scale
-    from sonar_embree import plotting
+    from sonar_embree.display import plotting
     from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)

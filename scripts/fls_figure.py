@@ -29,7 +29,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("-o", "--output", default=os.path.join("docs", "fls"))
     args = p.parse_args(argv)
-    from sonar_embree import plotting
+    from sonar_embree.display import plotting
     from sonar_embree.io.files import atomic_write
 
     cfg = runconfig.load_run_config("asset:fls_harbour.toml")

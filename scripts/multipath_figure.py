@@ -53,8 +53,8 @@ def records(se, pings):
 
 
 def _images(recs, span_db=50.0, columns=300):
-    from sonar_embree.processing import tvg_gain
-    from sonar_embree.waterfall import block_mean
+    from sonar_embree.signal.processing import tvg_gain
+    from sonar_embree.display.waterfall import block_mean
 
     dbs = []
     for rec in recs.values():
@@ -98,7 +98,7 @@ def main(argv=None) -> int:
         p.error(f"--pings must be at least 2, got {args.pings}")
     sys.path.insert(0, ROOT)
     import sonar_embree as se
-    from sonar_embree import plotting
+    from sonar_embree.display import plotting
     from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)

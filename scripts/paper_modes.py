@@ -38,8 +38,8 @@ MODES = (
 
 def starboard_image(rec, r_min_m, r_max_m, dynamic_range_db=40.0, max_columns=600):
     """8-bit starboard waterfall between two slant ranges: display TVG, dB, top 0.5 % saturated."""
-    from sonar_embree.processing import tvg_gain
-    from sonar_embree.waterfall import block_mean
+    from sonar_embree.signal.processing import tvg_gain
+    from sonar_embree.display.waterfall import block_mean
 
     sel = (rec.slant_range_m >= r_min_m) & (rec.slant_range_m <= r_max_m)
     x = rec.starboard[:, sel] * tvg_gain(rec.time_s[sel], rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
@@ -61,7 +61,7 @@ def main(argv=None) -> int:
 
     import sonar_embree as se
     from sonar_embree.runs.demo import anchor_mine_scene
-    from sonar_embree.plotting import brightness_histogram_png, mosaic_png
+    from sonar_embree.display.plotting import brightness_histogram_png, mosaic_png
     from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)

@@ -67,7 +67,7 @@ def main(argv=None) -> int:
 
     import sonar_embree as se
     from sonar_embree import shipwreck
-    from sonar_embree.plotting import mosaic_png, plan_view_png
+    from sonar_embree.display.plotting import mosaic_png, plan_view_png
     from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)

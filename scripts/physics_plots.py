@@ -24,7 +24,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def beam_panels(se):
-    from sonar_embree import beam
+    from sonar_embree.instrument import beam
 
     s = se.Sonar()
     k, lam = s.wavenumber_rad_m, s.wavelength_m
@@ -76,7 +76,7 @@ def main(argv=None) -> int:
     args = p.parse_args(argv)
     sys.path.insert(0, ROOT)
     import sonar_embree as se
-    from sonar_embree import plotting
+    from sonar_embree.display import plotting
 
     os.makedirs(args.output, exist_ok=True)
     plotting.line_panels_png(beam_panels(se), os.path.join(args.output, "beam_pattern.png"),

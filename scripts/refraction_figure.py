@@ -96,7 +96,7 @@ def main(argv=None) -> int:
     sys.path.insert(0, ROOT)
     import sonar_embree as se
     from multipath_figure import _images  # the same common grey scale (display TVG, 50 dB)
-    from sonar_embree import plotting
+    from sonar_embree.display import plotting
     from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)

@@ -62,8 +62,8 @@ def _scene(se, floor):
 
 def _db_image(rec, white_db, span_db=50.0, columns=400):
     """Both channels (port mirrored left) in ground range and dB after display TVG, on a common scale: uint8."""
-    from sonar_embree.processing import tvg_gain
-    from sonar_embree.waterfall import block_mean, to_ground_range
+    from sonar_embree.signal.processing import tvg_gain
+    from sonar_embree.display.waterfall import block_mean, to_ground_range
 
     g = tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
     block = max(rec.time_s.size // (2 * columns), 1)  # average in intensity, then place on the ground
@@ -139,7 +139,7 @@ def main(argv=None) -> int:
         p.error(f"--pings must be at least 2, got {args.pings}")
     sys.path.insert(0, ROOT)
     import sonar_embree as se
-    from sonar_embree import plotting
+    from sonar_embree.display import plotting
     from sonar_embree.io.files import atomic_write
 
     os.makedirs(args.output, exist_ok=True)

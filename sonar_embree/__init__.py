@@ -9,15 +9,19 @@ waterfalls out. Embree casts each ping's fan of rays, Numba kernels bin the echo
 """
 from ._version import __version__
 
-from . import assets, devices, geo, laws, mosaic, planning, raycast, sediments, stream
+from . import assets, laws, raycast
+from .instrument import devices
+from .io import geo
+from .survey import mosaic, planning, stream
+from .laws import sediments
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
 from .errors import ConfigError, SceneError, SonarEmbreeError
-from .labels import Labels
-from .motion import Motion
+from .signal.labels import Labels
+from .trajectory.motion import Motion
 from .laws.maps import BackscatterMap
 from .laws.texture import KTexture
-from .receiver import AGC, TVG, Receiver
+from .instrument.receiver import AGC, TVG, Receiver
 from .record import Record
 from .runs import batch, demo, runconfig, sweep  # not cli: python -m sonar_embree.runs.cli runs it
 from .scene import Scene, TiledDEM, seafloor, shipwreck

@@ -15,9 +15,10 @@ import os
 
 import numpy as np
 
-from .beam import beamwidth_deg
+from .instrument.beam import beamwidth_deg
 from .config import Sonar
 from .errors import ConfigError
+from .validation import _warned, warn_once  # noqa: F401 (one set of warned messages per process)
 
 log = logging.getLogger(__name__)
 
@@ -30,7 +31,6 @@ PLAUSIBLE = {"frequency_hz": (20e3, 3e6), "max_range_m": (2.0, 1500.0), "tilt_de
 MIN_HORIZONTAL_AREA = 0.2
 #: Share of an object's first hits on back faces above which it looks inverted.
 MAX_BACK_FACE_SHARE = 0.5
-_warned: set = set()
 
 
 def physical_memory_bytes() -> int | None:
@@ -54,13 +54,6 @@ def check_rays_memory(n_rays: int, n_pings: int, what: str) -> None:
         raise ConfigError(f"{what}: {n_pings} ping(s) need {n_rays} rays, about {need / 2**30:.1f} GiB in memory, "
                           f"more than half this machine's {have / 2**30:.1f} GiB; lower the quality, the range or "
                           "(a forward-looking sonar) n_elements")
-
-
-def warn_once(message: str) -> None:
-    """Log ``message`` as a warning once per process (tasks of one batch repeat their checks)."""
-    if message not in _warned:
-        _warned.add(message)
-        log.warning(message)
 
 
 def check_sonar(sonar) -> None:
@@ -205,7 +198,7 @@ def check_ping_spacing(sonar, positions_m: np.ndarray) -> float | None:
     gaps between pings (a navigation log taken row by row as pings, at 1 Hz where the device pings at 10 Hz).
 
     The footprint is the two-way −3 dB along-track width at the far end of the window, 2·R_max·tan(θ₃/2), θ₃ the
-    full angle where sinc⁴ = ½ (:func:`sonar_embree.beam.beamwidth_deg`); the spacing is the
+    full angle where sinc⁴ = ½ (:func:`sonar_embree.instrument.beam.beamwidth_deg`); the spacing is the
     median horizontal distance between consecutive pings. Runs of fewer than :data:`MIN_IMAGE_PINGS` pings (probes
     and tests, not images) are not judged. Returns the footprint (m), or None for sonars without an along-track
     membrane (MSIS, forward-looking, echo sounder) or runs not judged.

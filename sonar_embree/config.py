@@ -12,13 +12,14 @@ import inspect
 import math
 from dataclasses import dataclass
 
-from .devices import device
+from .instrument.devices import device
 from .environment import Environment
-from .receiver import Receiver, receiver_of
+from .instrument.receiver import Receiver, receiver_of
 from .errors import ConfigError
 from .laws import Lambert, Summable
 from .laws.texture import KTexture
 from .validation import check_number as _check_number, field_names  # noqa: F401 (field_names re-exported)
+from .instrument.beam import membrane_size_for_beamwidth
 
 
 class Transducer:
@@ -203,7 +204,7 @@ class Sonar(Transducer):
 
     @classmethod
     def preset(cls, name: str, **overrides) -> "Sonar":
-        """The side-scan sonar of a device preset (:data:`sonar_embree.devices.DEVICES`), e.g.
+        """The side-scan sonar of a device preset (:data:`sonar_embree.instrument.devices.DEVICES`), e.g.
         ``Sonar.preset("edgetech-4125-400", max_range_m=75)``; ``overrides`` replace any field."""
         d = device(name)
         kw = dict(frequency_hz=d.frequency_hz, tilt_deg=d.tilt_deg, max_range_m=d.ranges_m[0],
@@ -227,8 +228,6 @@ class Sonar(Transducer):
         **kwargs
             Any other :class:`Sonar` field (frequency_hz, sound_speed_m_s, …).
         """
-        from .beam import membrane_size_for_beamwidth
-
         for name, val in (("azimuth_deg", azimuth_deg), ("elevation_deg", elevation_deg)):
             _check_number("Sonar.from_beamwidths", name, val, positive=True, hi=179.0)
         if rule not in ("exact", "small-angle"):
@@ -336,7 +335,7 @@ class Pulse:
 
     @classmethod
     def preset(cls, name: str) -> "Pulse":
-        """The pulse of a device preset (:data:`sonar_embree.devices.DEVICES`): its CW or LFM pulse."""
+        """The pulse of a device preset (:data:`sonar_embree.instrument.devices.DEVICES`): its CW or LFM pulse."""
         p = device(name).pulse
         return cls.cw(duration_s=p[1]) if p[0] == "cw" else cls.lfm(bandwidth_hz=p[2], duration_s=p[1])
 
@@ -393,7 +392,7 @@ class Material:
         winding: sheets, plates, meshes with inverted normals.
     scattering : scattering law, optional
         Any law of :mod:`sonar_embree.laws` (``Lambert``, ``Kirchhoff``,
-        ``Tabulated``, their sums) or a sediment preset of :mod:`sonar_embree.sediments`;
+        ``Tabulated``, their sums) or a sediment preset of :mod:`sonar_embree.laws.sediments`;
         default Lambert with ``backscatter_db``. Give one or the other. ``law=`` is
         accepted for it.
     texture : KTexture, optional

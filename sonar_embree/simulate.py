@@ -6,30 +6,31 @@
     → processing (lowpass, TVG) → Record
 
 Each stage has one home: the front end in :mod:`sonar_embree.sonars` (and the
-side-scan's ray budget in :mod:`sonar_embree.fan`, the laws in :mod:`sonar_embree.laws`),
-the contract in :mod:`sonar_embree.echoes`, the back end in :mod:`sonar_embree.synthesis`,
-ground truth in :mod:`sonar_embree.labels`, the tail in :mod:`sonar_embree.processing`.
+side-scan's ray budget in :mod:`sonar_embree.propagation.fan`, the laws in :mod:`sonar_embree.laws`),
+the contract in :mod:`sonar_embree.propagation.echoes`, the back end in :mod:`sonar_embree.signal.synthesis`,
+ground truth in :mod:`sonar_embree.signal.labels`, the tail in :mod:`sonar_embree.signal.processing`.
 """
 from __future__ import annotations
 
 import dataclasses
 import logging
 import math
-import os
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import checks, multipath, processing, pulses, sonars
+from . import checks, sonars
+from .propagation import multipath
+from .signal import processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError
-from .labels import GroundTruth
+from .signal.truth import GroundTruth
 from .raycast import Caster, RayCaster
 from .record import Record
 from .scene import Scene, TiledDEM, survey_origin
-from .synthesis import ExpectedSynthesis, SpeckleSynthesis
+from .signal.synthesis import ExpectedSynthesis, SpeckleSynthesis
 from .trajectory import Trajectory, iso_utc
 from .validation import check_bool
 
@@ -136,7 +137,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         The whole signal chain at once; overrides the keywords above.
     labels : bool
         Also compute per-sample ground truth (``Record.labels``, see
-        :class:`~sonar_embree.labels.Labels`) from the fan's centre line, each hit
+        :class:`~sonar_embree.signal.labels.Labels`) from the fan's centre line, each hit
         followed through to the seafloor behind it (extra casts for that only).
     keep_complex : bool
         Also keep the detected complex baseband signal (``Record.port_complex``,

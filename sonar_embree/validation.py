@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import csv
+import logging
 import math
 import os
 from dataclasses import fields
@@ -101,3 +102,15 @@ def iso_utc(value=None) -> str:
     if value.tzinfo is None:
         value = value.replace(tzinfo=dt.timezone.utc)
     return value.astimezone(dt.timezone.utc).isoformat()
+
+
+#: Messages :func:`warn_once` has logged in this process.
+_warned: set = set()
+
+
+def warn_once(message: str) -> None:
+    """Log ``message`` as a warning of ``sonar_embree.checks`` once per process (tasks of one batch repeat
+    their checks)."""
+    if message not in _warned:
+        _warned.add(message)
+        logging.getLogger("sonar_embree.checks").warning(message)

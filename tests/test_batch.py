@@ -14,7 +14,7 @@ import trimesh
 
 import sonar_embree as se
 from sonar_embree.runs import cli
-from sonar_embree.labels import OBJECT
+from sonar_embree.signal.labels import OBJECT
 from sonar_embree.runs.sweep import load_sweep
 
 SWEEP = """\

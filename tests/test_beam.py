@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree import beam, kernels
+from sonar_embree.instrument import beam
+from sonar_embree import kernels
 
 LAM = 1500.0 / 400e3
 K = 2 * np.pi / LAM

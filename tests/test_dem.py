@@ -295,7 +295,7 @@ def test_write_truth_refuses_other_crs_and_takes_a_tiled_dem(tmp_path):
     assert not (tmp_path / "bad.tif").exists()
     whole = se.Scene().add(se.seafloor.from_dem(dem), label="seafloor")
     a = se.mosaic.write_truth(tmp_path / "a.tif", whole, grid)
-    import sonar_embree.mosaic as mosaic_module
+    import sonar_embree.survey.mosaic as mosaic_module
 
     old = mosaic_module.TRUTH_STRIP_ROWS
     mosaic_module.TRUTH_STRIP_ROWS = 7                                 # several strips over 60 rows

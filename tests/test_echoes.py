@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree import pulses
-from sonar_embree.echoes import Echoes
-from sonar_embree.synthesis import ExpectedSynthesis
+from sonar_embree.signal import pulses
+from sonar_embree.propagation.echoes import Echoes
+from sonar_embree.signal.synthesis import ExpectedSynthesis
 
 
 @pytest.mark.parametrize("n_channels", [1, 2, 3])

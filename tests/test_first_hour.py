@@ -457,7 +457,7 @@ def test_fft_expected_kernel_equals_the_direct_correlation_sum(pulse):
     """Cell averages of |q(t)|², q(t) = Σ_m p̃(t + m/fs) p̃*(m/fs) / Σ|p̃|², summed directly here."""
     import math
 
-    from sonar_embree import pulses
+    from sonar_embree.signal import pulses
 
     f0, fs, ov = 400e3, 40e3, 16
     kernel, lead = pulses.expected_kernel(pulse, f0, fs, True, oversample=ov)
@@ -513,7 +513,7 @@ def test_anchor_mine_config_is_a_useful_image(tmp_path):
 
 
 def test_example_sweeps_check_and_cover_their_purpose():
-    from sonar_embree.io.coco import category_of
+    from sonar_embree.record.coco import category_of
 
     det = se.sweep.load_sweep("asset:detection.toml")
     assert det.categories == ("mine",) and {"coco", "labels"} <= set(det.outputs) and len(det.jobs) >= 4

@@ -152,7 +152,7 @@ def test_fan_image_zarr_and_toml(tmp_path):
     non-coherent speckle are refused naming what is missing."""
     import xarray as xr
 
-    from sonar_embree.io import registry
+    from sonar_embree.record import registry
     from sonar_embree.runs import runconfig
     from sonar_embree.sonars.forward_looking import fan_image
 

@@ -1,7 +1,7 @@
 """Real coordinates (issue: real surveys; docs/physics.md §15): CRS, navigation from lat/lon logs, lat/lon XTF.
 
 Every position is checked against pyproj's own forward transform from WGS 84 (built here, not through
-sonar_embree.geo), and the XTF files are written with pyxtf's structures or read back by pyxtf.
+sonar_embree.io.geo), and the XTF files are written with pyxtf's structures or read back by pyxtf.
 """
 import ctypes
 import datetime as dt

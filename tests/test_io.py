@@ -13,7 +13,7 @@ from pycocotools.coco import COCO
 
 import sonar_embree as se
 from conftest import box, flat_scene
-from sonar_embree.labels import OBJECT, Labels
+from sonar_embree.signal.labels import OBJECT, Labels
 
 
 @pytest.fixture(scope="module")
@@ -228,7 +228,7 @@ def test_a_full_disk_is_one_line_naming_the_file_not_its_temporary(tmp_path):
         "import resource, signal, sys\n"
         "signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
         "import numpy as np, sonar_embree as se\n"
-        "from sonar_embree.io.coco import write_json\n"
+        "from sonar_embree.record.coco import write_json\n"
         "resource.setrlimit(resource.RLIMIT_FSIZE, (4096, 4096))\n"
         "try:\n"
         f"    write_json({{'images': ['x' * 100] * 100}}, {str(tmp_path / 'big.json')!r})\n"

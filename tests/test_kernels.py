@@ -5,7 +5,8 @@ import pytest
 
 import naive
 import sonar_embree as se
-from sonar_embree import kernels, synthesis
+from sonar_embree import kernels
+from sonar_embree.signal import synthesis
 
 
 def _splat_inputs(rng, n=4000, n_s=300):
@@ -311,11 +312,11 @@ def _aim_scene(rng):
 
 
 def test_aim_kernels_match_naive(rng):
-    """The object-aimed rays (sonar_embree.aim): lattices, directions, echoes (kernels.fan_echoes with each ray's own
+    """The object-aimed rays (sonar_embree.propagation.aim): lattices, directions, echoes (kernels.fan_echoes with each ray's own
     layout, against the fan's naive twin per lattice, counting only hits on the lattice's own object) and the fan
     hits they replace."""
-    from sonar_embree.aim import AimPlan, keep_own
-    from sonar_embree.fan import FanPlan
+    from sonar_embree.propagation.aim import AimPlan, keep_own
+    from sonar_embree.propagation.fan import FanPlan
     from sonar_embree.kernels import aim as K
     from sonar_embree.laws import apply_laws
     from sonar_embree.raycast import RayCaster

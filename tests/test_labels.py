@@ -6,7 +6,7 @@ import naive
 import sonar_embree as se
 from conftest import H, box, flat_scene, line_along_x
 from sonar_embree import kernels
-from sonar_embree.labels import OBJECT, SEAFLOOR, SHADOW, WATER, Labels
+from sonar_embree.signal.labels import OBJECT, SEAFLOOR, SHADOW, WATER, Labels
 
 
 @pytest.fixture(scope="module")
@@ -91,9 +91,9 @@ def test_shadow_behind_a_box_resting_on_the_floor_is_one_run(caster):
 
 
 def test_seafloor_caster_covers_exactly_the_seafloor():
-    """labels.seafloor_caster: the caster itself when every object is seafloor, none without a seafloor, else a
+    """truth.seafloor_caster: the caster itself when every object is seafloor, none without a seafloor, else a
     caster of the same class over the seafloor's triangles, mapped back to the scene's, built once."""
-    from sonar_embree.labels import seafloor_caster
+    from sonar_embree.signal.truth import seafloor_caster
     from sonar_embree.raycast import EmbreeCaster, NumpyCaster
 
     scene = flat_scene().add(box((1.0, 1.0, 1.0), (0.0, 14.0, 0.5)), label="box")

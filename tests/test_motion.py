@@ -44,7 +44,7 @@ def test_survey_on_a_curved_path_spaces_pings_by_arc_length():
                                                ("heave_m", dict(heave_rms_m=0.3)),
                                                ("roll_deg", dict(roll_rms_deg=1.5))])
 def test_jitter_has_the_rms_and_correlation_time_asked_for(component, kwargs):
-    from sonar_embree.motion import jitter
+    from sonar_embree.trajectory.motion import jitter
 
     motion = se.Motion(correlation_s=2.0, **kwargs)
     dt, n = 0.1, 40000
@@ -63,7 +63,7 @@ def test_jitter_is_frozen_by_seed_and_applied_to_the_poses():
     motion = se.Motion(yaw_rms_deg=1.0, pitch_rms_deg=0.5, heave_rms_m=0.2, correlation_s=3.0)
     a, b, c = line.with_motion(motion, seed=1), line.with_motion(motion, seed=1), line.with_motion(motion, seed=2)
     assert a == b and a != c
-    from sonar_embree.motion import jitter
+    from sonar_embree.trajectory.motion import jitter
 
     d = jitter(motion, line.times_s, seed=1)
     np.testing.assert_array_equal(a.positions_m[:, 2], line.positions_m[:, 2] + d["heave_m"])
@@ -161,8 +161,8 @@ def test_speckle_phase_follows_the_moving_receiver():
     """Speckle phases with motion during the ping: one echo on a lattice node X at two-way time t0, the receiver
     moving at v. The synthesised signal is the stop-and-hop one times e^(−j2π·Δ/λ), Δ = |X − (p + v·t0)| − |X − p|
     (the receiver where the echo arrives; docs/physics.md §16), to rounding."""
-    from sonar_embree.echoes import Echoes
-    from sonar_embree.synthesis import ScattererLattice, WaveformTables
+    from sonar_embree.propagation.echoes import Echoes
+    from sonar_embree.signal.synthesis import ScattererLattice, WaveformTables
 
     cell, lam, c = 0.05, 1500.0 / 400e3, 1500.0
     x = np.array([40, -600, -100]) * cell                                        # a lattice node, world m

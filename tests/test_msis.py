@@ -145,7 +145,7 @@ def test_toml_sonar_type_msis_renders(tmp_path):
 def test_polar_png_output_is_the_msis_display(tmp_path):
     """The "polar" output writes the polar display of an MSIS record (8-bit, black outside the scan), and refuses
     other sonar types naming the need."""
-    from sonar_embree.io import registry
+    from sonar_embree.record import registry
 
     rec = se.simulate(_floor(), _still(40), se.MSIS(step_deg=9.0, max_range_m=15.0))
     (path,) = registry.write_each(rec, str(tmp_path), ["polar"])

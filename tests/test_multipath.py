@@ -182,7 +182,7 @@ def test_rough_surface_scales_multipath_by_the_coherent_reflection(records):
 def test_occluder_shadows_only_the_surface_paths(records, leg, plate_y, plate_z, blocked, kept, surface):
     """A plate between the sonar and the surface shadows the surface paths whose leg it crosses (windows of
     R = ct/2 from the geometry: X, P and S' on one line, P at 4/18 of ρ); the direct echoes and every other
-    surface path stay. The same for a 1 µm swell, whose legs are Embree reflections and casts (sonar_embree.swell):
+    surface path stay. The same for a 1 µm swell, whose legs are Embree reflections and casts (sonar_embree.propagation.swell):
     its unshadowed surface paths are a different sampling of the same paths (0.5 dB, as the quadrature test)."""
     import trimesh
 
@@ -217,7 +217,7 @@ def test_legs_cast_through_boxes_only_change_nothing(monkeypatch, surface):
     scene's box."""
     import trimesh
 
-    from sonar_embree import multipath
+    from sonar_embree.propagation import multipath
 
     def scene(objects=True):  # a rough floor with a steep ridge (slope 2) each side: shadows it casts itself
         x, y = np.meshgrid(np.linspace(-60.0, 60.0, 121), np.linspace(-60.0, 60.0, 241))
@@ -248,7 +248,7 @@ def test_legs_cast_through_boxes_only_change_nothing(monkeypatch, surface):
 
 
 def test_no_surface_runs_no_multipath_code_and_surface_errors(monkeypatch):
-    from sonar_embree import multipath
+    from sonar_embree.propagation import multipath
 
     scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
@@ -598,11 +598,11 @@ def test_surface_survives_the_record_file(tmp_path):
     assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == surface
 
 
-# --- a swell: the surface meshed and every surface path by one Embree reflection (sonar_embree.swell) ---
+# --- a swell: the surface meshed and every surface path by one Embree reflection (sonar_embree.propagation.swell) ---
 def test_a_flat_swell_mesh_gives_the_four_path_quadrature(flat_quadrature, monkeypatch):
     """A swell of 1 µm is a flat mesh: the bounced rays (a different sampling of the same paths: the one-bounce
     paths from the reflected rays rather than from the direct ones) must give the four-path image sum."""
-    from sonar_embree import multipath
+    from sonar_embree.propagation import multipath
     for name in ("image_echoes", "mixed_echoes"):
         monkeypatch.setattr(multipath, name, lambda *a, **k: pytest.fail("the image method ran for a swell"))
     q = flat_quadrature

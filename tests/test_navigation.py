@@ -106,7 +106,7 @@ def test_layback_puts_the_sonar_behind_the_ship_along_its_track():
 def test_a_towed_lines_xtf_has_ship_and_sensor_positions_apart(tmp_path):
     """pyxtf reads the Ship coordinates at the ship's latitude/longitude and the Sensor ones at the sonar's, 30 m
     apart; the record keeps both through save/load."""
-    from sonar_embree.geo import to_lonlat
+    from sonar_embree.io.geo import to_lonlat
 
     scene = se.Scene().add(se.seafloor.flat((400, 400)), label="seafloor")
     ship = se.Trajectory.survey([(-10, 0, 10), (10, 0, 10)], 2.0, 2.0, crs=32631)

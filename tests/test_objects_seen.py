@@ -12,7 +12,7 @@ import sonar_embree as se
 import analytic
 from analytic import gamma_membrane, sphere_quadrature
 from sonar_embree import sonars
-from sonar_embree.echoes import merged
+from sonar_embree.propagation.echoes import merged
 from sonar_embree.raycast import RayCaster
 from sonar_embree.scene import survey_origin
 

@@ -9,7 +9,7 @@ import pytest
 import sonar_embree as se
 from conftest import box, flat_scene
 from sonar_embree import demo, shipwreck
-from sonar_embree.labels import OBJECT
+from sonar_embree.signal.labels import OBJECT
 from sonar_embree.runs.runconfig import load_run_config
 from sonar_embree.scene import load_mesh
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree.planning import line_trajectories, plan_lines
+from sonar_embree.survey.planning import line_trajectories, plan_lines
 
 
 def _inside(poly, pts):
@@ -103,7 +103,7 @@ def test_the_planner_refuses_nonsense_in_one_line():
 
 def test_survey_size_counts_what_line_trajectories_makes():
     """The estimate is the plan's: its pings equal the trajectories' (counted independently), hours = km / v."""
-    from sonar_embree.planning import survey_size
+    from sonar_embree.survey.planning import survey_size
 
     poly = [(0.0, 0.0), (300.0, 0.0), (300.0, 120.0), (150.0, 200.0), (0.0, 120.0)]
     lines = plan_lines(poly, 40.0, 0.3)

@@ -6,7 +6,7 @@ import pytest
 
 import analytic
 import sonar_embree as se
-from sonar_embree import pulses
+from sonar_embree.signal import pulses
 from sonar_embree.environment.francois_garrison import francois_garrison_db_per_m
 
 F0 = 400e3

@@ -36,7 +36,7 @@ def test_rays_are_uniform_in_slant_range_on_the_floor():
 def test_nothing_in_range_costs_next_to_nothing():
     """A floor beyond the window gets the coarse empty-cell step: an all-zero record, and besides the fixed probe
     (0.2° steps over the 150° elevation span, both sides) a few hundred rays."""
-    from sonar_embree.fan import FanPlan
+    from sonar_embree.propagation.fan import FanPlan
 
     from conftest import decoy_above
 
@@ -51,7 +51,7 @@ def test_nothing_in_range_costs_next_to_nothing():
 def test_density_follows_range_rate_and_refines_edges():
     """Per probe cell: |dR/dβ|/dr on the floor, the largest step where range changes slowly, a 4× finer step at an
     object's edges, 8× coarser where nothing is in range."""
-    from sonar_embree import beam
+    from sonar_embree.instrument import beam
 
     b = np.radians(np.arange(-30.0, 90.0, 0.2))
     r = H / np.sin(b)
@@ -107,7 +107,7 @@ def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
     within half a spacing of the receive lobe's null as they do at the transmit lobe's (lines on a transmit null left
     out: they weigh nothing), the transmit lines unchanged to the bit; pings of one speed keep every line,
     pings of several speeds each keep the interval of their own lines; the forward-looking fan adds none."""
-    from sonar_embree.fan import moving_lines, own_lines
+    from sonar_embree.propagation.fan import moving_lines, own_lines
     from sonar_embree import sonars
 
     sonar = se.Sonar().for_pulse(se.Pulse.cw())

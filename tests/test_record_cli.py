@@ -91,7 +91,7 @@ def test_a_long_run_states_its_time_after_the_first_block(caplog, monkeypatch):
 
 def test_render_help_lists_every_output_key():
     """`sonar-embree render --help` names every [output] format key (it left out zarr, xtf, polar and fan)."""
-    from sonar_embree.io.registry import FORMATS
+    from sonar_embree.record.registry import FORMATS
     from sonar_embree.runs.cli import RENDER_HELP
 
     block = RENDER_HELP[RENDER_HELP.index("[output]"):RENDER_HELP.index("Relative paths")]

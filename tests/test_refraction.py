@@ -16,9 +16,9 @@ import pytest
 import analytic
 import naive
 import sonar_embree as se
-from sonar_embree.fan import FanPlan
+from sonar_embree.propagation.fan import FanPlan
 from sonar_embree.raycast.embree import EmbreeCaster
-from sonar_embree.refraction import cast_refracted
+from sonar_embree.propagation.refraction import cast_refracted
 from sonar_embree.sonars.sidescan import SideScanFrontEnd
 
 H, DEPTH, C_SONAR, GRAD, MU_DB, TAU, FS, TILT, RANGE = 10.0, 20.0, 1500.0, 0.5, -20.0, 100e-6, 50e3, 10.0, 80.0
@@ -174,8 +174,8 @@ def _planes_scene():
 def three_layer_block():
     """One ping's fan in THREE between the tilted floor and the ceiling: the kernels' launch, hits and echoes."""
     from sonar_embree import kernels
-    from sonar_embree.fan import probe_rows
-    from sonar_embree.refraction import Buffers, Marching, march
+    from sonar_embree.propagation.fan import probe_rows
+    from sonar_embree.propagation.refraction import Buffers, Marching, march
     sonar = se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS, environment=se.Environment(sound_speed=THREE))
     front = SideScanFrontEnd(sonar, se.FanSettings())
     compiled = _planes_scene().compiled(np.zeros(3))
@@ -383,7 +383,7 @@ def test_profile_errors_name_the_problem():
 
 
 def test_no_profile_runs_no_refraction_code(monkeypatch):
-    from sonar_embree import refraction
+    from sonar_embree.propagation import refraction
     monkeypatch.setattr(refraction, "cast_refracted", lambda *a, **k: pytest.fail("refraction ran without a profile"))
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
     se.simulate(_scene(), line, se.Sonar(max_range_m=20.0), start_time="2000-01-01")

@@ -76,8 +76,8 @@ def test_physics_plots_script_writes_beam_pattern_and_ping(tmp_path):
 
 def _ripple_period_m(rec, lo_m=25.0, hi_m=50.0, step_m=0.05):
     """Strongest period (m) of the starboard seafloor intensity along ground range, over all pings."""
-    from sonar_embree.labels import SEAFLOOR
-    from sonar_embree.processing import tvg_gain
+    from sonar_embree.signal.labels import SEAFLOOR
+    from sonar_embree.signal.processing import tvg_gain
 
     x = rec.starboard * tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
     grid = np.arange(lo_m, hi_m, step_m)
@@ -96,8 +96,8 @@ def _ripple_period_m(rec, lo_m=25.0, hi_m=50.0, step_m=0.05):
 def test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend(tmp_path):
     import sonar_embree as se
     from sonar_embree import shipwreck
-    from sonar_embree.labels import OBJECT, SEAFLOOR, SHADOW
-    from sonar_embree.processing import tvg_gain
+    from sonar_embree.signal.labels import OBJECT, SEAFLOOR, SHADOW
+    from sonar_embree.signal.processing import tvg_gain
 
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "paper_shipwreck.py"), "-o", str(tmp_path),
                            "--pings", "64", "--floor-size", "110", "--records"],

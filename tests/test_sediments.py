@@ -6,7 +6,7 @@ import pytest
 
 import analytic
 import sonar_embree as se
-from sonar_embree import sediments
+from sonar_embree.laws import sediments
 
 
 def _apl_rho_nu(mz):

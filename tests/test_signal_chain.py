@@ -5,7 +5,7 @@ import pytest
 import analytic
 import sonar_embree as se
 from conftest import H, box, facing_plate, flat_scene, line_along_x
-from sonar_embree import processing, pulses
+from sonar_embree.signal import processing, pulses
 
 
 def _rel_rms(a, b):

@@ -114,7 +114,7 @@ def test_a_chirp_synthesised_as_impulses_is_the_splatted_chirp(monkeypatch):
     one made by splatting every scatterer with the whole tabulated pulse, within 0.5 % of the peak amplitude (the
     largest at the floor's sharp onset, whose tabulated pulse holds content beyond the record rate's band), with a
     difference of under 1e-4 of the signal's energy and the same energy within 0.1 %."""
-    from sonar_embree import synthesis
+    from sonar_embree.signal import synthesis
 
     pulse = se.Pulse.lfm(32e3, duration_s=2e-3)
     traj = se.Trajectory.line((0.0, 0.0, H), (1.0, 0.0, H), 3)

@@ -10,7 +10,7 @@ import pytest
 import xarray as xr
 
 import sonar_embree as se
-from sonar_embree import stream
+from sonar_embree.survey import stream
 
 START = "2026-05-01T12:00:00Z"
 
@@ -213,7 +213,7 @@ def test_progress_is_fsynced_after_the_blocks_files(tmp_path, monkeypatch):
 
 def test_the_stream_states_its_time_after_the_first_block(tmp_path, caplog):
     """Issue 33: the time a line will take, from its first block's pace (INFO; -v on the command line)."""
-    caplog.set_level("INFO", logger="sonar_embree.stream")
+    caplog.set_level("INFO", logger="sonar_embree.survey.stream")
     se.stream.render_line(_scene(), LINE[:12], tmp_path / "s.zarr", SONAR, block_pings=4, start_time=START)
     lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("render_line: about")]
     assert len(lines) == 1 and "for the 8 pings left (" in lines[0]

@@ -63,9 +63,77 @@ def test_no_module_imports_a_module_that_imports_it():
     assert not pairs, pairs
 
 
+#: The package's layers, lowest first: a module may import its own folder and any lower layer, never a higher
+#: one, anywhere in its body (function-local imports count). A folder is one node; top-level modules are nodes.
+LAYERS = (("errors", "_version"),
+          ("validation", "kernels", "assets"),
+          ("laws", "instrument"),
+          ("environment", "io"),
+          ("config", "display", "trajectory"),
+          ("checks",),
+          ("scene",),
+          ("raycast",),
+          ("propagation",),
+          ("signal",),
+          ("sonars",),
+          ("record",),
+          ("simulate",),
+          ("survey",),
+          ("runs",),
+          ("__main__",))
+#: Package imports inside function bodies: each hides an edge from a reader of the module's head. Most left are
+#: lazy on purpose (xarray, rasterio, pyproj, pyxtf, matplotlib load only when a file of theirs is written);
+#: the count may fall, never rise.
+MAX_LOCAL_IMPORTS = 39
+
+
+def _node(module: str) -> str:
+    """The layer node of a package module: its first folder under the package, or the top-level module."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _graph():
+    mods = {name: (path, tree) for name, path, tree in _modules()}
+    return {name: {m for m in _imports(name, tree, path.endswith("__init__.py"), set(mods)) if m in mods and m != name}
+            for name, (path, tree) in mods.items()}
+
+
+def test_every_folder_and_module_has_a_layer():
+    rank = {n for layer in LAYERS for n in layer}
+    assert {_node(m) for m in _graph()} - {"__init__"} == rank
+
+
+def test_imports_only_go_down_the_layers():
+    """No import, top level or function-local, reaches a higher or an equal layer's other node: the folders form
+    no cycle and a reader knows where each stage may look."""
+    rank = {n: i for i, layer in enumerate(LAYERS) for n in layer}
+    up = sorted(f"{a} -> {b}" for a, deps in _graph().items() for b in deps
+                if _node(a) != "__init__" and _node(b) != _node(a) and _node(b) != "__init__"
+                and rank[_node(b)] >= rank[_node(a)])
+    assert not up, up
+
+
+def test_only_the_package_itself_imports_the_package():
+    """``sonar_embree/__init__`` is the public face: nothing inside imports it (it would load everything)."""
+    users = sorted(a for a, deps in _graph().items() if "sonar_embree" in deps and a != "sonar_embree")
+    assert not users, users
+
+
+def test_function_local_package_imports_do_not_grow():
+    n = 0
+    for _, _, tree in _modules():
+        for fn in ast.walk(tree):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n += sum(isinstance(s, ast.ImportFrom) and (s.level > 0 or (s.module or "").startswith("sonar_embree"))
+                         or isinstance(s, ast.Import) and any(a.name.startswith("sonar_embree") for a in s.names)
+                         for s in ast.walk(fn))
+    assert n <= MAX_LOCAL_IMPORTS, f"{n} function-local package imports (at most {MAX_LOCAL_IMPORTS})"
+
+
 @pytest.mark.parametrize("dependency, owner", [("embreex", "sonar_embree.raycast.embree"),
                                                 ("numba", "sonar_embree.kernels._numba"),
-                                                ("pyproj", "sonar_embree.geo"),
+                                                ("pyproj", "sonar_embree.io.geo"),
                                                 ("pyxtf", "sonar_embree.io.xtf"),
                                                 ("rasterio", "sonar_embree.io.geotiff")])
 def test_one_owner_per_dependency(dependency, owner):

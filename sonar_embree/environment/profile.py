@@ -13,7 +13,7 @@ and for g = 0 the straight line: Δx = Δz / tan θ, Δs = Δz / sin θ, Δt = �
 
 :meth:`SoundSpeedProfile.trace_down` is this ray map in NumPy (launch angle → range, path
 length, travel time at a depth); the renderer marches the same arcs chord by chord through
-Embree (:mod:`sonar_embree.refraction`, :mod:`sonar_embree.kernels.refraction`).
+Embree (:mod:`sonar_embree.propagation.refraction`, :mod:`sonar_embree.kernels.refraction`).
 """
 from __future__ import annotations
 

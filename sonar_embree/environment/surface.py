@@ -10,7 +10,7 @@ h_w = H_s/4 (Pierson and Moskowitz, *J. Geophys. Res.* 69(24), 5181–5190, 1964
 
 A swell makes the surface wavy: one long-crested sinusoidal (linear, Airy) wave of height H (crest to
 trough) and length Λ travelling towards ψ, z = z_s + (H/2)·sin(2π(x cos ψ + y sin ψ)/Λ), meshed and
-reflected by Embree (:mod:`sonar_embree.multipath`); waves steeper than H/Λ = 1/7 break (Michell's limit;
+reflected by Embree (:mod:`sonar_embree.propagation.multipath`); waves steeper than H/Λ = 1/7 break (Michell's limit;
 Holthuijsen, *Waves in Oceanic and Coastal Waters*, Cambridge University Press, 2007, ch. 7) and are refused.
 
 The surface also scatters back (the "surface line" of side-scan records, from 2d/c for a sonar d below it):

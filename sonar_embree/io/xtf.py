@@ -21,7 +21,7 @@ Conventions of what is written:
 - **Sample order**: starboard runs from time 0 (nadir) outwards; port runs from far
   range to nadir (its last sample is time 0), the XTF convention readers such as
   pyxtf assume, so ``hstack([port, starboard])`` is the waterfall.
-- Navigation of a trajectory with a CRS (:mod:`sonar_embree.geo`) in latitude and longitude (NavUnits 3):
+- Navigation of a trajectory with a CRS (:mod:`sonar_embree.io.geo`) in latitude and longitude (NavUnits 3):
   SensorXcoordinate = longitude, SensorYcoordinate = latitude, WGS 84 degrees as float64; the Ship fields
   hold the ship's position of a towed sonar (:meth:`~sonar_embree.Trajectory.with_layback`, with Layback the
   horizontal ship–sensor distance and CableOut the straight cable's length, m), else the sensor's; without a
@@ -53,10 +53,11 @@ import os
 
 import numpy as np
 
-from ..beam import beamwidth_deg
+from ..instrument.beam import beamwidth_deg
 from ..errors import ConfigError
 from ..validation import check_bool
 from .files import atomic_write
+from ..validation import iso_utc
 
 _CHAN_INFO = np.dtype([
     ("TypeOfChannel", "u1"), ("SubChannelNumber", "u1"), ("CorrectionFlags", "<u2"), ("UniPolar", "<u2"),
@@ -179,8 +180,6 @@ def _file_header(record, factor: float, ints, file_name: str = "", n_s: int | No
 
 
 def _start(record, start) -> dt.datetime:
-    from ..validation import iso_utc
-
     if start is None:
         start = record.attrs.get("start_time")
     try:
@@ -222,7 +221,7 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         the float intensities.
     samples_per_channel : int, optional
         Decimate each side to this many samples as a device does (the largest of each run, :func:`decimate_max`;
-        a preset's :attr:`~sonar_embree.devices.Device.samples_per_channel`); default every sample.
+        a preset's :attr:`~sonar_embree.instrument.devices.Device.samples_per_channel`); default every sample.
     """
     header, packets = xtf_bytes(record, start, scale=scale, surface_z_m=surface_z_m, samples=samples,
                                 file_name=os.path.basename(os.fspath(path)), samples_per_channel=samples_per_channel)
@@ -238,7 +237,7 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
 def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0,
               file_name: str = "", samples_per_channel: int | None = None):
     """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
-    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.stream`); ``file_name`` goes into the
+    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.survey.stream`); ``file_name`` goes into the
     header's ThisFileName; ``samples_per_channel``: decimate each side to that many samples (:func:`decimate_max`)."""
     if tuple(record.channels) != ("port", "starboard"):
         names = ", ".join(record.channels[:3]) + (f", … ({len(record.channels)} channels)"
@@ -292,7 +291,7 @@ def geographic(record):
     origin = record.attrs.get(GEO_ORIGIN_ATTR)
     if origin is None:
         return None
-    from ..geo import from_lonlat, utm_crs
+    from .geo import from_lonlat, utm_crs
 
     try:
         lat, lon = (float(v) for v in origin)
@@ -316,7 +315,7 @@ def _navigation(h, record, surface_z_m) -> None:
     for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
         x, y = where[:, 0], where[:, 1]
         if geo is not None:
-            from ..geo import to_lonlat
+            from .geo import to_lonlat
 
             x, y = to_lonlat(geo[0], x + geo[1][0], y + geo[1][1])
         h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y

@@ -125,7 +125,7 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
     v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
         Written.
     layout : (n, 5) or (0, 5) float64
-        Each ray's own s, cos β, sin β, dβ and ds (rays aimed at objects, :mod:`sonar_embree.aim`); then
+        Each ray's own s, cos β, sin β, dβ and ds (rays aimed at objects, :mod:`sonar_embree.propagation.aim`); then
         ``el_start``, ``s_az``, ``cos_beta``, ``sin_beta``, ``dbeta`` and ``ds`` are not read. No rows (``NO_LAYOUT``):
         the fan's layout.
     """

@@ -255,7 +255,7 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
     points_out : (n, 3) or (0, 3) float64
         Written with the hit points (local frame, m) when it has n rows.
     layout : (n, 5) or (0, 5) float64
-        Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.aim`), row r's
+        Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.propagation.aim`), row r's
         rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
         not read. No rows (``NO_LAYOUT``): the fan's layout.
     """

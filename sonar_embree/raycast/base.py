@@ -64,7 +64,7 @@ class Caster:
         return cache[cls]
 
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
-        """First hits, unrefined: the hot path of :mod:`sonar_embree.fan`.
+        """First hits, unrefined: the hot path of :mod:`sonar_embree.propagation.fan`.
 
         Parameters
         ----------

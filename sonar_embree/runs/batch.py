@@ -28,11 +28,13 @@ import os
 import tempfile
 
 from ..errors import ConfigError
-from ..io import registry
-from ..io.coco import merge, write_json
+from ..record import registry
+from ..record.coco import merge, write_json
 from ..io.files import LOCK_NAME, OWN_NAMES, atomic_job_folder, clean_stale, folder_lock
 from ..record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
+from ..errors import SonarEmbreeError
+from ..simulate import simulate
 
 log = logging.getLogger(__name__)
 
@@ -49,8 +51,6 @@ def _scene(spec: SceneSpec, seed: int):
 
 def render_part(spec: SceneSpec, job: Job, start: int, stop: int) -> Record:
     """Simulate pings ``start … stop − 1`` of a job (a Dask task)."""
-    from ..simulate import simulate
-
     return simulate(_scene(spec, job.seed), job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan,
                     chain=job.chain, labels=job.labels, keep_complex=job.keep_complex, ping_offset=start,
                     start_time=job.start_time)
@@ -78,8 +78,6 @@ def preflight(sweep: Sweep) -> None:
     cannot be made (a COCO category, a label, a format) stops in seconds with one line
     instead of after the jobs have rendered.
     """
-    from ..errors import SonarEmbreeError
-
     seen = set()
     try:
         for job in sweep.jobs:

@@ -12,8 +12,13 @@ import os
 import sys
 
 from ..errors import SonarEmbreeError
-from ..io import registry
+from ..record import registry
 from ..io.files import STALE_PREFIXES
+from .. import assets
+from ..config import FanSettings
+from ..config import SignalChain
+from ..simulate import simulate
+from .runconfig import load_run_config
 
 EPILOG = """\
 Outputs (in OUT/): waterfall.png (port mirrored on the left, starboard on the right,
@@ -212,7 +217,6 @@ def _survey(args) -> list:
 def _examples(args) -> list:
     import shutil
 
-    from .. import assets
 
     if args.copy is None:
         return [f"{kind}/{name}\t{assets.path(name)}" for kind in assets.KINDS for name in assets.names(kind)]
@@ -250,7 +254,6 @@ def _chain(args, base=None):
     """The signal chain of ``base`` (default: SignalChain()) with the command-line overrides."""
     import dataclasses
 
-    from ..config import SignalChain
 
     base = SignalChain() if base is None else base
     overrides = {k: getattr(args, k) for k in _CHAIN_FLAGS if getattr(args, k) is not None}
@@ -263,7 +266,6 @@ def _fan(args, base=None):
     """The fan settings of ``base`` (default: FanSettings()) with ``--quality`` applied."""
     import dataclasses
 
-    from ..config import FanSettings
 
     base = FanSettings() if base is None else base
     return base if args.quality is None else dataclasses.replace(base, quality=args.quality)
@@ -284,8 +286,6 @@ def _check_output_folder(out_dir: str, overwrite: bool) -> None:
 
 
 def _run(args) -> list:
-    from ..simulate import simulate
-
     if args.command == "examples":
         return _examples(args)
     if args.command == "batch":
@@ -307,7 +307,6 @@ def _run(args) -> list:
                        start_time=args.start_time)
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(DEMO_ORIGIN_DEG)})
         return registry.write_set(rec, args.output, ("npz", "png", "xtf"), registry.WriteOptions(DEMO_PNG))
-    from .runconfig import load_run_config
 
     cfg = load_run_config(args.config)
     _check_output_folder(args.output, args.overwrite)

@@ -29,14 +29,14 @@ from .. import assets
 from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
-from ..io import registry
-from .. import sediments
+from ..record import registry
+from ..laws import sediments
 from ..laws import LAWS, Composite, KTexture, Tabulated
 from ..laws.maps import BackscatterMap
 from ..scene import Scene, seafloor
 from ..sonars import MSIS, EchoSounder, ForwardLooking
 from ..trajectory import Trajectory
-from ..waterfall import DISPLAY_DEFAULTS, check_display
+from ..display.waterfall import DISPLAY_DEFAULTS, check_display
 
 SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
 TRAJECTORY_KINDS = {
@@ -51,9 +51,9 @@ OUTPUT_KEYS = tuple(registry.FORMATS) + ("scale", "dynamic_range_db", "gamma", "
 
 @dataclass(frozen=True)
 class OutputOptions:
-    """What ``render`` writes (any format of :mod:`sonar_embree.io.registry`; default the waterfall PNG
+    """What ``render`` writes (any format of :mod:`sonar_embree.record.registry`; default the waterfall PNG
     and the record .npz), and how the PNG looks
-    (the display keywords of :func:`~sonar_embree.waterfall.waterfall_image`, checked here)."""
+    (the display keywords of :func:`~sonar_embree.display.waterfall.waterfall_image`, checked here)."""
 
     png: bool = True
     polar: bool = False
@@ -86,7 +86,7 @@ class OutputOptions:
             raise ConfigError(f"geo_origin_deg must be [latitude, longitude] in degrees (|lat| <= 84), got {g!r}")
 
     def formats(self) -> tuple:
-        """The output formats switched on (names of :data:`sonar_embree.io.registry.FORMATS`)."""
+        """The output formats switched on (names of :data:`sonar_embree.record.registry.FORMATS`)."""
         return tuple(n for n in registry.FORMATS if getattr(self, n))
 
     def needs_labels(self) -> bool:

@@ -15,7 +15,17 @@ import os
 
 import numpy as np
 
+from ..config import Pulse, Sonar
 from ..errors import ConfigError
+from ..instrument import devices
+from ..io.files import atomic_write
+from ..io.geo import crs_name, from_lonlat
+from ..scene import Scene, TiledDEM, load_mesh
+from ..survey import mosaic, stream
+from ..survey.planning import line_trajectories, plan_lines
+from ..trajectory import Trajectory
+from ..validation import read_numeric_csv
+from .runconfig import _check_keys, _resolve, read_toml
 
 #: The file marking a folder as a survey's output (refused otherwise unless overwrite).
 SUMMARY = "survey.json"
@@ -40,7 +50,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         Output folder: new, empty, or an earlier survey's (its survey.json); anything else is refused unless
         ``overwrite``.
     device : str
-        A preset of :data:`sonar_embree.devices.DEVICES`: its sonar, pulse and ping rates.
+        A preset of :data:`sonar_embree.instrument.devices.DEVICES`: its sonar, pulse and ping rates.
     range_m, ping_rate_hz : float, optional
         The range setting (default the preset's first) and the ping rate (default the device's for that range).
     layback_m, cable_out_m : float, optional
@@ -53,13 +63,11 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     overwrite, progress : bool
     plan : str or PathLike, optional
         Instead of logs: a polygon CSV (columns x_m, y_m in the DEM's CRS, or lat_deg, lon_deg) covered by
-        parallel lines (:func:`~sonar_embree.planning.plan_lines`, ``overlap`` of the swaths) flown at
+        parallel lines (:func:`~sonar_embree.survey.planning.plan_lines`, ``overlap`` of the swaths) flown at
         ``speed_m_s`` with the sonar ``depth_m`` below the surface.
     crs : int or str, optional
         The CRS of a mesh ``dem`` (an EPSG code or a CRS string); needed for latitude/longitude logs.
     """
-    import sonar_embree as se
-
     navs = [os.fspath(n) for n in ([navs] if isinstance(navs, (str, os.PathLike)) else (navs or []))]
     if bool(navs) == (plan is not None):
         raise ConfigError("survey: give navigation logs or a planned polygon (one of them)")
@@ -67,7 +75,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     _claim(out, overwrite)
     tiles = _seabed(dem, crs)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
-    samples = se.devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
+    samples = devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
     if plan is not None:
         sources = _planned(plan, tiles.crs, sonar.max_range_m, overlap, depth_m, speed_m_s, rate)
     else:
@@ -79,12 +87,12 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         folder = os.path.join(out, f"line_{k:02d}")
         os.makedirs(folder, exist_ok=True)
         files = {ext: os.path.join(folder, f"line.{ext}") for ext in ("zarr", "xtf", "png")}
-        se.stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"],
+        stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"],
                               png_path=files["png"], xtf_samples=samples, labels=True, speckle=speckle,
                               quality=quality, overwrite=overwrite, progress_bar=progress)
         written += list(files.values())
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "files": files})
-    written += _products(se, tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)
+    written += _products(tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)
     summary = {"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
                "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits, "dem": os.path.abspath(os.fspath(dem)),
                "crs": tiles.crs, "lines": lines}
@@ -103,37 +111,28 @@ def _claim(out: str, overwrite: bool) -> None:
 
 def _seabed(path, crs):
     """The survey's seabed: a GeoTIFF DEM tile by tile, or a mesh file whole (labelled seafloor) in ``crs``."""
-    import sonar_embree as se
-
     path = os.fspath(path)
     if os.path.splitext(path)[1].lower() in (".tif", ".tiff"):
         if crs is not None:
             raise ConfigError(f"{path}: a GeoTIFF DEM carries its own CRS; give crs only with a mesh")
-        return se.TiledDEM(path)
-    from ..geo import crs_name
-    from ..scene import load_mesh
-
+        return TiledDEM(path)
     mesh = load_mesh(path)
     if crs is not None:
         mesh.metadata["crs"] = crs_name(crs)
-    return se.Scene().add(mesh, label="seafloor")
+    return Scene().add(mesh, label="seafloor")
 
 
 def _device(name: str, range_m, ping_rate_hz):
     """(sonar with the assumed receiver, the device's pulse, ping rate) of a preset at a range setting."""
-    import sonar_embree as se
-
-    d = se.devices.device(name)
+    d = devices.device(name)
     rng = float(d.ranges_m[0] if range_m is None else range_m)
-    sonar = se.Sonar.preset(name, max_range_m=rng, receiver=d.receiver())
+    sonar = Sonar.preset(name, max_range_m=rng, receiver=d.receiver())
     rate = d.ping_rate_hz(rng, sonar.sound_speed_m_s) if ping_rate_hz is None else float(ping_rate_hz)
-    return sonar, se.Pulse.preset(name), rate
+    return sonar, Pulse.preset(name), rate
 
 
 def _line(nav: str, crs, rate: float):
     """The line of one navigation log: in the DEM's CRS, resampled at ``rate``."""
-    from ..trajectory import Trajectory
-
     if not os.path.isfile(nav):
         raise ConfigError(f"{nav}: no such navigation log")
     ext = os.path.splitext(nav)[1].lower()
@@ -145,10 +144,6 @@ def _line(nav: str, crs, rate: float):
 
 def _planned(plan, crs, range_m: float, overlap: float, depth_m, speed_m_s: float, rate: float) -> list:
     """(the polygon's path, trajectory) of each line planned over the polygon of ``plan``."""
-    from ..geo import from_lonlat
-    from ..planning import line_trajectories, plan_lines
-    from ..validation import read_numeric_csv
-
     if depth_m is None:
         raise ConfigError("survey: a planned survey needs depth_m (the sonar's depth below the surface, m)")
     plan = os.fspath(plan)
@@ -165,19 +160,17 @@ def _planned(plan, crs, range_m: float, overlap: float, depth_m, speed_m_s: floa
     return [(os.path.abspath(plan), t) for t in trajs]
 
 
-def _products(se, tiles, stores, out: str, pixel_m: float) -> list:
+def _products(tiles, stores, out: str, pixel_m: float) -> list:
     """The survey's normalised mosaic (GeoTIFF and quick look) and the DEM's truth on the same grid."""
-    grid = se.mosaic.mosaic(stores, pixel_m=pixel_m, values="normalised")
+    grid = mosaic.mosaic(stores, pixel_m=pixel_m, values="normalised")
     files = [os.path.join(out, name) for name in ("mosaic.tif", "mosaic.png", "truth.tif")]
     grid.to_geotiff(files[0])
     grid.save_png(files[1])
-    se.mosaic.write_truth(files[2], tiles, grid)
+    mosaic.write_truth(files[2], tiles, grid)
     return files
 
 
 def _write_summary(out: str, summary: dict) -> str:
-    from ..io.files import atomic_write
-
     path = os.path.join(out, SUMMARY)
 
     def write(tmp):
@@ -197,8 +190,6 @@ def load_survey_config(path) -> dict:
     """The ``[survey]`` table of a TOML file as :func:`run_survey` keywords (dem, navs, device, …), paths resolved
     against the file's folder; unknown keys, a missing dem/nav/device and values of the wrong type are one-line
     errors naming the file and key."""
-    from .runconfig import _check_keys, _resolve, read_toml
-
     source, data = read_toml(path, "survey config")
     _check_keys("the top level", data, ("survey",), source)
     table = data.get("survey")

@@ -46,10 +46,12 @@ import numpy as np
 from ..config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from ..environment import Environment
 from ..errors import ConfigError, SonarEmbreeError
-from ..io import registry
+from ..record import registry
 from ..scene import Scene, load_mesh
 from ..trajectory import Trajectory
 from . import runconfig
+from ..raycast import RayCaster
+from ..validation import iso_utc
 
 TOP_KEYS = ("sweep", "sonar", "environment", "pulse", "fan", "simulation", "vary", "scenes", "trajectories", "png")
 SWEEP_KEYS = ("name", "seeds", "outputs", "pings_per_task", "complex", "start_time")
@@ -121,7 +123,6 @@ class SceneSpec:
                 runconfig.add_object(scene, obj, self.source, self.base, where)
         caster = None
         if placed and scene.objects:  # instances rest on what lies below them (floors and fixed meshes)
-            from ..raycast import RayCaster
             caster = RayCaster.for_scene(scene.compiled())
         support = scene.compiled() if caster is not None else None
         top = scene.bounds[1, 2] + 1.0 if caster is not None else 0.0
@@ -294,8 +295,6 @@ def _input_files(base: str, data: dict) -> list:
 
 def _start_time(value, src) -> str:
     """``[sweep] start_time`` (TOML datetime or ISO 8601 string) as an ISO 8601 UTC string."""
-    from ..validation import iso_utc
-
     try:
         return iso_utc(value)
     except ConfigError as exc:

@@ -4,7 +4,7 @@ A height field here is a mesh that is the graph z = f(x, y) of one continuous fu
 bounding rectangle: every vertical line through the rectangle crosses it exactly once. Seafloors made by
 :mod:`sonar_embree.scene.seafloor` are; a wreck, a box or a seafloor turned about z is not (the test is
 conservative: a mesh it does not recognise is treated as any other object). Multipath uses it to skip
-visibility legs that such a floor provably cannot block (:func:`sonar_embree.multipath.block_legs`).
+visibility legs that such a floor provably cannot block (:func:`sonar_embree.propagation.multipath.block_legs`).
 """
 from __future__ import annotations
 

@@ -24,6 +24,8 @@ from ..laws.maps import BackscatterMap, MapTable
 from ..laws.texture import TextureTable
 from .heightfield import is_heightfield, object_bounds
 from .tolerance import TOLERANCE, MeshTolerance  # noqa: F401  (MeshTolerance: documented here too)
+from ..io.files import atomic_write
+from .seafloor import sediment_classes
 
 log = logging.getLogger(__name__)
 
@@ -248,8 +250,6 @@ def write_obj(path, named_meshes, comment: str = "") -> None:
     Coordinates in metres with 10 µm resolution (``%.5f``); :meth:`Scene.load` reads
     the objects back as separately labelled parts.
     """
-    from ..io.files import atomic_write
-
     def write(tmp):
         lines, base = [f"# {line}" for line in comment.splitlines()], 1
         for name, mesh in named_meshes:
@@ -510,13 +510,11 @@ class Scene:
         mesh : trimesh.Trimesh
             The floor (e.g. :func:`sonar_embree.seafloor.flat`).
         sediments : dict of str to (Material, law or (that, fraction))
-            Class name → its material or law (a preset of :mod:`sonar_embree.sediments`),
+            Class name → its material or law (a preset of :mod:`sonar_embree.laws.sediments`),
             optionally with its share of the floor (default equal shares).
         patch_m, seed
             See :func:`sonar_embree.seafloor.sediment_classes`.
         """
-        from .seafloor import sediment_classes
-
         if not isinstance(sediments, dict) or not sediments:
             raise SceneError("add_sediments needs a dict of class name -> material or sediment")
         names, mats, shares = [], [], []

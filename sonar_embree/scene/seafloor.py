@@ -12,6 +12,9 @@ import numpy as np
 import trimesh
 
 from ..errors import ConfigError
+from .. import checks
+from ..laws.texture import gaussian_field_at
+from .tolerance import TOLERANCE
 
 
 def _size(size_m):
@@ -109,7 +112,6 @@ def declared_nodata(z: np.ndarray, nodata, where: str) -> np.ndarray:
             raise ConfigError(f"{where}: {n} pixel(s) hold exactly {value:g}, a common nodata value the raster does "
                               f"not declare; pass nodata={value:g} (or set it in the file: gdal_edit.py -a_nodata "
                               f"{value:g})")
-    from .tolerance import TOLERANCE
 
     if np.isfinite(z).any():
         off = np.abs(z - np.nanmedian(z))
@@ -129,10 +131,8 @@ DEM_BYTES_PER_TRIANGLE = 400
 def check_dem_memory(shape, where: str) -> None:
     """Refuse, before reading its pixels, a raster of ``shape`` (ny, nx) whose whole mesh cannot fit in half this
     machine's memory, pointing at :class:`~sonar_embree.TiledDEM` (which meshes only the tiles in reach)."""
-    from ..checks import physical_memory_bytes
-
     n = 2 * max(shape[0] - 1, 0) * max(shape[1] - 1, 0)
-    need, have = n * DEM_BYTES_PER_TRIANGLE, physical_memory_bytes()
+    need, have = n * DEM_BYTES_PER_TRIANGLE, checks.physical_memory_bytes()
     if have is not None and need > 0.5 * have:
         raise ConfigError(f"{where}: {shape[1]} x {shape[0]} pixels make {n / 1e6:.1f} M triangles, about "
                           f"{need / 2**30:.1f} GiB once meshed, more than half this machine's {have / 2**30:.1f} GiB; "
@@ -155,7 +155,7 @@ def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimes
     grid = read_grid(path, band)
     crs = None
     if grid.crs is not None:
-        from ..geo import crs_name
+        from ..io.geo import crs_name
 
         try:
             crs = crs_name(grid.crs)
@@ -184,7 +184,7 @@ def from_xyz(path, crs=None) -> trimesh.Trimesh:
     z = declared_nodata(z, None, path)
     mesh = grid_mesh(xs, ys[::-1], z[::-1], where=path)    # rows north first, as a raster's: the same triangles
     if crs is not None:
-        from ..geo import crs_name
+        from ..io.geo import crs_name
 
         crs = crs_name(crs)
     mesh.metadata["crs"] = crs
@@ -367,7 +367,6 @@ def sediment_classes(mesh: trimesh.Trimesh, fractions, patch_m: float = 20.0, se
     """
     from scipy.special import ndtri
 
-    from ..laws.texture import gaussian_field_at
 
     f = np.asarray(fractions, dtype=float)
     if f.ndim != 1 or f.size == 0 or np.any(~(f > 0)):

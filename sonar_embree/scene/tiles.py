@@ -5,7 +5,7 @@ rows i·T … (i+1)·T and columns j·T … (j+1)·T (the boundary pixels are sh
 exactly those of :func:`~sonar_embree.seafloor.from_dem` on the whole raster, without cracks). For a set of
 sonar positions, :meth:`TiledDEM.scene_around` builds a scene of the tiles within reach of them; tiles and
 the last scenes (with their compiled BVHs) are kept in small caches, so memory follows the swath and a
-streamed line (:func:`~sonar_embree.stream.render_line`) rebuilds a BVH only when its pings reach new tiles.
+streamed line (:func:`~sonar_embree.survey.stream.render_line`) rebuilds a BVH only when its pings reach new tiles.
 """
 from __future__ import annotations
 
@@ -16,6 +16,8 @@ import numpy as np
 
 from ..config import Material
 from ..errors import ConfigError
+from .meshes import Scene
+from .seafloor import declared_nodata, grid_mesh
 
 
 class TiledDEM:
@@ -53,7 +55,7 @@ class TiledDEM:
         self.material = material or Material()
         self.crs = None
         if self.info.crs is not None:
-            from ..geo import crs_name
+            from ..io.geo import crs_name
 
             try:
                 self.crs = crs_name(self.info.crs)
@@ -93,7 +95,6 @@ class TiledDEM:
     def _tile(self, i: int, j: int):
         """The mesh of tile (i, j), or None when it has no cell with heights at all its corners."""
         from ..io.geotiff import read_window
-        from .seafloor import declared_nodata, grid_mesh
 
         key = (i, j)
         if key in self._tiles:
@@ -122,8 +123,6 @@ class TiledDEM:
         """A :class:`~sonar_embree.Scene` of the tiles within ``reach_m`` of ``positions_m`` (one object,
         "seafloor"), kept for the next call with the same tiles (its BVH with it). Where no tile there has data:
         an error, or None when ``empty_ok``."""
-        from .meshes import Scene
-
         keys = self.tiles_around(positions_m, reach_m)
         if keys in self._scenes:
             self._scenes.move_to_end(keys)

@@ -1,7 +1,7 @@
 """Sonar types: each declares its channels, its body-frame ray fan and its per-direction gain.
 
 A sonar type is a configuration dataclass (its instrument) and a front end that
-turns a block of poses into :class:`~sonar_embree.echoes.Echoes`. A new type is one
+turns a block of poses into :class:`~sonar_embree.propagation.echoes.Echoes`. A new type is one
 module here and one line in :data:`FRONT_ENDS`.
 """
 from __future__ import annotations

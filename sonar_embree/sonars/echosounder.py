@@ -17,14 +17,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import j1
 
-from .. import multipath
-from ..aim import AimPlan, lattice_rays
+from ..propagation import multipath
+from ..propagation.aim import AimPlan, lattice_rays
 from ..config import FanSettings, Transducer
-from ..receiver import Receiver
-from ..echoes import Echoes
+from ..instrument.receiver import Receiver
+from ..propagation.echoes import Echoes
 from ..environment import Environment
 from ..laws import apply_laws
-from ..processing import absorption_np_per_m
+from ..signal.processing import absorption_np_per_m
 from ..validation import check_number
 
 #: ka·sin(θ3/2) of a circular piston at its one-way −3 dB point, 2·J1(x)/x = 1/√2.

@@ -27,15 +27,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import beam
+from ..instrument import beam
 from ..config import FanSettings, Sonar, Transducer
-from ..echoes import Echoes, row_of, row_starts
+from ..propagation.echoes import Echoes, row_of, row_starts
 from ..environment import Environment
 from ..errors import ConfigError
-from ..receiver import Receiver
+from ..instrument.receiver import Receiver
 from ..validation import check_number
 from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN, MIN_BEAMWIDTH_DEG, SideScanEquivalent, display_grey
 from .sidescan import SideScanFrontEnd
+from ..io.files import atomic_write
 
 #: Probe lines across the fan, at least (the side-scan probes three: a wide fan needs them everywhere): one per
 #: receive beam's null-to-null half width λ/(M·d) in u, at least this many.
@@ -293,7 +294,6 @@ def save_fan_png(record, path, ping: int | None = None, dynamic_range_db: float 
     ``dynamic_range_db`` below it black (and outside the fan)."""
     import imageio.v3 as iio
 
-    from ..io.files import atomic_write
 
     img, (left, right, near, far) = fan_image(record, ping)
     x = np.linspace(left, right, img.shape[1])

@@ -18,12 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import FanSettings, Sonar, Transducer
-from ..echoes import Echoes, merged
+from ..propagation.echoes import Echoes, merged
 from ..environment import Environment
 from ..errors import ConfigError
-from ..receiver import Receiver
+from ..instrument.receiver import Receiver
 from ..validation import check_number
 from .sidescan import SideScanFrontEnd
+from ..instrument.beam import membrane_size_for_beamwidth
+from ..io.files import atomic_write
 
 #: Side-scan body axes in the head's frame (columns: forward → −y, starboard → +x, down → +z): the side-scan's
 #: starboard beam then looks along the head's x axis, its bearing.
@@ -115,8 +117,6 @@ class MSIS(SideScanEquivalent, Transducer):
 
     def as_sidescan(self) -> Sonar:
         """The side-scan sonar whose starboard beam is this MSIS's beam (head frame = its body frame)."""
-        from ..beam import membrane_size_for_beamwidth
-
         lam = self.wavelength_m
         return Sonar(frequency_hz=self.frequency_hz,
                      length_m=membrane_size_for_beamwidth(math.radians(self.horizontal_beamwidth_deg), lam),
@@ -237,7 +237,6 @@ def save_polar_png(record, path, pixel_m: float | None = None, dynamic_range_db:
     ``dynamic_range_db`` below it black (and outside the scan)."""
     import imageio.v3 as iio
 
-    from ..io.files import atomic_write
 
     img, ext = polar_image(record, pixel_m)
     n = img.shape[0]

@@ -1,9 +1,9 @@
 """The side-scan sonar type: two channels (port, starboard), one rectangular membrane each.
 
-Its body-frame fan and ray budget are :mod:`sonar_embree.fan` (docs/physics.md §7),
-its per-direction gain the baffled membrane of :mod:`sonar_embree.beam` (§2). It turns
-a block of poses into :class:`~sonar_embree.echoes.Echoes` and, for ground truth,
-keeps the block's fan (:class:`~sonar_embree.fan.BlockEchoes`).
+Its body-frame fan and ray budget are :mod:`sonar_embree.propagation.fan` (docs/physics.md §7),
+its per-direction gain the baffled membrane of :mod:`sonar_embree.instrument.beam` (§2). It turns
+a block of poses into :class:`~sonar_embree.propagation.echoes.Echoes` and, for ground truth,
+keeps the block's fan (:class:`~sonar_embree.propagation.fan.BlockEchoes`).
 """
 from __future__ import annotations
 
@@ -12,13 +12,13 @@ import time
 
 import numpy as np
 
-from .. import multipath, refraction, swell
-from ..aim import AimPlan
-from ..buffers import Buffers
+from ..propagation import multipath, refraction, swell
+from ..propagation.aim import AimPlan
+from ..propagation.buffers import Buffers
 from ..config import FanSettings, Sonar
-from ..echoes import Echoes
-from ..fan import BlockEchoes, FanPlan, cast_block
-from ..processing import absorption_np_per_m
+from ..propagation.echoes import Echoes
+from ..propagation.fan import BlockEchoes, FanPlan, cast_block
+from ..signal.processing import absorption_np_per_m
 
 
 class SideScanFrontEnd:
@@ -26,7 +26,7 @@ class SideScanFrontEnd:
 
     channels = ("port", "starboard")
     supports_labels = True
-    #: Whether rays are aimed at the scene's objects (:mod:`sonar_embree.aim`) besides the fan's.
+    #: Whether rays are aimed at the scene's objects (:mod:`sonar_embree.propagation.aim`) besides the fan's.
     aims = True
 
     def __init__(self, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1):
@@ -70,9 +70,9 @@ class SideScanFrontEnd:
         want_points, want_ids : bool
             Fill ``Echoes.point_m`` (speckle) and ``Echoes.object_id`` (ground truth).
         clock : dict
-            Timings, as for :func:`~sonar_embree.fan.cast_block`.
+            Timings, as for :func:`~sonar_embree.propagation.fan.cast_block`.
         rx_shift : (pings,) float64, optional
-            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.fan.cast_block`) on every path.
+            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.propagation.fan.cast_block`) on every path.
         """
         surface = self.sonar.environment.surface
         aim = self.aim_plan(caster.compiled)
@@ -132,7 +132,7 @@ class SideScanFrontEnd:
         return multipath.PathEchoes(parts, want_points, self.buffers, paths)
 
     def _aimed_rows(self, aimed, echoes: Echoes | None = None) -> Echoes:
-        """The echoes of the rays aimed at objects (:class:`~sonar_embree.aim.AimedEchoes`; ``echoes``: those of one
+        """The echoes of the rays aimed at objects (:class:`~sonar_embree.propagation.aim.AimedEchoes`; ``echoes``: those of one
         of their paths, aligned with them) in this type's rows (the side-scan's: as cast)."""
         return aimed.echoes if echoes is None else echoes
 

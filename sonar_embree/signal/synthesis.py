@@ -1,6 +1,6 @@
 """The back end: echoes → received signal per (ping, channel), then detected intensity.
 
-Reads only :class:`~sonar_embree.echoes.Echoes` (docs/physics.md §3–5):
+Reads only :class:`~sonar_embree.propagation.echoes.Echoes` (docs/physics.md §3–5):
 
 - :class:`ExpectedSynthesis` (speckle-free): every echo's weight spread over the
   travel-time interval of its footprint, then one convolution with the pulse
@@ -18,9 +18,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import kernels, multipath, processing, pulses
-from .config import Pulse, SignalChain
-from .echoes import Echoes, merged, select
+from .. import kernels
+from ..propagation import multipath
+from . import processing, pulses
+from ..config import Pulse, SignalChain
+from ..propagation.echoes import Echoes, merged, select
 from .processing import convolve_time
 
 

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
-from .laws import Composite, Kirchhoff, Lambert
-from .laws.composite import Summable
+from ..errors import ConfigError
+from . import Composite, Kirchhoff, Lambert
+from .composite import Summable
 
 
 def apl_density_ratio(mz_phi: float) -> float:

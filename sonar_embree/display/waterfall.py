@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 
 def to_ground_range(intensity, slant_range_m, altitude_m, n_columns=None, ground_m=None):

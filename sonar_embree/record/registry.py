@@ -11,7 +11,9 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from ..errors import ConfigError
-from .files import atomic_folder
+from ..io.files import atomic_folder
+from ..sonars.forward_looking import save_fan_png
+from ..sonars.msis import save_polar_png
 
 
 @dataclass(frozen=True)
@@ -21,7 +23,7 @@ class WriteOptions:
     Attributes
     ----------
     display : dict
-        Waterfall display keywords (:func:`sonar_embree.waterfall.waterfall_image`,
+        Waterfall display keywords (:func:`sonar_embree.display.waterfall.waterfall_image`,
         ``max_columns`` included): the PNG, and the columns of the label PNG and COCO boxes.
     categories : sequence of str, optional
         COCO categories (default: the record's objects).
@@ -64,19 +66,15 @@ def _zarr(rec, path, o):
 
 
 def _polar(rec, path, o):
-    from ..sonars.msis import save_polar_png
-
     save_polar_png(rec, path)
 
 
 def _fan(rec, path, o):
-    from ..sonars.forward_looking import save_fan_png
-
     save_fan_png(rec, path)
 
 
 def _xtf(rec, path, o):
-    from .xtf import to_xtf
+    from ..io.xtf import to_xtf
 
     to_xtf(rec, path)
 

@@ -23,11 +23,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import kernels
-from .kernels import aim as aim_kernels
+from .. import kernels
+from ..kernels import aim as aim_kernels
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import BlockEchoes, cast_block
+from ..config import Material
+from ..raycast import RayCaster
+from ..scene import Scene
 
 #: Visibility rays start this far along their leg (m), off the surface they leave.
 LEG_EPSILON_M = 1e-3
@@ -113,10 +116,6 @@ def surface_caster(caster, surface, max_range_m: float):
 
     Kept with the scene's compiled arrays (built once per scene, surface and range).
     """
-    from .config import Material
-    from .raycast import RayCaster
-    from .scene import Scene
-
     c = caster.compiled
 
     def make():
@@ -177,7 +176,7 @@ def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
     """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked.
 
     The image moves along track as the sonar does: ``rx_shift`` (pings,) δ = 2·v_fwd/c (None: stop-and-hop).
-    With ``aim`` (:class:`~sonar_embree.aim.AimPlan`) the image aims rays at the objects too (its block's
+    With ``aim`` (:class:`~sonar_embree.propagation.aim.AimPlan`) the image aims rays at the objects too (its block's
     ``aimed``; :func:`image_aimed_echoes`) and its fan's hits on them count nothing."""
     s = front.sonar
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
@@ -275,7 +274,7 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
 
 def mixed_aimed_echoes(front, caster, aimed, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
     """The one-bounce echoes (:func:`mixed_echoes`) of the rays aimed at objects (``aimed``:
-    :class:`~sonar_embree.aim.AimedEchoes`, with points), each with its own cell (layout); object ids kept."""
+    :class:`~sonar_embree.propagation.aim.AimedEchoes`, with points), each with its own cell (layout); object ids kept."""
     e = aimed.echoes
     r = np.where(np.isfinite(e.travel_time_s), 0.5 * front.sonar.sound_speed_m_s * e.travel_time_s, np.inf)
     w, t, ext = _mixed(front, caster, Buffers(), e.ray_start, e.ray_start, front.plan.s, np.zeros(0), np.zeros(0),
@@ -318,7 +317,7 @@ class PathEchoes:
 
     A back end that only adds echoes up (the speckle-free splatting) takes ``parts`` one after the other: row by
     row that is the merged order, so the same bits, without the merge. Everything else takes :meth:`merged`
-    (:func:`sonar_embree.echoes.merged`), made on first use.
+    (:func:`sonar_embree.propagation.echoes.merged`), made on first use.
     """
 
     def __init__(self, parts, points: bool, buf: Buffers | None = None, paths=None):

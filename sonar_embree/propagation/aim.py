@@ -1,6 +1,6 @@
 """Rays aimed at the objects: every object in the beam is seen, whatever the fan's line spacing (docs/physics.md §7b).
 
-The fan (:mod:`sonar_embree.fan`) places its rays where the floor needs them; an object narrower than its
+The fan (:mod:`sonar_embree.propagation.fan`) places its rays where the floor needs them; an object narrower than its
 azimuth-line spacing is sampled by luck. Each row (ping, side) therefore also aims a lattice of rays at every
 object that is not seafloor and can echo inside the range window and the row's span: a uniform grid of cells in
 the fan's own coordinates (s, β), whose solid angle is exactly ds·dβ, tiling the part of the object's bounding
@@ -19,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import checks, kernels
+from .. import checks, kernels
 from .echoes import Echoes
-from .kernels import aim as K
-from .laws import apply_laws
+from ..kernels import aim as K
+from ..laws import apply_laws
 
 #: Rays across an object's bounding cone, each way, at quality 1 (× √quality): balls of 2–25 cm within 0.3 dB
 #: of their closed forms in every ping (16 gave 0.35 dB at four times the rays; docs/benchmarks.md).
@@ -47,7 +47,7 @@ class AimPlan:
 
     @classmethod
     def build(cls, compiled, plan, quality: float, kappa: float = 0.0) -> "AimPlan | None":
-        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.fan.FanPlan`), rays of curvature up
+        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.propagation.fan.FanPlan`), rays of curvature up
         to ``kappa`` (1/m); None when every object is seafloor (nothing to aim at: the fan alone, at no cost)."""
         span = (plan.s[0] - 0.5 * plan.ds, plan.s[-1] + 0.5 * plan.ds, plan.probe_beta[0], plan.probe_beta[-1],
                 plan.ds, plan.max_step_rad)
@@ -113,7 +113,7 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, two_way_np_p
     plan : FanPlan
     rot : (pings, 3, 3) float64; pos_local : (pings, 3) float64; rx_shift : (pings,) float64
     two_way_np_per_m, max_range_m, time_per_m : float
-        As for :func:`sonar_embree.fan.cast_block` (``max_range_m`` the range searched).
+        As for :func:`sonar_embree.propagation.fan.cast_block` (``max_range_m`` the range searched).
     want_points : bool
         Keep the hit points (speckle, maps, textures).
     frequency_hz : float

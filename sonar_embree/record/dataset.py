@@ -9,7 +9,8 @@ import tempfile
 
 import numpy as np
 
-from ..labels import KIND_NAMES, SIDES, Labels
+from ..signal.labels import KIND_NAMES, SIDES, Labels
+from ..errors import ConfigError
 
 #: Pings per Zarr chunk (each chunk holds whole pings).
 PING_CHUNK = 256
@@ -86,7 +87,7 @@ def _ping_coords(record) -> dict:
         coords["ping_time"] = (("ping",), t.times_s, {"units": f"seconds since {stamp}", "calendar": "standard",
                                                       "standard_name": "time", "long_name": "ping time (UTC)"})
     if t.crs is not None:
-        from ..geo import to_lonlat
+        from ..io.geo import to_lonlat
 
         lon, lat = to_lonlat(t.crs, t.positions_m[:, 0], t.positions_m[:, 1])
         coords["lon"] = (("ping",), lon, {"units": "degrees_east", "standard_name": "longitude",
@@ -98,7 +99,7 @@ def _ping_coords(record) -> dict:
 
 def _crs_variable(crs: str) -> tuple:
     """The CF grid-mapping variable of a projected CRS (its WKT, which GDAL and pyproj read back)."""
-    from ..geo import crs_wkt
+    from ..io.geo import crs_wkt
 
     wkt = crs_wkt(crs)
     return ((), np.int32(0), {"crs_wkt": wkt, "spatial_ref": wkt, "long_name": f"coordinate reference system {crs}",
@@ -230,8 +231,6 @@ def _is_own_store(path: str) -> bool:
 def replace_dir(path, write_fn) -> None:
     """Call ``write_fn(tmp_dir_path)`` then move the finished folder onto ``path``: never half a store. What is
     at ``path`` must be nothing, an empty folder or a store this package wrote: anything else is refused."""
-    from ..errors import ConfigError
-
     path = os.path.abspath(os.fspath(path))
     parent = os.path.dirname(path)
     if not os.path.isdir(parent):
@@ -274,7 +273,6 @@ def open_parts(path) -> dict:
     ``ship_positions_m``) read in full. A store without the record's metadata is refused in one line."""
     import xarray as xr
 
-    from ..errors import ConfigError
 
     if not _is_own_store(path):
         raise ConfigError(f"{path}: not a Zarr store written by sonar_embree")

@@ -13,7 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..io.files import atomic_write
+from ..raycast import RayCaster
+from ..scene import TiledDEM
+from ..trajectory import body_to_world
 
 
 @dataclass(frozen=True)
@@ -58,7 +62,7 @@ class Mosaic:
     def to_geotiff(self, path) -> None:
         """Write the mosaic as a two-band GeoTIFF with its CRS: the values (named by ``values``, unit ``units``) and
         height_m (m); NaN (the nodata value) where no sample; average overviews down to about 256 pixels."""
-        from .io.geotiff import write_grid
+        from ..io.geotiff import write_grid
 
         write_grid(path, np.stack([self.intensity, self.height_m]), self.x0_m, self.y0_m, self.pixel_m, self.crs,
                    names=(self.values, "height_m"), units=(self.units, "m"), overviews=True)
@@ -68,7 +72,6 @@ class Mosaic:
         ``dynamic_range_db`` below; transparent where no sample); atomic."""
         import imageio.v3 as iio
 
-        from .io.files import atomic_write
 
         v = self.intensity
         lit = np.isfinite(v) & (v > 0)
@@ -138,7 +141,6 @@ def _raw_blocks(source, values: str, block: int = 1000):
             sides = (source.port, source.starboard)
         yield t.positions_m, t.rotations(), lab.ground_range_m, lab.height_m, *sides
         return
-    from .trajectory import body_to_world
 
     ds = _dataset(source)
     names = ("port_samples", "starboard_samples") if values == "codes" else ("port", "starboard")
@@ -213,7 +215,7 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensit
     Parameters
     ----------
     records : Record, Zarr store path or xarray Dataset, or a sequence of them
-        Survey lines simulated with ``labels=True`` (stores streamed by :func:`sonar_embree.stream.render_line`
+        Survey lines simulated with ``labels=True`` (stores streamed by :func:`sonar_embree.survey.stream.render_line`
         are read a block of pings at a time), in one CRS.
     pixel_m : float
         Pixel size, m.
@@ -344,8 +346,6 @@ def truth(scene, grid: Mosaic, caster=None) -> np.ndarray:
     """The scene's height under each pixel centre of ``grid``, (ny, nx) m (NaN where nothing is below): the first
     hit of a vertical ray cast down from above the scene (for a DEM, the DEM resampled onto the grid). A
     :class:`~sonar_embree.TiledDEM` is taken strip by strip of grid rows, with the tiles under each strip."""
-    from .scene import TiledDEM
-
     cx, cy = grid.centres()
     if not isinstance(scene, TiledDEM):
         return _truth_of(scene, cx, cy, caster)
@@ -361,8 +361,6 @@ def truth(scene, grid: Mosaic, caster=None) -> np.ndarray:
 
 
 def _truth_of(scene, cx, cy, caster=None) -> np.ndarray:
-    from .raycast import RayCaster
-
     xx, yy = np.meshgrid(cx, cy)
     compiled = scene.compiled()
     top = float(scene.bounds[1, 2]) + 1.0
@@ -378,7 +376,7 @@ def write_truth(path, scene, grid: Mosaic) -> np.ndarray:
 
     ``scene``: a :class:`~sonar_embree.Scene` or a :class:`~sonar_embree.TiledDEM`, in the grid's CRS (two
     different CRSs are refused: the truth would be labelled with the wrong one)."""
-    from .io.geotiff import write_grid
+    from ..io.geotiff import write_grid
 
     crs = getattr(scene, "crs", None)
     if crs is not None and grid.crs is not None and crs != grid.crs:

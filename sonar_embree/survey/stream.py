@@ -25,9 +25,13 @@ import warnings
 
 import numpy as np
 
-from .errors import ConfigError
-from .io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
-from .validation import check_bool
+from ..errors import ConfigError
+from ..io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
+from ..validation import check_bool
+from ..config import Sonar
+from ..record import Record
+from ..scene import TiledDEM
+from ..simulate import tile_reach_m
 
 log = logging.getLogger(__name__)
 
@@ -172,8 +176,8 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_opts):
     """Create the store (metadata, sample coordinates) and the XTF header from the first block's record.
 
     The progress file (the marker that makes the folder this stream's) is written before anything else."""
-    from .io.dataset import to_xarray
-    from .io.xtf import xtf_bytes
+    from ..record.dataset import to_xarray
+    from ..io.xtf import xtf_bytes
 
     progress = {"fingerprint": fingerprint, "pings_done": 0, "n_pings": n_pings, "block_pings": block,
                 "xtf": None, "xtf_path": xtf_path}
@@ -207,7 +211,7 @@ def _own_files_quiet():
 
 
 def _scale_of(record, scale) -> float:
-    from .io.xtf import sample_scale
+    from ..io.xtf import sample_scale
 
     return 1.0 if record.samples is not None else sample_scale(record, scale)
 
@@ -228,8 +232,8 @@ def _fsync_block(path: str, ds, k: int) -> None:
 
 def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
     """The block's pings into their Zarr region and onto the XTF, flushed to disk; then counted as done."""
-    from .io.dataset import to_xarray
-    from .io.xtf import xtf_bytes
+    from ..record.dataset import to_xarray
+    from ..io.xtf import xtf_bytes
 
     ds = to_xarray(rec)
     ds = ds.drop_vars([n for n, v in ds.variables.items() if "ping" not in v.dims])
@@ -321,8 +325,6 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         except OSError as exc:
             raise os_error_line(exc, exc.filename or path) from None
     if png_path is not None:
-        from .record import Record
-
         Record.load(path).save_png(png_path, aspect=True, max_rows=PNG_MAX_ROWS)
     return path
 
@@ -333,7 +335,7 @@ PNG_MAX_ROWS = 8192
 
 def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
                 simulate_kwargs) -> None:
-    from .simulate import progress_bar as pings_bar, simulate
+    from ..simulate import progress_bar as pings_bar, simulate
 
     n = len(trajectory)
     a = first = 0 if progress is None else progress["pings_done"]
@@ -359,11 +361,7 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
 def _block_scene(scene, block, sonar):
     """The scene of a block: a :class:`~sonar_embree.TiledDEM`'s tiles within reach of its pings (kept while
     the next blocks need the same tiles), else the scene itself."""
-    from .scene import TiledDEM
-    from .simulate import tile_reach_m
-
     if not isinstance(scene, TiledDEM):
         return scene
-    from .config import Sonar
 
     return scene.scene_around(block.positions_m, tile_reach_m(sonar or Sonar()))

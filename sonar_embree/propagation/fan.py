@@ -17,11 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import beam, checks, kernels
+from ..instrument import beam
+from .. import checks, kernels
 from .aim import aim_block, drop_aimed
-from .config import FanSettings, Sonar
-from .laws import apply_laws
-from .raycast import Caster
+from ..config import FanSettings, Sonar
+from ..laws import apply_laws
+from ..raycast import Caster
 
 #: A probe cell with nothing within range on both ends and both neighbours gets this
 #: many times the largest step: next to no rays, yet no blind spot.
@@ -158,7 +159,7 @@ class BlockEchoes:
     dbeta: np.ndarray       # (el_start[-1],) its cell width, rad
     prim: np.ndarray        # (n,) int32 triangle hit by each ray, −1 for none
     tfar: np.ndarray        # (n,) float32 Embree's hit distance, m
-    aimed: object = None    # AimedEchoes of the rays aimed at objects (sonar_embree.aim), or None
+    aimed: object = None    # AimedEchoes of the rays aimed at objects (sonar_embree.propagation.aim), or None
     kept_weight: np.ndarray | None = None  # (n,) ``weight`` without the hits on aimed objects (None: none aimed)
     plan: FanPlan | None = None  # the block's fan: the plan's lines and those added under motion (moving_lines)
 
@@ -266,7 +267,7 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
         Motion during the ping: the receive beam's along-track direction-cosine offset δ = 2·v_fwd/c
         per ping (default: zeros, stop-and-hop; see :func:`kernels.fan_echoes`).
     aim : AimPlan, optional
-        The objects to aim rays at (:mod:`sonar_embree.aim`); None: the fan alone.
+        The objects to aim rays at (:mod:`sonar_embree.propagation.aim`); None: the fan alone.
     """
     t0 = time.perf_counter()
     n_p = rot.shape[0]

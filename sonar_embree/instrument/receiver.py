@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
-from .validation import check_bool, check_number, from_table
+from ..errors import ConfigError
+from ..validation import check_bool, check_number, from_table, warn_once
 
 
 #: Largest gain law, as a power of ten of the voltage factor, that keeps the gained volts finite in float64.
@@ -65,8 +65,6 @@ class TVG:
                               f"{alpha_db_per_m:g} dB/m absorption, beyond float64 (every sample would clip); lower "
                               "the absorption (a value in dB/km?) or max_range_m, or set TVG(absorption=False)")
         if g > MAX_DEVICE_TVG_DB:
-            from .checks import warn_once
-
             warn_once(f"Receiver TVG: the gain reaches {g:.0f} dB at max_range_m = {max_range_m:g} m, beyond "
                       f"the {MAX_DEVICE_TVG_DB:g} dB a device's TVG spans; the far range will clip")
 

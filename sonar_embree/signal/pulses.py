@@ -174,7 +174,7 @@ def expected_kernel(pulse, carrier_hz: float, sample_rate_hz: float, matched_fil
 
     Without matched filtering this is :func:`intensity_kernel` (|p|², causal).
     With it, |q(t)|² of the matched-filter output q(t) = Σ_m p̃(t + m/fs)·p̃*(m/fs) / Σ|p̃|²
-    (the record-rate correlator of :func:`sonar_embree.processing.matched_filter` applied
+    (the record-rate correlator of :func:`sonar_embree.signal.processing.matched_filter` applied
     to a continuous unit echo at t = 0; q(0) = 1), which extends one pulse length before
     and after the echo time; see :func:`compressed_grid`.
 

@@ -8,12 +8,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .config import Pulse
-from .errors import ConfigError
-from .io.files import atomic_write
-from .labels import Labels
-from .sonars import SONAR_TYPES
-from .trajectory import Trajectory
+from ..config import Pulse
+from ..errors import ConfigError
+from ..io.files import atomic_write
+from ..signal.labels import Labels
+from ..sonars import SONAR_TYPES
+from ..trajectory import Trajectory
+from ..display.waterfall import waterfall_image
 
 FORMAT_VERSION = 2
 
@@ -127,7 +128,7 @@ class Record:
     def metadata(self) -> dict:
         """What a file needs beside the arrays to make this record again: format, sonar, pulse, settings, channels,
         the trajectory's CRS and start time, the labels' names (JSON-serialisable)."""
-        from ._version import __version__
+        from .._version import __version__
 
         meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
                 "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),
@@ -168,7 +169,7 @@ class Record:
     @classmethod
     def load(cls, path) -> "Record":
         """Read a record written by :meth:`save` (.npz), or open a Zarr store written by :meth:`to_zarr` or streamed
-        by :func:`~sonar_embree.stream.render_line` (a folder) lazily: its intensities (and labels) stay on disk as
+        by :func:`~sonar_embree.survey.stream.render_line` (a folder) lazily: its intensities (and labels) stay on disk as
         dask arrays, read a block of pings at a time by what uses them (:meth:`save_png` draws any length)."""
         path = os.fspath(path)
         if os.path.isdir(path):
@@ -191,8 +192,8 @@ class Record:
 
     @classmethod
     def _open_store(cls, path) -> "Record":
-        """The record of a Zarr store, its arrays left on disk (:func:`sonar_embree.io.dataset.open_parts`)."""
-        from .io.dataset import open_parts
+        """The record of a Zarr store, its arrays left on disk (:func:`sonar_embree.record.dataset.open_parts`)."""
+        from .dataset import open_parts
 
         parts = open_parts(path)
         return cls._assemble(parts.pop("meta"), parts)
@@ -214,14 +215,14 @@ class Record:
                    labels, p.get("complex_data"), tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"))
 
     def to_xarray(self):
-        """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.io.dataset.to_xarray`)."""
-        from .io.dataset import to_xarray
+        """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.record.dataset.to_xarray`)."""
+        from .dataset import to_xarray
 
         return to_xarray(self)
 
     def to_zarr(self, path) -> None:
-        """Write a Zarr store that ``xarray.open_zarr`` opens lazily; atomic (see :mod:`sonar_embree.io.dataset`)."""
-        from .io.dataset import to_zarr
+        """Write a Zarr store that ``xarray.open_zarr`` opens lazily; atomic (see :mod:`sonar_embree.record.dataset`)."""
+        from .dataset import to_zarr
 
         to_zarr(self, path)
 
@@ -236,7 +237,7 @@ class Record:
         (default ``attrs["start_time"]``); ``samples_per_channel`` decimates each side to that many samples as a
         device does. Conventions in :mod:`sonar_embree.io.xtf`.
         """
-        from .io.xtf import to_xtf
+        from ..io.xtf import to_xtf
 
         to_xtf(self, path, start=start, scale=scale, surface_z_m=surface_z_m, samples=samples,
                samples_per_channel=samples_per_channel)
@@ -245,16 +246,14 @@ class Record:
         """Write COCO JSON with each object's box in the waterfall PNG ``file_name``; atomic.
 
         The PNG must be written with the same ``max_columns`` (:meth:`save_png`).
-        See :func:`sonar_embree.io.coco.coco_dict`.
+        See :func:`sonar_embree.record.coco.coco_dict`.
         """
-        from .io.coco import coco_dict, write_json
+        from .coco import coco_dict, write_json
 
         write_json(coco_dict(self, file_name, categories=categories, max_columns=max_columns), path)
 
     def waterfall(self, **kwargs) -> np.ndarray:
-        """The waterfall as an 8-bit image; keywords as :func:`sonar_embree.waterfall.waterfall_image`."""
-        from .waterfall import waterfall_image
-
+        """The waterfall as an 8-bit image; keywords as :func:`sonar_embree.display.waterfall.waterfall_image`."""
         return waterfall_image(self, **kwargs)
 
     def save_png(self, path, **kwargs) -> None:

@@ -17,7 +17,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .errors import ConfigError
+from ..errors import ConfigError
+from .beam import sinc_root
+from .receiver import Receiver
 
 
 @dataclass(frozen=True)
@@ -84,8 +86,6 @@ class Device:
         its ADC's bits (:attr:`adc_bits`), and what no datasheet found states, assumed (:data:`ASSUMED_RECEIVER`):
         an AGC bringing the moving RMS to a quarter of full scale, a −190 dB re 1 V/µPa hydrophone, 1 V full
         scale. ``Sonar.preset(name, receiver=device(name).receiver())``."""
-        from .receiver import Receiver
-
         return Receiver(adc_bits=self.adc_bits, **ASSUMED_RECEIVER)
 
     @property
@@ -94,7 +94,6 @@ class Device:
         whose two-way −3 dB width it is (sinc(x₁) = 2^(−1/2), sinc(x₂) = 2^(−1/4): sin(θ₁/2) = sin(θ₂/2)·x₁/x₂)."""
         if not self.azimuth_two_way:
             return self.azimuth_deg
-        from .beam import sinc_root
 
         s = math.sin(math.radians(0.5 * self.azimuth_deg)) * sinc_root(2 ** -0.5) / sinc_root(2 ** -0.25)
         return 2.0 * math.degrees(math.asin(s))

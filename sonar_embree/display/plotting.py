@@ -1,6 +1,6 @@
 """Figures (the only module that imports matplotlib, an optional dependency: ``pip install sonar_embree[plots]``).
 
-Waterfall images themselves need no plotting library (:mod:`sonar_embree.waterfall`);
+Waterfall images themselves need no plotting library (:mod:`sonar_embree.display.waterfall`);
 this module draws the figures around them: mode comparisons, brightness histograms,
 line plots and plan views of tracks.
 """
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import ConfigError
-from .io.files import atomic_write
+from ..errors import ConfigError
+from ..io.files import atomic_write
 
 
 def _pyplot():

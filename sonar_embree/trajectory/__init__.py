@@ -15,8 +15,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
-from .validation import check_number, iso_utc  # noqa: F401 (iso_utc re-exported: its old home)
+from ..errors import ConfigError
+from ..validation import check_number, iso_utc  # noqa: F401 (iso_utc re-exported: its old home)
+from ..io.files import atomic_write
+from .motion import interpolate_poses
+from .motion import jitter
+from .motion import layback_positions
+from .motion import track_heading_deg
 
 # World (east, north, up) from aerospace NED (north, east, down).
 _ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
@@ -101,7 +106,7 @@ class Trajectory:
         :meth:`through_waypoints` set it from their speed): then the sonar moves during each ping
         (docs/physics.md §16). ``None`` (a bare or CSV trajectory): stop-and-hop.
     crs : int or str or None
-        The projected CRS of the positions (an EPSG code or a CRS string, metres; :mod:`sonar_embree.geo`),
+        The projected CRS of the positions (an EPSG code or a CRS string, metres; :mod:`sonar_embree.io.geo`),
         stored as "EPSG:…"; ``None``: local metres.
     start_time : datetime or str or None
         The UTC time of ``times_s`` = 0 (ISO 8601), when known (navigation logs): :func:`~sonar_embree.simulate`
@@ -151,7 +156,7 @@ class Trajectory:
                 raise ConfigError(f"Trajectory.ship_positions_m must have shape ({n}, 3), got {ship.shape}")
             object.__setattr__(self, "ship_positions_m", ship)
         if self.crs is not None:
-            from .geo import crs_name
+            from ..io.geo import crs_name
 
             object.__setattr__(self, "crs", crs_name(self.crs))
         if self.start_time is not None:
@@ -303,8 +308,6 @@ class Trajectory:
     def with_motion(self, motion, seed: int = 0) -> "Trajectory":
         """This trajectory with the attitude and heave jitter of ``motion`` (:class:`~sonar_embree.Motion`)
         added at its ping times, frozen by ``seed``."""
-        from .motion import jitter
-
         d = jitter(motion, self.times_s, seed)
         pos = self.positions_m.copy()
         pos[:, 2] += d["heave_m"]
@@ -318,7 +321,7 @@ class Trajectory:
 
     def at_times(self, times_s) -> "Trajectory":
         """The poses at ``times_s`` (s on this trajectory's clock, strictly increasing, within its first and last
-        time), interpolated as :func:`~sonar_embree.motion.interpolate_poses` does (positions by PCHIP through the
+        time), interpolated as :func:`~sonar_embree.trajectory.motion.interpolate_poses` does (positions by PCHIP through the
         fixes, heading along the shorter turn, the rest linearly); the CRS and start time are kept. At the
         trajectory's own times the poses are its own."""
         t = _as_float_array("times_s", times_s)
@@ -328,7 +331,6 @@ class Trajectory:
         if t[0] < lo - 1e-9 or t[-1] > hi + 1e-9:
             raise ConfigError(f"Trajectory.at_times: times {t[0]:g}…{t[-1]:g} s reach outside the trajectory's "
                               f"{lo:g}…{hi:g} s")
-        from .motion import interpolate_poses
 
         t = np.clip(t, lo, hi)
         pos, heading, pitch, roll, vel = interpolate_poses(self.times_s, self.positions_m, self.heading_deg,
@@ -354,7 +356,7 @@ class Trajectory:
         """The sonar towed behind the navigation: this trajectory's positions become the ship's
         (:attr:`ship_positions_m`, at the tow point's height) and the sonar follows the ship's track ``layback_m``
         behind along it
-        (:func:`~sonar_embree.motion.layback_positions`), at this trajectory's heights, heading along the track.
+        (:func:`~sonar_embree.trajectory.motion.layback_positions`), at this trajectory's heights, heading along the track.
 
         Give ``layback_m`` (horizontal distance, m) or ``cable_out_m``: a straight cable from a tow point at
         height ``tow_point_z_m`` (world m; default 0, the sea surface of a DEM's vertical datum) to the sonar,
@@ -373,7 +375,6 @@ class Trajectory:
                 raise ConfigError(f"Trajectory.with_layback: cable_out_m={cable_out_m:g} is shorter than the sonar's "
                                   f"depth below the tow point ({dz.max():.4g} m)")
             back = np.sqrt(cable_out_m ** 2 - dz ** 2)
-        from .motion import layback_positions
 
         pos, heading = layback_positions(self.positions_m, back)
         ship = self.positions_m.copy() if self.ship_positions_m is None else self.ship_positions_m
@@ -399,9 +400,9 @@ class Trajectory:
 
         Columns (any order): the position as ``x_m, y_m`` (world metres, in ``crs`` when given) or as
         ``lat_deg, lon_deg`` (WGS 84, projected into ``crs``; default the UTM zone of the first fix,
-        :func:`sonar_embree.geo.utm_crs`), and its height as ``z_m`` (up) or ``depth_m`` (down from z = 0, the
+        :func:`sonar_embree.io.geo.utm_crs`), and its height as ``z_m`` (up) or ``depth_m`` (down from z = 0, the
         vertical datum of a DEM); ``heading_deg`` (without it: the track's heading over ground,
-        :func:`~sonar_embree.motion.track_heading_deg`, with a one-line notice), ``pitch_deg``, ``roll_deg``
+        :func:`~sonar_embree.trajectory.motion.track_heading_deg`, with a one-line notice), ``pitch_deg``, ``roll_deg``
         (default 0); the ping times as
         ``time_s`` (s) or ``time`` (ISO 8601, e.g. 2026-05-01T12:00:00.25Z: ``times_s`` from the first, which
         becomes ``start_time``); the velocity ``vx_m_s, vy_m_s, vz_m_s`` (all three or none). Without velocity
@@ -417,8 +418,6 @@ class Trajectory:
             times, start = _csv_times(col)
             heading = col.get("heading_deg")
             if heading is None and xyz.shape[0] > 1:
-                from .motion import track_heading_deg
-
                 heading = track_heading_deg(xyz, np.arange(xyz.shape[0], dtype=float) if times is None else times)
                 log.warning("%s: no heading_deg column: the sonar's heading follows the track over ground", path)
             traj = cls(xyz, 0.0 if heading is None else heading, col.get("pitch_deg", 0.0),
@@ -437,8 +436,8 @@ class Trajectory:
         surface at z = 0), attitude from the Sensor fields, ``times_s`` from the first ping's time, which becomes
         ``start_time``. The velocity is not read (stop-and-hop unless set from the times, as for CSV).
         """
-        from .geo import from_lonlat, utm_crs
-        from .io.xtf import NAV_UNITS_LATLON, read_navigation
+        from ..io.geo import from_lonlat, utm_crs
+        from ..io.xtf import NAV_UNITS_LATLON, read_navigation
 
         nav = read_navigation(path)
         x, y = nav["x"], nav["y"]
@@ -461,7 +460,7 @@ class Trajectory:
         data = np.column_stack(cols + ([self.velocity_m_s] if self.velocity_m_s is not None else []))
         text = [[f"{v:.17g}" for v in row] for row in data]
         if self.crs is not None:
-            from .geo import to_lonlat
+            from ..io.geo import to_lonlat
 
             lon, lat = to_lonlat(self.crs, self.positions_m[:, 0], self.positions_m[:, 1])
             names[1:3] = ["lat_deg", "lon_deg"]
@@ -474,7 +473,6 @@ class Trajectory:
             names[0] = "time"
             for row, t in zip(text, self.times_s):
                 row[0] = (t0 + dt.timedelta(seconds=float(t))).isoformat()
-        from .io.files import atomic_write
 
         def write(tmp):
             with open(tmp, "w", newline="") as fh:
@@ -533,7 +531,7 @@ def _csv_position(col: dict, crs):
     z = col["z_m"] if "z_m" in col else -col["depth_m"]
     if "lat_deg" not in col:
         return np.stack([col["x_m"], col["y_m"], z], axis=1), crs
-    from .geo import from_lonlat, utm_crs
+    from ..io.geo import from_lonlat, utm_crs
 
     crs = crs if crs is not None else utm_crs(float(col["lon_deg"][0]), float(col["lat_deg"][0]))
     x, y = from_lonlat(crs, col["lon_deg"], col["lat_deg"])

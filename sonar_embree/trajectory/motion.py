@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
-from .validation import check_number
+from ..errors import ConfigError
+from ..validation import check_number
 
 #: Components and their stream tags (one generator per component: adding one leaves the others unchanged).
 COMPONENTS = {"yaw_deg": 1, "pitch_deg": 2, "roll_deg": 3, "heave_m": 4}

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
+from ..trajectory import Trajectory
 
 log = logging.getLogger(__name__)
 
@@ -164,8 +165,6 @@ def line_trajectories(lines, z_m: float, speed_m_s: float, ping_rate_hz: float, 
     """One :class:`~sonar_embree.Trajectory` per survey line at height ``z_m``, ``speed_m_s`` and a ping every
     1/``ping_rate_hz`` s (the last ping at or before the line's end; lines shorter than one ping's advance are
     left out); line k starts when line k − 1 ended (the turns take no time: they are not surveyed)."""
-    from .trajectory import Trajectory
-
     speed_m_s = _finite("line_trajectories", "speed_m_s", speed_m_s, 0.0, 50.0, lo_open=True)
     ping_rate_hz = _finite("line_trajectories", "ping_rate_hz", ping_rate_hz, 0.0, 1000.0, lo_open=True)
     z_m = _finite("line_trajectories", "z_m", z_m, -12_000.0, 1e4)

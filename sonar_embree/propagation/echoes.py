@@ -60,7 +60,7 @@ class Echoes:
 
 def merged(e) -> Echoes:
     """The one :class:`Echoes` of a block: ``e`` itself, or the merge of a block whose paths a front end kept
-    apart (:class:`sonar_embree.multipath.PathEchoes`, merged on first use)."""
+    apart (:class:`sonar_embree.propagation.multipath.PathEchoes`, merged on first use)."""
     return e.merged() if hasattr(e, "merged") else e
 
 

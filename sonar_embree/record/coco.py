@@ -1,7 +1,7 @@
 """Objects in the waterfall image as COCO JSON: boxes and RLE masks (standard library and NumPy only).
 
 One annotation per connected piece (8-connected) of an object's echo in the
-waterfall image (:meth:`~sonar_embree.labels.Labels.echo_mask`), with its box, area
+waterfall image (:meth:`~sonar_embree.signal.labels.Labels.echo_mask`), with its box, area
 and its mask as compressed run-length encoding, COCO's column-major RLE that
 ``pycocotools.mask.decode`` / ``COCO.annToMask`` read.
 """
@@ -11,7 +11,9 @@ import json
 
 import numpy as np
 
-from .files import atomic_write
+from ..io.files import atomic_write
+from ..errors import ConfigError
+from ..signal.labels import _bbox
 
 
 def category_of(label: str) -> str:
@@ -95,9 +97,6 @@ def coco_dict(record, file_name: str, categories=None, image_id: int = 0, first_
         ``segmentation`` (compressed RLE), ``iscrowd`` 0, plus ``object_label`` and
         ``shadow_bbox``) and ``categories``.
     """
-    from ..errors import ConfigError
-    from ..labels import _bbox
-
     lab = record.labels
     if lab is None:
         raise ConfigError("COCO boxes need labels: simulate(..., labels=True)")

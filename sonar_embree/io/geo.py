@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 #: Geographic coordinates in and out: WGS 84 longitude/latitude, degrees.
 LONLAT = "EPSG:4326"

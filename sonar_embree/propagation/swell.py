@@ -1,6 +1,6 @@
 """Sea-surface multipath off a wavy surface (a swell): one Embree reflection per ray (docs/physics.md §13).
 
-For a flat surface the image method gives every path in closed form (:mod:`sonar_embree.multipath`). A swell
+For a flat surface the image method gives every path in closed form (:mod:`sonar_embree.propagation.multipath`). A swell
 is meshed (:meth:`SeaSurface.mesh`) and the rays bounce on it:
 
 - The image fan is placed as for the flat mean surface (its probes from the mirrored pose), so rays are
@@ -23,12 +23,12 @@ import math
 
 import numpy as np
 
-from . import checks, kernels
+from .. import checks, kernels
 from .buffers import Buffers
 from .echoes import Echoes
-from .kernels import aim as K
+from ..kernels import aim as K
 from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
-from .laws import apply_laws
+from ..laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
                         surface_caster, surface_strips, wants_azimuth)
 
@@ -38,7 +38,7 @@ def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
     where the two-bounce range R or the one-bounce range (R + r)/2 lies in the window and changes fast.
 
     ``window_m``: the window with the swell's slack; ``max_range_m``: the farthest R probed. Returns
-    (el_start, beta, dbeta, seconds in the caster), as :func:`sonar_embree.fan.probe_rows`."""
+    (el_start, beta, dbeta, seconds in the caster), as :func:`sonar_embree.propagation.fan.probe_rows`."""
     big_r, dirs, t_embree = probe_ranges(caster, plan, rot_i, pos_i, max_range_m)
     r = np.linalg.norm(pos_i[:, None, :] + big_r[..., None] * dirs - pos_local[:, None, :], axis=2)
     lines = [np.where(v <= window_m, v, np.nan).reshape(2 * dirs.shape[0], -1) for v in (big_r, 0.5 * (big_r + r))]
@@ -75,7 +75,7 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shi
 
 def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     """(facet, distance) of each ray's first hit on the swell's mesh of grid ``g``, in closed form
-    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.multipath.surface_caster` meshes, not cast)."""
+    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.propagation.multipath.surface_caster` meshes, not cast)."""
     n = dirs.shape[0]
     prim, t = buf.take("swell_hit_prim", n, np.int32), buf.take("swell_hit_t", n, np.float32)
     kernels.swell_surface_hits(org, dirs, origin_m, g.k, g.c, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,

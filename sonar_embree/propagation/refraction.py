@@ -1,6 +1,6 @@
 """Side-scan fans in a sound-speed profile: curved rays, chord by chord through the caster (docs/physics.md §12).
 
-The block's rays are placed as for straight rays (:func:`~sonar_embree.fan.elevation_rows`),
+The block's rays are placed as for straight rays (:func:`~sonar_embree.propagation.fan.elevation_rows`),
 from probes that are themselves curved rays (their apparent ranges c·T set the density, so rays
 follow the record's range where refraction stretches or folds it), launched with the fan's
 directions, and marched along their closed-form arcs (:mod:`sonar_embree.kernels.refraction`): each round
@@ -20,13 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import checks, kernels
+from .. import checks, kernels
 from .aim import AimedEchoes, drop_aimed, keep_own, lattice_rays
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import (PROBE_LINES, BlockEchoes, FanPlan, drop_lines, elevation_rows, moving_lines, nadir_altitude,
                   rays_per_ping)
-from .laws import apply_laws
+from ..laws import apply_laws
 
 #: A chord stands off its arc by at most this many of the sonar's range bins (its hits are moved onto the arc;
 #: the sagitta only decides which rays graze an edge).
@@ -131,12 +131,12 @@ def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffe
 def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
                    sonar, want_points: bool, clock: dict, buffers: Buffers | None = None,
                    rx_shift: np.ndarray | None = None, aim=None) -> BlockEchoes:
-    """:func:`~sonar_embree.fan.cast_block` for curved rays in ``environment.sound_speed``.
+    """:func:`~sonar_embree.propagation.fan.cast_block` for curved rays in ``environment.sound_speed``.
 
     Parameters
     ----------
     caster, plan, rot, pos_local, two_way_np_per_m, max_range_m
-        As for :func:`~sonar_embree.fan.cast_block`.
+        As for :func:`~sonar_embree.propagation.fan.cast_block`.
     environment : Environment
         With a non-uniform profile.
     sonar : Sonar
@@ -148,9 +148,9 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     buffers : Buffers, optional
         Working arrays to reuse (a front end keeps one).
     rx_shift : (pings,) float64, optional
-        Motion during the ping, δ = 2·v_fwd/c per ping (:func:`~sonar_embree.fan.cast_block`); None: stop-and-hop.
+        Motion during the ping, δ = 2·v_fwd/c per ping (:func:`~sonar_embree.propagation.fan.cast_block`); None: stop-and-hop.
     aim : AimPlan, optional
-        The objects to aim curved rays at (:mod:`sonar_embree.aim`, its cones widened by the rays' bending);
+        The objects to aim curved rays at (:mod:`sonar_embree.propagation.aim`, its cones widened by the rays' bending);
         None: the fan alone.
     """
     buffers = Buffers() if buffers is None else buffers
