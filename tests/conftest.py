@@ -14,6 +14,9 @@ H = 10.0  # sonar altitude of the reference cases, m
 #: Tests that take a second or more on the 2-core machine (``pytest --durations``), marked ``slow``: the quick
 #: tier, ``python -m pytest -q -m "not slow"``, leaves them out (README, "Tests").
 SLOW = frozenset({
+    "test_docs.py::test_the_site_builds_without_warnings_and_has_every_section",
+    "test_docs.py::test_every_module_has_an_api_page",
+    "test_docs.py::test_every_figure_script_is_in_the_gallery_with_its_figures",
     "test_objects_seen.py::test_a_ball_at_shallow_depression_is_seen_in_every_ping",
     "test_objects_seen.py::test_sphere_echo_follows_the_two_way_pattern_in_every_ping",
     "test_multipath.py::test_mixed_legs_with_each_rays_own_layout_matches_naive",

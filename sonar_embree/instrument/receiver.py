@@ -1,7 +1,7 @@
 """The receive chain as a device records it: sensitivity, TVG or AGC, ADC (docs/physics.md §15).
 
 From the record's mean-square pressure I(t) in µPa² (a sonar with a source level) to the integers a device
-stores, per ping and channel:
+stores, per ping and channel::
 
     v(t)   = 10^(S/20)·√I(t)                       volts rms at the hydrophone's output, S in dB re 1 V/µPa
     g(t)   = G(R)/20 dB, R = c·t/2                 TVG: G(R) = G0 + k·log10(max(R, 1 m)) + 2αR, k = 20, 30, 40

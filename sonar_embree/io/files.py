@@ -1,4 +1,4 @@
-"""Writing files safely: every output appears whole or not at all (docs: README "Outputs").
+"""Writing files safely: every output appears whole or not at all (docs/guide/datasets.md).
 
 A writer writes into a temporary name beside its target (``.tmp-*``) and renames it
 into place; a killed writer leaves only such temporaries, which :func:`clean_stale`

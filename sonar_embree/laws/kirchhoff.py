@@ -26,7 +26,7 @@ from .composite import Summable
 
 @njit(cache=True, nogil=True, parallel=True)
 def kirchhoff_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
-    """out[i] *= (or += with ``add``) σ_K(θi)/cos θi for the hits on objects of law index ``law``.
+    """``out[i] *=`` (or ``+=`` with ``add``) σ_K(θi)/cos θi for the hits on objects of law index ``law``.
 
     σ_K/cos θ = |R0|²/(8π s²)·sec⁵θ·exp(−tan²θ/(2 s²)); the exponential wins at grazing
     (the factor is 0, never inf·0). ``params[o]``: |R0|², s². Other arguments as for

@@ -16,7 +16,7 @@ from .composite import Summable
 
 @njit(cache=True, nogil=True, parallel=True)
 def lambert_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
-    """out[i] *= (or += with ``add``) μ·cos θi for the hits on objects of law index ``law`` (σ/cos θi of Lambert).
+    """``out[i] *=`` (or ``+=`` with ``add``) μ·cos θi for the hits on objects of law index ``law`` (σ/cos θi of Lambert).
 
     Parameters
     ----------

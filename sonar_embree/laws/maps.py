@@ -146,7 +146,7 @@ def barycentric(vertices, a, b, c, p):
 
 @njit(cache=True, nogil=True, parallel=True)
 def map_weights(prim, points, vertices, faces, corner_db, face_tex, corner_uv, tex, tex_off, tex_h, tex_w, weight):
-    """weight[i] *= 10^(dB/10), dB the map's offset at each hit (barycentric in its triangle).
+    """``weight[i] *= 10^(dB/10)``, dB the map's offset at each hit (barycentric in its triangle).
 
     Parameters
     ----------

@@ -46,7 +46,7 @@ def _table_db(data, off, n, g):
 
 @njit(cache=True, nogil=True, parallel=True)
 def tabulated_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
-    """out[i] *= (or += with ``add``) σ(θg)/cos θi, θg = asin(cos θi), for the hits of law index ``law``.
+    """``out[i] *=`` (or ``+=`` with ``add``) σ(θg)/cos θi, θg = asin(cos θi), for the hits of law index ``law``.
 
     ``params[o]``: offset and length n of the object's table in ``data`` (n grazing
     angles in rad, then n values in dB). Other arguments as for

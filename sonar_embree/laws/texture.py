@@ -114,7 +114,7 @@ def gaussian_field(x, y, z, seed):
 
 @njit(cache=True, nogil=True, parallel=True)
 def texture_weights(prim, points, origin, face_object, tex_index, tex_inv_l, tex_seed, tables, weight):
-    """weight[i] *= G at each hit on a textured object.
+    """``weight[i] *= G`` at each hit on a textured object.
 
     Parameters
     ----------

@@ -1,5 +1,5 @@
 """A survey as a surveyor runs it: a DEM, navigation logs and a device preset → per line XTF, Zarr and a waterfall
-PNG, and the survey's mosaic, bathymetry truth and quick look (``sonar-embree survey``; docs in the README).
+PNG, and the survey's mosaic, bathymetry truth and quick look (``sonar-embree survey``; docs/guide/surveys.md).
 
 Each navigation log (CSV with lat/lon or projected positions and times, or an XTF) is one line: projected into
 the DEM's CRS, its heading taken from the track where it has none, resampled at the device's ping rate for the

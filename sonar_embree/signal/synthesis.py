@@ -174,7 +174,7 @@ class ExpectedSynthesis:
         return n0 * fs * gain
 
     def noise_source(self, run):
-        """For a beamformer: noise(shape, complex_) of the run's density on its outputs (the mean intensity)."""
+        """For a beamformer: ``noise(shape, complex_)`` of the run's density on its outputs (the mean intensity)."""
         return lambda shape, complex_: np.full(shape, self._noise_mean(run.n0))
 
 
@@ -247,7 +247,7 @@ class SpeckleSynthesis:
                                     phase_cycles_per_s, self.tables, out, pos_rx=rx, vel_rx=vr)
 
     def noise_source(self, run):
-        """For a beamformer: noise(shape, complex_) of the run's density on its outputs (pings, beams, n_s), each
+        """For a beamformer: ``noise(shape, complex_)`` of the run's density on its outputs (pings, beams, n_s), each
         ping from its own stream keyed by its survey index (as :meth:`add_block`'s), matched-filtered as the
         signal was."""
         def noise(shape, complex_):
