@@ -66,7 +66,7 @@ def check_sonar(sonar) -> None:
     if not r_lo <= sonar.max_range_m <= r_hi:
         warn_once(f"Sonar.max_range_m = {sonar.max_range_m:g} m is outside the plausible {r_lo:g}–{r_hi:g} m "
                   "(a range in km?)")
-    if not hasattr(sonar, "tilt_deg"):  # a sonar type without a tilt (an echo sounder looks down)
+    if not sonar.tilted:  # a sonar type without a tilt (an echo sounder looks down)
         return
     t_lo, t_hi = PLAUSIBLE["tilt_deg"]
     if 0.0 < sonar.tilt_deg < 1.6:
@@ -224,7 +224,7 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
     surface = sonar.environment.surface
     if surface is None:
         return
-    if not hasattr(sonar, "tilt_deg"):
+    if not sonar.models_surface:
         raise ConfigError(f"Environment.surface: multipath is modelled for side-scan sonars, not "
                           f"{type(sonar).__name__}")
     z_s = surface.lowest_z_m - float(compiled.origin_m[2])  # a swell's troughs
@@ -248,7 +248,7 @@ def check_profile(compiled, sonar, pos_local: np.ndarray, labels: bool) -> None:
     env = sonar.environment
     if not env.refracts:
         return
-    if not hasattr(sonar, "tilt_deg"):
+    if not sonar.models_refraction:
         raise ConfigError(f"Environment.sound_speed: curved rays are cast for side-scan sonars, not "
                           f"{type(sonar).__name__}")
     if labels:

@@ -31,6 +31,12 @@ class Transducer:
 
     #: The record's channels, in order (a sonar type's own names).
     channels = ("port", "starboard")
+    #: Whether the type looks sideways at a tilt ``tilt_deg`` (side-scan, MSIS, forward-looking); an echo sounder
+    #: looks down. The set-up checks judge the tilt of such types only.
+    tilted = True
+    #: Whether its front end models the sea surface's paths (docs/physics.md §13) and curved rays (§12).
+    models_surface = True
+    models_refraction = True
 
     def _check_environment(self, owner: str) -> None:
         """Take a saved record's environment table as an :class:`Environment`; refuse anything else that is not one."""
@@ -653,8 +659,8 @@ class SignalChain:
         """This chain with ``matched_filter`` decided for ``pulse``, checked against ``sonar``."""
         if self.tvg:
             _check_tvg(sonar)
-        rx = getattr(sonar, "receiver", None)
-        if rx is not None and hasattr(rx.gain, "check_range"):     # the device's TVG: refused before any ping
+        rx = sonar.receiver
+        if rx is not None:                                          # the device's gain law: refused before any ping
             rx.gain.check_range(sonar.max_range_m, sonar.alpha_db_per_m)
         mf = self.matched_filter
         if mf is None:

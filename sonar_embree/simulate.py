@@ -197,7 +197,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
     bar = progress_bar(progress, len(trajectory))
-    a, block = 0, FIRST_BLOCK_PINGS if getattr(run.front, "n_synth_channels", 2) <= 2 else 1  # wide fans: a ping
+    a, block = 0, FIRST_BLOCK_PINGS if run.front.synth_channels <= 2 else 1  # wide fans: a ping
     while a < len(trajectory):
         b = min(a + block, len(trajectory))
         e, blk = run.front.cast(run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r, chain.speckle,
@@ -284,14 +284,14 @@ class _Run:
               ping_offset: int = 0) -> "_Run":
         front = sonars.front_end(sonar, fan)
         # channels synthesised: the record's, or a beamformer's inputs (forward-looking: one per azimuth line)
-        n_p, n_ch, n_out = len(trajectory), getattr(front, "n_synth_channels", len(front.channels)), sonar.n_samples
+        n_p, n_ch, n_out = len(trajectory), front.synth_channels, sonar.n_samples
         # The compressed sample at t needs echoes up to t + τ: synthesise a pulse length past the window.
         n_s = n_out + (int(math.ceil(pulse.duration_s * sonar.sample_rate_hz)) if chain.matched_filter else 0)
         _check_memory(n_p, n_s, chain, labels, keep_complex, n_ch)
         if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
             raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
                               "(the complex signal exists only there)")
-        if hasattr(front, "beamform") and chain.speckle and chain.detection != "coherent":
+        if front.beamforms and chain.speckle and chain.detection != "coherent":
             raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from complex signals; its speckle "
                               "needs detection='coherent'")
         if labels and not front.supports_labels:
@@ -312,7 +312,7 @@ class _Run:
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
         kernel = (pulses.expected_kernel(pulse, sonar.frequency_hz, fs, chain.matched_filter)
                   if labels or not chain.speckle else None)
-        back_n0 = None if hasattr(front, "beamform") else n0  # a beamformer adds the noise to its beams
+        back_n0 = None if front.beamforms else n0  # a beamformer adds the noise to its beams
         back = (SpeckleSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0) if chain.speckle
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0, kernel))
         truth = GroundTruth((n_p, len(front.channels), n_out), compiled, kernel) if labels else None
@@ -325,10 +325,7 @@ class _Run:
 def _mounted(front, trajectory, ping_offset: int) -> np.ndarray:
     """Each ping's body-to-world rotation of the transducer: the vehicle's, turned by the front end's mount
     (an MSIS head's bearing at the ping's index) when it has one."""
-    rots = trajectory.rotations()
-    if hasattr(front, "mount"):
-        rots = front.mount(rots, ping_offset + np.arange(len(trajectory)))
-    return rots
+    return front.mount(trajectory.rotations(), ping_offset + np.arange(len(trajectory)))
 
 
 
@@ -355,7 +352,7 @@ def _process(run: _Run, keep_complex: bool):
     (pings, channels, n_out), complex and the device's integer samples (or None)."""
     sonar, chain, n_out = run.sonar, run.chain, run.n_out
     intensity, cplx = run.back.finish()
-    if hasattr(run.front, "beamform"):
+    if run.front.beamforms:
         intensity, cplx = run.front.beamform(intensity, cplx, None if run.n0 is None else run.back.noise_source(run))
     intensity = intensity[..., :n_out]
     cplx = cplx[..., :n_out] if keep_complex else None

@@ -95,6 +95,9 @@ class AGC:
     target: float = 0.25
     max_gain_db: float = 160.0
 
+    def check_range(self, max_range_m: float, alpha_db_per_m: float) -> None:
+        """Nothing to refuse before a run: an AGC's gain follows the signal, bounded by ``max_gain_db``."""
+
     def __post_init__(self):
         check_number("AGC", "window_s", self.window_s, positive=True, hi=10.0)
         check_number("AGC", "target", self.target, positive=True, hi=1.0)

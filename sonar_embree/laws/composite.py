@@ -33,6 +33,10 @@ class Summable:
         """The simple laws whose σ add up to this law's: ``(self,)`` for a simple law."""
         return (self,)
 
+    def at_frequency(self, frequency_hz: float):
+        """The law at the carrier ``frequency_hz`` (Hz): itself, unless its σ depends on the carrier."""
+        return self
+
 
 @dataclass(frozen=True)
 class Composite(Summable):
@@ -66,7 +70,7 @@ class Composite(Summable):
 
     def at_frequency(self, frequency_hz: float) -> "Composite":
         """Each term at ``frequency_hz`` (for tabulated terms with a frequency axis)."""
-        return Composite(tuple(t.at_frequency(frequency_hz) if hasattr(t, "at_frequency") else t
+        return Composite(tuple(t.at_frequency(frequency_hz)
                                for t in self.terms_))
 
     def sigma(self, cos_i, cos_s, phi_rad=0.0):

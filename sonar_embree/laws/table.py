@@ -48,7 +48,7 @@ def law_table(laws, frequency_hz: float | None = None) -> LawTable:
     params = np.zeros((n_terms, len(laws), MAX_PARAMS))
     for o, object_terms in enumerate(terms):
         for j, term in enumerate(object_terms):
-            if frequency_hz is not None and hasattr(term, "at_frequency"):
+            if frequency_hz is not None:
                 term = term.at_frequency(frequency_hz)
             if type(term) not in kinds:
                 kinds.append(type(term))

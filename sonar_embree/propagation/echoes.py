@@ -57,11 +57,20 @@ class Echoes:
     def n_pings(self) -> int:
         return (self.ray_start.shape[0] - 1) // self.n_channels
 
+    @property
+    def parts(self) -> tuple:
+        """The block's paths one after the other (:class:`~sonar_embree.propagation.multipath.PathEchoes`): one."""
+        return (self,)
+
+    def merged(self) -> "Echoes":
+        """The one :class:`Echoes` of the block: itself (a front end's paths kept apart merge into one)."""
+        return self
+
 
 def merged(e) -> Echoes:
     """The one :class:`Echoes` of a block: ``e`` itself, or the merge of a block whose paths a front end kept
     apart (:class:`sonar_embree.propagation.multipath.PathEchoes`, merged on first use)."""
-    return e.merged() if hasattr(e, "merged") else e
+    return e.merged()
 
 
 def row_of(ray_start: np.ndarray) -> np.ndarray:

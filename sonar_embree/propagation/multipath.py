@@ -233,7 +233,7 @@ def lambert_mu(compiled) -> np.ndarray:
 
 def wants_azimuth(compiled) -> bool:
     """Whether any law of the scene reads the bistatic azimuth φ (it costs an arccos per echo)."""
-    return any(getattr(law, "uses_azimuth", True) for law in compiled.laws)
+    return any(law.uses_azimuth for law in compiled.laws)
 
 
 def apply_bistatic(compiled, frequency_hz, prim, points, w, cos_i, cos_s, phi=None) -> None:
@@ -253,7 +253,7 @@ def apply_bistatic(compiled, frequency_hz, prim, points, w, cos_i, cos_s, phi=No
 def _law_at(compiled, o: int, frequency_hz: float):
     """Object o's scattering law at the carrier."""
     law = compiled.laws[o]
-    return law.at_frequency(frequency_hz) if hasattr(law, "at_frequency") else law
+    return law.at_frequency(frequency_hz)
 
 
 def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:

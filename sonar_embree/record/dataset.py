@@ -11,6 +11,7 @@ import numpy as np
 
 from ..signal.labels import KIND_NAMES, SIDES, Labels
 from ..errors import ConfigError
+from ..sonars import MSIS, ForwardLooking
 
 #: Pings per Zarr chunk (each chunk holds whole pings).
 PING_CHUNK = 256
@@ -50,7 +51,7 @@ def _flat_attrs(record) -> dict:
         for k, v in dataclasses.asdict(obj).items():
             if v is not None and not isinstance(v, dict):
                 attrs[f"{group}.{k}"] = _attr_value(v)
-    rx = getattr(record.sonar, "receiver", None)
+    rx = record.sonar.receiver
     if rx is not None:
         for k, v in dataclasses.asdict(rx).items():
             for kk, vv in (v.items() if isinstance(v, dict) else ((None, v),)):
@@ -134,7 +135,7 @@ def to_xarray(record):
         return {"units": "uPa2", "long_name": f"{side} mean-square pressure at the receiver, source level {sl:g} dB "
                                               "re 1 uPa at 1 m"}
 
-    beams = hasattr(record.sonar, "beam_angles_deg")                 # a multibeam: one (ping, beam, sample) array
+    beams = isinstance(record.sonar, ForwardLooking)                 # a multibeam: one (ping, beam, sample) array
     data = _beam_variables(record, intensity) if beams else _channel_variables(record, intensity)
     data |= {"altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
                                                           "long_name": "range to the first surface below the sonar"})}
@@ -142,7 +143,7 @@ def to_xarray(record):
                          {"units": "s", "long_name": "time from the start of transmission"}),
               "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
               **_ping_coords(record)}
-    if hasattr(record.sonar, "bearings_deg"):                          # an MSIS head's bearing per ping
+    if isinstance(record.sonar, MSIS):                                 # an MSIS head's bearing per ping
         first = int(record.attrs.get("first_ping", 0))
         coords["bearing_deg"] = (("ping",), record.sonar.bearings_deg(first + np.arange(record.n_pings)),
                                  {"units": "degree", "long_name": "head bearing, clockwise from the vehicle's forward "

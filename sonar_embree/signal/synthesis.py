@@ -156,7 +156,7 @@ class ExpectedSynthesis:
         velocity ``vel_world`` moves only speckle phases, so it is not needed here."""
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
-        for part in getattr(e, "parts", (e,)):  # a block's paths one after the other: row by row, the merged order
+        for part in e.parts:  # a block's paths one after the other: row by row, the merged order
             kernels.splat_rows(part.ray_start, part.travel_time_s * fs, part.extent_s * fs, part.weight,
                                self.out[a:b].reshape(part.ray_start.shape[0] - 1, self.out.shape[-1]))
 

@@ -234,9 +234,9 @@ def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel
 class GroundTruth:
     """Per-sample ground truth of a record, block by block (each channel's label line and object echoes).
 
-    A front end may declare ``label_lines(plan)`` (its channels' sides and lines in the block's fan,
-    :func:`label_block`; default the side-scan's centre lines) and ``beam_power`` (a beamformer's AF² from its
-    echo channels to its record's, :func:`object_echo_block`).
+    The front end (:class:`~sonar_embree.sonars.base.FrontEnd`) gives ``label_lines(plan)`` (its channels' sides
+    and lines in the block's fan, :func:`label_block`; None: the side-scan's centre lines) and ``beam_power`` (a
+    beamformer's AF² from its echo channels to its record's, :func:`object_echo_block`).
 
     Parameters
     ----------
@@ -257,9 +257,9 @@ class GroundTruth:
         b, c, s = a + e.n_pings, self.compiled, front.sonar
         label_block(caster, blk.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
                     s.sound_speed_m_s / (2.0 * s.sample_rate_hz), float(c.origin_m[2]),
-                    tuple(x[a:b] for x in self.arrays[:5]), getattr(front, "label_lines", lambda plan: None)(blk.plan))
+                    tuple(x[a:b] for x in self.arrays[:5]), front.label_lines(blk.plan))
         object_echo_block(e, c.is_seafloor, s.sample_rate_hz, self.kernel, self.lead, self.arrays[5][a:b],
-                          self.arrays[6][a:b], getattr(front, "beam_power", None))
+                          self.arrays[6][a:b], front.beam_power)
 
     def labels(self) -> "Labels":
         """The :class:`Labels`, arrays (channels, pings, samples)."""

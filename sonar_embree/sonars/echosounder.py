@@ -26,6 +26,7 @@ from ..environment import Environment
 from ..laws import apply_laws
 from ..signal.processing import absorption_np_per_m
 from ..validation import check_number
+from .base import FrontEnd
 
 #: ka·sin(θ3/2) of a circular piston at its one-way −3 dB point, 2·J1(x)/x = 1/√2.
 HALF_POWER_X = 1.6163
@@ -67,6 +68,7 @@ class EchoSounder(Transducer):
     receiver: Receiver | None = None
 
     channels = ("down",)
+    tilted = models_surface = models_refraction = False   # it looks down; its own ray cone has no environment paths
 
     def __post_init__(self):
         self._check_environment("EchoSounder")
@@ -101,7 +103,7 @@ class EchoSounder(Transducer):
         return np.where(np.cos(theta_rad) > 0, b, 0.0)
 
 
-class EchoSounderFrontEnd:
+class EchoSounderFrontEnd(FrontEnd):
     """Poses → echoes for an :class:`EchoSounder`: a cone of rays around the body's down axis."""
 
     channels = EchoSounder.channels

@@ -19,9 +19,10 @@ from ..config import FanSettings, Sonar
 from ..propagation.echoes import Echoes
 from ..propagation.fan import BlockEchoes, FanPlan, cast_block
 from ..signal.processing import absorption_np_per_m
+from .base import FrontEnd
 
 
-class SideScanFrontEnd:
+class SideScanFrontEnd(FrontEnd):
     """Poses → echoes for a :class:`~sonar_embree.config.Sonar` (side-scan)."""
 
     channels = ("port", "starboard")

@@ -1,0 +1,97 @@
+"""Declared protocols (issue 36, item 4): each stage asks its collaborators through a declared interface with one
+default, never by probing attributes."""
+import ast
+import os
+
+import numpy as np
+import pytest
+
+import sonar_embree as se
+from sonar_embree import sonars
+from sonar_embree.config import FanSettings, Transducer
+from sonar_embree.laws import LAWS, Composite, Summable
+from sonar_embree.propagation.echoes import Echoes, merged
+from sonar_embree.sonars.base import FrontEnd
+
+PACKAGE = os.path.join(os.path.dirname(__file__), os.pardir, "sonar_embree")
+#: Where a ``hasattr`` would be dispatch on a collaborator's type (the stages of a ping).
+NO_PROBING = ("simulate.py", "checks.py", "config.py", "sonars", "propagation", "signal", "laws", "record")
+
+
+def test_no_stage_dispatches_on_hasattr():
+    found = []
+    for top in NO_PROBING:
+        base = os.path.join(PACKAGE, top)
+        paths = [base] if base.endswith(".py") else [os.path.join(d, f) for d, _, fs in os.walk(base)
+                                                     for f in fs if f.endswith(".py")]
+        for p in paths:
+            tree = ast.parse(open(p, encoding="utf-8").read())
+            found += [f"{os.path.relpath(p, PACKAGE)}:{n.lineno}" for n in ast.walk(tree)
+                      if isinstance(n, ast.Call) and (getattr(n.func, "id", None) == "hasattr"
+                                                      or getattr(n.func, "id", None) == "getattr" and len(n.args) == 3)]
+    assert found == []
+
+
+@pytest.mark.parametrize("sonar_cls", sonars.SONAR_TYPES)
+def test_every_front_end_follows_the_protocol(sonar_cls):
+    sonar = sonar_cls().for_pulse(se.Pulse.cw())
+    front = sonars.front_end(sonar, FanSettings())
+    assert isinstance(front, FrontEnd)
+    assert type(front).cast is not FrontEnd.cast                          # the one part without a default
+    assert front.channels == sonar.channels and front.synth_channels >= len(front.channels)
+    assert front.beamforms == (front.beam_power is not None)
+    if front.beamforms:
+        assert front.beam_power.shape == (len(front.channels), front.synth_channels)
+    rot = np.repeat(np.eye(3)[None], 3, axis=0)
+    mounted = front.mount(rot, np.arange(3))
+    assert mounted.shape == (3, 3, 3)
+    np.testing.assert_allclose(np.einsum("pij,pkj->pik", mounted, mounted), rot, atol=1e-12)   # rotations
+
+
+def test_the_protocol_defaults():
+    class Bare(FrontEnd):
+        channels = ("a", "b", "c")
+
+    f, rot = Bare(), np.zeros((2, 3, 3))
+    assert f.mount(rot, np.arange(2)) is rot and f.label_lines(None) is None
+    assert f.synth_channels == 3 and not f.beamforms and not f.supports_labels and not f.aims
+    with pytest.raises(NotImplementedError, match="Bare.cast"):
+        f.cast(None, rot, None, 1.0, False, False, {})
+    with pytest.raises(NotImplementedError, match="Bare forms no beams"):
+        f.beamform(None, None, None)
+
+
+@pytest.mark.parametrize("sonar_cls", sonars.SONAR_TYPES)
+def test_every_sonar_type_declares_what_its_front_end_models(sonar_cls):
+    assert issubclass(sonar_cls, Transducer)
+    for flag in ("tilted", "models_surface", "models_refraction"):
+        assert isinstance(getattr(sonar_cls, flag), bool), flag
+    assert sonar_cls.tilted == ("tilt_deg" in {f.name for f in __import__("dataclasses").fields(sonar_cls)})
+
+
+def test_the_echo_sounder_refuses_a_surface_and_a_profile_by_its_declaration(flat_floor_scene=None):
+    scene = se.Scene().add(se.seafloor.flat(size_m=(60, 60)), label="seafloor")
+    traj = se.Trajectory.line((0, 0, 10), (1, 0, 10), 2)
+    for env, key in ((se.Environment(surface=se.SeaSurface(z_m=20.0)), "Environment.surface"),
+                     (se.Environment(sound_speed=se.SoundSpeedProfile.linear(1500.0, 0.1, surface_z_m=20.0)),
+                      "Environment.sound_speed")):
+        with pytest.raises(se.ConfigError, match=f"{key}: .* not EchoSounder"):
+            se.simulate(scene, traj, se.EchoSounder(max_range_m=20.0), se.Pulse.cw(), environment=env)
+
+
+@pytest.mark.parametrize("name, law", sorted(LAWS.items()))
+def test_every_law_is_summable_and_has_a_carrier_form(name, law):
+    assert issubclass(law, Summable) and callable(law.at_frequency)
+
+
+def test_a_carrier_free_law_is_itself_at_any_carrier():
+    lam = se.laws.Lambert(0.01)
+    assert lam.at_frequency(1e5) is lam
+    both = lam + se.laws.Kirchhoff(0.5, 0.1)
+    assert isinstance(both, Composite) and both.at_frequency(4e5).terms() == both.terms()
+
+
+def test_merged_echoes_are_themselves():
+    e = Echoes(2, np.zeros(3, np.int64), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 3)),
+               np.zeros(0, np.int32))
+    assert e.merged() is e and merged(e) is e and e.parts == (e,)
