@@ -95,3 +95,26 @@ def test_merged_echoes_are_themselves():
     e = Echoes(2, np.zeros(3, np.int64), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros((0, 3)),
                np.zeros(0, np.int32))
     assert e.merged() is e and merged(e) is e and e.parts == (e,)
+
+
+def test_what_runs_keep_with_a_scene_is_declared_per_copy_and_not_pickled():
+    """Casters, law tables, boxes and surfaces live in ``CompiledScene.prepared`` (not stuffed into ``__dict__``):
+    a copy made with dataclasses.replace (the seafloor alone) has its own, a pickled scene arrives without them,
+    release() empties them."""
+    import dataclasses
+    import pickle
+
+    from sonar_embree.raycast import NumpyCaster
+    from sonar_embree.scene.meshes import release
+
+    scene = se.Scene().add(se.seafloor.flat(size_m=(20, 20)), label="seafloor")
+    c = scene.compiled(np.zeros(3))
+    caster = NumpyCaster.for_scene(c)
+    assert NumpyCaster.for_scene(c) is caster and c.prepared.casters == {NumpyCaster: caster}
+    copy = dataclasses.replace(c, faces=c.faces[:1])
+    assert copy.prepared is not c.prepared and NumpyCaster.for_scene(copy) is not caster
+    back = pickle.loads(pickle.dumps(c))
+    assert back.prepared.casters == {} and np.array_equal(back.faces, c.faces)
+    release(c)
+    assert c.prepared.casters == {} and NumpyCaster.for_scene(c) is not caster
+    assert [k for k in vars(c) if k.startswith("_")] == []

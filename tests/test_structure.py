@@ -145,3 +145,10 @@ def test_one_owner_per_dependency(dependency, owner):
             if any(n.split(".")[0] == dependency for n in names):
                 users.add(name)
     assert users == {owner}
+
+
+def test_nothing_is_stuffed_into_an_objects_dict():
+    """Caches are declared (``CompiledScene.prepared``), not written into ``obj.__dict__``."""
+    hits = [name for name, _, tree in _modules() for n in ast.walk(tree)
+            if isinstance(n, ast.Attribute) and n.attr == "__dict__"]
+    assert hits == []

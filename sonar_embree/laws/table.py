@@ -60,7 +60,7 @@ def law_table(laws, frequency_hz: float | None = None) -> LawTable:
 
 def scene_law_table(compiled, frequency_hz: float) -> LawTable:
     """:func:`law_table` of a compiled scene at ``frequency_hz``, made once and kept with it."""
-    cache = compiled.__dict__.setdefault("_law_tables", {})  # a cache: CompiledScene stays immutable
+    cache = compiled.prepared.law_tables
     key = float(frequency_hz)
     if key not in cache:
         cache[key] = law_table(compiled.laws, key)

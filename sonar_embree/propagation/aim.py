@@ -76,16 +76,16 @@ class AimPlan:
 def bounding_spheres(compiled):
     """((n_objects, 3) centres, (n_objects,) radii) of the objects' bounding spheres: the centre of each object's
     box and the farthest of its vertices from it (m, local frame; made once per compiled scene)."""
-    cache = compiled.__dict__
-    if "_bounding_spheres" not in cache:
+    kept = compiled.prepared
+    if kept.bounding_spheres is None:
         box = compiled.object_bounds
         centre = 0.5 * (box[:, 0] + box[:, 1])
         obj = np.repeat(compiled.face_object, 3)
         v = compiled.vertices[compiled.faces.ravel()]
         r2 = np.zeros(len(compiled.labels))
         np.maximum.at(r2, obj, ((v - centre[obj]) ** 2).sum(axis=1))
-        cache["_bounding_spheres"] = (centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6)
-    return cache["_bounding_spheres"]
+        kept.bounding_spheres = (centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6)
+    return kept.bounding_spheres
 
 
 @dataclass(frozen=True, eq=False)

@@ -93,7 +93,7 @@ def leg_boxes(compiled, with_heightfields: bool):
     per object (up to :data:`MAX_LEG_BOXES` objects, else one for all), widened by :data:`LEG_EPSILON_M`; ``obj``
     the object of a height field (−1 for other boxes, and for all without ``with_heightfields``) and ``slope`` its
     steepest face's tan. Kept with the scene."""
-    cache = compiled.__dict__.setdefault("_leg_boxes", {})
+    cache = compiled.prepared.leg_boxes
     if with_heightfields not in cache:
         b = compiled.object_bounds
         obj, slope = np.arange(b.shape[0], dtype=np.int32), np.full(b.shape[0], np.inf)
@@ -136,7 +136,7 @@ def surface_strips(caster, surface, max_range_m: float):
 
 def _per_surface(compiled, name: str, surface, max_range_m: float, make):
     """``make()`` once per sea surface and range, kept with the scene's compiled arrays under ``name``."""
-    cache = compiled.__dict__.setdefault(name, {})
+    cache = compiled.prepared.surfaces.setdefault(name, {})
     key = (surface, round(max_range_m, 6))
     if key not in cache:
         cache[key] = make()

@@ -58,7 +58,7 @@ class Caster:
     @classmethod
     def for_scene(cls, compiled: CompiledScene) -> "Caster":
         """The caster of this class for ``compiled``, built on first use and kept with it (freed with it)."""
-        cache = compiled.__dict__.setdefault("_casters", {})  # a cache, not state: CompiledScene stays immutable
+        cache = compiled.prepared.casters
         if cls not in cache:
             cache[cls] = cls(compiled)
         return cache[cls]

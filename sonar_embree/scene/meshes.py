@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -59,6 +59,41 @@ class SceneObject:
     uv: np.ndarray | None = None
 
 
+class Prepared:
+    """What runs build once per compiled scene and keep with it, each under its own name (not run state: a
+    compiled scene stays immutable; a copy sent to another process arrives without them and rebuilds them).
+
+    Attributes
+    ----------
+    casters : dict
+        Ray casters by class (:meth:`sonar_embree.raycast.Caster.for_scene`), with their BVHs.
+    law_tables : dict
+        Law tables by carrier frequency, Hz (:func:`sonar_embree.laws.table.scene_law_table`).
+    leg_boxes : dict
+        Multipath's visibility boxes, with and without height fields
+        (:func:`sonar_embree.propagation.multipath.leg_boxes`).
+    surfaces : dict
+        Per kind (the swell's casters and strips), by (sea surface, range) (:mod:`sonar_embree.propagation.multipath`).
+    bounding_spheres : tuple or None
+        The objects' bounding spheres (:func:`sonar_embree.propagation.aim.bounding_spheres`).
+    seafloor_scenes : dict
+        The seafloor alone, by which objects are seafloor (:func:`sonar_embree.signal.truth.seafloor_caster`).
+    """
+
+    __slots__ = ("casters", "law_tables", "leg_boxes", "surfaces", "bounding_spheres", "seafloor_scenes")
+
+    def __init__(self):
+        self.clear()
+
+    def clear(self) -> None:
+        """Drop everything kept (rebuilt on next use)."""
+        self.casters, self.law_tables, self.leg_boxes, self.surfaces, self.seafloor_scenes = {}, {}, {}, {}, {}
+        self.bounding_spheres = None
+
+    def __reduce__(self):
+        return Prepared, ()               # BVHs are not sent between processes: each rebuilds its own
+
+
 @dataclass(frozen=True, eq=False)
 class CompiledScene:
     """Flat arrays of a whole scene in the local frame, as ray casting and echo terms need them.
@@ -85,6 +120,8 @@ class CompiledScene:
         The objects' backscatter maps (:mod:`sonar_embree.laws.maps`), None without any.
     textures : TextureTable or None
         The materials' K textures (:mod:`sonar_embree.laws.texture`), None without any.
+    prepared : Prepared
+        What runs build once for this scene and keep with it (casters, law tables, …).
     is_seafloor : (n_objects,) bool
         Which objects are seafloor (ground truth: their hidden parts are shadow).
     two_sided : (n_objects,) bool
@@ -103,6 +140,7 @@ class CompiledScene:
     laws: tuple = ()
     maps: object = None
     textures: object = None
+    prepared: Prepared = field(default_factory=Prepared, init=False, repr=False, compare=False)  # own per copy
 
     @property
     def needs_points(self) -> bool:
@@ -158,8 +196,7 @@ def release(compiled: CompiledScene) -> None:
     A streamed line over a tiled DEM compiles scene after scene; releasing each one it drops frees them at once
     (resident memory otherwise climbed by ~0.5 GB over 100 000 pings). A released scene rebuilds its caches on use.
     """
-    for key in [k for k in compiled.__dict__ if k.startswith("_")]:
-        del compiled.__dict__[key]
+    compiled.prepared.clear()
 
 
 def _outlier(v: np.ndarray, f: np.ndarray, source: str) -> None:

@@ -170,7 +170,7 @@ def seafloor_caster(caster: Caster, is_seafloor):
         return None, None
     if sea.all():
         return caster, None
-    cache = c.__dict__.setdefault("_seafloor_scenes", {})         # a cache: CompiledScene stays immutable
+    cache = c.prepared.seafloor_scenes
     if sea.tobytes() not in cache:
         faces = np.flatnonzero(sea[c.face_object])
         cache[sea.tobytes()] = (dataclasses.replace(c, faces=c.faces[faces], face_normals=c.face_normals[faces],
