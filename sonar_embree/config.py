@@ -8,7 +8,6 @@ SI units inside; degrees and dB only in field names that say so (``tilt_deg``,
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 from dataclasses import dataclass
 
@@ -232,7 +231,7 @@ class Sonar(Transducer):
             L = 0.886·λ/θ (θ in rad), the rule behind the paper's 190 mm × 3.8 mm
             for 1° × 50° (whose exact widths are 1.002° × 51.84°).
         **kwargs
-            Any other :class:`Sonar` field (frequency_hz, sound_speed_m_s, …).
+            Any other :class:`Sonar` field (frequency_hz, environment, …).
         """
         for name, val in (("azimuth_deg", azimuth_deg), ("elevation_deg", elevation_deg)):
             _check_number("Sonar.from_beamwidths", name, val, positive=True, hi=179.0)
@@ -240,7 +239,7 @@ class Sonar(Transducer):
             raise ConfigError(f"Sonar.from_beamwidths rule must be 'exact' or 'small-angle', got {rule!r}")
         f0 = kwargs.get("frequency_hz", cls.frequency_hz)
         env = kwargs.get("environment", Environment())
-        c = kwargs.get("sound_speed_m_s", env.sound_speed_m_s if isinstance(env, Environment) else 1500.0)
+        c = env.sound_speed_m_s if isinstance(env, Environment) else 1500.0
         _check_number("Sonar", "frequency_hz", f0, positive=True)
         _check_number("Sonar", "sound_speed_m_s", c, positive=True)
         lam = c / f0
@@ -250,27 +249,27 @@ class Sonar(Transducer):
 
 
 
-#: The medium's keywords that ``Sonar`` still accepts and maps into its :class:`Environment`
-#: (and the ``[sonar]`` TOML table, for configs written before ``[environment]``).
+#: The medium's keywords that old ``[sonar]`` TOML tables (and saved records) held; the readers map them into the
+#: :class:`Environment` with a deprecation warning (:func:`legacy_medium`). In Python the medium is set in one
+#: place: ``Sonar(environment=Environment(...))``.
 LEGACY_MEDIUM_KEYS = ("sound_speed_m_s", "absorption_db_per_m", "temperature_c", "salinity_ppt", "depth_m", "ph")
-_sonar_init = Sonar.__init__
 
 
-def _sonar_init_with_medium(self, *args, **kwargs):
-    legacy = {k: kwargs.pop(k) for k in LEGACY_MEDIUM_KEYS if k in kwargs}
-    if legacy:
-        env = kwargs.get("environment", Environment())
-        env = Environment(**env) if isinstance(env, dict) else env
-        try:
-            kwargs["environment"] = dataclasses.replace(env, **legacy)
-        except ConfigError as exc:  # name the key as it was given
-            raise ConfigError(str(exc).replace("Environment.", "Sonar.", 1)) from None
-    _sonar_init(self, *args, **kwargs)
+def legacy_medium(table: dict, where: str) -> dict:
+    """``table`` (a sonar's keywords) with its old medium keys moved into its ``environment`` (a dict or an
+    :class:`Environment`); an error names a key whose value the environment refuses."""
+    legacy = {k: table[k] for k in LEGACY_MEDIUM_KEYS if k in table}
+    if not legacy:
+        return dict(table)
+    out = {k: v for k, v in table.items() if k not in legacy}
+    env = out.get("environment", Environment())
+    env = Environment(**env) if isinstance(env, dict) else env
+    try:
+        out["environment"] = dataclasses.replace(env, **legacy)
+    except ConfigError as exc:  # name the key as it was given
+        raise ConfigError(str(exc).replace("Environment.", f"{where}.", 1)) from None
+    return out
 
-
-_sonar_init_with_medium.__doc__ = _sonar_init.__doc__
-_sonar_init_with_medium.__signature__ = inspect.signature(_sonar_init)
-Sonar.__init__ = _sonar_init_with_medium
 
 @dataclass(frozen=True)
 class Pulse:
@@ -399,8 +398,8 @@ class Material:
     scattering : scattering law, optional
         Any law of :mod:`sonar_embree.laws` (``Lambert``, ``Kirchhoff``,
         ``Tabulated``, their sums) or a sediment preset of :mod:`sonar_embree.laws.sediments`;
-        default Lambert with ``backscatter_db``. Give one or the other. ``law=`` is
-        accepted for it.
+        default Lambert with ``backscatter_db``. Give one or the other (a TOML table's old
+        ``law`` key is read as ``scattering``).
     texture : KTexture, optional
         Non-Rayleigh (K-distributed) texture frozen to the surface; default none
         (Rayleigh speckle).
@@ -440,20 +439,6 @@ class Material:
         return self.scattering.mu if isinstance(self.scattering, Lambert) else math.nan
 
 
-_material_init = Material.__init__
-
-
-def _material_init_with_law(self, *args, law=None, **kwargs):
-    if law is not None:
-        if kwargs.get("scattering") is not None:
-            raise ConfigError("Material: give scattering or law (the same thing), not both")
-        kwargs["scattering"] = law
-    _material_init(self, *args, **kwargs)
-
-
-_material_init_with_law.__doc__ = _material_init.__doc__
-_material_init_with_law.__signature__ = inspect.signature(_material_init)
-Material.__init__ = _material_init_with_law
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,4 @@
 """The medium's seam: Environment, its absorption models and the TOML [environment] table (docs/physics.md §3)."""
-import dataclasses
 
 import numpy as np
 import pytest
@@ -9,6 +8,7 @@ from sonar_embree import runconfig
 from sonar_embree.environment import ABSORPTION_MODELS
 from sonar_embree.environment.ainslie_mccolm import ainslie_mccolm_db_per_m
 from sonar_embree.environment.francois_garrison import francois_garrison_db_per_m
+from sonar_embree.config import LEGACY_MEDIUM_KEYS, legacy_medium
 
 import analytic
 from conftest import flat_scene
@@ -43,16 +43,37 @@ def test_environment_chooses_the_model_and_the_override_wins():
         se.Environment(sound_speed_m_s=-1.0)
 
 
-def test_sonar_reads_its_environment_and_maps_the_old_keywords():
+def test_sonar_reads_its_environment_and_the_medium_is_set_in_one_place():
     env = se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
     sonar = se.Sonar(environment=env)
     assert sonar.sound_speed_m_s == 1480.0 and sonar.wavelength_m == pytest.approx(1480.0 / 400e3)
     assert sonar.alpha_db_per_m == env.alpha_db_per_m(400e3)
-    old = se.Sonar(sound_speed_m_s=1480.0, temperature_c=4.0)
-    assert old == sonar and old.environment == env
-    assert dataclasses.replace(old, sound_speed_m_s=1500.0).environment.sound_speed_m_s == 1500.0
+    for key in LEGACY_MEDIUM_KEYS:       # the medium's keys are the environment's, not the instrument's
+        with pytest.raises(TypeError, match=key):
+            se.Sonar(**{key: 1.0})
     with pytest.raises(se.ConfigError, match="Sonar.environment"):
         se.Sonar(environment="sea")
+
+
+def test_old_toml_medium_keys_in_sonar_are_mapped_with_a_deprecation_warning(tmp_path):
+    cfg = tmp_path / "old.toml"
+    cfg.write_text('[sonar]\nmax_range_m = 20.0\nsound_speed_m_s = 1480.0\ntemperature_c = 4.0\n'
+                   '[trajectory]\nkind = "line"\nstart = [0, 0, 10]\nend = [1, 0, 10]\nn_pings = 2\n'
+                   '[[objects]]\nseafloor = "flat"\nsize_m = [40, 40]\nlabel = "seafloor"\n'
+                   '[objects.material]\nlaw = { kind = "lambert", backscatter_db = -20.0 }\n')
+    with pytest.warns(FutureWarning) as caught:
+        run = runconfig.load_run_config(cfg)
+    said = [str(w.message) for w in caught]
+    assert any("sound_speed_m_s, temperature_c belong in [environment]" in m for m in said), said
+    assert any("'law' is now called 'scattering'" in m for m in said), said
+    assert run.sonar.environment == se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
+    assert run.scene.compiled(np.zeros(3)).laws[0] == se.laws.Lambert(-20.0)
+
+
+def test_a_record_saved_with_the_medium_in_its_sonar_table_loads():
+    meta = {"frequency_hz": 400e3, "max_range_m": 20.0, "sound_speed_m_s": 1480.0}
+    sonar = se.Sonar(**legacy_medium(meta, "Sonar"))
+    assert sonar.sound_speed_m_s == 1480.0 and sonar.max_range_m == 20.0
 
 
 def test_simulate_uses_the_environment_given():
@@ -61,7 +82,7 @@ def test_simulate_uses_the_environment_given():
     warm = se.Environment(temperature_c=20.0)
     scene = flat_scene()
     a = se.simulate(scene, traj, sonar, environment=warm, start_time="2000-01-01")
-    b = se.simulate(scene, traj, se.Sonar(max_range_m=20.0, temperature_c=20.0), start_time="2000-01-01")
+    b = se.simulate(scene, traj, se.Sonar(max_range_m=20.0, environment=warm), start_time="2000-01-01")
     c = se.simulate(scene, traj, sonar, start_time="2000-01-01")
     assert a.sonar.environment == warm and a.attrs["alpha_db_per_m"] == warm.alpha_db_per_m(400e3)
     assert np.array_equal(a.port, b.port)

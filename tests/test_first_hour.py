@@ -376,14 +376,14 @@ def test_inverted_box_warns_and_two_sided_echoes(warnings_log):
 
 # --- 13: no NaN or inf in a record; one-line errors instead of tracebacks ---------------------------------
 def test_tvg_that_would_overflow_is_refused_and_display_tvg_never_overflows(tmp_path):
-    sonar = se.Sonar(absorption_db_per_m=100.0, max_range_m=20.0)
+    sonar = se.Sonar(environment=se.Environment(absorption_db_per_m=100.0), max_range_m=20.0)
     with pytest.raises(se.ConfigError, match="SignalChain.tvg: the gain"):
         se.simulate(_floor(), _line(), sonar, tvg=True)
     rec = se.simulate(_floor(), _line(), sonar)  # legal without TVG (all echoes underflow to ~0)
     assert np.isfinite(rec.starboard).all()
     img = rec.waterfall()  # the display TVG works in decades: no inf * 0
     assert img.dtype == np.uint8
-    strong = se.simulate(_floor(), _line(), se.Sonar(absorption_db_per_m=2.0, max_range_m=20.0))
+    strong = se.simulate(_floor(), _line(), se.Sonar(environment=se.Environment(absorption_db_per_m=2.0), max_range_m=20.0))
     assert np.isfinite(strong.starboard).all() and strong.waterfall().max() > 100  # the floor is seen
 
 

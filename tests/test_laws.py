@@ -53,13 +53,13 @@ def test_kirchhoff_closed_forms():
 
 def test_lambert_law_is_the_default_and_bistatic():
     assert se.Material().law == Lambert(-27.0) and se.Material(backscatter_db=-15.0).law == Lambert(-15.0)
-    assert se.Material(law=Lambert(-12.0)).backscatter_db == -12.0
+    assert se.Material(scattering=Lambert(-12.0)).backscatter_db == -12.0
     law = Lambert(-20.0)
     assert law.sigma(0.5, 0.8, 1.0) == pytest.approx(0.01 * 0.5 * 0.8)
     with pytest.raises(se.ConfigError, match="backscatter_db or scattering"):
-        se.Material(backscatter_db=-15.0, law=Kirchhoff())
+        se.Material(backscatter_db=-15.0, scattering=Kirchhoff())
     with pytest.raises(se.ConfigError, match="Material.scattering"):
-        se.Material(law="sand")
+        se.Material(scattering="sand")
 
 
 def test_laws_say_whether_sigma_depends_on_the_bistatic_azimuth():
@@ -76,7 +76,7 @@ def test_laws_say_whether_sigma_depends_on_the_bistatic_azimuth():
 def test_kirchhoff_flat_floor_against_quadrature():
     """A Kirchhoff floor simulated speckle-free against eq. (2) with σ_K (docs/physics.md §3, §10)."""
     r0, s = 0.5, 0.5
-    rec = se.simulate(flat_scene(law=Kirchhoff(r0, s)), line_along_x(), se.Sonar(),
+    rec = se.simulate(flat_scene(scattering=Kirchhoff(r0, s)), line_along_x(), se.Sonar(),
                       se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01")
     r = rec.slant_range_m
     band = (r >= 11.0) & (r <= 40.0)  # beyond, σ_K < −200 dB and the reference's cumulative sum cancels to 0
@@ -94,10 +94,12 @@ def test_kirchhoff_flat_floor_against_quadrature():
 def test_toml_material_law(tmp_path):
     from sonar_embree import runconfig
 
-    mat = runconfig.parse_material({"law": {"kind": "kirchhoff", "reflection_coefficient": 0.6, "slope_rms": 0.2}},
-                                   "x.toml", "object #1")
+    with pytest.warns(FutureWarning, match="'law' is now called 'scattering'"):
+        mat = runconfig.parse_material({"law": {"kind": "kirchhoff", "reflection_coefficient": 0.6, "slope_rms": 0.2}},
+                                       "x.toml", "object #1")
     assert mat.law == Kirchhoff(0.6, 0.2)
-    with pytest.raises(se.ConfigError, match="x.toml: object #1 material law must be a sediment name or a table"):
+    with pytest.raises(se.ConfigError, match="x.toml: object #1 material law must be a sediment name or a table"), \
+            pytest.warns(FutureWarning):
         runconfig.parse_material({"law": {"kind": "phong"}}, "x.toml", "object #1")
-    with pytest.raises(se.ConfigError, match="unknown key 'slope' in object #1 material law"):
+    with pytest.raises(se.ConfigError, match="unknown key 'slope' in object #1 material law"), pytest.warns(FutureWarning):
         runconfig.parse_material({"law": {"kind": "kirchhoff", "slope": 0.2}}, "x.toml", "object #1")

@@ -127,7 +127,7 @@ def test_a_tvg_that_overflows_is_refused_before_any_ping(monkeypatch):
 
     sim_module = sys.modules["sonar_embree.simulate"]
 
-    sonar = se.Sonar(max_range_m=45.0, source_level_db=210.0, absorption_db_per_m=100.0,
+    sonar = se.Sonar(max_range_m=45.0, source_level_db=210.0, environment=se.Environment(absorption_db_per_m=100.0),
                      receiver=se.Receiver(gain=se.TVG(k=30)))
     cast = []
     monkeypatch.setattr(sim_module._Run, "setup", lambda *a, **k: cast.append(1))
@@ -135,7 +135,7 @@ def test_a_tvg_that_overflows_is_refused_before_any_ping(monkeypatch):
                                              r"with 100 dB/m absorption, beyond float64"):
         se.simulate(_scene(), se.Trajectory.line((-0.2, 0, 10.0), (0.2, 0, 10.0), 3), sonar)
     assert cast == []
-    ok = se.Sonar(max_range_m=45.0, source_level_db=210.0, absorption_db_per_m=100.0,
+    ok = se.Sonar(max_range_m=45.0, source_level_db=210.0, environment=se.Environment(absorption_db_per_m=100.0),
                   receiver=se.Receiver(gain=se.TVG(k=30, absorption=False)))
     se.Receiver(gain=ok.receiver.gain).gain.check_range(45.0, 100.0)      # without the 2αR term: fine
 

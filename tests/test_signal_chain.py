@@ -143,7 +143,7 @@ def test_exp_chirp_with_equal_frequencies_gives_the_cw_record(scene_with_box):
 
 
 def test_perfect_tvg_flat_floor_follows_the_closed_form():
-    sonar = se.Sonar(absorption_db_per_m=0.096)
+    sonar = se.Sonar(environment=se.Environment(absorption_db_per_m=0.096))
     rec = se.simulate(flat_scene(), line_along_x(n_pings=1), sonar, se.Pulse.cw(100e-6, taper=0.0), tvg=True)
     r = rec.slant_range_m
     band = (r > 14.0) & (r < 49.0)

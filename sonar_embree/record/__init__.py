@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Pulse
+from ..config import Pulse, legacy_medium
 from ..errors import ConfigError
 from ..io.files import atomic_write
 from ..signal.labels import Labels
@@ -210,7 +210,8 @@ class Record:
         if p.get("labels") is not None:
             labels = Labels(**p["labels"], names=tuple(meta["labels"]["names"]),
                             is_seafloor=tuple(meta["labels"]["is_seafloor"]))
-        sonar = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")](**meta["sonar"])
+        sonar_cls = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")]
+        sonar = sonar_cls(**legacy_medium(meta["sonar"], sonar_cls.__name__))     # files written before [environment]
         return cls(p["data"], p["time_s"], traj, sonar, Pulse(**meta["pulse"]), p["altitude_m"], meta.get("attrs", {}),
                    labels, p.get("complex_data"), tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"))
 

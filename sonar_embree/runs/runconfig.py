@@ -16,6 +16,7 @@ from __future__ import annotations
 import difflib
 import inspect
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +27,7 @@ except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
 from .. import assets
-from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names, legacy_medium
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..record import registry
@@ -168,10 +169,16 @@ def build_sonar(source: str, where: str, sonar_table: dict, environment: Environ
         raise ConfigError(f"{source}: {where}: {both[0]!r} is given in both [sonar] and [environment]; "
                           "keep it in [environment]")
     kwargs = {k: v for k, v in sonar_table.items() if k not in ("preset", "type")}
+    old = [k for k in LEGACY_MEDIUM_KEYS if k in kwargs]
+    if old:
+        verb = "belongs" if len(old) == 1 else "belong"
+        warnings.warn(f"{source}: {where}: {', '.join(old)} {verb} in [environment] (read from [sonar] for now)",
+                      FutureWarning, stacklevel=2)
+        kwargs = legacy_medium({**kwargs, "environment": environment}, "Sonar")
     if "preset" in sonar_table:  # a device's sonar; the table's other keys override it
         return _build(source, where, lambda **kw: Sonar.preset(sonar_table["preset"], **kw),
-                      {**kwargs, "environment": environment})
-    return _build(source, where, Sonar, {**kwargs, "environment": environment})
+                      {"environment": environment, **kwargs})
+    return _build(source, where, Sonar, {"environment": environment, **kwargs})
 
 
 def _resolve(base: str, path) -> str:
@@ -294,9 +301,14 @@ def parse_material(table, source: str, where: str, base: str = "") -> Material:
     :func:`parse_law`) and ``texture = { shape = …, correlation_m = …, seed = … }``."""
     _check_keys(f"{where} material", table, field_names(Material) + ("law",), source)
     table = dict(table)
-    for key in ("scattering", "law"):
-        if key in table:
-            table[key] = parse_law(table[key], source, f"{where} material {key}", base)
+    if "law" in table:
+        if "scattering" in table:
+            raise ConfigError(f"{source}: {where} material: give scattering or law (the same thing), not both")
+        warnings.warn(f"{source}: {where} material: 'law' is now called 'scattering'", FutureWarning,
+                      stacklevel=2)
+        table["scattering"] = parse_law(table.pop("law"), source, f"{where} material law", base)  # named as given
+    elif "scattering" in table:
+        table["scattering"] = parse_law(table["scattering"], source, f"{where} material scattering", base)
     if "texture" in table:
         tex = table["texture"]
         _check_keys(f"{where} material texture", tex, field_names(KTexture), source)
