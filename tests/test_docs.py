@@ -39,7 +39,7 @@ def site(tmp_path_factory):
 
 
 def test_the_site_builds_without_warnings_and_has_every_section(site):
-    for page in ("index", "getting-started", "gallery/index", "guide/model", "guide/scenes", "guide/datasets",
+    for page in ("index", "getting-started", "gallery/index", "guide/simulation", "guide/sonars", "guide/environment", "guide/scenes", "guide/datasets",
                  "guide/surveys", "guide/cli", "api/index", "physics", "validation", "benchmarks", "architecture",
                  "changelog"):
         assert (site / f"{page}.html").is_file(), page

@@ -177,7 +177,7 @@ def _add_survey_parser(sub) -> None:
     s.add_argument("--speed", type=float, metavar="M_S", help="with --plan: survey speed, m/s (default 2)")
     s.add_argument("--overlap", type=float, help="with --plan: swath overlap between lines (default 0.2)")
     s.add_argument("--device", metavar="PRESET", help="device preset, e.g. edgetech-4125-400 "
-                                                                     "(see docs/guide/model.md, Device presets)")
+                                                                     "(see docs/guide/sonars.md, Device presets)")
     s.add_argument("--range", type=float, metavar="M", dest="range_m", help="range setting, m (default: the "
                                                                            "preset's first)")
     s.add_argument("--ping-rate", type=float, metavar="HZ", help="pings per second (default: the device's rate "
