@@ -7,11 +7,12 @@ import naive
 import sonar_embree as se
 from conftest import flat_scene, line_along_x
 from sonar_embree.laws import Kirchhoff, Lambert, Tabulated, law_table
+from sonar_embree.laws.driver import law_weights
 
 
-@pytest.mark.parametrize("kind", ["lambert", "kirchhoff", "tabulated"])
-def test_law_kernels_match_their_naive_twins(rng, kind):
-    """Two objects of each law; each kernel touches only the hits on its own objects, multiplying or adding."""
+def test_the_law_driver_matches_the_naive_twins_of_every_law_in_one_pass(rng):
+    """Two objects of each law; one pass of the driver gives each hit its own object's law, multiplying or adding;
+    other hits, misses and zero weights are untouched."""
     laws = [Lambert(-20.0), Kirchhoff(0.6, 0.2), Tabulated((5, 30, 60, 85), (-40, -30, -22, -5)), Lambert(-30.0),
             Kirchhoff(-0.3, 0.05), Tabulated((10, 80), (-35, -15))]
     t = law_table(laws)
@@ -21,17 +22,29 @@ def test_law_kernels_match_their_naive_twins(rng, kind):
     prim = rng.integers(-1, n_faces, n).astype(np.int32)
     cos_i = rng.uniform(1e-9, 1.0, n)
     weight = rng.uniform(0.0, 1.0, n) * (rng.uniform(size=n) > 0.1)
-    law = ["lambert", "kirchhoff", "tabulated"].index(kind)
+    factor = np.ones(n)
+    for law, kind in enumerate(["lambert", "kirchhoff", "tabulated"]):
+        factor *= naive.law_weights(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], weight, kind,
+                                    t.data)
     got = weight.copy()
-    t.kinds[law].kernel(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], t.data, got, got, False)
-    factor = naive.law_weights(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], weight, kind, t.data)
+    law_weights(prim, cos_i, face_object, t.term_law[0], t.kind_of, t.term_params[0], t.data, got, got, False)
     np.testing.assert_allclose(got, weight * factor, rtol=1e-11, atol=1e-300)  # subnormals aside
-    other = (prim < 0) | (t.term_law[0][face_object[np.maximum(prim, 0)]] != law) | (weight == 0)
+    other = (prim < 0) | (weight == 0)
     np.testing.assert_array_equal(got[other], weight[other])
-    assert not np.array_equal(got, weight)
+    for law in range(3):                                      # every law changed its own hits
+        own = ~other & (t.term_law[0][face_object[np.maximum(prim, 0)]] == law)
+        assert own.sum() > 100 and not np.array_equal(got[own], weight[own])
     added = np.full(n, 0.5)
-    t.kinds[law].kernel(prim, cos_i, face_object, t.term_law[0], law, t.term_params[0], t.data, weight, added, True)
+    law_weights(prim, cos_i, face_object, t.term_law[0], t.kind_of, t.term_params[0], t.data, weight, added, True)
     np.testing.assert_allclose(added, np.where(other, 0.5, 0.5 + factor), rtol=1e-11, atol=1e-300)
+
+
+def test_a_law_without_a_scalar_sigma_is_refused_naming_it():
+    class Phong(se.laws.Lambert):
+        pass
+
+    with pytest.raises(se.ConfigError, match="scattering law Phong has no scalar sigma"):
+        law_table([Phong(-20.0)])
 
 
 def test_kirchhoff_closed_forms():

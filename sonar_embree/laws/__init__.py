@@ -7,16 +7,16 @@ A law is a frozen dataclass with
   direction: φ = 0 and θs = θi is monostatic);
 - ``params(data)``: the numbers its kernel reads, per object (at most :data:`MAX_PARAMS`;
   longer data, such as a table, go into the shared list ``data``);
-- ``kernel``: a Numba kernel that multiplies each monostatic echo weight by
-  σ(θi, θi, 0)/cos θi (or adds it to a factor, for composite laws) for the hits on
-  objects of this law (the ray's footprint dA = R²dΩ/cos θi is folded in analytically).
+- a scalar Numba ``*_sigma(p, cos_i, data)`` in its module: σ(θi, θi, 0)/cos θi at one hit (the ray's
+  footprint dA = R²dΩ/cos θi is folded in analytically), registered in :data:`.driver.KINDS`; one driver
+  (:func:`.driver.law_weights`) multiplies each echo weight by it (or adds it to a factor, for composite laws).
 
 Laws add (``Lambert(-30) + Kirchhoff(0.5, 0.1)`` is a :class:`Composite`). On top of the
 law, an object may carry a backscatter map (:mod:`.maps`: dB per face, per vertex or
 from an image through UV coordinates) and its material a K-distribution texture
-(:mod:`.texture`). :func:`apply_laws` (called by each sonar type's front end) runs one
-kernel per law the scene uses, and the map and texture kernels only for a scene that
-has them: a scene of one law pays for one pass.
+(:mod:`.texture`). :func:`apply_laws` (called by each sonar type's front end) runs the driver
+once per term (one pass for a scene without composite laws, whatever its laws), and the map and texture
+kernels only for a scene that has them.
 """
 from __future__ import annotations
 

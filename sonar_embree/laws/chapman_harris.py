@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..validation import check_number
 from .composite import Summable
-from .tabulated import Tabulated, tabulated_weights
+from .tabulated import Tabulated
 
 #: Knots per m/s.
 KNOTS_PER_M_S = 3600.0 / 1852.0
@@ -50,7 +50,6 @@ class ChapmanHarris(Summable):
     wind_speed_m_s: float
 
     uses_azimuth = False
-    kernel = staticmethod(tabulated_weights)
 
     def __post_init__(self):
         check_number("ChapmanHarris", "wind_speed_m_s", self.wind_speed_m_s, lo=0.5, hi=15.5)

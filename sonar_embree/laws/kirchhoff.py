@@ -19,34 +19,20 @@ from dataclasses import dataclass
 
 import numpy as np
 from ..errors import ConfigError
-from ..kernels import njit, prange
+from ..kernels import njit
 from ..validation import check_number
 from .composite import Summable
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def kirchhoff_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
-    """``out[i] *=`` (or ``+=`` with ``add``) σ_K(θi)/cos θi for the hits on objects of law index ``law``.
-
-    σ_K/cos θ = |R0|²/(8π s²)·sec⁵θ·exp(−tan²θ/(2 s²)); the exponential wins at grazing
-    (the factor is 0, never inf·0). ``params[o]``: |R0|², s². Other arguments as for
-    :func:`sonar_embree.laws.lambert.lambert_weights`.
-    """
-    for i in prange(prim.shape[0]):
-        t = prim[i]
-        if t < 0 or weight[i] == 0.0:
-            continue
-        o = face_object[t]
-        if term_law[o] != law:
-            continue
-        c = cos_i[i]
-        tan2 = (1.0 - c * c) / (c * c)
-        s2 = params[o, 1]
-        v = params[o, 0] / (8.0 * math.pi * s2) * math.exp(-tan2 / (2.0 * s2)) / (c * c * c * c * c)
-        if add:
-            out[i] += v
-        else:
-            out[i] *= v
+@njit(cache=True, nogil=True)
+def kirchhoff_sigma(p, cos_i, data):
+    """σ_K/cos θi of Kirchhoff's Gaussian facets at incidence cos θi: |R0|²/(8π s²)·sec⁵θ·exp(−tan²θ/(2 s²)); the
+    exponential wins at grazing (0, never inf·0). ``p``: |R0|², s² (``data`` unused). The scalar σ of
+    :func:`sonar_embree.laws.driver.law_weights`."""
+    c = cos_i
+    tan2 = (1.0 - c * c) / (c * c)
+    s2 = p[1]
+    return p[0] / (8.0 * math.pi * s2) * math.exp(-tan2 / (2.0 * s2)) / (c * c * c * c * c)
 
 
 @dataclass(frozen=True)
@@ -66,7 +52,6 @@ class Kirchhoff(Summable):
     reflection_coefficient: float = 0.5
     slope_rms: float = 0.1
 
-    kernel = staticmethod(kirchhoff_weights)
 
     def __post_init__(self):
         check_number("Kirchhoff", "reflection_coefficient", self.reflection_coefficient, lo=-1.0, hi=1.0)

@@ -9,47 +9,16 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from ..kernels import njit, prange
+from ..kernels import njit
 from ..validation import check_number
 from .composite import Summable
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def lambert_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
-    """``out[i] *=`` (or ``+=`` with ``add``) μ·cos θi for the hits on objects of law index ``law`` (σ/cos θi of Lambert).
-
-    Parameters
-    ----------
-    prim : (n,) int32
-        Triangle hit by each ray, −1 for none.
-    cos_i : (n,) float64
-        cos θi of each hit.
-    face_object : (f,) int32; term_law : (n_objects,) int32
-        Object of each triangle and law index of each object's term (−1: none).
-    law : int
-        This law's index.
-    params : (n_objects, k) float64
-        The term's parameters per object; column 0: linear μ.
-    data : (m,) float64
-        Shared table data (unused by Lambert).
-    weight : (n,) float64
-        Echo weights without the law: hits of weight 0 are skipped.
-    out : (n,) float64
-        ``weight`` itself (multiplied in place) or a factor array (``add``: summed into).
-    add : bool
-        Add σ/cos θi to ``out`` (composite laws) instead of multiplying it.
-    """
-    for i in prange(prim.shape[0]):
-        t = prim[i]
-        if t < 0 or weight[i] == 0.0:
-            continue
-        o = face_object[t]
-        if term_law[o] == law:
-            v = params[o, 0] * cos_i[i]
-            if add:
-                out[i] += v
-            else:
-                out[i] *= v
+@njit(cache=True, nogil=True)
+def lambert_sigma(p, cos_i, data):
+    """σ/cos θi of Lambert at incidence cos θi: μ·cos θi (``p[0]`` the linear μ; ``data`` unused). The scalar σ of
+    :func:`sonar_embree.laws.driver.law_weights`."""
+    return p[0] * cos_i
 
 
 @dataclass(frozen=True)
@@ -66,7 +35,6 @@ class Lambert(Summable):
     backscatter_db: float = -27.0
 
     uses_azimuth = False  # σ depends on θi and θs only
-    kernel = staticmethod(lambert_weights)
 
     def __post_init__(self):
         check_number("Lambert", "backscatter_db", self.backscatter_db, lo=-300.0, hi=30.0)

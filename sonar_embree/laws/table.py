@@ -5,6 +5,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import ConfigError
+from .driver import KINDS, law_weights
+
 #: The most numbers a law reads per object (longer data go into ``LawTable.data``).
 MAX_PARAMS = 4
 
@@ -23,12 +26,15 @@ class LawTable:
         Each term's ``params()``, zero-padded.
     data : (m,) float64
         Shared data of the terms (tables).
+    kind_of : (n_kinds,) int64
+        The driver's id of each of ``kinds`` (:data:`sonar_embree.laws.driver.KINDS`).
     """
 
     kinds: tuple
     term_law: np.ndarray
     term_params: np.ndarray
     data: np.ndarray
+    kind_of: np.ndarray
 
 
 def law_table(laws, frequency_hz: float | None = None) -> LawTable:
@@ -55,7 +61,11 @@ def law_table(laws, frequency_hz: float | None = None) -> LawTable:
             term_law[j, o] = kinds.index(type(term))
             p = term.params(data)
             params[j, o, :len(p)] = p
-    return LawTable(tuple(kinds), term_law, params, np.asarray(data, dtype=np.float64))
+    unknown = [k.__name__ for k in kinds if k not in KINDS]
+    if unknown:
+        raise ConfigError(f"scattering law {unknown[0]} has no scalar sigma in sonar_embree.laws.driver.KINDS")
+    return LawTable(tuple(kinds), term_law, params, np.asarray(data, dtype=np.float64),
+                    np.array([KINDS.index(k) for k in kinds], dtype=np.int64))
 
 
 def scene_law_table(compiled, frequency_hz: float) -> LawTable:
@@ -92,13 +102,11 @@ def apply_laws(compiled, frequency_hz: float, prim: np.ndarray, cos_i: np.ndarra
     t = scene_law_table(compiled, frequency_hz)
     fo = compiled.face_object
     if t.term_law.shape[0] == 1:
-        for k, law in enumerate(t.kinds):
-            law.kernel(prim, cos_i, fo, t.term_law[0], k, t.term_params[0], t.data, weight, weight, False)
+        law_weights(prim, cos_i, fo, t.term_law[0], t.kind_of, t.term_params[0], t.data, weight, weight, False)
     else:
         factor = np.zeros_like(weight)
         for j in range(t.term_law.shape[0]):
-            for k, law in enumerate(t.kinds):
-                law.kernel(prim, cos_i, fo, t.term_law[j], k, t.term_params[j], t.data, weight, factor, True)
+            law_weights(prim, cos_i, fo, t.term_law[j], t.kind_of, t.term_params[j], t.data, weight, factor, True)
         np.multiply(weight, factor, out=weight)
     for detail in (compiled.maps, compiled.textures):
         if detail is not None:

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..kernels import njit, prange
+from ..kernels import njit
 from ..validation import read_numeric_csv
 from .composite import Summable
 
@@ -44,28 +44,13 @@ def _table_db(data, off, n, g):
     return data[off + n + lo] + f * (data[off + n + hi] - data[off + n + lo])
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def tabulated_weights(prim, cos_i, face_object, term_law, law, params, data, weight, out, add):
-    """``out[i] *=`` (or ``+=`` with ``add``) σ(θg)/cos θi, θg = asin(cos θi), for the hits of law index ``law``.
-
-    ``params[o]``: offset and length n of the object's table in ``data`` (n grazing
-    angles in rad, then n values in dB). Other arguments as for
-    :func:`sonar_embree.laws.lambert.lambert_weights`.
-    """
-    for i in prange(prim.shape[0]):
-        t = prim[i]
-        if t < 0 or weight[i] == 0.0:
-            continue
-        o = face_object[t]
-        if term_law[o] != law:
-            continue
-        c = cos_i[i]
-        db = _table_db(data, int(params[o, 0]), int(params[o, 1]), math.asin(min(c, 1.0)))
-        v = 10.0 ** (db / 10.0) / c
-        if add:
-            out[i] += v
-        else:
-            out[i] *= v
+@njit(cache=True, nogil=True)
+def tabulated_sigma(p, cos_i, data):
+    """σ(θg)/cos θi of a table at incidence cos θi, θg = asin(cos θi): ``p``: offset and length n of the object's
+    table in ``data`` (n grazing angles in rad, then n values in dB). The scalar σ of
+    :func:`sonar_embree.laws.driver.law_weights`."""
+    db = _table_db(data, int(p[0]), int(p[1]), math.asin(min(cos_i, 1.0)))
+    return 10.0 ** (db / 10.0) / cos_i
 
 
 def _as_tuple(name, values, ndim):
@@ -95,7 +80,6 @@ class Tabulated(Summable):
     frequency_hz: tuple | None = None
 
     uses_azimuth = False  # σ depends on θi and θs only
-    kernel = staticmethod(tabulated_weights)
 
     def __post_init__(self):
         g = _as_tuple("grazing_deg", self.grazing_deg, 1)
