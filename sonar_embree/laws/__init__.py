@@ -5,7 +5,7 @@ A law is a frozen dataclass with
 - ``sigma(cos_i, cos_s, phi_rad)``: the bistatic cross-section in NumPy (θ from the
   surface normal, φ the scattered direction's azimuth away from the backscatter
   direction: φ = 0 and θs = θi is monostatic);
-- ``params(data)``: the numbers its kernel reads, per object (at most :data:`MAX_PARAMS`;
+- ``params(data)``: the numbers its scalar σ reads, per object (at most :data:`MAX_PARAMS`;
   longer data, such as a table, go into the shared list ``data``);
 - a scalar Numba ``*_sigma(p, cos_i, data)`` in its module: σ(θi, θi, 0)/cos θi at one hit (the ray's
   footprint dA = R²dΩ/cos θi is folded in analytically), registered in :data:`.driver.KINDS`; one driver
