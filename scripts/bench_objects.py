@@ -22,7 +22,7 @@ import numpy as np
 import trimesh
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(ROOT, "tests"))  # the independent reference and the echo-energy probe
+sys.path[:0] = [os.path.join(ROOT, "tests"), os.path.join(ROOT, "tests", "propagation")]  # the reference, the probe
 
 import analytic  # noqa: E402
 from test_objects_seen import ball_energy  # noqa: E402

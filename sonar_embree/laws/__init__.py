@@ -7,7 +7,7 @@ A law is a frozen dataclass with
   direction: φ = 0 and θs = θi is monostatic);
 - ``params(data)``: the numbers its scalar σ reads, per object (at most :data:`MAX_PARAMS`;
   longer data, such as a table, go into the shared list ``data``);
-- a scalar Numba ``*_sigma(p, cos_i, data)`` in its module: σ(θi, θi, 0)/cos θi at one hit (the ray's
+- a scalar Numba ``*_sigma(params, o, cos_i, data)`` in its module: σ(θi, θi, 0)/cos θi at one hit (the ray's
   footprint dA = R²dΩ/cos θi is folded in analytically), registered in :data:`.driver.KINDS`; one driver
   (:func:`.driver.law_weights`) multiplies each echo weight by it (or adds it to a factor, for composite laws).
 

@@ -1,8 +1,8 @@
 """One driver for every scattering law: a single pass over the hits calls each hit's law's scalar σ
 (docs/physics.md §10).
 
-Each law module holds its class and its scalar ``*_sigma(p, cos_i, data)`` (σ(θi, θi, 0)/cos θi at one hit, from
-that object's parameter row ``p`` and the shared table data). A new law is its module and one line in
+Each law module holds its class and its scalar ``*_sigma(params, o, cos_i, data)`` (σ(θi, θi, 0)/cos θi at one hit
+on object ``o``, from its parameter row and the shared table data), inlined into the driver. A new law is its module and one line in
 :data:`KINDS` with one branch in :func:`_sigma` (Numba calls functions, not a table of them: a jitted function
 taken as an argument would be compiled again in every process, its disk cache never hit).
 """
@@ -17,14 +17,14 @@ from .tabulated import Tabulated, tabulated_sigma
 KINDS = (Lambert, Kirchhoff, Tabulated)
 
 
-@njit(cache=True, nogil=True)
-def _sigma(kind, p, cos_i, data):
-    """σ/cos θi of law kind ``kind`` (an index of :data:`KINDS`) at one hit."""
+@njit(cache=True, nogil=True, inline="always")
+def _sigma(kind, params, o, cos_i, data):
+    """σ/cos θi of law kind ``kind`` (an index of :data:`KINDS`) at one hit on object ``o``."""
     if kind == 0:
-        return lambert_sigma(p, cos_i, data)
+        return lambert_sigma(params, o, cos_i, data)
     if kind == 1:
-        return kirchhoff_sigma(p, cos_i, data)
-    return tabulated_sigma(p, cos_i, data)
+        return kirchhoff_sigma(params, o, cos_i, data)
+    return tabulated_sigma(params, o, cos_i, data)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -60,7 +60,7 @@ def law_weights(prim, cos_i, face_object, term_law, kind_of, params, data, weigh
         k = term_law[o]
         if k < 0:
             continue
-        v = _sigma(kind_of[k], params[o], cos_i[i], data)
+        v = _sigma(kind_of[k], params, o, cos_i[i], data)
         if add:
             out[i] += v
         else:

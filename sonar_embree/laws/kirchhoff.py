@@ -24,15 +24,15 @@ from ..validation import check_number
 from .composite import Summable
 
 
-@njit(cache=True, nogil=True)
-def kirchhoff_sigma(p, cos_i, data):
-    """σ_K/cos θi of Kirchhoff's Gaussian facets at incidence cos θi: |R0|²/(8π s²)·sec⁵θ·exp(−tan²θ/(2 s²)); the
-    exponential wins at grazing (0, never inf·0). ``p``: |R0|², s² (``data`` unused). The scalar σ of
-    :func:`sonar_embree.laws.driver.law_weights`."""
+@njit(cache=True, nogil=True, inline="always")
+def kirchhoff_sigma(params, o, cos_i, data):
+    """σ_K/cos θi of Kirchhoff's Gaussian facets at incidence cos θi on object ``o``:
+    |R0|²/(8π s²)·sec⁵θ·exp(−tan²θ/(2 s²)); the exponential wins at grazing (0, never inf·0). ``params[o]``: |R0|²,
+    s² (``data`` unused). The scalar σ of :func:`sonar_embree.laws.driver.law_weights`."""
     c = cos_i
     tan2 = (1.0 - c * c) / (c * c)
-    s2 = p[1]
-    return p[0] / (8.0 * math.pi * s2) * math.exp(-tan2 / (2.0 * s2)) / (c * c * c * c * c)
+    s2 = params[o, 1]
+    return params[o, 0] / (8.0 * math.pi * s2) * math.exp(-tan2 / (2.0 * s2)) / (c * c * c * c * c)
 
 
 @dataclass(frozen=True)

@@ -14,11 +14,11 @@ from ..validation import check_number
 from .composite import Summable
 
 
-@njit(cache=True, nogil=True)
-def lambert_sigma(p, cos_i, data):
-    """σ/cos θi of Lambert at incidence cos θi: μ·cos θi (``p[0]`` the linear μ; ``data`` unused). The scalar σ of
-    :func:`sonar_embree.laws.driver.law_weights`."""
-    return p[0] * cos_i
+@njit(cache=True, nogil=True, inline="always")
+def lambert_sigma(params, o, cos_i, data):
+    """σ/cos θi of Lambert at incidence cos θi on object ``o``: μ·cos θi (``params[o, 0]`` the linear μ; ``data``
+    unused). The scalar σ of :func:`sonar_embree.laws.driver.law_weights`."""
+    return params[o, 0] * cos_i
 
 
 @dataclass(frozen=True)

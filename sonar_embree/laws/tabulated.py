@@ -44,12 +44,12 @@ def _table_db(data, off, n, g):
     return data[off + n + lo] + f * (data[off + n + hi] - data[off + n + lo])
 
 
-@njit(cache=True, nogil=True)
-def tabulated_sigma(p, cos_i, data):
-    """σ(θg)/cos θi of a table at incidence cos θi, θg = asin(cos θi): ``p``: offset and length n of the object's
-    table in ``data`` (n grazing angles in rad, then n values in dB). The scalar σ of
+@njit(cache=True, nogil=True, inline="always")
+def tabulated_sigma(params, o, cos_i, data):
+    """σ(θg)/cos θi of a table at incidence cos θi on object ``o``, θg = asin(cos θi): ``params[o]``: offset and
+    length n of the object's table in ``data`` (n grazing angles in rad, then n values in dB). The scalar σ of
     :func:`sonar_embree.laws.driver.law_weights`."""
-    db = _table_db(data, int(p[0]), int(p[1]), math.asin(min(cos_i, 1.0)))
+    db = _table_db(data, int(params[o, 0]), int(params[o, 1]), math.asin(min(cos_i, 1.0)))
     return 10.0 ** (db / 10.0) / cos_i
 
 

@@ -11,7 +11,7 @@ import sonar_embree as se
 from sonar_embree.runs.cli import main
 from conftest import box, flat_scene, line_along_x
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 @pytest.fixture(scope="module")

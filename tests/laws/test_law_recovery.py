@@ -40,7 +40,7 @@ def test_lambert_sigma_recovered():
 
 def test_kirchhoff_sigma_recovered_including_the_nadir_peak():
     r0, s = 0.6, 0.25
-    sigma, cos_i, grazing = _recovered_sigma({"law": se.laws.Kirchhoff(r0, s)})
+    sigma, cos_i, grazing = _recovered_sigma({"scattering": se.laws.Kirchhoff(r0, s)})
     theta = np.arccos(cos_i)
     want = analytic.kirchhoff_monostatic(theta, r0, s)
     band = (grazing >= 15) & (want > 1e-12)

@@ -232,7 +232,7 @@ _SMALL_DISK_STREAM = """
 import resource, signal, sys
 signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 import sonar_embree as se
-sys.path.insert(0, {tests!r})
+sys.path[:0] = [{tests!r}, {root!r}]
 from test_stream import LINE, SONAR, START, _scene
 resource.setrlimit(resource.RLIMIT_FSIZE, ({limit}, {limit}))   # writes beyond it fail as on a full disk
 try:
@@ -255,8 +255,9 @@ def test_a_full_disk_gives_one_line_and_the_resume_is_exact(tmp_path):
     a_xtf, b_xtf = tmp_path / "a" / "l.xtf", tmp_path / "b" / "l.xtf"
     se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=a_xtf, **kw)
     size = a_xtf.stat().st_size
-    code = _SMALL_DISK_STREAM.format(tests=os.path.dirname(__file__), limit=size // 2, store=str(tmp_path / "b.zarr"),
-                                     xtf=str(b_xtf))
+    here = os.path.dirname(os.path.abspath(__file__))
+    code = _SMALL_DISK_STREAM.format(tests=here, root=os.path.dirname(here), limit=size // 2,
+                                     store=str(tmp_path / "b.zarr"), xtf=str(b_xtf))
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert proc.returncode == 3, proc.stderr[-2000:]
     err = proc.stderr.strip().splitlines()
