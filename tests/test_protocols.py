@@ -1,6 +1,7 @@
 """Declared protocols (issue 36, item 4): each stage asks its collaborators through a declared interface with one
 default, never by probing attributes."""
 import ast
+import dataclasses
 import os
 
 import numpy as np
@@ -66,10 +67,10 @@ def test_every_sonar_type_declares_what_its_front_end_models(sonar_cls):
     assert issubclass(sonar_cls, Transducer)
     for flag in ("tilted", "models_surface", "models_refraction"):
         assert isinstance(getattr(sonar_cls, flag), bool), flag
-    assert sonar_cls.tilted == ("tilt_deg" in {f.name for f in __import__("dataclasses").fields(sonar_cls)})
+    assert sonar_cls.tilted == ("tilt_deg" in {f.name for f in dataclasses.fields(sonar_cls)})
 
 
-def test_the_echo_sounder_refuses_a_surface_and_a_profile_by_its_declaration(flat_floor_scene=None):
+def test_the_echo_sounder_refuses_a_surface_and_a_profile_by_its_declaration():
     scene = se.Scene().add(se.seafloor.flat(size_m=(60, 60)), label="seafloor")
     traj = se.Trajectory.line((0, 0, 10), (1, 0, 10), 2)
     for env, key in ((se.Environment(surface=se.SeaSurface(z_m=20.0)), "Environment.surface"),
@@ -101,7 +102,6 @@ def test_what_runs_keep_with_a_scene_is_declared_per_copy_and_not_pickled():
     """Casters, law tables, boxes and surfaces live in ``CompiledScene.prepared`` (not stuffed into ``__dict__``):
     a copy made with dataclasses.replace (the seafloor alone) has its own, a pickled scene arrives without them,
     release() empties them."""
-    import dataclasses
     import pickle
 
     from sonar_embree.raycast import NumpyCaster
