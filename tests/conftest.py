@@ -140,3 +140,14 @@ def decoy_above(traj, height_m=5.0):
     """A 0.2 m cube ``height_m`` above the first ping: within range of the sonar (so a scene whose surfaces
     all lie beyond the window is not refused as "nothing in range") but behind every side-scan beam."""
     return box((0.2, 0.2, 0.2), traj.positions_m[0] + np.array([0.0, 0.0, height_m]))
+
+
+def write_anchor_config(tmp_path, sonar_extra="", env=""):
+    """The shipped anchor-mine config in ``tmp_path`` with lines added to its [sonar] and [environment] tables."""
+    with open(se.assets.path("anchor_mine.toml"), encoding="utf-8") as fh:
+        text = fh.read()
+    text = text.replace("path = \"asset:anchor_mine.obj\"", f"path = \"{se.assets.path('anchor_mine.obj')}\"")
+    text = text.replace("[environment]", "[environment]\n" + env, 1).replace("[sonar]", "[sonar]\n" + sonar_extra, 1)
+    p = tmp_path / "run.toml"
+    p.write_text(text)
+    return p

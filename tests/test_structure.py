@@ -152,3 +152,16 @@ def test_nothing_is_stuffed_into_an_objects_dict():
     hits = [name for name, _, tree in _modules() for n in ast.walk(tree)
             if isinstance(n, ast.Attribute) and n.attr == "__dict__"]
     assert hits == []
+
+
+#: Kernels that still take more than :data:`MAX_KERNEL_ARGS` positional arguments (issue 36, item 5). The set may
+#: shrink, never grow: a kernel takes named groups (:mod:`sonar_embree.kernels.args`) instead.
+MAX_KERNEL_ARGS = 15
+LONG_KERNELS = {"mixed_legs", "_mixed_chunk", "visibility_legs", "arc_land", "_emit_node", "speckle_block",
+                "swell_paths", "_swell_chunk", "label_rows"}
+
+
+def test_no_new_kernel_takes_a_long_argument_list():
+    long = {node.name for name, _, tree in _modules() if name.startswith("sonar_embree.kernels")
+            for node in tree.body if isinstance(node, ast.FunctionDef) and len(node.args.args) > MAX_KERNEL_ARGS}
+    assert long <= LONG_KERNELS, long - LONG_KERNELS

@@ -7,13 +7,15 @@
 - :mod:`.truth`: ground-truth labels of the centre line;
 - :mod:`.multipath`: the one- and two-bounce surface paths of a block, and merging paths — front end;
 - :mod:`.swell`: the same paths off a meshed surface, between and after its Embree casts — front end;
-- :mod:`.refraction`: curved rays in a sound-speed profile, chord by chord — front end.
+- :mod:`.refraction`: curved rays in a sound-speed profile, chord by chord — front end;
+- :mod:`.args`: named groups of kernel arguments (a block's fan, its poses, the scene's arrays, the outputs).
 
 :mod:`._numba` is the only module that imports numba (the scattering laws take ``njit`` and ``prange``
 from here). Kernels read no global state (named constants only), allocate nothing, draw no random
 numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy twin in
 ``tests/naive.py``. Compiled code is cached on disk.
 """
+from . import args
 from ._numba import NO_LAYOUT, REFIT_MIN_COS, REFIT_REL_TOL, njit, num_threads, prange
 from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_legs
 from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start

@@ -204,9 +204,7 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, prim, tfar, vertices, faces, face_normals,
-               face_two_sided, beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m, range_out,
-               time_out, extent_out, weight_out, cos_out, points_out, layout):
+def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
     """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
 
     (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
@@ -229,36 +227,34 @@ def fan_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos, rx_shift, p
 
     Parameters
     ----------
-    s, ds, cos_beta, sin_beta, dbeta, el_start, rot, pos
+    fan : :data:`~sonar_embree.kernels.args.Fan`
         The block's fan, as for :func:`fan_rays`; ``dbeta`` the cell width of each
         elevation ray, ``ds`` the azimuth spacing.
-    rx_shift : (pings,) float64
-        δ per ping: the receive beam's along-track direction-cosine offset (0: stop-and-hop).
+    poses : :data:`~sonar_embree.kernels.args.Poses`
+        Rotations, positions and δ per ping: the receive beam's along-track direction-cosine offset
+        (0: stop-and-hop).
     prim : (n,) int32
         Triangle hit by each ray, −1 for a miss.
     tfar : (n,) float32
         Embree's hit distance, m.
-    vertices : (v, 3) float64; faces : (f, 3) int32; face_normals : (f, 3) float64
-        The scene in its local frame.
-    face_two_sided : (f,) bool
-        Triangles that scatter from both sides (two-sided materials).
-    beam : (4,) float64
-        k·lx/2, k·ly/2, tilt δ (rad) and 0 (reserved).
-    two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad : float
-        Two-way absorption (Np/m), near-field range bound, range window and bound
-        on |dR/dβ| (m/rad).
-    time_per_m : float
-        Two-way travel time per metre of slant range, 2/c (s/m).
-    range_out, time_out, extent_out, weight_out, cos_out : (n,) float64
-        Written with R (m), the travel time 2R/c (s, inf: no echo), the travel-time
-        extent ΔR·2/c (s), w and cos θi (0 where w = 0).
-    points_out : (n, 3) or (0, 3) float64
-        Written with the hit points (local frame, m) when it has n rows.
+    scene : :data:`~sonar_embree.kernels.args.SceneArrays`
+        The scene in its local frame; ``face_two_sided`` the triangles that scatter from both sides.
+    weighting : :data:`~sonar_embree.kernels.args.Weighting`
+        The beam (k·lx/2, k·ly/2, tilt δ in rad, 0), two-way absorption (Np/m), near-field range bound,
+        range window, bound on |dR/dβ| (m/rad) and the two-way travel time per metre 2/c (s/m).
+    out : :data:`~sonar_embree.kernels.args.EchoOut`
+        Written with R (m), the travel time 2R/c (s, inf: no echo), the travel-time extent ΔR·2/c (s), w and
+        cos θi (0 where w = 0), and the hit points (local frame, m) when ``points`` has n rows.
     layout : (n, 5) or (0, 5) float64
         Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.propagation.aim`), row r's
         rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
         not read. No rows (``NO_LAYOUT``): the fan's layout.
     """
+    s, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    rot, pos, rx_shift = poses
+    vertices, faces, face_normals, face_two_sided = scene
+    beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = weighting
+    range_out, time_out, extent_out, weight_out, cos_out, points_out = out
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
     consts = (beam[1], math.cos(beam[2]), math.sin(beam[2]), two_way_np_per_m, min_range_m, max_range_m,

@@ -526,9 +526,7 @@ def _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray, face_normals, face_two_sided,
-               beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom, range_out, time_out, extent_out,
-               weight_out, cos_out, points_out, layout):
+def arc_echoes(fan, poses, hit_prim, hit, ray, scene, weighting, out, layout):
     """Weights of the curved rays of a block (docs/physics.md §12); the law multiplies σ(θi)/cos θi afterwards.
 
     w = Γ²(launch)·Γ_rx²(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
@@ -538,14 +536,20 @@ def arc_echoes(s, ds, cos_beta, sin_beta, dbeta, el_start, rot, rx_shift, hit_pr
     (−(M/c0)·n̂_v·∂θ0/∂β + (X̃/c0)·cos θ0·ĥ⊥·∂φ/∂β, n̂_v the normal of the ray in its vertical
     plane, ĥ⊥ the horizontal normal of that plane; the straight-ray footprint when c is constant).
     Misses, back faces (unless two-sided), grazing hits, hits after ``t_max`` and rays behind the
-    baffle get w = 0. Arguments as for :func:`~sonar_embree.kernels.rays.fan_echoes`, plus
-    ``hit_prim``, ``hit``, ``ray`` from :func:`arc_land` / :func:`arc_start`, ``t_max`` (one-way, s)
-    and ``c_nom`` (the sonar's sound speed, m/s). Outputs as there; points are the hit points.
+    baffle get w = 0. Arguments as for :func:`~sonar_embree.kernels.rays.fan_echoes` (``poses.pos`` unread), plus
+    ``hit_prim``, ``hit``, ``ray`` from :func:`arc_land` / :func:`arc_start`; ``weighting`` an
+    :data:`~sonar_embree.kernels.args.ArcWeighting` with ``t_max`` (one-way, s) and ``c_nom`` (the sonar's sound
+    speed, m/s). Outputs as there; points are the hit points.
     Γ_rx: the receive beam moved on during the ping, its along-track cosine shifted by ``rx_shift`` (pings,)
     δ = 2·v_fwd/c (docs/physics.md §16; the horizontal slowness is conserved, so the ray reaching the moved
     receiver leaves X with s − 2v·T/M ≈ s − 2v/c0); Γ_rx = Γ, bit for bit, when δ = 0. With ``layout``
     (:func:`arc_start`) each ray has its own s, β, dβ and ds.
     """
+    s, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    rot, rx_shift = poses.rot, poses.rx_shift
+    face_normals, face_two_sided = scene.face_normals, scene.face_two_sided
+    beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom = weighting
+    range_out, time_out, extent_out, weight_out, cos_out, points_out = out
     n_az = s.shape[0]
     per_ray = layout.shape[0] > 0
     want_points = points_out.shape[0] == range_out.shape[0]

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..instrument import beam
 from .. import checks, kernels
+from ..kernels.args import EchoOut, Fan, Poses, Weighting, scene_arrays
 from .aim import aim_block, drop_aimed
 from ..config import FanSettings, Sonar
 from ..laws import apply_laws
@@ -295,9 +296,10 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     c = caster.compiled
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.fan_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, pos_local, rx_shift, prim, tfar, c.vertices,
-                       c.faces, c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m,
-                       max_range_m, plan.slope_cap_m_rad, time_per_m, rng, t_s, ext, w, cos_i, pts, kernels.NO_LAYOUT)
+    kernels.fan_echoes(Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start), Poses(rot, pos_local, rx_shift), prim, tfar,
+                       scene_arrays(c), Weighting(plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
+                                                  plan.slope_cap_m_rad, time_per_m),
+                       EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
     apply_laws(c, frequency_hz, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

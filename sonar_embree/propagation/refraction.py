@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import checks, kernels
+from ..kernels.args import ArcWeighting, EchoOut, Fan, Poses, scene_arrays
 from .aim import AimedEchoes, drop_aimed, keep_own, lattice_rays
 from .buffers import Buffers
 from .echoes import Echoes
@@ -176,9 +177,10 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.arc_echoes(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start, rot, rx_shift, hit_prim, hit, ray,
-                       c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
-                       plan.slope_cap_m_rad, c_nom, rng, t_s, ext, w, cos_i, pts, kernels.NO_LAYOUT)
+    kernels.arc_echoes(Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start), Poses(rot, pos_local, rx_shift), hit_prim,
+                       hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
+                                                               plan.slope_cap_m_rad, c_nom),
+                       EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
@@ -214,9 +216,10 @@ def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.arc_echoes(plan.s, plan.ds, none, none, none, ray_start, rot, rx_shift, hit_prim, hit, ray,
-                       c.face_normals, c.face_two_sided, plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
-                       plan.slope_cap_m_rad, sonar.sound_speed_m_s, rng, t_s, ext, w, cos_i, pts, layout)
+    kernels.arc_echoes(Fan(plan.s, plan.ds, none, none, none, ray_start), Poses(rot, pos_local, rx_shift), hit_prim,
+                       hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
+                                                               plan.slope_cap_m_rad, sonar.sound_speed_m_s),
+                       EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
     obj = keep_own(c, aim, counts, hit_prim, w, t_s, cos_i)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:

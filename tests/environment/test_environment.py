@@ -11,7 +11,7 @@ from sonar_embree.environment.francois_garrison import francois_garrison_db_per_
 from sonar_embree.config import LEGACY_MEDIUM_KEYS, legacy_medium
 
 import analytic
-from conftest import flat_scene
+from conftest import flat_scene, write_anchor_config as _write
 
 
 @pytest.mark.parametrize("t_c", [-2.0, 4.0, 10.0, 15.0, 22.0])
@@ -96,14 +96,6 @@ def test_simulate_uses_the_environment_given():
         se.simulate(scene, traj, sonar, environment={"temperature_c": 4})
 
 
-def _write(tmp_path, sonar_extra="", env=""):
-    with open(se.assets.path("anchor_mine.toml"), encoding="utf-8") as fh:
-        text = fh.read()
-    text = text.replace("path = \"asset:anchor_mine.obj\"", f"path = \"{se.assets.path('anchor_mine.obj')}\"")
-    text = text.replace("[environment]", "[environment]\n" + env, 1).replace("[sonar]", "[sonar]\n" + sonar_extra, 1)
-    p = tmp_path / "run.toml"
-    p.write_text(text)
-    return p
 
 
 def test_toml_environment_table_and_old_sonar_keys(tmp_path):

@@ -44,7 +44,7 @@ def test_preset_overrides_errors_and_toml(tmp_path):
     assert s.max_range_m == 75.0 and s.source_level_db == 205.0
     with pytest.raises(se.ConfigError, match="unknown device preset 'edgetech-9999'"):
         se.Sonar.preset("edgetech-9999")
-    from test_environment import _write
+    from conftest import write_anchor_config as _write
 
     from sonar_embree import runconfig
 

@@ -83,7 +83,7 @@ def test_receiver_errors_and_toml(tmp_path):
                         (dict(gain={"kind": "boost"}), "kind"), (dict(gain={"k": 30, "slope": 1}), "'slope'")):
         with pytest.raises(se.ConfigError, match=needle):
             se.Receiver(**bad)
-    from test_environment import _write
+    from conftest import write_anchor_config as _write
 
     from sonar_embree import runconfig
 
@@ -165,7 +165,7 @@ def test_bool_keys_take_only_booleans(value, tmp_path):
     if value is not None:                                               # None: the default, by label
         with pytest.raises(se.ConfigError, match=r"Scene.add.seafloor must be True, False or None"):
             se.Scene().add(se.seafloor.flat((10.0, 10.0)), label="floor", seafloor=value)
-    from test_environment import _write
+    from conftest import write_anchor_config as _write
 
     from sonar_embree import runconfig
 

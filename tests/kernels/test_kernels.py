@@ -7,6 +7,7 @@ import naive
 import sonar_embree as se
 from sonar_embree import kernels
 from sonar_embree.signal import synthesis
+from sonar_embree.kernels import args as A
 
 
 def _splat_inputs(rng, n=4000, n_s=300):
@@ -200,9 +201,10 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     t_k = np.empty(n)
     per_m = 2 / 1500.0  # travel time and its extent come out in seconds
     shift = rng.uniform(-3e-3, 3e-3, rot.shape[0])  # motion during the ping (0: stop-and-hop)
-    kernels.fan_echoes(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start, rot, pos, shift, prim, tfar, c.vertices,
-                       c.faces, c.face_normals, two_sided, np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02,
-                       0.004, 60.0, 500.0, per_m, rng_k, t_k, ext_k, w_k, cos_k, pts, kernels.NO_LAYOUT)
+    kernels.fan_echoes(A.Fan(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start), A.Poses(rot, pos, shift), prim,
+                       tfar, A.SceneArrays(c.vertices, c.faces, c.face_normals, two_sided),
+                       A.Weighting(np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004, 60.0, 500.0, per_m),
+                       A.EchoOut(rng_k, t_k, ext_k, w_k, cos_k, pts), kernels.NO_LAYOUT)
     ext_k = ext_k / per_m
     np.testing.assert_array_equal(t_k, rng_k * per_m)
     apply_laws(c, 100e3, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
@@ -369,9 +371,10 @@ def test_aim_kernels_match_naive(rng):
 
     out = [np.empty(n) for _ in range(5)]
     pts = np.empty((n, 3))
-    kernels.fan_echoes(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), start[::table.shape[1]], rot, pos,
-                       shift, prim, tfar, c.vertices, c.faces, c.face_normals, c.face_two_sided, plan.beam, 0.02,
-                       plan.min_range_m, 50.0, plan.slope_cap_m_rad, 2 / 1500.0, *out, pts, lay)
+    kernels.fan_echoes(A.Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), start[::table.shape[1]]),
+                       A.Poses(rot, pos, shift), prim, tfar, A.scene_arrays(c),
+                       A.Weighting(plan.beam, 0.02, plan.min_range_m, 50.0, plan.slope_cap_m_rad, 2 / 1500.0),
+                       A.EchoOut(*out, pts), lay)
     keep_own(c, aim, counts, prim, out[3], out[1], out[4])
     apply_laws(c, sonar.frequency_hz, prim, out[4], out[3], pts)
     k_wave = 2 * np.pi / sonar.wavelength_m

@@ -20,6 +20,7 @@ from sonar_embree.propagation.fan import FanPlan
 from sonar_embree.raycast.embree import EmbreeCaster
 from sonar_embree.propagation.refraction import cast_refracted
 from sonar_embree.sonars.sidescan import SideScanFrontEnd
+from sonar_embree.kernels import args as A
 
 H, DEPTH, C_SONAR, GRAD, MU_DB, TAU, FS, TILT, RANGE = 10.0, 20.0, 1500.0, 0.5, -20.0, 100e-6, 50e3, 10.0, 80.0
 
@@ -292,10 +293,11 @@ def test_arc_echoes_matches_its_twin(three_layer_block, delta):
     out = [np.empty(n) for _ in range(5)]
     c = b["caster"].compiled
     rx_shift = np.full(b["rot"].shape[0], delta)
-    kernels.arc_echoes(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"], b["rot"],
-                       rx_shift, b["hit_prim"], b["hit"], b["ray"], c.face_normals, c.face_two_sided, plan.beam,
-                       b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"], plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, *out, np.empty((0, 3)), kernels.NO_LAYOUT)
+    kernels.arc_echoes(A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"]),
+                       A.Poses(b["rot"], b["pos"], rx_shift), b["hit_prim"], b["hit"], b["ray"], A.scene_arrays(c),
+                       A.ArcWeighting(plan.beam, b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"],
+                                      plan.slope_cap_m_rad, s.sound_speed_m_s),
+                       A.EchoOut(*out, np.empty((0, 3))), kernels.NO_LAYOUT)
     rng_k, t_k, ext_k, w_k, _ = out
     rays = _sample(b, seed=7)
     prim = np.full(n, -1, np.int32)
@@ -338,7 +340,7 @@ def test_turn_series_meets_the_trigonometry():
 # --- set-up: TOML, CSV, record files, errors, and nothing run without a profile ---
 def test_profile_from_toml_inline_and_from_a_csv_next_to_the_config(tmp_path):
     from sonar_embree.runs import runconfig
-    from test_environment import _write
+    from conftest import write_anchor_config as _write
     env = "sound_speed = { depth_m = [0.0, 50.0], speed_m_s = [1500.0, 1525.0], surface_z_m = 40.0 }\n"
     p = runconfig.load_run_config(_write(tmp_path, env=env)).sonar.environment.sound_speed
     assert (p.depth_m, p.speed_m_s, p.surface_z_m) == ((0.0, 50.0), (1500.0, 1525.0), 40.0)
@@ -455,13 +457,14 @@ def test_arc_kernels_with_each_rays_own_layout_give_the_fans_bits(three_layer_bl
     np.testing.assert_array_equal(state, b["start"])
     np.testing.assert_array_equal(ray, b["ray"])
     c = b["caster"].compiled
-    args = (b["rot"], np.full(1, 2e-3), b["hit_prim"], b["hit"], b["ray"], c.face_normals, c.face_two_sided, plan.beam,
-            b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s)
+    args = (A.Poses(b["rot"], b["pos"], np.full(1, 2e-3)), b["hit_prim"], b["hit"], b["ray"], A.scene_arrays(c),
+            A.ArcWeighting(plan.beam, b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"],
+                           plan.slope_cap_m_rad, s.sound_speed_m_s))
     fan, per_ray = [np.empty(n) for _ in range(5)], [np.empty(n) for _ in range(5)]
-    kernels.arc_echoes(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], el, *args, *fan,
-                       np.empty((0, 3)), kernels.NO_LAYOUT)
-    kernels.arc_echoes(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), n_az * el, *args, *per_ray,
-                       np.empty((0, 3)), layout)
+    kernels.arc_echoes(A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], el), *args,
+                       A.EchoOut(*fan, np.empty((0, 3))), kernels.NO_LAYOUT)
+    kernels.arc_echoes(A.Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), n_az * el), *args,
+                       A.EchoOut(*per_ray, np.empty((0, 3))), layout)
     for x, y in zip(fan, per_ray):
         np.testing.assert_array_equal(x, y)
     assert np.count_nonzero(fan[3]) > 50

@@ -139,7 +139,7 @@ def test_bad_noise_settings_are_refused(noise, needle):
 
 def test_noise_from_toml_and_off(tmp_path):
     """[environment] noise = {…} or noise = false; [sonar] source_level_db and self_noise_db_per_hz."""
-    from test_environment import _write
+    from conftest import write_anchor_config as _write
 
     from sonar_embree import runconfig
 
