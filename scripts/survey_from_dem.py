@@ -1,7 +1,7 @@
 """A DEM to a planned, streamed survey: XTF + Zarr per line, a GeoTIFF mosaic and its bathymetry truth.
 
     python scripts/survey_from_dem.py -o out/survey                       # a synthetic DEM made here
-    python scripts/survey_from_dem.py -o out/survey --figure docs/survey/survey.png   # + the figure of docs/guide/surveys.md
+    python scripts/survey_from_dem.py -o out/survey --figure docs/survey/survey.png   # + docs/guide/surveys.md's figure
     python scripts/survey_from_dem.py -o out/survey --dem my_dem.tif      # your own GeoTIFF (projected CRS, m)
 
 Steps: the DEM (by default a 480 m × 320 m synthetic GeoTIFF at 1 m in UTM 32N, 40 m deep: smooth relief, two

@@ -39,9 +39,9 @@ def site(tmp_path_factory):
 
 
 def test_the_site_builds_without_warnings_and_has_every_section(site):
-    for page in ("index", "getting-started", "gallery/index", "guide/simulation", "guide/sonars", "guide/environment", "guide/scenes", "guide/datasets",
-                 "guide/surveys", "guide/cli", "api/index", "physics", "validation", "benchmarks", "architecture",
-                 "changelog"):
+    for page in ("index", "getting-started", "gallery/index", "guide/simulation", "guide/sonars", "guide/environment",
+                 "guide/scenes", "guide/datasets", "guide/surveys", "guide/cli", "api/index", "physics", "validation",
+                 "benchmarks", "architecture", "changelog"):
         assert (site / f"{page}.html").is_file(), page
 
 
@@ -74,7 +74,8 @@ def test_the_readme_is_a_front_page_with_the_two_set_up_commands():
     text = open(os.path.join(ROOT, "README.md"), encoding="utf-8").read()
     assert len(text.splitlines()) <= 160
     blocks = re.findall(r"```bash\n(.*?)\n```", text, re.S)
-    demo = "python3 -m venv .venv && . .venv/bin/activate && python -m pip install -q -e . && sonar-embree demo -o out/demo"
+    demo = ("python3 -m venv .venv && . .venv/bin/activate && python -m pip install -q -e . && "
+            "sonar-embree demo -o out/demo")
     tests = ('python3 -m venv .venv && . .venv/bin/activate && python -m pip install -q -e ".[test]" && '
              "python -m pytest -q")
     assert blocks[:2] == [demo, tests]

@@ -383,7 +383,8 @@ def test_tvg_that_would_overflow_is_refused_and_display_tvg_never_overflows(tmp_
     assert np.isfinite(rec.starboard).all()
     img = rec.waterfall()  # the display TVG works in decades: no inf * 0
     assert img.dtype == np.uint8
-    strong = se.simulate(_floor(), _line(), se.Sonar(environment=se.Environment(absorption_db_per_m=2.0), max_range_m=20.0))
+    strong = se.simulate(_floor(), _line(),
+                         se.Sonar(environment=se.Environment(absorption_db_per_m=2.0), max_range_m=20.0))
     assert np.isfinite(strong.starboard).all() and strong.waterfall().max() > 100  # the floor is seen
 
 

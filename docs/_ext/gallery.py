@@ -33,7 +33,8 @@ def _page(docs: str, name: str, args: str, figures: list) -> str:
     with open(path, encoding="utf-8") as fh:
         doc = ast.get_docstring(ast.parse(fh.read())) or name
     title, _, rest = doc.partition("\n")
-    lines = [f"# {title.strip()}", "", rest.strip(), "", "```bash", f"python scripts/{name}.py {args}".rstrip(), "```", ""]
+    command = f"python scripts/{name}.py {args}".rstrip()
+    lines = [f"# {title.strip()}", "", rest.strip(), "", "```bash", command, "```", ""]
     for fig in figures:
         lines += [f"![{os.path.basename(fig)}](../../{fig})", ""]
     lines += ["```{literalinclude} " + f"../../../scripts/{name}.py", ":language: python", "```", ""]

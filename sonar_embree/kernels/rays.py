@@ -246,8 +246,8 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
         Written with R (m), the travel time 2R/c (s, inf: no echo), the travel-time extent ΔR·2/c (s), w and
         cos θi (0 where w = 0), and the hit points (local frame, m) when ``points`` has n rows.
     layout : (n, 5) or (0, 5) float64
-        Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.propagation.aim`), row r's
-        rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
+        Each ray's own s, cos β, sin β, dβ and ds (the rays aimed at objects, :mod:`sonar_embree.propagation.aim`), row
+        r's rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
         not read. No rows (``NO_LAYOUT``): the fan's layout.
     """
     s, ds, cos_beta, sin_beta, dbeta, el_start = fan

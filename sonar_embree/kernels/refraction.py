@@ -105,8 +105,8 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
     state : (n, STATE_WIDTH) float64; lay : (n,) int64; ray : (n, RAY_WIDTH) float64
         Written.
     layout : (n, 5) or (0, 5) float64
-        Each ray's own s, cos β, sin β (, dβ, ds): rays aimed at objects (:mod:`sonar_embree.propagation.aim`), row r's rays
-        ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``cos_beta``, ``sin_beta`` are then not read. No rows
+        Each ray's own s, cos β, sin β (, dβ, ds): rays aimed at objects (:mod:`sonar_embree.propagation.aim`), row r's
+        rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``cos_beta``, ``sin_beta`` are then not read. No rows
         (``NO_LAYOUT``): the fan's layout.
     """
     n_az = s.shape[0]

@@ -123,15 +123,16 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
         Whether to write ``phi_out`` (the bistatic azimuth: an arccos per ray).
     mu_obj : (n_objects,) or (0,) float64; face_object : (f,) int32
         Lambert's μ per object when every object has Lambert's law and there are no maps or texture: then the
-        one-bounce σ = μ·cos θi·cos θs is applied here, as :func:`sonar_embree.propagation.multipath.apply_bistatic` would
-        (the weight × (μ·cos θi)·cos θs); empty: σ is left to the caller.
+        one-bounce σ = μ·cos θi·cos θs is applied here, as :func:`sonar_embree.propagation.multipath.apply_bistatic`
+        would (the weight × (μ·cos θi)·cos θs); empty: σ is left to the caller.
     x_out : (m, 3) float64
     w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, r_out : (m,) float64
     leg_out : (m, 3) float64
         Written; ``leg_out`` = −u_d and ``r_out`` = r are the direct leg X → S for the visibility check.
     layout : (n, 5) float64 or (0, 5)
         Each launch ray's own s, cos β, sin β, dβ and ds (rays aimed at objects via the swell,
-        :mod:`sonar_embree.propagation.swell`); no rows (``NO_LAYOUT``): the fan's grid (``s_az``, ``cos_beta``, … and ``ds``).
+        :mod:`sonar_embree.propagation.swell`); no rows (``NO_LAYOUT``): the fan's grid (``s_az``, ``cos_beta``, … and
+        ``ds``).
     """
     for row in prange(up_start.shape[0] - 1):
         sc = np.empty((9, _CHUNK))      # per ray: the four sincs' arguments (then values), Γ_az, Γ_az,rx, two gates, σ

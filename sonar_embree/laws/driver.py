@@ -1,10 +1,10 @@
 """One driver for every scattering law: a single pass over the hits calls each hit's law's scalar σ
 (docs/physics.md §10).
 
-Each law module holds its class and its scalar ``*_sigma(params, o, cos_i, data)`` (σ(θi, θi, 0)/cos θi at one hit
-on object ``o``, from its parameter row and the shared table data), inlined into the driver. A new law is its module and one line in
-:data:`KINDS` with one branch in :func:`_sigma` (Numba calls functions, not a table of them: a jitted function
-taken as an argument would be compiled again in every process, its disk cache never hit).
+Each law module holds its class and its scalar ``*_sigma(params, o, cos_i, data)`` (σ(θi, θi, 0)/cos θi at one
+hit on object ``o``, from its parameter row and the shared table data), inlined into the driver. A new law is its
+module, one line in :data:`KINDS` and one branch in :func:`_sigma` (Numba calls functions, not a table of them: a
+jitted function taken as an argument would be compiled again in every process, its disk cache never hit).
 """
 from __future__ import annotations
 

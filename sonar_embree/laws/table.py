@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -26,15 +27,17 @@ class LawTable:
         Each term's ``params()``, zero-padded.
     data : (m,) float64
         Shared data of the terms (tables).
-    kind_of : (n_kinds,) int64
-        The driver's id of each of ``kinds`` (:data:`sonar_embree.laws.driver.KINDS`).
     """
 
     kinds: tuple
     term_law: np.ndarray
     term_params: np.ndarray
     data: np.ndarray
-    kind_of: np.ndarray
+
+    @cached_property
+    def kind_of(self) -> np.ndarray:
+        """(n_kinds,) int64: the driver's id of each of ``kinds`` (:data:`sonar_embree.laws.driver.KINDS`)."""
+        return np.array([KINDS.index(k) for k in self.kinds], dtype=np.int64)
 
 
 def law_table(laws, frequency_hz: float | None = None) -> LawTable:
@@ -64,8 +67,7 @@ def law_table(laws, frequency_hz: float | None = None) -> LawTable:
     unknown = [k.__name__ for k in kinds if k not in KINDS]
     if unknown:
         raise ConfigError(f"scattering law {unknown[0]} has no scalar sigma in sonar_embree.laws.driver.KINDS")
-    return LawTable(tuple(kinds), term_law, params, np.asarray(data, dtype=np.float64),
-                    np.array([KINDS.index(k) for k in kinds], dtype=np.int64))
+    return LawTable(tuple(kinds), term_law, params, np.asarray(data, dtype=np.float64))
 
 
 def scene_law_table(compiled, frequency_hz: float) -> LawTable:

@@ -48,8 +48,9 @@ class AimPlan:
 
     @classmethod
     def build(cls, compiled, plan, quality: float, kappa: float = 0.0) -> "AimPlan | None":
-        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.propagation.fan.FanPlan`), rays of curvature up
-        to ``kappa`` (1/m); None when every object is seafloor (nothing to aim at: the fan alone, at no cost)."""
+        """The plan of ``compiled`` for the fan ``plan`` (:class:`~sonar_embree.propagation.fan.FanPlan`), rays of
+        curvature up to ``kappa`` (1/m); None when every object is seafloor (nothing to aim at: the fan alone, at no
+        cost)."""
         span = (plan.s[0] - 0.5 * plan.ds, plan.s[-1] + 0.5 * plan.ds, plan.probe_beta[0], plan.probe_beta[-1],
                 plan.ds, plan.max_step_rad)
         return cls.of(compiled, span, plan.sides, quality, plan.dr_target_m, kappa)

@@ -274,7 +274,8 @@ def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -
 
 def mixed_aimed_echoes(front, caster, aimed, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
     """The one-bounce echoes (:func:`mixed_echoes`) of the rays aimed at objects (``aimed``:
-    :class:`~sonar_embree.propagation.aim.AimedEchoes`, with points), each with its own cell (layout); object ids kept."""
+    :class:`~sonar_embree.propagation.aim.AimedEchoes`, with points), each with its own cell (layout); object ids
+    kept."""
     e = aimed.echoes
     r = np.where(np.isfinite(e.travel_time_s), 0.5 * front.sonar.sound_speed_m_s * e.travel_time_s, np.inf)
     w, t, ext = _mixed(front, caster, Buffers(), e.ray_start, e.ray_start, front.plan.s, np.zeros(0), np.zeros(0),

@@ -149,7 +149,8 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     buffers : Buffers, optional
         Working arrays to reuse (a front end keeps one).
     rx_shift : (pings,) float64, optional
-        Motion during the ping, δ = 2·v_fwd/c per ping (:func:`~sonar_embree.propagation.fan.cast_block`); None: stop-and-hop.
+        Motion during the ping, δ = 2·v_fwd/c per ping (:func:`~sonar_embree.propagation.fan.cast_block`); None:
+        stop-and-hop.
     aim : AimPlan, optional
         The objects to aim curved rays at (:mod:`sonar_embree.propagation.aim`, its cones widened by the rays' bending);
         None: the fan alone.

@@ -75,7 +75,8 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shi
 
 def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     """(facet, distance) of each ray's first hit on the swell's mesh of grid ``g``, in closed form
-    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.propagation.multipath.surface_caster` meshes, not cast)."""
+    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.propagation.multipath.surface_caster` meshes, not
+    cast)."""
     n = dirs.shape[0]
     prim, t = buf.take("swell_hit_prim", n, np.int32), buf.take("swell_hit_t", n, np.float32)
     kernels.swell_surface_hits(org, dirs, origin_m, g.k, g.c, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,

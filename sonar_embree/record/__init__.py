@@ -169,8 +169,8 @@ class Record:
     @classmethod
     def load(cls, path) -> "Record":
         """Read a record written by :meth:`save` (.npz), or open a Zarr store written by :meth:`to_zarr` or streamed
-        by :func:`~sonar_embree.survey.stream.render_line` (a folder) lazily: its intensities (and labels) stay on disk as
-        dask arrays, read a block of pings at a time by what uses them (:meth:`save_png` draws any length)."""
+        by :func:`~sonar_embree.survey.stream.render_line` (a folder) lazily: its intensities (and labels) stay on disk
+        as dask arrays, read a block of pings at a time by what uses them (:meth:`save_png` draws any length)."""
         path = os.fspath(path)
         if os.path.isdir(path):
             return cls._open_store(path)
@@ -222,7 +222,8 @@ class Record:
         return to_xarray(self)
 
     def to_zarr(self, path) -> None:
-        """Write a Zarr store that ``xarray.open_zarr`` opens lazily; atomic (see :mod:`sonar_embree.record.dataset`)."""
+        """Write a Zarr store that ``xarray.open_zarr`` opens lazily; atomic (see
+        :mod:`sonar_embree.record.dataset`)."""
         from .dataset import to_zarr
 
         to_zarr(self, path)

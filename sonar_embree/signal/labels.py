@@ -1,11 +1,6 @@
 """Ground truth aligned sample for sample with a record: what each sample sees (:class:`Labels`).
 
 How it is made is :mod:`sonar_embree.signal.truth` (:class:`~sonar_embree.signal.truth.GroundTruth`).
-
-Labels come from each ping's centre line (along-track angle 0), the geometric
-truth of the waterfall row: the first surface at each sample's slant range that
-faces the sonar, or the seafloor an object hides (shadow). See
-:func:`sonar_embree.kernels.label_rows` for the exact rule.
 """
 from __future__ import annotations
 

@@ -73,7 +73,8 @@ class SideScanFrontEnd(FrontEnd):
         clock : dict
             Timings, as for :func:`~sonar_embree.propagation.fan.cast_block`.
         rx_shift : (pings,) float64, optional
-            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.propagation.fan.cast_block`) on every path.
+            Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.propagation.fan.cast_block`) on every
+            path.
         """
         surface = self.sonar.environment.surface
         aim = self.aim_plan(caster.compiled)
@@ -133,8 +134,8 @@ class SideScanFrontEnd(FrontEnd):
         return multipath.PathEchoes(parts, want_points, self.buffers, paths)
 
     def _aimed_rows(self, aimed, echoes: Echoes | None = None) -> Echoes:
-        """The echoes of the rays aimed at objects (:class:`~sonar_embree.propagation.aim.AimedEchoes`; ``echoes``: those of one
-        of their paths, aligned with them) in this type's rows (the side-scan's: as cast)."""
+        """The echoes of the rays aimed at objects (:class:`~sonar_embree.propagation.aim.AimedEchoes`; ``echoes``:
+        those of one of their paths, aligned with them) in this type's rows (the side-scan's: as cast)."""
         return aimed.echoes if echoes is None else echoes
 
     def _rows(self, e: Echoes, el_start) -> Echoes:

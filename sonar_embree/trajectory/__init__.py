@@ -321,8 +321,8 @@ class Trajectory:
 
     def at_times(self, times_s) -> "Trajectory":
         """The poses at ``times_s`` (s on this trajectory's clock, strictly increasing, within its first and last
-        time), interpolated as :func:`~sonar_embree.trajectory.motion.interpolate_poses` does (positions by PCHIP through the
-        fixes, heading along the shorter turn, the rest linearly); the CRS and start time are kept. At the
+        time), interpolated as :func:`~sonar_embree.trajectory.motion.interpolate_poses` does (positions by PCHIP
+        through the fixes, heading along the shorter turn, the rest linearly); the CRS and start time are kept. At the
         trajectory's own times the poses are its own."""
         t = _as_float_array("times_s", times_s)
         if t.ndim != 1 or t.size < 1:
@@ -356,7 +356,8 @@ class Trajectory:
         """The sonar towed behind the navigation: this trajectory's positions become the ship's
         (:attr:`ship_positions_m`, at the tow point's height) and the sonar follows the ship's track ``layback_m``
         behind along it
-        (:func:`~sonar_embree.trajectory.motion.layback_positions`), at this trajectory's heights, heading along the track.
+        (:func:`~sonar_embree.trajectory.motion.layback_positions`), at this trajectory's heights, heading along the
+        track.
 
         Give ``layback_m`` (horizontal distance, m) or ``cable_out_m``: a straight cable from a tow point at
         height ``tow_point_z_m`` (world m; default 0, the sea surface of a DEM's vertical datum) to the sonar,

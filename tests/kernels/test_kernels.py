@@ -314,9 +314,9 @@ def _aim_scene(rng):
 
 
 def test_aim_kernels_match_naive(rng):
-    """The object-aimed rays (sonar_embree.propagation.aim): lattices, directions, echoes (kernels.fan_echoes with each ray's own
-    layout, against the fan's naive twin per lattice, counting only hits on the lattice's own object) and the fan
-    hits they replace."""
+    """The object-aimed rays (sonar_embree.propagation.aim): lattices, directions, echoes (kernels.fan_echoes with each
+    ray's own layout, against the fan's naive twin per lattice, counting only hits on the lattice's own object) and the
+    fan hits they replace."""
     from sonar_embree.propagation.aim import AimPlan, keep_own
     from sonar_embree.propagation.fan import FanPlan
     from sonar_embree.kernels import aim as K

@@ -114,5 +114,6 @@ def test_toml_material_law(tmp_path):
     with pytest.raises(se.ConfigError, match="x.toml: object #1 material law must be a sediment name or a table"), \
             pytest.warns(FutureWarning):
         runconfig.parse_material({"law": {"kind": "phong"}}, "x.toml", "object #1")
-    with pytest.raises(se.ConfigError, match="unknown key 'slope' in object #1 material law"), pytest.warns(FutureWarning):
+    with pytest.raises(se.ConfigError, match="unknown key 'slope' in object #1 material law"), \
+            pytest.warns(FutureWarning):
         runconfig.parse_material({"law": {"kind": "kirchhoff", "slope": 0.2}}, "x.toml", "object #1")

@@ -182,8 +182,9 @@ def test_rough_surface_scales_multipath_by_the_coherent_reflection(records):
 def test_occluder_shadows_only_the_surface_paths(records, leg, plate_y, plate_z, blocked, kept, surface):
     """A plate between the sonar and the surface shadows the surface paths whose leg it crosses (windows of
     R = ct/2 from the geometry: X, P and S' on one line, P at 4/18 of ρ); the direct echoes and every other
-    surface path stay. The same for a 1 µm swell, whose legs are Embree reflections and casts (sonar_embree.propagation.swell):
-    its unshadowed surface paths are a different sampling of the same paths (0.5 dB, as the quadrature test)."""
+    surface path stay. The same for a 1 µm swell, whose legs are Embree reflections and casts
+    (sonar_embree.propagation.swell): its unshadowed surface paths are a different sampling of the same paths (0.5 dB,
+    as the quadrature test)."""
     import trimesh
 
     plate = trimesh.creation.box(extents=(60.0, plate_y[1] - plate_y[0], 0.05))
