@@ -157,8 +157,7 @@ def test_nothing_is_stuffed_into_an_objects_dict():
 #: Kernels that still take more than :data:`MAX_KERNEL_ARGS` positional arguments (issue 36, item 5). The set may
 #: shrink, never grow: a kernel takes named groups (:mod:`sonar_embree.kernels.args`) instead.
 MAX_KERNEL_ARGS = 15
-LONG_KERNELS = {"mixed_legs", "_mixed_chunk", "visibility_legs", "arc_land", "_emit_node", "speckle_block",
-                "swell_paths", "_swell_chunk", "label_rows"}
+LONG_KERNELS = {"arc_land", "swell_paths", "_swell_chunk"}
 
 
 def test_no_new_kernel_takes_a_long_argument_list():

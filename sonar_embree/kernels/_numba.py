@@ -17,6 +17,12 @@ from numba import njit, prange  # noqa: E402,F401 (re-exported)
 # (measured: the curved-ray chord kernel 176 → 110 ns per ray, speckle synthesis 15.7 → 11.2 ms per
 # shipwreck ping, same bits). Scalar helpers stay plain calls (inlining everything triples cold compiles).
 
+# Kernels take named groups of arrays (kernels/args.py). One caution, measured with numba 0.68: a parallel kernel
+# (arc_land) given its output arrays in namedtuples wrote some of them and silently not others, by field access as
+# by unpacking, while the same code run as Python was right; the kernels' naive twins in the tests caught it, and
+# arc_land keeps positional arguments. A kernel moved to named groups is checked against its twin and the
+# shipped records' bits before it lands.
+
 #: The float64 refit of a hit: the range from the hit triangle's plane replaces Embree's float32
 #: distance unless the ray is within this cosine of the plane or the two differ by more than
 #: REFIT_REL_TOL·(1 m + distance) (then the plane is not the one hit: keep Embree's).

@@ -21,6 +21,43 @@ SceneArrays = namedtuple("SceneArrays", "vertices faces face_normals face_two_si
 #: curved rays, the one-way time window t_max (s) and the sonar's sound speed c_nom (m/s).
 Weighting = namedtuple("Weighting", "beam two_way_np_per_m min_range_m max_range_m slope_cap_m_rad time_per_m")
 ArcWeighting = namedtuple("ArcWeighting", "beam two_way_np_per_m min_range_m t_max slope_cap_m_rad c_nom")
+#: A block's direct hits, aligned with its rays: slant range (n,) (m, inf: none), hit points (n, 3) (local frame,
+#: m) and triangles (n,) int32.
+Hits = namedtuple("Hits", "range point prim")
+#: The one-bounce paths' surface and law: the surface height z_s (local, m), k·h_w, Lambert's μ per object (or
+#: empty: σ left to the caller), face_object (f,) int32, and whether to write the bistatic azimuth and the legs.
+Bistatic = namedtuple("Bistatic", "z_s wave_kh mu_obj face_object want_phi want_legs")
+#: The one-bounce outputs, one row per ray: time, extent, weight, cos θi, cos θs, φ (n,), v (n, 3), leg1 (n,),
+#: u2 (n, 3), leg2 (n,).
+MixedOut = namedtuple("MixedOut", "time extent weight cos_i cos_s phi v leg1 u2 leg2")
+#: The legs to check for blocking: hit points (n, 3) and sonar positions (pings, 3) (local frame, m), whether legs
+#: start at the sonar, their unit directions (n, 3) and lengths (n,) (m), the echoes' weights (n,) and triangles
+#: (n,) or (0,) int32, whether an echo's own height field seen from above is passed over, the offset from each end.
+Legs = namedtuple("Legs", "point pos from_sonar dir length weight prim free_own eps")
+#: Boxes that hold the scene: lo, hi (k, 3) (local frame, m), the height-field object of each (k,) int32 (−1: none)
+#: and its steepest slope (k,) (tan).
+Boxes = namedtuple("Boxes", "lo hi obj slope")
+#: The legs to cast: each leg's span start, end (n,) (m), and the cast legs' indices (n,) int64, origins and
+#: directions (n, 3) float32 and lengths (n,) float32.
+LegOut = namedtuple("LegOut", "start end idx org dir length")
+#: A block's echoes for speckle: row offsets (channels·pings + 1,), hit points (n, 3) (local frame, m), the local
+#: frame's world origin (3,), and each echo's weight, two-way travel time (s) and its extent (s) (n,).
+SpeckleEchoes = namedtuple("SpeckleEchoes", "ray_start points origin weights times extents")
+#: Each ping's transmitting and receiving positions (pings, 3) (world, m) and the receiver's velocity (pings, 3).
+PathEnds = namedtuple("PathEnds", "tx rx vel_rx")
+#: The frozen scatterer lattice: seed (int), spacing (m), acoustic wavelength (m), scatterers per node.
+Lattice = namedtuple("Lattice", "seed cell_m wavelength_m n_sub")
+#: A waveform table (as for kernels.splat_table: table, its first sample's offset, its rate per output sample), the
+#: output samples per second of travel time and extra carrier cycles per second.
+Waveform = namedtuple("Waveform", "table table_start table_rate rate_hz phase_cycles_per_s")
+#: Speckle's hash tables, node lists and last-cell caches (kernels.gather_nodes), one per thread task.
+NodeTables = namedtuple("NodeTables", "slots epochs nodes node_key caches")
+#: Rays' footprints on a surface, for labels: range (n,) (m), extent (n,) (m), object (n,) int32, point (n, 3)
+#: (local frame, m) and the unit direction of the footprint's line (n, 3).
+Footprints = namedtuple("Footprints", "range extent object point dir")
+#: Per-sample labels: kind (rows, n_s) int8, object_id and shadow_of (rows, n_s) int32, height and ground (rows,
+#: n_s) float32.
+LabelOut = namedtuple("LabelOut", "kind object_id shadow_of height ground")
 #: A kernel's echo outputs, one row per ray: range (m), travel time (s), travel-time extent (s), weight, cos θi,
 #: and the hit points (n, 3) (or (0, 3): not wanted).
 EchoOut = namedtuple("EchoOut", "range time extent weight cos points")

@@ -65,10 +65,7 @@ def _azimuth(n, u, v):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim, rot, pos, rx_shift, z_s, face_normals,
-               beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, want_phi, mu_obj,
-               face_object, want_legs, time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out,
-               u2_out, leg2_out, layout):
+def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, out, layout):
     """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
@@ -92,54 +89,42 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
 
     Parameters
     ----------
-    ray_start, el_start : (rows + 1,) int64
-        The block's rows (row = 2·ping + side, port 0) of rays and of elevation cells; a row's rays are
-        azimuth-major over its elevation cells, as :func:`fan_rays` casts them.
-    s_az : (n_az,) float64
-        The fan's azimuth sines.
-    cos_beta, sin_beta, dbeta : (el_start[-1],) float64
-        cos β, sin β (as passed to :func:`fan_echoes`) and the width of each elevation cell, rad.
-    r : (n,) float64; x : (n, 3) float64; prim : (n,) int32
-        Direct slant ranges (m, inf: none), hit points (local frame, m) and triangles of the block's rays.
-    rot : (pings, 3, 3) float64; pos : (pings, 3) float64
-        Body-to-world rotations and sonar positions (local frame).
-    rx_shift : (pings,) float64
-        δ = 2·v_fwd/c of each ping (0: stop-and-hop).
-    z_s : float
-        Surface height in the local frame, m.
-    face_normals : (f, 3) float64; beam : (4,) float64
-        Scene normals; k·lx/2, k·ly/2, tilt (rad), 0.
-    ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s : float
-        Azimuth spacing, near-field bound, two-way absorption (Np/m), |dR/dβ| cap (m/rad), c (m/s).
-    wave_kh : float
-        k·h_w of the surface (0: a mirror).
-    want_phi : bool
-        Whether to write ``phi_out``.
-    mu_obj : (n_objects,) or (0,) float64; face_object : (f,) int32
-        Lambert's μ per object when every object has Lambert's law and there are no maps or texture: then σ =
-        μ·cos θi·cos θs is applied here (the weight × (μ·cos θi)·cos θs, as ``multipath.apply_bistatic`` would);
-        empty: σ is left to the caller.
-    want_legs : bool
-        Whether to write ``v_out``, ``u2_out``, ``leg1_out``, ``leg2_out`` (for the visibility legs).
-    time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out : (n,) float64
-    v_out, u2_out : (n, 3) float64; leg1_out, leg2_out : (n,) float64
-        Written.
+    ray_start : (rows + 1,) int64
+        The block's rows (row = 2·ping + side, port 0) of rays; a row's rays are azimuth-major over its elevation
+        cells, as :func:`fan_rays` casts them.
+    fan : :data:`~sonar_embree.kernels.args.Fan`
+        The fan's azimuth sines ``s`` (n_az,) and spacing ``ds``, each elevation cell's cos β, sin β (as passed to
+        :func:`fan_echoes`) and width dβ (rad), and the rows' elevation cells ``el_start`` (rows + 1,).
+    hits : :data:`~sonar_embree.kernels.args.Hits`
+        Direct slant ranges (n,) (m, inf: none), hit points (n, 3) (local frame, m) and triangles (n,) int32 of the
+        block's rays.
+    poses : :data:`~sonar_embree.kernels.args.Poses`
+        Body-to-world rotations, sonar positions (local frame) and δ = 2·v_fwd/c of each ping (0: stop-and-hop).
+    face_normals : (f, 3) float64
+        Scene normals.
+    weighting : :data:`~sonar_embree.kernels.args.Weighting`
+        The beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), near-field bound (m), the range window
+        (not read), |dR/dβ| cap (m/rad) and 2/c (s/m).
+    bistatic : :data:`~sonar_embree.kernels.args.Bistatic`
+        The surface height ``z_s`` (local, m) and k·h_w (0: a mirror); Lambert's μ per object ``mu_obj`` when
+        every object has Lambert's law and there are no maps or texture (then σ = μ·cos θi·cos θs is applied
+        here: the weight × (μ·cos θi)·cos θs, as ``multipath.apply_bistatic`` would; empty: σ is left to the
+        caller) and ``face_object`` (f,); ``want_phi``: whether to write ``out.phi``; ``want_legs``: whether to
+        write ``out.v``, ``out.u2``, ``out.leg1``, ``out.leg2`` (for the visibility legs).
+    out : :data:`~sonar_embree.kernels.args.MixedOut`
+        Written: time, extent, weight, cos θi, cos θs, φ (n,), v (n, 3), leg1 (n,), u2 (n, 3), leg2 (n,).
     layout : (n, 5) or (0, 5) float64
         Each ray's own s, cos β, sin β, dβ and ds (rays aimed at objects, :mod:`sonar_embree.propagation.aim`); then
-        ``el_start``, ``s_az``, ``cos_beta``, ``sin_beta``, ``dbeta`` and ``ds`` are not read. No rows (``NO_LAYOUT``):
-        the fan's layout.
+        ``fan`` is not read (but for ``fan.el_start``'s length). No rows (``NO_LAYOUT``): the fan's layout.
     """
+    el_start, weight_out = fan.el_start, out.weight
     for row in prange(ray_start.shape[0] - 1):
         sc = np.empty((8, _CHUNK))   # per echo: the four sincs' arguments (then values), Γ_az, Γ_az,rx, gate, σ_Lambert
-        j, az, cpsi, ga, gar = (el_start[row + 1] - el_start[row] - 1 if layout.shape[0] == 0 else 0), -1, 0.0, 0.0, 0.0
-        s_prev = math.nan
+        carry = ((el_start[row + 1] - el_start[row] - 1 if layout.shape[0] == 0 else 0), -1, 0.0, 0.0, 0.0, math.nan)
         for c0 in range(ray_start[row], ray_start[row + 1], _CHUNK):
             c1 = min(c0 + _CHUNK, ray_start[row + 1])
-            j, az, cpsi, ga, gar, s_prev = _mixed_chunk(
-                row, c0, c1, j, az, cpsi, ga, gar, s_prev, el_start, s_az, cos_beta, sin_beta, dbeta, layout, r, x,
-                prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad,
-                sound_speed_m_s, wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out,
-                cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc)
+            carry = _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, bistatic, out, layout,
+                                 sc)
             sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per echo
             for k in range(c1 - c0):                                    # = 2·g1²·g2², bit for bit, when δ = 0
                 g1, g1r, g2, g2r = sc[4, k] * sc[0, k], sc[5, k] * sc[0, k], sc[1, k] * sc[3, k], sc[2, k] * sc[3, k]
@@ -148,16 +133,21 @@ def mixed_legs(ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, r, x, prim,
 
 
 @njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
-def _mixed_chunk(row, c0, c1, j, az, cpsi, ga, gar, s_prev, el_start, s_az, cos_beta, sin_beta, dbeta, layout, r, x,
-                 prim, rot, pos, rx_shift, z_s, face_normals, beam, ds, min_range_m, two_way_np_per_m, slope_cap_m_rad,
-                 sound_speed_m_s, wave_kh, want_phi, mu_obj, face_object, want_legs, time_out, extent_out, weight_out,
-                 cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out, sc):
+def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, bistatic, out, layout, sc):
     """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`: everything but the gains, whose sinc arguments go to
     ``sc`` (rows 0–3: Γ_el(u1), Γ_az(u2), Γ_az,rx(u2), Γ_el(u2); 4, 5: the ray's Γ_az, Γ_az,rx; 6: 1 in front
     of the baffle along u2, else 0; 7: Lambert's σ = μ·cos θi·cos θs, or 1). ``j``, ``az`` (the ray's elevation
-    cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk and are returned; with a
-    per-ray ``layout`` the gains are those of the ray's own s, kept while s repeats (``s_prev``)."""
-    ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 1.0 / sound_speed_m_s
+    cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk (``carry`` = (j, az,
+    cos ψ, Γ_az, Γ_az,rx, s_prev)) and are returned; with a per-ray ``layout`` the gains are those of the ray's own
+    s, kept while s repeats (``s_prev``). The other arguments are :func:`mixed_legs`'."""
+    j, az, cpsi, ga, gar, s_prev = carry
+    s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    r, x, prim = hits
+    rot, pos, rx_shift = poses
+    beam, two_way_np_per_m, min_range_m, _, slope_cap_m_rad, time_per_m = weighting
+    z_s, wave_kh, mu_obj, face_object, want_phi, want_legs = bistatic
+    time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out = out
+    ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 0.5 * time_per_m
     b, side, n_el = row // 2, 1.0 if row % 2 == 1 else -1.0, el_start[row + 1] - el_start[row]
     m = _rotation(rot, b)
     sx, sy, sz, shift = pos[b, 0], pos[b, 1], pos[b, 2], rx_shift[b]
@@ -322,8 +312,7 @@ def _inverse(d):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, box_hi, box_obj, box_slope, free_own, prim,
-                    face_object, face_normals, eps, start_out, end_out, idx_out, org_out, dir_out, len_out):
+def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
     """The legs of a block's lit echoes that can be blocked, as float32 rays for an occlusion query.
 
     Leg i starts at the sonar of its row's ping (``from_sonar``) or at its hit point x[i] and runs
@@ -341,30 +330,27 @@ def visibility_legs(ray_start, x, pos, from_sonar, dirs, dist, weight, box_lo, b
     ----------
     ray_start : (rows + 1,) int64
         The block's rows (row = 2·ping + side).
-    x : (n, 3) float64; pos : (pings, 3) float64
-        Hit points and sonar positions, local frame, m.
-    from_sonar : bool
-    dirs : (n, 3) float64; dist : (n,) float64; weight : (n,) float64
-        Unit direction and length (m) of each echo's leg, and its weight.
-    box_lo, box_hi : (k, 3) float64
-        Boxes that hold the whole scene (local frame, m, already widened for rounding).
-    box_obj : (k,) int32; box_slope : (k,) float64
-        The height-field object a box holds (−1 for any other box) and its steepest slope (tan).
-    free_own : bool
-    prim : (n,) or (0,) int32; face_object : (f,) int32; face_normals : (f, 3) float64
-        The echoes' triangles (empty: no box is passed over), their objects and normals.
-    eps : float
-        Offset from each end of a leg, m.
-    start_out, end_out : (n,) float64
-        Written: the part of each leg to cast, m along it (0, 0: none).
-    idx_out : (n,) int64; org_out, dir_out : (n, 3) float32; len_out : (n,) float32
-        Written, the first k rows.
+    legs : :data:`~sonar_embree.kernels.args.Legs`
+        Hit points x (n, 3) and sonar positions (pings, 3) (local frame, m); ``from_sonar``; each echo's leg: unit
+        direction (n, 3) and length (n,) (m); the echoes' weights (n,); their triangles (n,) or (0,) int32 (empty:
+        no box is passed over); ``free_own``; ``eps``, the offset from each end of a leg (m).
+    boxes : :data:`~sonar_embree.kernels.args.Boxes`
+        Boxes that hold the whole scene, lo and hi (k, 3) (local frame, m, already widened for rounding); the
+        height-field object a box holds (k,) int32 (−1 for any other box) and its steepest slope (k,) (tan).
+    face_object : (f,) int32; face_normals : (f, 3) float64
+        The triangles' objects and normals.
+    out : :data:`~sonar_embree.kernels.args.LegOut`
+        Written: the part of each leg to cast, start and end (n,) (m along it; 0, 0: none), and, the first k
+        rows, the legs' indices (n,) int64, origins and directions (n, 3) float32 and lengths (n,) float32.
 
     Returns
     -------
     k : int
         Legs to cast.
     """
+    x, pos, from_sonar, dirs, dist, weight, prim, free_own, eps = legs
+    box_lo, box_hi, box_obj, box_slope = boxes
+    start_out, end_out, idx_out, org_out, dir_out, len_out = out
     rows = ray_start.shape[0] - 1
     counts = np.zeros(rows + 1, dtype=np.int64)
     for row in prange(rows):                      # each leg's span (start_out, end_out), legs per row counted

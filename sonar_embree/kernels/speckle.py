@@ -274,12 +274,13 @@ def _distance(ix, iy, iz, cell_m, pos):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node(nodes, node_key, q, pos_tx, pos_rx, vel_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s,
-               n_sub, table, table_start, table_rate, out):
+def _emit_node(nodes, node_key, q, pos_tx, pos_rx, vel_rx, lattice, waveform, out):
     """Splat node q's ``n_sub`` frozen scatterers into its channel's row of ``out`` (see :func:`speckle_block`).
 
     Reads rows by index, never through a row view (kernels/_numba.py: views contend for the reference count).
     """
+    seed, cell_m, wavelength_m, n_sub = lattice
+    table, table_start, table_rate, rate_hz, phase_cycles_per_s = waveform
     w = nodes[q, 0]
     t_mean = nodes[q, 1]  # the receiver has moved on by vel_rx·t̄ (0 when stop-and-hop: the same bits)
     sigma = math.sqrt(max(nodes[q, 2] / w, 0.0))
@@ -306,9 +307,7 @@ def _emit_node(nodes, node_key, q, pos_tx, pos_rx, vel_rx, seed, cell_m, wavelen
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def speckle_block(ray_start, points, origin, weights, times, extents, pos_world, pos_rx, vel_rx, seed, cell_m,
-                  wavelength_m, rate_hz, phase_cycles_per_s, n_sub, table, table_start, table_rate, slots, epochs,
-                  nodes, node_key, caches, status, out):
+def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
 
     For each ping: :func:`gather_nodes` on the ping's echoes (channel by channel),
@@ -327,34 +326,36 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
 
     Parameters
     ----------
-    ray_start : (channels·pings + 1,) int64
-        Row offsets of the block (row channels·b + ch: channel ch of ping b).
-    points : (n, 3) float64
-        Hit points in the scene's local frame, m; ``origin`` (3,) float64 makes them world.
-    weights, times, extents : (n,) float64
-        Expected intensity, two-way travel time (s) and its extent (s) of every echo.
-    pos_world, pos_rx : (pings, 3) float64
-        Transmitting and receiving position per ping, world m (the same for the direct path; the
-        mirror image in the sea surface for a surface leg): the node phase is (|X − tx| + |X − rx − v·t̄|)/λ.
-    vel_rx : (pings, 3) float64
-        The receiver's velocity per ping, world m per unit of ``times`` (zeros: stop-and-hop).
-    seed : int; cell_m, wavelength_m : float
-        Speckle seed, lattice spacing (m) and acoustic wavelength (m).
-    rate_hz, phase_cycles_per_s : float
-        Output samples per second of travel time; extra carrier cycles per second.
-    n_sub : int
-        Scatterers per node.
-    table, table_start, table_rate
-        The waveform h, as for :func:`splat_table`.
-    slots : (T, cap) int64; epochs : (T,) int64
-    nodes : (T, cap // 2, NODE_WIDTH) float64; node_key : (T, cap // 2, 4) int64; caches : (T, CACHE_WIDTH) int64
-        T hash tables, node lists and last-cell caches (see :func:`gather_nodes`), reused without clearing.
+    echoes : :data:`~sonar_embree.kernels.args.SpeckleEchoes`
+        ``ray_start`` (channels·pings + 1,) int64, the row offsets of the block (row channels·b + ch: channel ch of
+        ping b); ``points`` (n, 3) float64, hit points in the scene's local frame (m), ``origin`` (3,) float64
+        making them world; ``weights``, ``times``, ``extents`` (n,) float64: expected intensity, two-way travel time
+        (s) and its extent (s) of every echo.
+    ends : :data:`~sonar_embree.kernels.args.PathEnds`
+        ``tx``, ``rx`` (pings, 3) float64: transmitting and receiving position per ping, world m (the same for the
+        direct path; the mirror image in the sea surface for a surface leg): the node phase is
+        (|X − tx| + |X − rx − v·t̄|)/λ; ``vel_rx`` (pings, 3): the receiver's velocity per ping, world m per unit of
+        ``times`` (zeros: stop-and-hop).
+    lattice : :data:`~sonar_embree.kernels.args.Lattice`
+        Speckle ``seed`` (int), lattice spacing ``cell_m`` (m), acoustic wavelength (m) and scatterers per node
+        ``n_sub``.
+    waveform : :data:`~sonar_embree.kernels.args.Waveform`
+        The waveform h (``table``, ``table_start``, ``table_rate``, as for :func:`splat_table`), output samples per
+        second of travel time ``rate_hz`` and extra carrier cycles per second.
+    tables : :data:`~sonar_embree.kernels.args.NodeTables`
+        ``slots`` (T, cap) int64, ``epochs`` (T,) int64, ``nodes`` (T, cap // 2, NODE_WIDTH) float64, ``node_key``
+        (T, cap // 2, 4) int64, ``caches`` (T, CACHE_WIDTH) int64: T hash tables, node lists and last-cell caches
+        (see :func:`gather_nodes`), reused without clearing.
     status : (pings,) int64
         0: to do (set to 1 when done, −1 when its table was too small: grow the
         tables, reset to 0 and call again; nothing was written for that ping).
     out : (pings, channels, n_samples) complex128
         Accumulator.
     """
+    ray_start, points, origin, weights, times, extents = echoes
+    pos_world, pos_rx, vel_rx = ends
+    cell_m = lattice.cell_m
+    slots, epochs, nodes, node_key, caches = tables
     n_p = pos_world.shape[0]
     n_ch = out.shape[1]
     n_t = slots.shape[0]
@@ -370,6 +371,5 @@ def speckle_block(ray_start, points, origin, weights, times, extents, pos_world,
                 continue
             nodes_t, key_t, tx, rx, v_rx, out_b = nodes[t], node_key[t], pos_world[b], pos_rx[b], vel_rx[b], out[b]
             for q in range(count):  # views made once per ping, not per node
-                _emit_node(nodes_t, key_t, q, tx, rx, v_rx, seed, cell_m, wavelength_m, rate_hz, phase_cycles_per_s,
-                           n_sub, table, table_start, table_rate, out_b)
+                _emit_node(nodes_t, key_t, q, tx, rx, v_rx, lattice, waveform, out_b)
             status[b] = 1

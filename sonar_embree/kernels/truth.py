@@ -42,9 +42,7 @@ def _label_ray(dr, px, py, pz, dx, dy, dz, ox, oy, oz, half_len, origin_z, heigh
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_point, lit_dir, hid_range, hid_extent,
-               hid_object, hid_point, hid_dir, pos, is_seafloor, origin_z, best, kind, object_id, shadow_of,
-               height, ground):
+def label_rows(el_start, dr, lit, lit_score, hidden, pos, is_seafloor, origin_z, best, out):
     """Per-sample ground truth of a block of pings from its centre-line rays.
 
     A sample n (slant range n·dr) belongs to a ray when its range cell
@@ -63,15 +61,14 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
         Ray offsets of each row (one label line of one ping).
     dr : float
         Slant-range spacing of the samples, m.
-    lit_range, lit_extent, lit_score : (n,) float64
-        First-hit range R (m), footprint ΔR (m) and score (0: not lit).
-    lit_object : (n,) int32
-        Object of the first hit.
-    lit_point, lit_dir : (n, 3) float64
-        First-hit point (local frame, m) and unit direction of its footprint line.
-    hid_range, hid_extent, hid_object, hid_point, hid_dir
-        The same for the hidden seafloor hit (range NaN: none); ``hid_object`` is
-        the occluder (the first hit's object).
+    lit : :data:`~sonar_embree.kernels.args.Footprints`
+        First-hit range R (n,) (m), footprint ΔR (n,) (m), object (n,) int32, point (n, 3) (local frame, m) and
+        unit direction of its footprint line (n, 3).
+    lit_score : (n,) float64
+        The first hit's score (0: not lit).
+    hidden : :data:`~sonar_embree.kernels.args.Footprints`
+        The same for the hidden seafloor hit (range NaN: none); its ``object`` is the occluder (the first hit's
+        object).
     pos : (rows, 3) float64
         Sonar position of each row's ping, local frame, m.
     is_seafloor : (n_objects,) bool
@@ -79,9 +76,13 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
         World z of the local origin, m.
     best : (rows, n_s) float64
         Scratch.
-    kind : (rows, n_s) int8; object_id, shadow_of : (rows, n_s) int32; height, ground : (rows, n_s) float32
-        Written.
+    out : :data:`~sonar_embree.kernels.args.LabelOut`
+        Written: kind (rows, n_s) int8, object_id and shadow_of (rows, n_s) int32, height and ground (rows, n_s)
+        float32.
     """
+    lit_range, lit_extent, lit_object, lit_point, lit_dir = lit
+    hid_range, hid_extent, hid_object, hid_point, hid_dir = hidden
+    kind, object_id, shadow_of, height, ground = out
     n_s = kind.shape[1]
     for r in prange(el_start.shape[0] - 1):
         ox = pos[r, 0]

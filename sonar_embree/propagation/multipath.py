@@ -25,6 +25,7 @@ import numpy as np
 
 from .. import kernels
 from ..kernels import aim as aim_kernels
+from ..kernels.args import Bistatic, Boxes, Fan, Hits, LegOut, Legs, MixedOut, Poses, Weighting
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import BlockEchoes, cast_block
@@ -81,9 +82,10 @@ def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dis
     idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
                         buf.take("leg_dir", (n, 3), np.float32), buf.take("leg_len", n, np.float32))
     lo, hi, obj, slope = leg_boxes(c, prim is not None)
-    k = kernels.visibility_legs(ray_start, x, pos_local, from_sonar, dirs, dist, w, lo, hi, obj, slope, free_own,
-                                np.zeros(0, np.int32) if prim is None else prim, c.face_object, c.face_normals,
-                                LEG_EPSILON_M, buf.take("leg_t0", n), buf.take("leg_t1", n), idx, org, dr, ln)
+    legs = Legs(x, pos_local, from_sonar, dirs, dist, w, np.zeros(0, np.int32) if prim is None else prim, free_own,
+                LEG_EPSILON_M)
+    k = kernels.visibility_legs(ray_start, legs, Boxes(lo, hi, obj, slope), c.face_object, c.face_normals,
+                                LegOut(buf.take("leg_t0", n), buf.take("leg_t1", n), idx, org, dr, ln))
     if k:
         w[idx[:k][caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
 
@@ -299,11 +301,12 @@ def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, d
     lambert = mu.shape[0] > 0
     want_phi = wants_azimuth(c) and not lambert
     legs = (_can_block(caster, False, pos_local), _can_block(caster, True, pos_local))
-    kernels.mixed_legs(ray_start, el_start, s_az, cos_b, sin_b, dbeta, r, x, prim,
-                       np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, z_s_local, c.face_normals,
-                       plan.beam, ds, plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad,
-                       s.sound_speed_m_s, _wave_kh(s), want_phi, mu, c.face_object,
-                       any(legs), t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2, layout)
+    kernels.mixed_legs(ray_start, Fan(s_az, ds, cos_b, sin_b, dbeta, el_start), Hits(r, x, prim),
+                       Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift), c.face_normals,
+                       Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, np.inf, plan.slope_cap_m_rad,
+                                 2.0 / s.sound_speed_m_s),
+                       Bistatic(z_s_local, _wave_kh(s), mu, c.face_object, want_phi, any(legs)),
+                       MixedOut(t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2), layout)
     if not lambert:
         apply_bistatic(c, s.frequency_hz, prim, x, w, cos_i, cos_s, phi if want_phi else None)
     if legs[0]:

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import kernels
+from ..kernels.args import Lattice, NodeTables, PathEnds, SpeckleEchoes, Waveform
 from ..propagation import multipath
 from . import processing, pulses
 from ..config import Pulse, SignalChain
@@ -68,11 +69,11 @@ class ScattererLattice:
         if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
             self._alloc(self.slots.shape[0], self.slots.shape[1])
         while True:
-            kernels.speckle_block(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
-                                  pos_world, pos_rx, vel_rx, self.seed, self.cell_m, wavelength_m, rate_hz,
-                                  phase_cycles_per_s, self.SUB_SCATTERERS, synth.table, synth.table_start,
-                                  synth.table_rate, self.slots, self.epochs, self.nodes, self.node_key,
-                                  self.caches, status, out)
+            kernels.speckle_block(
+                SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s),
+                PathEnds(pos_world, pos_rx, vel_rx), Lattice(self.seed, self.cell_m, wavelength_m, self.SUB_SCATTERERS),
+                Waveform(synth.table, synth.table_start, synth.table_rate, rate_hz, phase_cycles_per_s),
+                NodeTables(self.slots, self.epochs, self.nodes, self.node_key, self.caches), status, out)
             if np.all(status > 0):
                 return
             self._alloc(self.slots.shape[0], 2 * self.slots.shape[1])

@@ -14,6 +14,7 @@ import dataclasses
 import numpy as np
 
 from .. import kernels
+from ..kernels.args import Footprints, LabelOut
 from ..propagation.echoes import Echoes, merged
 from ..propagation.fan import BlockEchoes, FanPlan
 from ..raycast import Caster
@@ -124,10 +125,10 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
                                                       plan.slope_cap_m_rad)
     rows, n_s = n_p * n_ch, out[0].shape[-1]
     flat = [a.reshape(rows, n_s) for a in out]
-    kernels.label_rows(el_start, float(dr_m), rng, ext, score, lit_obj, pts, lit_dir, hid_r, hid_ext, lit_obj,
-                       hid_pt, hid_dir, np.repeat(pos_local, n_ch, axis=0),
+    kernels.label_rows(el_start, float(dr_m), Footprints(rng, ext, lit_obj, pts, lit_dir), score,
+                       Footprints(hid_r, hid_ext, lit_obj, hid_pt, hid_dir), np.repeat(pos_local, n_ch, axis=0),
                        np.ascontiguousarray(is_seafloor, dtype=np.bool_), float(origin_z_m), np.empty((rows, n_s)),
-                       *flat)
+                       LabelOut(*flat))
 
 
 def _hidden_seafloor(caster: Caster, is_seafloor, origin, u, prim, tfar, max_range_m: float):

@@ -8,6 +8,7 @@ import sonar_embree as se
 from sonar_embree import kernels
 from sonar_embree.signal import synthesis
 from sonar_embree.kernels import args as A
+from sonar_embree.kernels.args import Lattice, NodeTables, PathEnds, SpeckleEchoes, Waveform
 
 
 def _splat_inputs(rng, n=4000, n_s=300):
@@ -257,11 +258,15 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     status = np.zeros(n_p, dtype=np.int64)
     rx = pos if n_tables != 2 else pos * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * (origin[2] + 15.0)]  # a surface image
     vel = np.zeros((n_p, 3)) if n_tables == 1 else rng.uniform(-0.1, 0.1, (n_p, 3))  # receiver moving on (per unit r)
-    args = (ray_start, pts, origin, w, r, ext, pos, rx, vel, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0, 10.0)
-    kernels.speckle_block(*args, *_speckle_tables(n_tables, 1 << 8), status, out)  # too small a table
+    def speckle(tab, size, status, out):
+        kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext), PathEnds(pos, rx, vel),
+                              Lattice(7, 0.1, 0.00375, 4), Waveform(tab, -2.0, 10.0, 16.0, 533.3),
+                              NodeTables(*_speckle_tables(n_tables, size)), status, out)
+
+    speckle(table, 1 << 8, status, out)  # too small a table
     assert np.all(status == -1) and np.all(out == 0)  # says so, writes nothing
     status[:] = 0
-    kernels.speckle_block(*args, *_speckle_tables(n_tables, 1 << 12), status, out)
+    speckle(table, 1 << 12, status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
                               -2.0, 10.0, np.zeros_like(out), pos_rx=rx, vel_rx=vel)
@@ -270,8 +275,7 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     real_env = np.hanning(101) + 0j                      # a real envelope given as complex, and as reals (CW):
     same = [np.zeros_like(out) for _ in range(2)]        # WaveformTables passes the reals, for the same bits
     for tab, o in zip((real_env, np.ascontiguousarray(real_env.real)), same):
-        kernels.speckle_block(*args[:15], tab, *args[16:], *_speckle_tables(n_tables, 1 << 12),
-                              np.zeros(n_p, dtype=np.int64), o)
+        speckle(tab, 1 << 12, np.zeros(n_p, dtype=np.int64), o)
     assert np.abs(same[0]).max() > 0 and np.array_equal(same[0].view(np.uint64), same[1].view(np.uint64))
     sonar, chain = se.Sonar().for_pulse(se.Pulse.cw()), se.SignalChain(speckle=True)
     assert synthesis.WaveformTables.build(sonar, se.Pulse.cw(), chain).table.dtype == np.float64

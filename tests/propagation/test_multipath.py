@@ -277,6 +277,22 @@ def test_no_surface_runs_no_multipath_code_and_surface_errors(monkeypatch):
     assert surf.reflection_db(90.0, 1.0) == pytest.approx(-20 * np.log10(np.e) * 2 * surf.wave_height_m ** 2)
 
 
+def _mixed_legs(ray_start, fan, hits, rest, law, o, v, u2, layout):
+    """kernels.mixed_legs with its arguments in named groups from the twin's flat ones: ``fan`` (s, cos β, sin β,
+    dβ, el_start), ``rest`` (rot, pos, δ, z_s, normals, beam, ds, R_min, α', cap, c, k·h_w), ``law`` (want_phi,
+    μ, face_object, want_legs), ``o`` the outputs by name."""
+    from sonar_embree import kernels
+    from sonar_embree.kernels.args import Bistatic, Fan, Hits, MixedOut, Poses, Weighting
+
+    rot, pos, rx_shift, z_s, normals, beam, ds, r_min, two_way, cap, c, kh = rest
+    want_phi, mu, face_object, legs = law
+    kernels.mixed_legs(ray_start, Fan(fan[0], ds, *fan[1:]), Hits(*hits), Poses(rot, pos, rx_shift), normals,
+                       Weighting(beam, two_way, r_min, np.inf, cap, 2.0 / c), Bistatic(z_s, kh, mu, face_object,
+                                                                                     want_phi, legs),
+                       MixedOut(o["time"], o["extent"], o["weight"], o["cos_i"], o["cos_s"], o["phi"], v, o["leg1"],
+                                u2, o["leg2"]), layout)
+
+
 def test_mixed_legs_kernel_matches_naive(rng):
     """kernels.mixed_legs against its NumPy twin on random tilted faces, attitudes and both sides, in the block
     layout of a side-scan fan (rows 2·ping + side, azimuth-major rays over each row's elevation cells)."""
@@ -326,10 +342,8 @@ def test_mixed_legs_kernel_matches_naive(rng):
                                               (False, lam, mu, True, v_lam, u2_lam),
                                               (False, no_legs, np.zeros(0), False, np.full((n, 3), np.nan),
                                                np.full((n, 3), np.nan))):
-        kernels.mixed_legs(ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, r, x, prim,
-                           *rest, want_phi, mu_obj, face_object, legs,
-                           *[o[k] for k in ("time", "extent", "weight", "cos_i", "cos_s", "phi")], vv, o["leg1"], uu,
-                           o["leg2"], kernels.NO_LAYOUT)
+        _mixed_legs(ray_start, (s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, el_start), (r, x, prim),
+                    rest, (want_phi, mu_obj, face_object, legs), o, vv, uu, kernels.NO_LAYOUT)
     for k in keys:                          # without φ (a scene of laws that ignore it): the rest to the bit
         np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.full(n, np.nan), err_msg=k)
         if k not in ("leg1", "leg2", "phi"):   # without the legs: none written, the rest to the bit
@@ -540,6 +554,7 @@ def test_visibility_legs_kernel_matches_naive(rng, from_sonar, free_own):
     import naive
 
     from sonar_embree import kernels
+    from sonar_embree.kernels.args import Boxes, LegOut, Legs
 
     ray_start, ping = _block(rng)
     n = int(ray_start[-1])
@@ -563,7 +578,9 @@ def test_visibility_legs_kernel_matches_naive(rng, from_sonar, free_own):
     for p in (prim, prim[:0]):
         args = (ray_start, x, pos, from_sonar, dirs, dist, w, lo, hi, obj, slope, free_own, p, face_object, normals,
                 1e-3)
-        k = kernels.visibility_legs(*args, *span, idx, org, dr, ln)
+        legs = Legs(x, pos, from_sonar, dirs, dist, w, p, free_own, 1e-3)
+        k = kernels.visibility_legs(ray_start, legs, Boxes(lo, hi, obj, slope), face_object, normals,
+                                    LegOut(*span, idx, org, dr, ln))
         ref = naive.visibility_legs(*args)
         assert 0 < k < int((w > 0).sum())
         for got, want in zip((idx[:k], org[:k], dr[:k], ln[:k]), ref):
@@ -782,10 +799,9 @@ def test_mixed_legs_with_each_rays_own_layout_matches_naive(rng):
     keys = ("time", "extent", "weight", "cos_i", "cos_s", "phi", "leg1", "leg2")
     out = {k: np.full(n, np.nan) for k in keys}
     v, u2 = np.full((n, 3), np.nan), np.full((n, 3), np.nan)
-    kernels.mixed_legs(ray_start, ray_start, np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), r, x, prim, rot, pos,
-                       rx_shift, 15.0, normals, beam, 0.0, 0.0375, 0.044, 600.0, 1500.0, 0.3, True, np.zeros(0),
-                       np.zeros(7, np.int32), True, *[out[k] for k in keys[:6]], v, out["leg1"], u2, out["leg2"],
-                       layout)
+    _mixed_legs(ray_start, (np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), ray_start), (r, x, prim),
+                (rot, pos, rx_shift, 15.0, normals, beam, 0.0, 0.0375, 0.044, 600.0, 1500.0, 0.3),
+                (True, np.zeros(0), np.zeros(7, np.int32), True), out, v, u2, layout)
     hit = ~miss
     ref = naive.mixed_legs(x[hit], r[hit], ping[hit], side[hit], dbeta[hit], prim[hit], rot, pos, rx_shift, 15.0,
                            normals, beam, ds[hit], 0.0375, 0.044, 600.0, 1500.0, 0.3)

@@ -6,6 +6,7 @@ import naive
 import sonar_embree as se
 from conftest import H, box, flat_scene, line_along_x
 from sonar_embree import kernels
+from sonar_embree.kernels.args import Footprints, LabelOut
 from sonar_embree.signal.labels import OBJECT, SEAFLOOR, SHADOW, WATER, Labels
 
 
@@ -177,8 +178,8 @@ def test_label_rows_matches_its_numpy_twin(rng):
     out = (np.zeros((rows, n_s), np.int8), np.zeros((rows, n_s), np.int32), np.zeros((rows, n_s), np.int32),
            np.zeros((rows, n_s), np.float32), np.zeros((rows, n_s), np.float32))
     pos_rows = np.repeat(pos, 2, axis=0)                                # each row's ping's position
-    kernels.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos_rows, floor, 2.5,
-                       np.empty((rows, n_s)), *out)
+    kernels.label_rows(el_start, dr, Footprints(lr, le, obj, lp, ld), score, Footprints(hr, he, hobj, hp, hd),
+                       pos_rows, floor, 2.5, np.empty((rows, n_s)), LabelOut(*out))
     want = naive.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos_rows, floor, 2.5,
                             n_s)
     for got, ref in zip(out[:3], want[:3]):
