@@ -5,8 +5,9 @@
                                                   # process; each round's ratio and the median
 
 Cases: the flat floor (10 m altitude, 60 m range) and the shipwreck pass, each with straight rays and in a linear
-profile (gradient 0.5 s⁻¹, the sonar 20 m deep); speckle-free. ms per ping, best of three, the stage times, and
-the rounds of chords the curved rays took. No test reads it.
+profile (gradient 0.5 s⁻¹, the sonar 20 m deep), and in the profile under a flat surface (its paths along curved
+rays, docs/physics.md §12b); speckle-free. ms per ping, best of three, the stage times, and the rounds of chords
+the curved rays took. No test reads it.
 """
 import dataclasses
 import json
@@ -41,8 +42,13 @@ def main() -> int:
             out[name] = {"rounds (straight ms, ratio)": rounds,
                          "median ratio": float(sorted(r[1] for r in rounds)[len(rounds) // 2])}
             continue
-        out[name] = {"straight": _best(scene, traj, sonar), "profile": _best(scene, traj, bent)}
-        out[name]["ratio"] = round(out[name]["profile"]["total"] / out[name]["straight"]["total"], 2)
+        wet = dataclasses.replace(sonar, environment=se.Environment(sound_speed=profile,
+                                                                    surface=se.SeaSurface(z_m=z)))
+        se.simulate(scene, traj[:2], wet, start_time="2000-01-01")  # compile the surface's curved paths
+        out[name] = {"straight": _best(scene, traj, sonar), "profile": _best(scene, traj, bent),
+                     "profile_surface": _best(scene, traj, wet)}
+        for k in ("profile", "profile_surface"):
+            out[name][f"ratio {k}"] = round(out[name][k]["total"] / out[name]["straight"]["total"], 2)
     print(json.dumps(out))
     return 0
 

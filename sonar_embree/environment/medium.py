@@ -53,7 +53,9 @@ class Environment:
     sound_speed : SoundSpeedProfile or None
         c(depth) for curved rays (docs/physics.md §12); None (default) or a uniform profile
         (which must equal ``sound_speed_m_s``): straight rays, today's code path. Its depth 0 is
-        its ``surface_z_m`` or the surface's ``z_m``. Not yet combined with a surface's multipath.
+        its ``surface_z_m`` or the surface's ``z_m`` (which must agree). Under a flat surface the
+        surface's paths follow curved rays too (§12b); a swell or the surface's own backscatter
+        over a profile is refused.
     noise : AmbientNoise or None
         The sea's ambient noise (docs/physics.md §14), heard once the sonar has a source level
         (``Sonar.source_level_db``): default :class:`AmbientNoise` () (5 m/s wind, moderate
@@ -107,9 +109,17 @@ class Environment:
         if p.surface_z_m is None and self.surface is None:
             raise ConfigError("Environment.sound_speed: the profile's depth 0 needs a height: give "
                               "SoundSpeedProfile(surface_z_m=…) or a surface")
-        if self.surface is not None:
-            raise ConfigError("Environment: refraction together with a sea surface's multipath is not modelled yet; "
-                              "drop the surface and give the profile's surface_z_m instead")
+        if self.surface is None:
+            return
+        if p.surface_z_m is not None and abs(p.surface_z_m - self.surface.z_m) > 1e-6:
+            raise ConfigError(f"Environment: the profile's depth 0 (surface_z_m = {p.surface_z_m:g} m) and the sea "
+                              f"surface (z_m = {self.surface.z_m:g} m) must be at the same height")
+        if not self.surface.is_flat:
+            raise ConfigError("Environment: a swell over a sound-speed profile is not modelled (curved rays reflect "
+                              "off a flat surface only); drop swell_height_m or the profile")
+        if self.surface.backscatter is not None:
+            raise ConfigError("Environment: the surface's own backscatter over a sound-speed profile is not modelled; "
+                              "drop SeaSurface.backscatter or the profile")
 
     @property
     def refracts(self) -> bool:

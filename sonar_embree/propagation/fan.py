@@ -132,6 +132,36 @@ def drop_lines(prim: np.ndarray, s: np.ndarray, keep: np.ndarray, el_start: np.n
     prim[~np.repeat(own.ravel(), np.repeat(n_el, s.shape[0]))] = -1
 
 
+def ray_cells(s: np.ndarray, el_start: np.ndarray, beta: np.ndarray, dbeta: np.ndarray):
+    """Each ray of a fan in its order: body-frame launch direction, row and elevation cell width.
+
+    Parameters
+    ----------
+    s : (n_az,) float64
+        The fan's lines (sin ψ).
+    el_start : (rows + 1,) int64
+        Elevation rays per row (row r = 2·ping + side: 0 port, 1 starboard); a row's rays are azimuth-major.
+    beta, dbeta : (el_start[-1],) float64
+        Depression of each elevation ray and its cell width, rad.
+
+    Returns
+    -------
+    body : (n, 3) float64
+        (s, ±√(1 − s²)·cos β, √(1 − s²)·sin β): forward, starboard, down.
+    row : (n,) int64
+    dbeta : (n,) float64
+    """
+    n_el, n_az = np.diff(el_start), s.shape[0]
+    row = np.repeat(np.arange(n_el.shape[0]), n_az * n_el)
+    j = np.arange(row.shape[0]) - n_az * el_start[row]
+    per = np.maximum(n_el[row], 1)
+    e = el_start[row] + j % per
+    sa = s[j // per]
+    cpsi, side = np.sqrt(1.0 - sa * sa), np.where(row % 2 == 1, 1.0, -1.0)
+    body = np.stack([sa, side * cpsi * np.cos(beta[e]), cpsi * np.sin(beta[e])], axis=1)
+    return body, row, dbeta[e]
+
+
 def rays_per_ping(plan: FanPlan, keep, el_start: np.ndarray) -> np.ndarray:
     """(pings,) rays each ping counts: its own lines × its elevation rays, and the probes."""
     n_el = np.diff(el_start).reshape(-1, 2).sum(axis=1)
@@ -163,6 +193,7 @@ class BlockEchoes:
     aimed: object = None    # AimedEchoes of the rays aimed at objects (sonar_embree.propagation.aim), or None
     kept_weight: np.ndarray | None = None  # (n,) ``weight`` without the hits on aimed objects (None: none aimed)
     plan: FanPlan | None = None  # the block's fan: the plan's lines and those added under motion (moving_lines)
+    arrival: np.ndarray | None = None  # (n, 3) curved rays' unit directions at their hits (keep_arrival), or None
 
     @property
     def echo_weight(self) -> np.ndarray:

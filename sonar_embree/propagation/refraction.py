@@ -131,7 +131,7 @@ def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffe
 
 def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
                    sonar, want_points: bool, clock: dict, buffers: Buffers | None = None,
-                   rx_shift: np.ndarray | None = None, aim=None) -> BlockEchoes:
+                   rx_shift: np.ndarray | None = None, aim=None, keep_arrival: bool = False) -> BlockEchoes:
     """:func:`~sonar_embree.propagation.fan.cast_block` for curved rays in ``environment.sound_speed``.
 
     Parameters
@@ -154,6 +154,8 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     aim : AimPlan, optional
         The objects to aim curved rays at (:mod:`sonar_embree.propagation.aim`, its cones widened by the rays' bending);
         None: the fan alone.
+    keep_arrival : bool
+        Keep each hit's incident direction (``BlockEchoes.arrival``, for the surface's paths).
     """
     buffers = Buffers() if buffers is None else buffers
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
@@ -173,6 +175,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     cos_b, sin_b = np.cos(beta), np.sin(beta)
     state, lay, ray = m.launch(plan.s, beta, el_start, rot, pos_local, buffers)
     hit_prim, hit, tfar = march(caster, m, state, lay, ray, clock, buffers)
+    arrival = np.ascontiguousarray(hit[:, 3:6]) if keep_arrival else None   # a copy: ``hit`` is a reused buffer
     if keep is not None:
         drop_lines(hit_prim, plan.s, keep, el_start)
     c = caster.compiled
@@ -197,7 +200,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
             aimed = None
     clock["rays"] = clock.get("rays", 0.0) + time.perf_counter() - t0 - (clock["embree"] - before)
     return BlockEchoes(n_az * el_start, rng, t_s, ext, w, pts, altitude, n_rays, el_start, beta, dbeta, hit_prim, tfar,
-                       aimed, kept, plan)
+                       aimed, kept, plan, arrival)
 
 
 def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, max_range_m, sonar,

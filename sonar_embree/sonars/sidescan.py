@@ -12,7 +12,7 @@ import time
 
 import numpy as np
 
-from ..propagation import multipath, refraction, swell
+from ..propagation import curved_surface, multipath, refraction, swell
 from ..propagation.aim import AimPlan
 from ..propagation.buffers import Buffers
 from ..config import FanSettings, Sonar
@@ -78,10 +78,11 @@ class SideScanFrontEnd(FrontEnd):
         """
         surface = self.sonar.environment.surface
         aim = self.aim_plan(caster.compiled)
-        if self.sonar.environment.refracts:  # curved rays (never with a surface: Environment refuses both)
+        if self.sonar.environment.refracts:  # curved rays (under a flat surface: curved_surface)
             blk = refraction.cast_refracted(caster, self.plan, rot, pos_local, self.sonar.environment,
-                                            self.two_way_np_per_m, max_range_m, self.sonar, want_points, clock,
-                                            self.buffers, rx_shift, aim)
+                                            self.two_way_np_per_m, max_range_m, self.sonar,
+                                            want_points or surface is not None, clock, self.buffers, rx_shift, aim,
+                                            keep_arrival=surface is not None)
         else:
             blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
                              2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
@@ -101,7 +102,12 @@ class SideScanFrontEnd(FrontEnd):
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         direct = echoes_of(blk, ids)
         aimed = []                           # the rays aimed at objects, path by path: (echoes, their rays, path)
-        if not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
+        if self.sonar.environment.refracts:  # a flat surface over a profile: the unfolded profile's rays
+            z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
+            image, iblk = curved_surface.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
+            mixed = curved_surface.mixed_echoes(self, caster, blk, rot, pos_local, z_s, rx_shift)
+            layouts = [blk.el_start, blk.el_start, iblk.el_start]
+        elif not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
             mixed, image, glints = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
             layouts = [blk.el_start, None, None]                      # the swell's paths: its own fan's up rays
             aimed += [(e, None, path) for e, path in glints]          # rays aimed at objects through the swell

@@ -107,6 +107,29 @@ def test_sound_speed_profile_bends_the_rays_and_a_uniform_one_does_not(kind):
 
 
 @pytest.mark.parametrize("kind", KINDS)
+def test_a_surface_over_a_profile_adds_multipath_only_after_its_curved_onset(kind):
+    """A flat surface 4 m above the sonar over a gradient g = +0.5 s⁻¹ (1500 m/s at the sonar): the record equals the
+    profile's alone before the one-bounce onset, the vertical rays' times ln(c_b/c_a)/g down to the floor, up to the
+    surface and down to the floor (docs/physics.md §12b), and gains energy after it, never loses any."""
+    sonar, traj = _case(kind, n=3, sample_rate_hz=200e3)
+    grad = se.SoundSpeedProfile(depth_m=[0.0, 100.0], speed_m_s=[1498.0, 1548.0], surface_z_m=H + 4.0)
+    base = se.Environment(sound_speed=grad, sound_speed_m_s=1500.0)
+    dry = se.simulate(_floor(), traj, sonar, environment=base)
+    moist = se.simulate(_floor(), traj, sonar, environment=dataclasses.replace(base,
+                                                                               surface=se.SeaSurface(z_m=H + 4.0)))
+    c_sonar, c_floor, c_top = 1500.0, 1500.0 + 0.5 * H, 1498.0
+    onset = (np.log(c_floor / c_sonar) + np.log(c_sonar / c_top) + np.log(c_floor / c_top)) / 0.5
+    t = dry.time_s
+    before = t < onset - t[1]
+    np.testing.assert_array_equal(moist.data[:, :, before], dry.data[:, :, before])
+    after = t > onset + dry.pulse.duration_s
+    added = moist.data[:, :, after] - dry.data[:, :, after]
+    assert np.all(added >= -1e-12 * dry.data.max()) and added.sum() > 5e-3 * dry.data[:, :, after].sum()
+    first = t[np.flatnonzero((moist.data - dry.data).max(axis=(0, 1)) > 0)[0]]
+    assert first >= onset - t[1]
+
+
+@pytest.mark.parametrize("kind", KINDS)
 def test_receiver_codes_follow_the_level(kind):
     """With a receiver (sensitivity, TVG, 12-bit ADC) every record carries integer codes within the ADC's range,
     and a source 10 dB louder never lowers a code and raises their sum."""

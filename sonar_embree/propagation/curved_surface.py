@@ -1,0 +1,292 @@
+"""A flat sea surface over a sound-speed profile: the surface's paths along curved rays (docs/physics.md §12b).
+
+Rays in a stratified ocean stay in their vertical plane and keep Snell's invariant ξ = cos θ / c (θ the grazing
+angle). A flat surface at the profile's depth 0 turns a ray up into a ray down at the same grazing angle, so a
+path that meets the surface once is a ray of the *unfolded* profile: the profile mirrored above its depth 0,
+c(−d) = c(d), from the image transducer S' at the sonar's depth above the surface. Then, per echo at a point P:
+
+- two bounces (S → surface → P → surface → S): the fan cast from S' through the unfolded profile
+  (:func:`image_echoes`), its echoes × |R_s|⁴;
+- one bounce (S → P → surface → S and back the other way): each direct echo of the fan with the surface
+  eigenray from S' to P (:func:`surface_eigenrays`: ξ solved in closed form per layer), weighted
+  (Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁))·|R_s|²·e^(−α'(L₁ + L₂))·ds·dβ / (A₂·cos θi) × σ(θi, θs, φ), at
+  T₁ + T₂ (:func:`mixed_echoes`).
+
+A₂ = (x/ξ)·(∂x/∂ξ)·sin θ₀·sin θ_P / c_S² is the surface ray's tube area per steradian at P (R² for straight rays),
+with x the horizontal distance, θ₀ the launch and θ_P the arrival grazing angle. A surface eigenray that would
+turn before P (ξ·c ≥ 1 on its way) is not found: that path is left out. The upward legs are checked for
+blocking along their chords (the arcs bend by millimetres over tens of metres). The rays aimed at objects
+(docs/physics.md §7b) give the direct path only; the fan's own rays give the objects' surface paths.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ..environment import SoundSpeedProfile
+from ..instrument import beam
+from .buffers import Buffers
+from .echoes import Echoes
+from .fan import BlockEchoes, ray_cells
+from .multipath import apply_bistatic, block_legs, mirror_pose, wants_azimuth
+from .refraction import cast_refracted
+
+#: Iterations of the safeguarded Newton search for ξ (each at least halves the bracket when Newton leaves it).
+EIGENRAY_ITERATIONS = 60
+#: The unfolded profile's depth 0 lies this far (m) above its mirrored deepest depth.
+UNFOLD_MARGIN_M = 1000.0
+#: The search stops for an eigenray whose horizontal distance is within this many metres.
+EIGENRAY_TOL_M = 1e-9
+
+
+def unfolded(profile: SoundSpeedProfile, surface_z_m: float) -> SoundSpeedProfile:
+    """The profile mirrored about its depth 0 (the surface at world z ``surface_z_m``): depth 0 of the result is
+    :data:`UNFOLD_MARGIN_M` above the profile's deepest depth D over the surface, so that c(D' − d) = c(D' + d) = the
+    profile's c(d) (D' = D + margin) and every image transducer lies below it."""
+    z, c = np.asarray(profile.depth_m), np.asarray(profile.speed_m_s)
+    deep = float(z[-1]) + UNFOLD_MARGIN_M
+    if z[0] > 0.0:                                                 # c is held above the first depth: a knot at 0
+        z, c = np.concatenate([[0.0], z]), np.concatenate([[c[0]], c])
+    depth = np.concatenate([deep - z[::-1], deep + z[1:]])
+    speed = np.concatenate([c[::-1], c[1:]])
+    return SoundSpeedProfile(tuple(depth), tuple(speed), surface_z_m + deep)
+
+
+def _pieces(profile: SoundSpeedProfile, d_end: np.ndarray):
+    """Per linear piece of the profile: (top depth, bottom depth (n,), c at both ends (n,)) clipped to
+    [0, d_end]; pieces wholly below d_end are full, those past it empty (bottom = top)."""
+    z = np.asarray(profile.depth_m, dtype=np.float64)
+    knots = np.concatenate([[0.0], z[z > 0.0]])
+    tops = knots
+    bottoms = np.concatenate([knots[1:], [np.inf]])
+    for top, bottom in zip(tops, bottoms):
+        b = np.clip(d_end, top, bottom)
+        yield top, b, profile.speed_at(top), profile.speed_at(b)
+
+
+def _leg(profile: SoundSpeedProfile, xi: np.ndarray, d_end: np.ndarray):
+    """Closed forms of a ray of invariant ξ (n,) from depth 0 to ``d_end`` (n,) without turning.
+
+    Returns (x/ξ, ∂x/∂ξ, T, L) (n,) each: horizontal distance over ξ (m²/s), its derivative (m²/s), one-way time
+    (s) and path length (m), summed over linear pieces in the forms that stay exact for a zero gradient and for
+    ξ = 0 (s = sin θ = √(1 − ξ²c²) at a piece's ends a and b, Δz its thickness, g its gradient):
+
+        x/ξ = Δz(c_a + c_b)/(s_a + s_b),   ∂x/∂ξ = x/ξ·(1 + ξ²(c_a²/s_a + c_b²/s_b)/(s_a + s_b)),
+        T = ln(c_b(1 + s_a)/(c_a(1 + s_b)))/g,   L = (asin ξc_b − asin ξc_a)/(gξ).
+
+    NaN where the ray turns (ξc ≥ 1) before ``d_end``.
+    """
+    x_xi, dx, t, length = (np.zeros_like(xi) for _ in range(4))
+    for top, bottom, ca, cb in _pieces(profile, d_end):
+        dz = bottom - top
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sa, sb = np.sqrt(1.0 - (xi * ca) ** 2), np.sqrt(1.0 - (xi * cb) ** 2)   # NaN past a turn
+            q = np.where(dz > 0, dz * (ca + cb) / (sa + sb), 0.0)
+            x_xi += q
+            dx += np.where(dz > 0, q * (1.0 + xi * xi * (ca * ca / sa + cb * cb / sb) / (sa + sb)), 0.0)
+            g_dz = cb - ca                                                       # g·Δz
+            p = g_dz / ca
+            r = xi * xi * g_dz * (ca + cb) / ((sa + sb) * (1.0 + sb))
+            t += np.where(dz > 0, dz / ca * _log1p_over(p) + xi * xi * dz * (ca + cb) / ((sa + sb) * (1.0 + sb))
+                          * _log1p_over(r), 0.0)
+            y = xi * g_dz * (ca + cb) / (cb * sa + ca * sb)
+            xq = sa * sb + xi * xi * ca * cb
+            length += np.where(dz > 0, dz * (ca + cb) / (cb * sa + ca * sb) * _atan_over(y, xq), 0.0)
+    return x_xi, dx, t, length
+
+
+def _log1p_over(a):
+    """log(1 + a)/a, 1 at a = 0."""
+    small = np.abs(a) < 1e-9
+    return np.where(small, 1.0 - 0.5 * a, np.log1p(np.where(small, 1.0, a)) / np.where(small, 1.0, a))
+
+
+def _atan_over(y, x):
+    """atan2(y, x)/y for x > 0, 1/x at y = 0."""
+    small = np.abs(y) < 1e-9 * x
+    return np.where(small, (1.0 - (y / x) ** 2 / 3.0) / x, np.arctan2(y, x) / np.where(small, 1.0, y))
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class SurfaceRays:
+    """Surface eigenrays S → surface → P, one per point (n,) each; NaN time where none was found.
+
+    xi : Snell's invariant ξ, s/m.  time_s, path_m : one-way time (s) and path length (m).
+    spread_m2 : A₂, the ray tube's area per steradian at P, m².  x_up_m : horizontal distance from S to where the
+    ray meets the surface, m.  sin_src, sin_dst, sin_top : sine of the grazing angle at S, at P and at the surface.
+    c_dst : sound speed at P, m/s.
+    """
+
+    xi: np.ndarray
+    time_s: np.ndarray
+    path_m: np.ndarray
+    spread_m2: np.ndarray
+    x_up_m: np.ndarray
+    sin_src: np.ndarray
+    sin_dst: np.ndarray
+    sin_top: np.ndarray
+    c_dst: np.ndarray
+
+
+def surface_eigenrays(profile: SoundSpeedProfile, d_src: np.ndarray, d_dst: np.ndarray, x_m: np.ndarray) -> SurfaceRays:
+    """The rays from depth ``d_src`` up to the surface and down to depth ``d_dst`` that cover the horizontal
+    distance ``x_m`` (all (n,), m, depths ≥ 0), without turning on the way: ξ by a safeguarded Newton search
+    on x(ξ) = ξ·(x/ξ)_up + ξ·(x/ξ)_down, which grows from 0 at ξ = 0 (the vertical ray)."""
+    d_src, d_dst, x_m = (np.asarray(a, dtype=np.float64) for a in (d_src, d_dst, x_m))
+    z = np.asarray(profile.depth_m)
+    deepest = np.maximum(d_src, d_dst)
+    c_max = np.maximum.reduce([profile.speed_at(0.0) + 0 * x_m, profile.speed_at(d_src), profile.speed_at(d_dst)]
+                              + [np.where(k < deepest, profile.speed_at(k), 0.0) for k in z])
+    lo, hi = np.zeros_like(x_m), (1.0 - 1e-12) / c_max
+    xi = np.zeros_like(x_m)
+    for _ in range(EIGENRAY_ITERATIONS):
+        up, down = _leg(profile, xi, d_src), _leg(profile, xi, d_dst)
+        f = xi * (up[0] + down[0]) - x_m
+        lo, hi = np.where(f < 0, xi, lo), np.where(f < 0, hi, xi)
+        step = xi - f / (up[1] + down[1])
+        xi = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
+        if np.all(np.abs(f) < EIGENRAY_TOL_M):
+            break
+    up, down = _leg(profile, xi, d_src), _leg(profile, xi, d_dst)
+    miss = ~(np.abs(xi * (up[0] + down[0]) - x_m) < 1e-6 * (1.0 + x_m))
+    c_src, c_dst, c_top = profile.speed_at(d_src), profile.speed_at(d_dst), profile.speed_at(0.0)
+    s_src, s_dst = np.sqrt(1.0 - (xi * c_src) ** 2), np.sqrt(1.0 - (xi * c_dst) ** 2)
+    spread = (up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / c_src ** 2
+    nan = np.where(miss, np.nan, 1.0)
+    return SurfaceRays(xi, (up[2] + down[2]) * nan, up[3] + down[3], spread, xi * up[0], s_src, s_dst,
+                       np.sqrt(1.0 - (xi * c_top) ** 2), c_dst)
+
+
+def _environment_unfolded(environment):
+    """The medium the image transducer's rays cross: the unfolded profile, no surface."""
+    return dataclasses.replace(environment, surface=None,
+                               sound_speed=unfolded(environment.sound_speed, environment.profile_origin_z_m()))
+
+
+def _reflection(front, sin_top: np.ndarray, bounces: int) -> np.ndarray:
+    """|R_s|^(2·bounces) = exp(−4·bounces·(k·h_w)²·sin²θg) of a rough surface (1 for a mirror)."""
+    kh = front.sonar.wavenumber_rad_m * front.sonar.environment.surface.wave_height_m
+    return np.exp(-4.0 * bounces * kh * kh * sin_top ** 2)
+
+
+def image_echoes(front, caster, rot, pos_local, z_s_local: float, max_range_m: float, clock, rx_shift=None):
+    """S → surface → P → surface → S: the fan cast from the image transducer through the unfolded profile, each
+    echo × |R_s|⁴ (the grazing angle at the surface from ξ) and its real upward leg S → surface checked along its
+    chord. Returns (Echoes aligned with the image fan's rays, its block)."""
+    env = front.sonar.environment
+    rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
+    blk = cast_refracted(caster, front.plan, rot_i, pos_i, _environment_unfolded(env), front.two_way_np_per_m,
+                         max_range_m, front.sonar, True, clock, Buffers(), rx_shift)
+    w = blk.echo_weight.copy()
+    lit = np.flatnonzero(w > 0)
+    body, row, _ = ray_cells(blk.plan.s, blk.el_start, blk.beta, blk.dbeta)
+    u = np.einsum("nij,nj->ni", rot_i[row[lit] // 2], body[lit])               # the image ray at S', world
+    ping = row[lit] // 2
+    prof = env.sound_speed
+    d_s = z_s_local - pos_local[ping, 2]
+    horiz = np.hypot(u[:, 0], u[:, 1])
+    xi = horiz / prof.speed_at(d_s)
+    w[lit] *= _reflection(front, np.sqrt(1.0 - (xi * prof.speed_at(0.0)) ** 2), 2)
+    h = u[:, :2] / np.maximum(horiz, 1e-300)[:, None]
+    _block_upward(caster, blk.ray_start, ping, lit, h, xi * _leg(prof, xi, d_s)[0], pos_local, z_s_local, w)
+    return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
+
+
+def _block_upward(caster, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w, points=None, prim=None):
+    """Zero ``w`` (n,) where the chord from the sonar up to the surface point (x_up from it along the horizontal
+    unit vectors h, (k, 2), of the lit echoes ``lit``) is blocked, and with ``points`` (n, 3) the chord from each
+    point up to it (its own height field passed over, as for straight legs: ``prim``)."""
+    top = np.column_stack([pos_local[ping, :2] + h * x_up[:, None], np.full(lit.size, z_s_local)])
+    n = w.shape[0]
+    starts = [(pos_local[ping], True)] + ([(points[lit], False)] if points is not None else [])
+    for start, from_sonar in starts:
+        leg = top - start
+        dist = np.linalg.norm(leg, axis=1)
+        dirs, lengths, x = np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3))
+        dirs[lit], lengths[lit] = leg / np.maximum(dist, 1e-300)[:, None], dist
+        x[lit] = start
+        block_legs(caster, Buffers(), ray_start, x, pos_local, from_sonar, dirs, lengths, w,
+                   None if from_sonar else prim, not from_sonar)
+
+
+def mixed_echoes(front, caster, blk: BlockEchoes, rot, pos_local, z_s_local: float, rx_shift=None) -> Echoes:
+    """S → P → surface → S and back the other way, for every direct echo of the curved fan ``blk`` (cast with
+    ``keep_arrival``), aligned with its rays: the surface eigenray from S to each hit point P
+    (:func:`surface_eigenrays`), the membrane's gains at both launch directions, σ(θi, θs, φ), both upward chords
+    checked (docs/physics.md §12b). Every hit of the fan counts, those on objects its rows aim rays at too (the
+    aimed rays give their direct echoes only)."""
+    c, sonar = caster.compiled, front.sonar
+    prof = sonar.environment.sound_speed
+    n = blk.weight.shape[0]
+    w, t, ext = np.zeros(n), np.full(n, np.inf), np.zeros(n)
+    lit = np.flatnonzero((blk.prim >= 0) & (blk.weight > 0))
+    body, row, dbeta = ray_cells(blk.plan.s, blk.el_start, blk.beta, blk.dbeta)
+    ping, p = row[lit] // 2, blk.point_m[lit]
+    rel = p[:, :2] - pos_local[ping, :2]
+    x = np.hypot(rel[:, 0], rel[:, 1])
+    h = np.where(x[:, None] > 0, rel / np.maximum(x, 1e-300)[:, None], rot[ping][:, :2, 1])  # straight below
+    ray = surface_eigenrays(prof, z_s_local - pos_local[ping, 2], z_s_local - p[:, 2], x)
+    ok = np.isfinite(ray.time_s)
+    cos_0, sin_0 = ray.xi * prof.speed_at(z_s_local - pos_local[ping, 2]), ray.sin_src
+    u2 = np.column_stack([h * cos_0[:, None], sin_0])                          # S → surface, world (z up)
+    v = np.column_stack([-h * (ray.xi * ray.c_dst)[:, None], ray.sin_dst])      # P → where the path comes from
+    arrival = blk.arrival[lit]
+    nrm = c.face_normals[blk.prim[lit]]
+    nrm = nrm * np.where(np.einsum("ij,ij->i", nrm, arrival) > 0, -1.0, 1.0)[:, None]
+    cos_i, cos_s = -np.einsum("ij,ij->i", nrm, arrival), np.einsum("ij,ij->i", nrm, v)
+    shift = np.zeros(rot.shape[0]) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
+    g = _two_way_gain(front, body[lit], np.einsum("nji,nj->ni", rot[ping], u2), row[lit], shift[ping])
+    spread = np.maximum(ray.spread_m2, front.plan.min_range_m ** 2)
+    path = blk.tfar[lit].astype(np.float64) + ray.path_m
+    wl = (g * _reflection(front, ray.sin_top, 1) * np.exp(-0.5 * front.two_way_np_per_m * path)
+          * front.plan.ds * dbeta[lit] / (spread * cos_i))
+    wl = np.where(ok & (cos_i > 0) & (cos_s > 0), wl, 0.0)
+    w[lit], t[lit] = wl, np.where(wl > 0, 0.5 * blk.time_s[lit] + ray.time_s, np.inf)
+    ext[lit] = np.where(wl > 0, _extent(blk.extent_s[lit], arrival, v, nrm, h, ray.c_dst), 0.0)
+    phi = np.zeros(n)
+    if wants_azimuth(c):
+        phi[lit] = _azimuth(nrm, arrival, v)
+    cos_i_all, cos_s_all = np.zeros(n), np.zeros(n)
+    cos_i_all[lit], cos_s_all[lit] = cos_i, cos_s
+    apply_bistatic(c, sonar.frequency_hz, blk.prim, blk.point_m, w, cos_i_all, cos_s_all,
+                   phi if wants_azimuth(c) else None)
+    _block_upward(caster, blk.ray_start, ping, lit, h, ray.x_up_m, pos_local, z_s_local, w, blk.point_m, blk.prim)
+    return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
+
+
+def _two_way_gain(front, u1, u2, row, shift):
+    """Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁) of body-frame directions u₁, u₂ (k, 3) on their rows' sides, the receive
+    beam turned by δ = ``shift`` (k,) along track (docs/physics.md §16)."""
+    s = front.sonar
+    side = np.where(row % 2 == 1, 1.0, -1.0)
+    ct, st = np.cos(s.tilt_rad), np.sin(s.tilt_rad)
+
+    def gain(u, delta):
+        return beam.directivity(u[:, 0] - delta, u[:, 2] * ct - side * u[:, 1] * st, side * u[:, 1] * ct + u[:, 2] * st,
+                                s.wavenumber_rad_m, s.length_m, s.height_m)
+
+    g1, g1r, g2, g2r = gain(u1, 0.0), gain(u1, shift), gain(u2, 0.0), gain(u2, shift)
+    return (g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2)
+
+
+def _extent(ext_direct, arrival, v, nrm, h, c_dst):
+    """Travel-time extent of a one-bounce echo: the direct echo's two-way 2ΔT₁ scaled to ΔT₁ + ΔT₂, with
+    ΔT₂/ΔT₁ = (p₂·f)/(p₁·f) for the slownesses p of both rays at P along the footprint's direction f (the
+    horizontal direction away from the sonar, in the facet's plane); at most 10."""
+    f = np.column_stack([h, np.zeros(h.shape[0])])
+    f -= nrm * np.einsum("ij,ij->i", nrm, f)[:, None]
+    p1 = np.einsum("ij,ij->i", arrival, f)
+    p2 = -np.einsum("ij,ij->i", v, f)
+    ratio = np.clip(np.abs(p2) / np.maximum(np.abs(p1), 1e-12), 0.0, 10.0)
+    return 0.5 * ext_direct * (1.0 + ratio)
+
+
+def _azimuth(n, u, v):
+    """Angle between −u and v projected on the plane of normal n (0 when either is along n), (k,)."""
+    b = -u - n * np.einsum("ij,ij->i", n, -u)[:, None]
+    t = v - n * np.einsum("ij,ij->i", n, v)[:, None]
+    bb, tt = np.einsum("ij,ij->i", b, b), np.einsum("ij,ij->i", t, t)
+    ok = (bb > 1e-24) & (tt > 1e-24)
+    cos = np.einsum("ij,ij->i", b, t) / np.sqrt(np.where(ok, bb * tt, 1.0))
+    return np.where(ok, np.arccos(np.clip(cos, -1.0, 1.0)), 0.0)
