@@ -219,14 +219,13 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
     """Refuse a sea surface the multipath model cannot honour (docs/physics.md §13).
 
     The sonar and every scene object must lie below the surface (the image paths assume
-    nothing above it); multipath is modelled for side-scan sonars.
+    nothing above it), and the sonar type must model the surface's paths (``models_surface``).
     """
     surface = sonar.environment.surface
     if surface is None:
         return
     if not sonar.models_surface:
-        raise ConfigError(f"Environment.surface: multipath is modelled for side-scan sonars, not "
-                          f"{type(sonar).__name__}")
+        raise ConfigError(f"Environment.surface: the sea surface's paths are not modelled for {type(sonar).__name__}")
     z_s = surface.lowest_z_m - float(compiled.origin_m[2])  # a swell's troughs
     above = np.flatnonzero(pos_local[:, 2] >= z_s)
     if above.size:
@@ -242,15 +241,14 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
 def check_profile(compiled, sonar, pos_local: np.ndarray, labels: bool) -> None:
     """Refuse what the curved-ray path does not model (docs/physics.md §12): one-line errors.
 
-    Curved rays are cast for side-scan sonars, without labels (their shadows assume straight
-    rays), from below the profile's depth 0.
+    Curved rays are cast for the sonar types that model them (``models_refraction``), without labels (their
+    shadows assume straight rays), from below the profile's depth 0.
     """
     env = sonar.environment
     if not env.refracts:
         return
     if not sonar.models_refraction:
-        raise ConfigError(f"Environment.sound_speed: curved rays are cast for side-scan sonars, not "
-                          f"{type(sonar).__name__}")
+        raise ConfigError(f"Environment.sound_speed: curved rays are not cast for {type(sonar).__name__}")
     if labels:
         raise ConfigError("ground-truth labels assume straight rays: not available with a sound-speed profile yet "
                           "(drop Environment.sound_speed or the labels)")

@@ -704,3 +704,47 @@ def glint_rays(glints, ping, k, rot, pos, span, sides, rx_shift):
         lay.append(np.column_stack([body[:, 0], np.abs(body[:, 1]) / cpsi, body[:, 2] / cpsi,
                                     np.full(len(u), row[4]), np.full(len(u), row[2])]))
     return np.concatenate(dirs), np.concatenate(lay), np.concatenate(rows)
+
+
+def _eigen_leg(z, c, xi, d_end):
+    """(x/ξ, ∂x/∂ξ, T, L) of rays of invariant ξ (n,) from depth 0 to d_end (n,) in NumPy: the textbook forms per
+    piece (T = ln(c_b(1 + s_a)/(c_a(1 + s_b)))/g, L = (asin ξc_b − asin ξc_a)/(gξ); straight where g = 0)."""
+    out = [np.zeros_like(xi) for _ in range(4)]
+    for j in range(len(z)):
+        bottom = np.minimum(d_end, z[j + 1]) if j + 1 < len(z) else d_end
+        dz = np.maximum(bottom - z[j], 0.0)
+        ca, cb = c[j] + 0 * xi, np.interp(bottom, z, c)
+        g = np.where(dz > 0, (cb - ca) / np.where(dz > 0, dz, 1.0), 0.0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sa, sb = np.sqrt(1 - (xi * ca) ** 2), np.sqrt(1 - (xi * cb) ** 2)
+            flat = np.abs(g) < 1e-12
+            x_xi = np.where(flat, dz * ca / sa, (sa - sb) / (xi * xi * g))
+            tiny = np.abs(xi) < 1e-6                          # ξ → 0: the difference forms lose their digits
+            x_xi = np.where(flat | tiny, dz * (ca + cb) / (sa + sb), x_xi)
+            dx = x_xi + xi * xi * dz * (ca + cb) / (sa + sb) ** 2 * (ca * ca / sa + cb * cb / sb)
+            t = np.where(flat, dz / (ca * sa), np.log(cb * (1 + sa) / (ca * (1 + sb))) / g)
+            length = np.where(flat, dz / sa, (np.arcsin(xi * cb) - np.arcsin(xi * ca)) / (g * xi))
+            length = np.where(~flat & tiny, dz * (ca + cb) / (cb * sa + ca * sb), length)
+        for acc, v in zip(out, (x_xi, dx, t, length)):
+            acc += np.where(dz > 0, v, 0.0)
+    return out
+
+
+def surface_eigenrays(z, c, d_src, d_dst, x, iterations=200):
+    """Twin of kernels.surface_eigenrays: bisection on x(ξ) in NumPy, the same (n, 9) columns."""
+    deepest = np.maximum(d_src, d_dst)
+    c_max = np.max([np.where(zk <= deepest, ck, 0.0) for zk, ck in zip(z, c)]
+                   + [np.interp(d_src, z, c), np.interp(d_dst, z, c)], axis=0)
+    lo, hi = np.zeros_like(x), (1 - 1e-12) / c_max
+    reach = hi * (_eigen_leg(z, c, hi, d_src)[0] + _eigen_leg(z, c, hi, d_dst)[0])
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        f = mid * (_eigen_leg(z, c, mid, d_src)[0] + _eigen_leg(z, c, mid, d_dst)[0]) - x
+        lo, hi = np.where(f < 0, mid, lo), np.where(f < 0, hi, mid)
+    xi = np.where(reach >= x, 0.5 * (lo + hi), np.nan)
+    up, down = _eigen_leg(z, c, xi, d_src), _eigen_leg(z, c, xi, d_dst)
+    c_src, c_dst = np.interp(d_src, z, c), np.interp(d_dst, z, c)
+    s_src, s_dst = np.sqrt(1 - (xi * c_src) ** 2), np.sqrt(1 - (xi * c_dst) ** 2)
+    return np.column_stack([xi, up[2] + down[2], up[3] + down[3],
+                            (up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / c_src ** 2, xi * up[0],
+                            s_src, s_dst, np.sqrt(1 - (xi * c[0]) ** 2), c_dst])

@@ -8,7 +8,7 @@ c(−d) = c(d), from the image transducer S' at the sonar's depth above the surf
 - two bounces (S → surface → P → surface → S): the fan cast from S' through the unfolded profile
   (:func:`image_echoes`), its echoes × |R_s|⁴;
 - one bounce (S → P → surface → S and back the other way): each direct echo of the fan with the surface
-  eigenray from S' to P (:func:`surface_eigenrays`: ξ solved in closed form per layer), weighted
+  eigenray from S' to P (:func:`surface_eigenrays`: ξ found on the closed forms per layer), weighted
   (Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁))·|R_s|²·e^(−α'(L₁ + L₂))·ds·dβ / (A₂·cos θi) × σ(θi, θs, φ), at
   T₁ + T₂ (:func:`mixed_echoes`).
 
@@ -24,20 +24,17 @@ import dataclasses
 
 import numpy as np
 
+from .. import kernels
 from ..environment import SoundSpeedProfile
 from ..instrument import beam
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import BlockEchoes, ray_cells
-from .multipath import apply_bistatic, block_legs, mirror_pose, wants_azimuth
+from .multipath import can_block, apply_bistatic, block_legs, mirror_pose, wants_azimuth
 from .refraction import cast_refracted
 
-#: Iterations of the safeguarded Newton search for ξ (each at least halves the bracket when Newton leaves it).
-EIGENRAY_ITERATIONS = 60
 #: The unfolded profile's depth 0 lies this far (m) above its mirrored deepest depth.
 UNFOLD_MARGIN_M = 1000.0
-#: The search stops for an eigenray whose horizontal distance is within this many metres.
-EIGENRAY_TOL_M = 1e-9
 
 
 def unfolded(profile: SoundSpeedProfile, surface_z_m: float) -> SoundSpeedProfile:
@@ -53,59 +50,12 @@ def unfolded(profile: SoundSpeedProfile, surface_z_m: float) -> SoundSpeedProfil
     return SoundSpeedProfile(tuple(depth), tuple(speed), surface_z_m + deep)
 
 
-def _pieces(profile: SoundSpeedProfile, d_end: np.ndarray):
-    """Per linear piece of the profile: (top depth, bottom depth (n,), c at both ends (n,)) clipped to
-    [0, d_end]; pieces wholly below d_end are full, those past it empty (bottom = top)."""
-    z = np.asarray(profile.depth_m, dtype=np.float64)
-    knots = np.concatenate([[0.0], z[z > 0.0]])
-    tops = knots
-    bottoms = np.concatenate([knots[1:], [np.inf]])
-    for top, bottom in zip(tops, bottoms):
-        b = np.clip(d_end, top, bottom)
-        yield top, b, profile.speed_at(top), profile.speed_at(b)
-
-
-def _leg(profile: SoundSpeedProfile, xi: np.ndarray, d_end: np.ndarray):
-    """Closed forms of a ray of invariant ξ (n,) from depth 0 to ``d_end`` (n,) without turning.
-
-    Returns (x/ξ, ∂x/∂ξ, T, L) (n,) each: horizontal distance over ξ (m²/s), its derivative (m²/s), one-way time
-    (s) and path length (m), summed over linear pieces in the forms that stay exact for a zero gradient and for
-    ξ = 0 (s = sin θ = √(1 − ξ²c²) at a piece's ends a and b, Δz its thickness, g its gradient):
-
-        x/ξ = Δz(c_a + c_b)/(s_a + s_b),   ∂x/∂ξ = x/ξ·(1 + ξ²(c_a²/s_a + c_b²/s_b)/(s_a + s_b)),
-        T = ln(c_b(1 + s_a)/(c_a(1 + s_b)))/g,   L = (asin ξc_b − asin ξc_a)/(gξ).
-
-    NaN where the ray turns (ξc ≥ 1) before ``d_end``.
-    """
-    x_xi, dx, t, length = (np.zeros_like(xi) for _ in range(4))
-    for top, bottom, ca, cb in _pieces(profile, d_end):
-        dz = bottom - top
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sa, sb = np.sqrt(1.0 - (xi * ca) ** 2), np.sqrt(1.0 - (xi * cb) ** 2)   # NaN past a turn
-            q = np.where(dz > 0, dz * (ca + cb) / (sa + sb), 0.0)
-            x_xi += q
-            dx += np.where(dz > 0, q * (1.0 + xi * xi * (ca * ca / sa + cb * cb / sb) / (sa + sb)), 0.0)
-            g_dz = cb - ca                                                       # g·Δz
-            p = g_dz / ca
-            r = xi * xi * g_dz * (ca + cb) / ((sa + sb) * (1.0 + sb))
-            t += np.where(dz > 0, dz / ca * _log1p_over(p) + xi * xi * dz * (ca + cb) / ((sa + sb) * (1.0 + sb))
-                          * _log1p_over(r), 0.0)
-            y = xi * g_dz * (ca + cb) / (cb * sa + ca * sb)
-            xq = sa * sb + xi * xi * ca * cb
-            length += np.where(dz > 0, dz * (ca + cb) / (cb * sa + ca * sb) * _atan_over(y, xq), 0.0)
-    return x_xi, dx, t, length
-
-
-def _log1p_over(a):
-    """log(1 + a)/a, 1 at a = 0."""
-    small = np.abs(a) < 1e-9
-    return np.where(small, 1.0 - 0.5 * a, np.log1p(np.where(small, 1.0, a)) / np.where(small, 1.0, a))
-
-
-def _atan_over(y, x):
-    """atan2(y, x)/y for x > 0, 1/x at y = 0."""
-    small = np.abs(y) < 1e-9 * x
-    return np.where(small, (1.0 - (y / x) ** 2 / 3.0) / x, np.arctan2(y, x) / np.where(small, 1.0, y))
+def knots(profile: SoundSpeedProfile):
+    """The profile as the eigenray kernels read it: knots from depth 0 (m) and the speeds there (m/s)."""
+    z, c = np.asarray(profile.depth_m, dtype=np.float64), np.asarray(profile.speed_m_s, dtype=np.float64)
+    if z[0] > 0.0:
+        z, c = np.concatenate([[0.0], z]), np.concatenate([[c[0]], c])
+    return np.ascontiguousarray(z), np.ascontiguousarray(c)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -129,33 +79,21 @@ class SurfaceRays:
     c_dst: np.ndarray
 
 
-def surface_eigenrays(profile: SoundSpeedProfile, d_src: np.ndarray, d_dst: np.ndarray, x_m: np.ndarray) -> SurfaceRays:
+def surface_eigenrays(profile: SoundSpeedProfile, d_src, d_dst, x_m) -> SurfaceRays:
     """The rays from depth ``d_src`` up to the surface and down to depth ``d_dst`` that cover the horizontal
-    distance ``x_m`` (all (n,), m, depths ≥ 0), without turning on the way: ξ by a safeguarded Newton search
-    on x(ξ) = ξ·(x/ξ)_up + ξ·(x/ξ)_down, which grows from 0 at ξ = 0 (the vertical ray)."""
-    d_src, d_dst, x_m = (np.asarray(a, dtype=np.float64) for a in (d_src, d_dst, x_m))
-    z = np.asarray(profile.depth_m)
-    deepest = np.maximum(d_src, d_dst)
-    c_max = np.maximum.reduce([profile.speed_at(0.0) + 0 * x_m, profile.speed_at(d_src), profile.speed_at(d_dst)]
-                              + [np.where(k < deepest, profile.speed_at(k), 0.0) for k in z])
-    lo, hi = np.zeros_like(x_m), (1.0 - 1e-12) / c_max
-    xi = np.zeros_like(x_m)
-    for _ in range(EIGENRAY_ITERATIONS):
-        up, down = _leg(profile, xi, d_src), _leg(profile, xi, d_dst)
-        f = xi * (up[0] + down[0]) - x_m
-        lo, hi = np.where(f < 0, xi, lo), np.where(f < 0, hi, xi)
-        step = xi - f / (up[1] + down[1])
-        xi = np.where((step > lo) & (step < hi), step, 0.5 * (lo + hi))
-        if np.all(np.abs(f) < EIGENRAY_TOL_M):
-            break
-    up, down = _leg(profile, xi, d_src), _leg(profile, xi, d_dst)
-    miss = ~(np.abs(xi * (up[0] + down[0]) - x_m) < 1e-6 * (1.0 + x_m))
-    c_src, c_dst, c_top = profile.speed_at(d_src), profile.speed_at(d_dst), profile.speed_at(0.0)
-    s_src, s_dst = np.sqrt(1.0 - (xi * c_src) ** 2), np.sqrt(1.0 - (xi * c_dst) ** 2)
-    spread = (up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / c_src ** 2
-    nan = np.where(miss, np.nan, 1.0)
-    return SurfaceRays(xi, (up[2] + down[2]) * nan, up[3] + down[3], spread, xi * up[0], s_src, s_dst,
-                       np.sqrt(1.0 - (xi * c_top) ** 2), c_dst)
+    distance ``x_m`` (all (n,), m, depths ≥ 0), without turning on the way (:func:`kernels.surface_eigenrays`)."""
+    d_src, d_dst, x_m = (np.ascontiguousarray(a, dtype=np.float64) for a in (d_src, d_dst, x_m))
+    out = np.empty((x_m.shape[0], kernels.EIGEN_WIDTH))
+    kernels.surface_eigenrays(*knots(profile), d_src, d_dst, x_m, out)
+    return SurfaceRays(*(np.ascontiguousarray(out[:, k]) for k in range(kernels.EIGEN_WIDTH)))
+
+
+def surface_reach(profile: SoundSpeedProfile, xi, d_src) -> np.ndarray:
+    """(n,) horizontal distance (m) from depth ``d_src`` up to where rays of invariant ``xi`` meet the surface."""
+    out = np.empty(np.shape(xi))
+    kernels.surface_reach(*knots(profile), np.ascontiguousarray(xi, dtype=np.float64),
+                          np.ascontiguousarray(d_src, dtype=np.float64), out)
+    return out
 
 
 def _environment_unfolded(environment):
@@ -189,7 +127,7 @@ def image_echoes(front, caster, rot, pos_local, z_s_local: float, max_range_m: f
     xi = horiz / prof.speed_at(d_s)
     w[lit] *= _reflection(front, np.sqrt(1.0 - (xi * prof.speed_at(0.0)) ** 2), 2)
     h = u[:, :2] / np.maximum(horiz, 1e-300)[:, None]
-    _block_upward(caster, blk.ray_start, ping, lit, h, xi * _leg(prof, xi, d_s)[0], pos_local, z_s_local, w)
+    _block_upward(caster, blk.ray_start, ping, lit, h, surface_reach(prof, xi, d_s), pos_local, z_s_local, w)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
 
 
@@ -201,6 +139,8 @@ def _block_upward(caster, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w
     n = w.shape[0]
     starts = [(pos_local[ping], True)] + ([(points[lit], False)] if points is not None else [])
     for start, from_sonar in starts:
+        if not can_block(caster, from_sonar, pos_local):        # nothing reaches into any such leg
+            continue
         leg = top - start
         dist = np.linalg.norm(leg, axis=1)
         dirs, lengths, x = np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3))

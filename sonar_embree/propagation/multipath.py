@@ -58,7 +58,7 @@ def _below_top(caster, z: float) -> bool:
     return float(caster.compiled.bounds_local[1, 2]) > z + LEG_EPSILON_M * 1e-3
 
 
-def _can_block(caster, from_sonar: bool, pos_local) -> bool:
+def can_block(caster, from_sonar: bool, pos_local) -> bool:
     """Whether the scene can block any upward leg: from the sonar, when the scene reaches above it; from a hit
     point, unless the scene is exactly level (every vertex at one height: such a leg leaves it at its top)."""
     lo, hi = caster.compiled.bounds_local[:, 2]
@@ -71,12 +71,12 @@ def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dis
 
     Legs start at the sonar (``from_sonar``) or at the hit points ``x`` (n, 3) and run along ``dirs`` (n, 3)
     for ``dist`` (n,) m; ``buf`` holds the float32 rays. Nothing is done where nothing can block
-    (:func:`_can_block`); a leg is cast only through the objects' boxes it crosses (:func:`leg_boxes`).
+    (:func:`can_block`); a leg is cast only through the objects' boxes it crosses (:func:`leg_boxes`).
     ``prim`` (n,), the echoes' triangles, lets a height-field floor they lie on be passed over where it cannot
     block: for a leg from x steeper than its steepest face, and, with ``free_own`` (the one-bounce legs of the
     direct fan), for the legs of an echo seen from above.
     """
-    if not _can_block(caster, from_sonar, pos_local):
+    if not can_block(caster, from_sonar, pos_local):
         return
     n, c = w.shape[0], caster.compiled
     idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
@@ -300,7 +300,7 @@ def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, d
     mu = lambert_mu(c)                                                       # σ in the kernel
     lambert = mu.shape[0] > 0
     want_phi = wants_azimuth(c) and not lambert
-    legs = (_can_block(caster, False, pos_local), _can_block(caster, True, pos_local))
+    legs = (can_block(caster, False, pos_local), can_block(caster, True, pos_local))
     kernels.mixed_legs(ray_start, Fan(s_az, ds, cos_b, sin_b, dbeta, el_start), Hits(r, x, prim),
                        Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift), c.face_normals,
                        Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, np.inf, plan.slope_cap_m_rad,

@@ -209,13 +209,41 @@ def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_
     fan's, weighted by :func:`kernels.arc_echoes` with each ray's own cell; only hits on the aimed object count."""
     n_p, k = rot.shape[0], aim.objects.size
     table, start, counts, _, _, layout = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
-    ray_start, n = np.ascontiguousarray(start[::k]), layout.shape[0]
+    ray_start = np.ascontiguousarray(start[::k])
+    before = clock.get("embree", 0.0)
+    t_s, ext, w, pts, hit_prim, cos_i = layout_echoes(caster, layout, ray_start, plan, rot, pos_local, rx_shift, m,
+                                                      two_way_np_per_m, sonar, want_points, clock, buffers)
+    obj = keep_own(caster.compiled, aim, counts, hit_prim, w, t_s, cos_i)
+    echoes = Echoes(2, ray_start, t_s, ext, w, pts, obj)
+    return AimedEchoes(echoes, layout, hit_prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1),
+                       clock.get("embree", 0.0) - before)
+
+
+def layout_echoes(caster, layout, ray_start, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, sonar,
+                  want_points, clock, buffers):
+    """Curved rays with each ray's own cell, launched, marched and weighted as the fan's (the laws applied).
+
+    Parameters
+    ----------
+    layout : (n, 5) float64
+        Each ray's s, cos β, sin β, dβ and ds (its direction (s, ±√(1 − s²)·cos β, √(1 − s²)·sin β) in the body
+        frame of its row's ping, its solid angle ds·dβ); row r (2·ping + side) owns ``ray_start[r] …
+        ray_start[r + 1] − 1``.
+    plan : FanPlan
+        Its beam, near-field bound, slope cap and footprint setting.
+    rot, pos_local, rx_shift, m, two_way_np_per_m, sonar, want_points, clock, buffers
+        As for :func:`cast_refracted` (``m`` the block's :class:`Marching`).
+
+    Returns
+    -------
+    time_s, extent_s, weight : (n,) float64; points : (n, 3) or (0, 3) float64; prim : (n,) int32; cos_i : (n,)
+    """
+    n = layout.shape[0]
     state, lay = buffers.take("state", (n, kernels.STATE_WIDTH)), buffers.take("lay", n, np.int64)
     ray = buffers.take("ray", (n, kernels.RAY_WIDTH))
     none = np.zeros(0)
     kernels.arc_start(plan.s, none, none, ray_start, rot, pos_local, m.layers, m.z0, m.box_z, m.l_max, state, lay,
                       ray, layout)
-    before = clock.get("embree", 0.0)
     hit_prim, hit, _ = march(caster, m, state, lay, ray, clock, buffers)
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
@@ -224,10 +252,7 @@ def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_
                        hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
                                                                plan.slope_cap_m_rad, sonar.sound_speed_m_s),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
-    obj = keep_own(c, aim, counts, hit_prim, w, t_s, cos_i)
     apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
-    echoes = Echoes(2, ray_start, t_s, ext, w, pts, obj)
-    return AimedEchoes(echoes, layout, hit_prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1),
-                       clock.get("embree", 0.0) - before)
+    return t_s, ext, w, pts, hit_prim, cos_i

@@ -194,7 +194,7 @@ def test_surface_eigenrays_against_the_ray_integrals():
             assert ray.spread_m2[k] == pytest.approx(xs * abs(dxdth) * sin_p / np.cos(th0), rel=1e-6)
     flat = curved_surface.surface_eigenrays(se.SoundSpeedProfile((0.0, 100.0), (1500.0, 1500.0)), d_src, d_dst, x)
     np.testing.assert_allclose(flat.spread_m2, x ** 2 + (d_src + d_dst) ** 2, rtol=1e-9)
-    np.testing.assert_allclose(flat.time_s, np.hypot(x, d_src + d_dst) / 1500.0, rtol=1e-12)
+    np.testing.assert_allclose(flat.time_s, np.hypot(x, d_src + d_dst) / 1500.0, rtol=1e-10)
     far = curved_surface.surface_eigenrays(prof, np.array([5.0]), np.array([150.0]), np.array([1e5]))
     assert np.isnan(far.time_s[0])
 
@@ -225,3 +225,32 @@ def test_an_object_above_the_sonar_blocks_the_surface_paths():
 def test_what_a_surface_over_a_profile_does_not_model_is_refused(surface, needle):
     with pytest.raises(se.ConfigError, match=needle):
         se.Environment(sound_speed=_profile(), surface=se.SeaSurface(**surface))
+
+
+def test_eigenray_kernel_matches_its_twin(rng):
+    """kernels.surface_eigenrays against its NumPy twin (bisection on the textbook closed forms) on random
+    profiles with a layer of zero gradient, random depths and distances (some far: out of reach, or reached by a
+    ray running level in the flat layer, for both alike); and
+    kernels.surface_reach against the twin's surface point."""
+    import naive
+    from sonar_embree import kernels
+
+    for _ in range(3):
+        z = np.concatenate([[0.0], np.sort(rng.uniform(1.0, 80.0, 3)), [120.0]])
+        c = rng.uniform(1480.0, 1530.0, z.size)
+        c[2] = c[1]                                                  # a layer of zero gradient
+        n = 400
+        d_src, d_dst = rng.uniform(0.5, 60.0, n), rng.uniform(0.5, 150.0, n)
+        x = rng.uniform(0.0, 300.0, n)
+        x[:5] = 0.0
+        x[5:10] = 1e5                                    # out of reach, unless a ray runs level in a flat layer
+        out = np.empty((n, kernels.EIGEN_WIDTH))
+        kernels.surface_eigenrays(z, c, d_src, d_dst, x, out)
+        ref = naive.surface_eigenrays(z, c, d_src, d_dst, x)
+        np.testing.assert_array_equal(np.isnan(out[:, 1]), np.isnan(ref[:, 1]))
+        assert np.isfinite(out[:5, 1]).all() and np.isfinite(out[:, 1]).sum() > n // 2
+        ok = np.isfinite(ref[:, 1])
+        np.testing.assert_allclose(out[ok], ref[ok], rtol=1e-7, atol=1e-9)
+        reach = np.empty(int(ok.sum()))
+        kernels.surface_reach(z, c, out[ok, 0], d_src[ok], reach)
+        np.testing.assert_allclose(reach, ref[ok, 4], rtol=1e-7, atol=1e-9)
