@@ -748,3 +748,54 @@ def surface_eigenrays(z, c, d_src, d_dst, x, iterations=200):
     return np.column_stack([xi, up[2] + down[2], up[3] + down[3],
                             (up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / c_src ** 2, xi * up[0],
                             s_src, s_dst, np.sqrt(1 - (xi * c[0]) ** 2), c_dst])
+
+
+def curved_mixed(hits, launch, poses, normals, medium, weighting):
+    """Twin of kernels.curved_mixed in NumPy: (n, 7) columns w, t, extent, cos θi, cos θs, φ, x_up."""
+    point, prim, arrival, path, time, extent, lit = hits
+    body, dbeta, row = launch
+    rot, pos, rx_shift = poses
+    z, c, z_s = medium
+    beam, two_way, ds, r_min, kh, want_phi = weighting
+    n = lit.shape[0]
+    out = np.zeros((n, 7))
+    out[:, 1] = np.inf
+    k = np.flatnonzero(lit)
+    b, side = row[k] // 2, np.where(row[k] % 2 == 1, 1.0, -1.0)
+    rel = point[k, :2] - pos[b, :2]
+    x = np.hypot(rel[:, 0], rel[:, 1])
+    h = np.where(x[:, None] > 0, rel / np.where(x > 0, x, 1.0)[:, None], [1.0, 0.0])
+    d_src, d_dst = z_s - pos[b, 2], z_s - point[k, 2]
+    ray = surface_eigenrays(z, c, d_src, d_dst, x)
+    xi, t2, l2, spread, x_up, s_src, s_dst, s_top, c_dst = ray.T
+    c_src = np.interp(d_src, z, c)
+    u2 = np.column_stack([h * (xi * c_src)[:, None], s_src])
+    v = np.column_stack([-h * (xi * c_dst)[:, None], s_dst])
+    nrm = normals[prim[k]] * np.where(np.einsum("ij,ij->i", normals[prim[k]], arrival[k]) > 0, -1.0, 1.0)[:, None]
+    cos_i, cos_s = -np.einsum("ij,ij->i", nrm, arrival[k]), np.einsum("ij,ij->i", nrm, v)
+    e = np.einsum("nji,nj->ni", rot[b], u2)
+
+    def gain(u, delta):
+        ct, st = np.cos(beam[2]), np.sin(beam[2])
+        g = (np.sinc(beam[0] * (u[:, 0] - delta) / np.pi)
+             * np.sinc(beam[1] * (u[:, 2] * ct - side * u[:, 1] * st) / np.pi))
+        return np.where(side * u[:, 1] * ct + u[:, 2] * st > 0, g, 0.0)
+    g1, g1r, g2, g2r = gain(body[k], 0.0), gain(body[k], rx_shift[b]), gain(e, 0.0), gain(e, rx_shift[b])
+    w = ((g1 ** 2 * g2r ** 2 + g1r ** 2 * g2 ** 2) * np.exp(-4 * kh ** 2 * s_top ** 2)
+         * np.exp(-0.5 * two_way * (path[k].astype(float) + l2)) * ds * dbeta[k]
+         / (np.maximum(spread, r_min ** 2) * cos_i))
+    w = np.where(np.isfinite(xi) & (cos_i > 0) & (cos_s > 0), w, 0.0)
+    ok = w > 0
+    f = np.column_stack([h, np.zeros(len(k))])
+    f -= nrm * np.einsum("ij,ij->i", nrm, f)[:, None]
+    ratio = np.minimum(np.abs(np.einsum("ij,ij->i", v, f)) / np.maximum(np.abs(np.einsum("ij,ij->i", arrival[k], f)),
+                                                                        1e-12), 10.0)
+    bb = -arrival[k] - nrm * np.einsum("ij,ij->i", nrm, -arrival[k])[:, None]
+    tt = v - nrm * np.einsum("ij,ij->i", nrm, v)[:, None]
+    norm = np.sqrt(np.einsum("ij,ij->i", bb, bb) * np.einsum("ij,ij->i", tt, tt))
+    phi = np.where(norm > 1e-24, np.arccos(np.clip(np.einsum("ij,ij->i", bb, tt) / np.maximum(norm, 1e-300), -1, 1)),
+                   0.0)
+    cols = (w, 0.5 * time[k] + t2, 0.5 * extent[k] * (1 + ratio), cos_i, cos_s, phi if want_phi else 0 * w, x_up)
+    for j, col in enumerate(cols):
+        out[k[ok], j] = col[ok]
+    return out

@@ -58,6 +58,16 @@ Footprints = namedtuple("Footprints", "range extent object point dir")
 #: Per-sample labels: kind (rows, n_s) int8, object_id and shadow_of (rows, n_s) int32, height and ground (rows,
 #: n_s) float32.
 LabelOut = namedtuple("LabelOut", "kind object_id shadow_of height ground")
+#: A curved fan's direct hits for the surface's paths: point (n, 3) (local, m), triangle (n,) int32, unit direction of
+#: arrival (n, 3), path length (n,) float32 (m), two-way time and extent (n,) (s), lit (n,) bool.
+CurvedHits = namedtuple("CurvedHits", "point prim arrival path time extent lit")
+#: Each ray's body-frame launch direction (n, 3), its cell's dβ (n,) (rad) and its row (n,) int64.
+Launch = namedtuple("Launch", "body dbeta row")
+#: A profile as the eigenray kernels read it: knots from depth 0 (m), speeds (m/s), and the surface's local z (m).
+Medium = namedtuple("Medium", "z c z_s")
+#: What a curved one-bounce echo's weight needs: the beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption
+#: (Np/m), the fan's ds, R_min (m), k·h_w, and whether to write the bistatic azimuth.
+MixedWeighting = namedtuple("MixedWeighting", "beam two_way_np_per_m ds min_range_m wave_kh want_phi")
 #: A kernel's echo outputs, one row per ray: range (m), travel time (s), travel-time extent (s), weight, cos θi,
 #: and the hit points (n, 3) (or (0, 3): not wanted).
 EchoOut = namedtuple("EchoOut", "range time extent weight cos points")

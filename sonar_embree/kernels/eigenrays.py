@@ -18,7 +18,10 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ._numba import njit, prange
+from .rays import _sinc
 
 #: Columns of :func:`surface_eigenrays`' output: ξ (s/m), one-way time (s), path length (m), tube area per steradian
 #: at P (m²), horizontal distance from S to the surface point (m), sin θ at S, at P and at the surface, c at P (m/s).
@@ -106,7 +109,9 @@ def _solve(z, c, d_src, d_dst, x, c_max):
     uh, dh = _leg_x(z, c, hi, d_src), _leg_x(z, c, hi, d_dst)
     if not (hi * (uh[0] + dh[0]) >= x):
         return math.nan
-    xi = 0.0
+    xi = x / math.sqrt(x * x + (d_src + d_dst) ** 2) / _speed(z, c, d_src)      # the straight ray's, to start
+    if not xi < hi:
+        xi = 0.5 * hi
     for _ in range(EIGEN_ITERATIONS):
         up, down = _leg_x(z, c, xi, d_src), _leg_x(z, c, xi, d_dst)
         f = xi * (up[0] + down[0]) - x
@@ -138,12 +143,7 @@ def surface_eigenrays(z, c, d_src, d_dst, x, out):
     """
     top_speed = c[0]
     for i in prange(x.shape[0]):
-        deepest = max(d_src[i], d_dst[i])
-        c_max = max(top_speed, max(_speed(z, c, d_src[i]), _speed(z, c, d_dst[i])))
-        for j in range(z.shape[0]):
-            if z[j] < deepest:
-                c_max = max(c_max, c[j])
-        xi = _solve(z, c, d_src[i], d_dst[i], x[i], c_max)
+        xi = _solve(z, c, d_src[i], d_dst[i], x[i], _c_max(z, c, d_src[i], d_dst[i]))
         c_src, c_dst = _speed(z, c, d_src[i]), _speed(z, c, d_dst[i])
         out[i, E_XI], out[i, E_C_DST] = xi, c_dst
         if not xi == xi:
@@ -165,3 +165,139 @@ def surface_reach(z, c, xi, d_src, out):
     meets the surface, into ``out`` (n,); profile ``z``, ``c`` as for :func:`surface_eigenrays`."""
     for i in prange(xi.shape[0]):
         out[i] = xi[i] * _leg(z, c, xi[i], d_src[i])[0]
+
+
+#: Columns of :func:`curved_mixed`'s output: weight (without σ), travel time (s), its extent (s), cos θi, cos θs, the
+#: bistatic azimuth φ (rad; 0 unless asked for) and the horizontal distance from the sonar to the surface point (m).
+M_W, M_T, M_EXT, M_COS_I, M_COS_S, M_PHI, M_XUP = range(7)
+MIX_WIDTH = 7
+
+
+@njit(cache=True, nogil=True)
+def _c_max(z, c, d_src, d_dst):
+    """The fastest c between the surface and the deeper of the two depths."""
+    deepest = max(d_src, d_dst)
+    out = max(c[0], max(_speed(z, c, d_src), _speed(z, c, d_dst)))
+    for j in range(z.shape[0]):
+        if z[j] < deepest:
+            out = max(out, c[j])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _membrane(beam, side, u0, u1, u2, delta):
+    """Γ of the baffled membrane (k·lx/2, k·ly/2, tilt) along body direction u on a side, its along-track cosine
+    shifted by δ (docs/physics.md §2, §16)."""
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
+    if not side * u1 * ct + u2 * st > 0.0:
+        return 0.0
+    return _sinc(beam[0] * (u0 - delta)) * _sinc(beam[1] * (u2 * ct - side * u1 * st))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def curved_mixed(hits, launch, poses, face_normals, medium, weighting, out):
+    """The one-bounce paths (S → P → surface → S and back) of a curved fan's direct hits, without σ or blocking
+    (docs/physics.md §12b).
+
+    Per lit hit P: the surface eigenray from the sonar to P (:func:`surface_eigenrays`), and
+
+        w = (Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁))·|R_s|²·e^(−α'(L₁ + L₂))·ds·dβ / (max(A₂, R_min²)·cos θi),
+
+    at T₁ + T₂ (one-way times), with |R_s|² = exp(−4(k·h_w)²·sin²θg), u₁ the direct ray's launch and u₂ the surface
+    ray's (ξ·c_S horizontally towards P, upwards), θi from the direct ray's arrival and θs from the surface ray's
+    (its direction back from P); zero where no unturned eigenray exists, or either cosine is not positive. The
+    extent is the direct echo's ΔT₁ (half its two-way extent) times 1 + (p₂·f)/(p₁·f) (at most 11), p the rays'
+    directions at P and f the horizontal direction away from the sonar in the facet's plane.
+
+    Parameters
+    ----------
+    hits : :data:`~sonar_embree.kernels.args.CurvedHits`
+        Per ray of the fan (n,): hit point (n, 3) (local, m), triangle (int32), unit direction of arrival (n, 3),
+        path length L₁ (float32, m), two-way time 2T₁ (s), two-way extent (s), whether it is lit (bool).
+    launch : :data:`~sonar_embree.kernels.args.Launch`
+        Each ray's body-frame launch direction (n, 3), its cell's dβ (n,) (rad) and row (n,) int64 (2·ping + side).
+    poses : :data:`~sonar_embree.kernels.args.Poses`
+    face_normals : (f, 3) float64
+    medium : :data:`~sonar_embree.kernels.args.Medium`
+        The profile's knots ``z`` (from depth 0, m) and speeds ``c`` (m/s), and the surface's local height (m).
+    weighting : :data:`~sonar_embree.kernels.args.MixedWeighting`
+        The beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), the fan's ds, R_min (m), k·h_w and
+        whether to write φ.
+    out : (n, MIX_WIDTH) float64
+        Written, the columns ``M_*``.
+    """
+    lit = hits.lit
+    for i in prange(lit.shape[0]):
+        for k in range(MIX_WIDTH):
+            out[i, k] = 0.0
+        out[i, M_T] = math.inf
+        if lit[i]:
+            _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out)
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
+    """Row i of :func:`curved_mixed` (a lit hit)."""
+    point, prim, arrival, path, time, extent, _ = hits
+    body, dbeta, row = launch
+    rot, pos, rx_shift = poses
+    z, c, z_s = medium
+    beam, two_way, ds, r_min, kh, want_phi = weighting
+    b = row[i] // 2
+    side = 1.0 if row[i] % 2 == 1 else -1.0
+    hx, hy = point[i, 0] - pos[b, 0], point[i, 1] - pos[b, 1]
+    x = math.sqrt(hx * hx + hy * hy)
+    if x > 0.0:
+        hx, hy = hx / x, hy / x
+    else:                                                   # straight below: any azimuth (ξ = 0)
+        hx, hy = 1.0, 0.0
+    d_src, d_dst = z_s - pos[b, 2], z_s - point[i, 2]
+    xi = _solve(z, c, d_src, d_dst, x, _c_max(z, c, d_src, d_dst))
+    if not xi == xi:
+        return
+    up, down = _leg(z, c, xi, d_src), _leg(z, c, xi, d_dst)
+    c_src, c_dst = _speed(z, c, d_src), _speed(z, c, d_dst)
+    s_src, s_dst = math.sqrt(1.0 - (xi * c_src) ** 2), math.sqrt(1.0 - (xi * c_dst) ** 2)
+    spread = max((up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / (c_src * c_src), r_min * r_min)
+    u2 = (hx * xi * c_src, hy * xi * c_src, s_src)              # S → surface, world (z up)
+    v = (-hx * xi * c_dst, -hy * xi * c_dst, s_dst)             # P → where the surface path comes from
+    n0, n1, n2 = face_normals[prim[i], 0], face_normals[prim[i], 1], face_normals[prim[i], 2]
+    a0, a1, a2 = arrival[i, 0], arrival[i, 1], arrival[i, 2]
+    if n0 * a0 + n1 * a1 + n2 * a2 > 0.0:
+        n0, n1, n2 = -n0, -n1, -n2
+    cos_i, cos_s = -(n0 * a0 + n1 * a1 + n2 * a2), n0 * v[0] + n1 * v[1] + n2 * v[2]
+    if not (cos_i > 0.0 and cos_s > 0.0):
+        return
+    e0 = rot[b, 0, 0] * u2[0] + rot[b, 1, 0] * u2[1] + rot[b, 2, 0] * u2[2]    # body = Rᵀ·u2
+    e1 = rot[b, 0, 1] * u2[0] + rot[b, 1, 1] * u2[1] + rot[b, 2, 1] * u2[2]
+    e2 = rot[b, 0, 2] * u2[0] + rot[b, 1, 2] * u2[1] + rot[b, 2, 2] * u2[2]
+    delta = rx_shift[b]
+    g1 = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], 0.0)
+    g1r = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], delta)
+    g2, g2r = _membrane(beam, side, e0, e1, e2, 0.0), _membrane(beam, side, e0, e1, e2, delta)
+    s_top2 = 1.0 - (xi * c[0]) ** 2
+    w = ((g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2) * math.exp(-4.0 * kh * kh * s_top2)
+         * math.exp(-0.5 * two_way * (np.float64(path[i]) + up[3] + down[3])) * ds * dbeta[i] / (spread * cos_i))
+    if not w > 0.0:
+        return
+    out[i, M_W], out[i, M_T] = w, 0.5 * time[i] + up[2] + down[2]
+    nf = n0 * hx + n1 * hy
+    f0, f1, f2 = hx - n0 * nf, hy - n1 * nf, -n2 * nf              # away from the sonar, in the facet
+    p1 = a0 * f0 + a1 * f1 + a2 * f2
+    p2 = -(v[0] * f0 + v[1] * f1 + v[2] * f2)
+    out[i, M_EXT] = 0.5 * extent[i] * (1.0 + min(abs(p2) / max(abs(p1), 1e-12), 10.0))
+    out[i, M_COS_I], out[i, M_COS_S], out[i, M_XUP] = cos_i, cos_s, xi * up[0]
+    if want_phi:
+        out[i, M_PHI] = _azimuth(n0, n1, n2, a0, a1, a2, v[0], v[1], v[2])
+
+
+@njit(cache=True, nogil=True)
+def _azimuth(n0, n1, n2, a0, a1, a2, v0, v1, v2):
+    """Angle between −a and v projected on the plane of normal n (0 when either is along n)."""
+    na, nv = -(n0 * a0 + n1 * a1 + n2 * a2), n0 * v0 + n1 * v1 + n2 * v2
+    b0, b1, b2 = -a0 - na * n0, -a1 - na * n1, -a2 - na * n2
+    t0, t1, t2 = v0 - nv * n0, v1 - nv * n1, v2 - nv * n2
+    bb, tt = b0 * b0 + b1 * b1 + b2 * b2, t0 * t0 + t1 * t1 + t2 * t2
+    if bb <= 1e-24 or tt <= 1e-24:
+        return 0.0
+    return math.acos(min(max((b0 * t0 + b1 * t1 + b2 * t2) / math.sqrt(bb * tt), -1.0), 1.0))

@@ -25,8 +25,8 @@ import dataclasses
 import numpy as np
 
 from .. import kernels
+from ..kernels.args import CurvedHits, Launch, Medium, MixedWeighting, Poses
 from ..environment import SoundSpeedProfile
-from ..instrument import beam
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import BlockEchoes, ray_cells
@@ -152,81 +152,32 @@ def _block_upward(caster, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w
 
 def mixed_echoes(front, caster, blk: BlockEchoes, rot, pos_local, z_s_local: float, rx_shift=None) -> Echoes:
     """S → P → surface → S and back the other way, for every direct echo of the curved fan ``blk`` (cast with
-    ``keep_arrival``), aligned with its rays: the surface eigenray from S to each hit point P
-    (:func:`surface_eigenrays`), the membrane's gains at both launch directions, σ(θi, θs, φ), both upward chords
-    checked (docs/physics.md §12b). Every hit of the fan counts, those on objects its rows aim rays at too (the
-    aimed rays give their direct echoes only)."""
+    ``keep_arrival``), aligned with its rays: the surface eigenray from S to each hit point P, the membrane's gains
+    at both launch directions (:func:`kernels.curved_mixed`), σ(θi, θs, φ), both upward chords checked
+    (docs/physics.md §12b). Every hit of the fan counts, those on objects its rows aim rays at too (the aimed rays
+    give their direct echoes only)."""
     c, sonar = caster.compiled, front.sonar
-    prof = sonar.environment.sound_speed
     n = blk.weight.shape[0]
-    w, t, ext = np.zeros(n), np.full(n, np.inf), np.zeros(n)
-    lit = np.flatnonzero((blk.prim >= 0) & (blk.weight > 0))
     body, row, dbeta = ray_cells(blk.plan.s, blk.el_start, blk.beta, blk.dbeta)
-    ping, p = row[lit] // 2, blk.point_m[lit]
-    rel = p[:, :2] - pos_local[ping, :2]
-    x = np.hypot(rel[:, 0], rel[:, 1])
-    h = np.where(x[:, None] > 0, rel / np.maximum(x, 1e-300)[:, None], rot[ping][:, :2, 1])  # straight below
-    ray = surface_eigenrays(prof, z_s_local - pos_local[ping, 2], z_s_local - p[:, 2], x)
-    ok = np.isfinite(ray.time_s)
-    cos_0, sin_0 = ray.xi * prof.speed_at(z_s_local - pos_local[ping, 2]), ray.sin_src
-    u2 = np.column_stack([h * cos_0[:, None], sin_0])                          # S → surface, world (z up)
-    v = np.column_stack([-h * (ray.xi * ray.c_dst)[:, None], ray.sin_dst])      # P → where the path comes from
-    arrival = blk.arrival[lit]
-    nrm = c.face_normals[blk.prim[lit]]
-    nrm = nrm * np.where(np.einsum("ij,ij->i", nrm, arrival) > 0, -1.0, 1.0)[:, None]
-    cos_i, cos_s = -np.einsum("ij,ij->i", nrm, arrival), np.einsum("ij,ij->i", nrm, v)
     shift = np.zeros(rot.shape[0]) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
-    g = _two_way_gain(front, body[lit], np.einsum("nji,nj->ni", rot[ping], u2), row[lit], shift[ping])
-    spread = np.maximum(ray.spread_m2, front.plan.min_range_m ** 2)
-    path = blk.tfar[lit].astype(np.float64) + ray.path_m
-    wl = (g * _reflection(front, ray.sin_top, 1) * np.exp(-0.5 * front.two_way_np_per_m * path)
-          * front.plan.ds * dbeta[lit] / (spread * cos_i))
-    wl = np.where(ok & (cos_i > 0) & (cos_s > 0), wl, 0.0)
-    w[lit], t[lit] = wl, np.where(wl > 0, 0.5 * blk.time_s[lit] + ray.time_s, np.inf)
-    ext[lit] = np.where(wl > 0, _extent(blk.extent_s[lit], arrival, v, nrm, h, ray.c_dst), 0.0)
-    phi = np.zeros(n)
-    if wants_azimuth(c):
-        phi[lit] = _azimuth(nrm, arrival, v)
-    cos_i_all, cos_s_all = np.zeros(n), np.zeros(n)
-    cos_i_all[lit], cos_s_all[lit] = cos_i, cos_s
-    apply_bistatic(c, sonar.frequency_hz, blk.prim, blk.point_m, w, cos_i_all, cos_s_all,
-                   phi if wants_azimuth(c) else None)
-    _block_upward(caster, blk.ray_start, ping, lit, h, ray.x_up_m, pos_local, z_s_local, w, blk.point_m, blk.prim)
-    return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
-
-
-def _two_way_gain(front, u1, u2, row, shift):
-    """Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁) of body-frame directions u₁, u₂ (k, 3) on their rows' sides, the receive
-    beam turned by δ = ``shift`` (k,) along track (docs/physics.md §16)."""
-    s = front.sonar
-    side = np.where(row % 2 == 1, 1.0, -1.0)
-    ct, st = np.cos(s.tilt_rad), np.sin(s.tilt_rad)
-
-    def gain(u, delta):
-        return beam.directivity(u[:, 0] - delta, u[:, 2] * ct - side * u[:, 1] * st, side * u[:, 1] * ct + u[:, 2] * st,
-                                s.wavenumber_rad_m, s.length_m, s.height_m)
-
-    g1, g1r, g2, g2r = gain(u1, 0.0), gain(u1, shift), gain(u2, 0.0), gain(u2, shift)
-    return (g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2)
-
-
-def _extent(ext_direct, arrival, v, nrm, h, c_dst):
-    """Travel-time extent of a one-bounce echo: the direct echo's two-way 2ΔT₁ scaled to ΔT₁ + ΔT₂, with
-    ΔT₂/ΔT₁ = (p₂·f)/(p₁·f) for the slownesses p of both rays at P along the footprint's direction f (the
-    horizontal direction away from the sonar, in the facet's plane); at most 10."""
-    f = np.column_stack([h, np.zeros(h.shape[0])])
-    f -= nrm * np.einsum("ij,ij->i", nrm, f)[:, None]
-    p1 = np.einsum("ij,ij->i", arrival, f)
-    p2 = -np.einsum("ij,ij->i", v, f)
-    ratio = np.clip(np.abs(p2) / np.maximum(np.abs(p1), 1e-12), 0.0, 10.0)
-    return 0.5 * ext_direct * (1.0 + ratio)
-
-
-def _azimuth(n, u, v):
-    """Angle between −u and v projected on the plane of normal n (0 when either is along n), (k,)."""
-    b = -u - n * np.einsum("ij,ij->i", n, -u)[:, None]
-    t = v - n * np.einsum("ij,ij->i", n, v)[:, None]
-    bb, tt = np.einsum("ij,ij->i", b, b), np.einsum("ij,ij->i", t, t)
-    ok = (bb > 1e-24) & (tt > 1e-24)
-    cos = np.einsum("ij,ij->i", b, t) / np.sqrt(np.where(ok, bb * tt, 1.0))
-    return np.where(ok, np.arccos(np.clip(cos, -1.0, 1.0)), 0.0)
+    kh = sonar.wavenumber_rad_m * sonar.environment.surface.wave_height_m
+    want_phi = wants_azimuth(c)
+    out = np.empty((n, kernels.MIX_WIDTH))
+    kernels.curved_mixed(CurvedHits(blk.point_m, blk.prim, blk.arrival, blk.tfar, blk.time_s, blk.extent_s,
+                                    (blk.prim >= 0) & (blk.weight > 0)),
+                         Launch(body, dbeta, row), Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, shift),
+                         c.face_normals, Medium(*knots(sonar.environment.sound_speed), float(z_s_local)),
+                         MixedWeighting(front.plan.beam, front.two_way_np_per_m, float(blk.plan.ds),
+                                        front.plan.min_range_m, kh, want_phi), out)
+    w = np.ascontiguousarray(out[:, kernels.M_W])
+    apply_bistatic(c, sonar.frequency_hz, blk.prim, blk.point_m, w, np.ascontiguousarray(out[:, kernels.M_COS_I]),
+                   np.ascontiguousarray(out[:, kernels.M_COS_S]), out[:, kernels.M_PHI] if want_phi else None)
+    lit = np.flatnonzero(w > 0)
+    ping = row[lit] // 2
+    rel = blk.point_m[lit, :2] - pos_local[ping, :2]
+    h = rel / np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-300)[:, None]
+    _block_upward(caster, blk.ray_start, ping, lit, h, out[lit, kernels.M_XUP], pos_local, z_s_local, w, blk.point_m,
+                  blk.prim)
+    t = np.where(w > 0, out[:, kernels.M_T], np.inf)
+    return Echoes(2, blk.ray_start, t, np.ascontiguousarray(out[:, kernels.M_EXT]), w, blk.point_m,
+                  np.zeros(0, np.int32))

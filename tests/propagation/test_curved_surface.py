@@ -254,3 +254,42 @@ def test_eigenray_kernel_matches_its_twin(rng):
         reach = np.empty(int(ok.sum()))
         kernels.surface_reach(z, c, out[ok, 0], d_src[ok], reach)
         np.testing.assert_allclose(reach, ref[ok, 4], rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("want_phi", [False, True])
+def test_curved_mixed_kernel_matches_its_twin(rng, want_phi):
+    """kernels.curved_mixed against its NumPy twin on random tilted facets, attitudes, arrival directions, both
+    sides, stop-and-hop and moving pings, a rough surface; unlit rays and rays with no eigenray left empty."""
+    import naive
+    from scipy.spatial.transform import Rotation
+
+    from sonar_embree import kernels
+    from sonar_embree.kernels.args import CurvedHits, Launch, Medium, MixedWeighting, Poses
+
+    n_p, n = 3, 600
+    rot = Rotation.from_euler("xyz", rng.uniform(-0.2, 0.2, (n_p, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
+    pos = np.column_stack([rng.uniform(-5, 5, (n_p, 2)), rng.uniform(8, 12, n_p)])
+    row = np.sort(rng.integers(0, 2 * n_p, n)).astype(np.int64)
+    point = np.column_stack([pos[row // 2, :2] + rng.uniform(-60, 60, (n, 2)), rng.uniform(-2, 3, n)])
+    point[:3, :2] = pos[row[:3] // 2, :2]                              # straight below
+    arrival = point - pos[row // 2] + rng.normal(0, 0.5, (n, 3))
+    arrival /= np.linalg.norm(arrival, axis=1)[:, None]
+    normals = rng.normal(size=(7, 3)) * [0.3, 0.3, 1.0]
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    body = rng.normal(size=(n, 3)) * [0.05, 1.0, 1.0]
+    body /= np.linalg.norm(body, axis=1)[:, None]
+    body[:, 1] = np.abs(body[:, 1]) * np.where(row % 2 == 1, 1.0, -1.0)
+    hits = CurvedHits(point, rng.integers(0, 7, n).astype(np.int32), arrival, rng.uniform(5, 60, n).astype(np.float32),
+                      rng.uniform(0.005, 0.08, n), rng.uniform(0, 1e-4, n), rng.random(n) < 0.85)
+    z, c = np.array([0.0, 8.0, 40.0, 200.0]), np.array([1495.0, 1495.0, 1505.0, 1530.0])
+    beam = np.array([0.5 * 1675.5 * 0.19, 0.5 * 1675.5 * 0.0038, np.radians(20.0), 0.0])
+    launch, poses = Launch(body, rng.uniform(1e-4, 1e-2, n), row), Poses(rot, pos, np.array([0.0, 2e-3, -5e-3]))
+    medium, weighting = Medium(z, c, 25.0), MixedWeighting(beam, 0.044, 0.01, 0.0375, 0.3, want_phi)
+    out = np.empty((n, kernels.MIX_WIDTH))
+    kernels.curved_mixed(hits, launch, poses, normals, medium, weighting, out)
+    ref = naive.curved_mixed(hits, launch, poses, normals, medium, weighting)
+    lit = ref[:, 0] > 0
+    assert lit.sum() > n // 6 and (~lit & hits.lit).sum() > 0
+    np.testing.assert_array_equal(out[:, 0] > 0, lit)
+    np.testing.assert_allclose(out[lit], ref[lit], rtol=1e-7, atol=1e-12)
+    assert np.all(out[~lit, 0] == 0) and np.all(np.isinf(out[~lit, 1]))
