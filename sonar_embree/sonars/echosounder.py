@@ -1,17 +1,16 @@
-"""A down-looking single-beam echo sounder: one channel, a circular piston (docs/physics.md §11).
+"""A down-looking single-beam echo sounder: one channel, a baffled piston (docs/physics.md §11).
 
-The transducer is a baffled circular piston of radius a; its one-way directivity
-is b(θ) = 2·J1(ka·sin θ)/(ka·sin θ) (Kinsler et al., *Fundamentals of Acoustics*,
-4th ed., §8.8), θ from the body's down axis. The −3 dB full width θ3 gives
-ka·sin(θ3/2) = 1.6163. The beam is sampled in rings of θ and azimuth φ
-(dΩ = sin θ dθ dφ) out to :data:`SPAN_NULLS` times the first null, the rings
-:data:`RINGS` per span near the axis and narrower further out, so that a ring's
-footprint spans at most :data:`FOOTPRINT_BINS` range bins at the far range
-(:func:`ring_edges`); each ray's echo is w = b⁴·σ(θi)·e^(−2α'R)·dΩ/(R²·cos θi)
-(eq. 1), spread over the travel-time extent of its ring's footprint. In a
-sound-speed profile the rings are curved rays; under a sea surface nothing changes
-(the surface's paths reach the sonar from above, behind the baffle). Over a flat
-floor at altitude h the first echo arrives at 2h/c.
+The transducer is a beam of :mod:`sonar_embree.sonars.beams` (``beam``): by default the baffled
+circular piston of radius a, b(θ) = 2·J1(ka·sin θ)/(ka·sin θ) (Kinsler et al., *Fundamentals of
+Acoustics*, 4th ed., §8.8), θ from the body's down axis, ka·sin(θ3/2) = 1.6163 for the −3 dB full
+width θ3; or the square piston. The beam is modelled out to :data:`SPAN_NULLS` times its first
+null and sampled in rings of θ and azimuth φ (dΩ = sin θ dθ dφ), the rings :data:`RINGS` per
+span near the axis and narrower further out, so that a ring's footprint spans at most
+:data:`FOOTPRINT_BINS` range bins at the far range (:func:`ring_edges`); each ray's echo is
+w = b²(u)·b²(u_rx)·σ(θi)·e^(−2α'R)·dΩ/(R²·cos θi) (eq. 1), b from the ray's body-frame direction,
+spread over the travel-time extent of its ring's footprint. In a sound-speed profile the rings
+are curved rays; under a sea surface nothing changes (the surface's paths reach the sonar from
+above, behind the baffle). Over a flat floor at altitude h the first echo arrives at 2h/c.
 """
 from __future__ import annotations
 
@@ -19,7 +18,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import j1
 
 from ..errors import ConfigError
 from ..propagation import multipath, refraction
@@ -32,12 +30,9 @@ from ..environment import Environment
 from ..laws import apply_laws
 from ..signal.processing import absorption_np_per_m
 from ..validation import check_number
+from .beams import BEAMS, Beam, beam_for
 from .base import FrontEnd
 
-#: ka·sin(θ3/2) of a circular piston at its one-way −3 dB point, 2·J1(x)/x = 1/√2.
-HALF_POWER_X = 1.6163
-#: ka·sin θ of the first null, the first zero of J1.
-FIRST_NULL_X = 3.8317
 #: The fan reaches this many times the first null's angle (the first side lobes; b⁴ < −70 dB beyond).
 SPAN_NULLS = 4.0
 #: Rings of θ over the span (near the axis) and rays per ring at quality 1.
@@ -59,7 +54,7 @@ class EchoSounder(Transducer):
     frequency_hz : float
         Carrier frequency, Hz.
     beamwidth_deg : float
-        Full one-way −3 dB beamwidth of the circular piston, degrees, in (0, 60].
+        Full one-way −3 dB beamwidth of the beam, degrees, in (0, 60].
     max_range_m : float
         Slant range of the last sample, m.
     sample_rate_hz : float or None
@@ -68,6 +63,9 @@ class EchoSounder(Transducer):
         The medium.
     source_level_db, self_noise_db_per_hz, receiver
         As for :class:`~sonar_embree.Sonar`.
+    beam : str
+        The transducer, a key of :data:`~sonar_embree.sonars.beams.BEAMS`: ``"piston"`` (circular, default) or
+        ``"square"``; ``beamwidth_deg`` is its one-way −3 dB full width (in a principal plane for the square).
     """
 
     frequency_hz: float = 200e3
@@ -78,6 +76,7 @@ class EchoSounder(Transducer):
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
+    beam: str = "piston"
 
     channels = ("down",)
     tilted = False   # it looks down: the set-up checks judge no tilt
@@ -86,33 +85,27 @@ class EchoSounder(Transducer):
         self._check_environment("EchoSounder")
         check_number("EchoSounder", "frequency_hz", self.frequency_hz, positive=True)
         check_number("EchoSounder", "beamwidth_deg", self.beamwidth_deg, positive=True, hi=60.0)
+        if self.beam not in BEAMS:
+            raise ConfigError(f"EchoSounder.beam must be one of {', '.join(repr(k) for k in BEAMS)}, got {self.beam!r}")
         check_number("EchoSounder", "max_range_m", self.max_range_m, positive=True)
         if self.sample_rate_hz is not None:
             check_number("EchoSounder", "sample_rate_hz", self.sample_rate_hz, positive=True)
         self._check_levels("EchoSounder")
 
     @property
-    def ka(self) -> float:
-        """k·a of the piston that has this beamwidth."""
-        return HALF_POWER_X / math.sin(math.radians(self.beamwidth_deg) / 2.0)
+    def transducer(self) -> Beam:
+        """The beam (:data:`~sonar_embree.sonars.beams.BEAMS`) with this beamwidth at the carrier."""
+        return beam_for(self.beam, self.beamwidth_deg, self.wavelength_m)
 
     @property
     def directivity_index_db(self) -> float:
-        """Receiving directivity index DI = 10·log10((ka)²) of the baffled circular piston, dB (Kinsler et al.,
-        §8.9, large ka; docs/physics.md §14)."""
-        return 20.0 * math.log10(self.ka)
+        """Receiving directivity index of the beam, dB (docs/physics.md §14)."""
+        return self.transducer.directivity_index_db
 
     @property
     def default_speckle_cell_m(self) -> float:
-        """Speckle lattice spacing by default: the piston's radius a (its near-field resolution)."""
-        return self.ka / self.wavenumber_rad_m
-
-    def directivity(self, theta_rad):
-        """One-way directivity b(θ) = 2·J1(ka sin θ)/(ka sin θ), θ from the down axis (0 above the horizon)."""
-        x = self.ka * np.sin(np.asarray(theta_rad, dtype=float))
-        with np.errstate(invalid="ignore", divide="ignore"):
-            b = np.where(np.abs(x) < 1e-8, 1.0, 2.0 * j1(x) / x)
-        return np.where(np.cos(theta_rad) > 0, b, 0.0)
+        """Speckle lattice spacing by default: the beam's (the piston's radius a, its near-field resolution)."""
+        return self.transducer.speckle_cell_m
 
 
 def ring_edges(span_rad: float, d_theta: float, k: float) -> np.ndarray:
@@ -138,7 +131,8 @@ class EchoSounderFrontEnd(FrontEnd):
 
     def __init__(self, sonar: EchoSounder, fan: FanSettings):
         fan = fan.resolved()
-        span = min(SPAN_NULLS * math.asin(min(FIRST_NULL_X / sonar.ka, 1.0)), math.radians(89.0))
+        self.beam = sonar.transducer
+        span = min(SPAN_NULLS * self.beam.first_null_rad, math.radians(89.0))
         d_theta = span / (RINGS * fan.quality)
         far = FOOTPRINT_BINS * sonar.range_bin_m / fan.quality              # the far rings' footprint, m
         edges = ring_edges(span, d_theta, sonar.max_range_m * d_theta / far)
@@ -153,7 +147,7 @@ class EchoSounderFrontEnd(FrontEnd):
         self.body_dtheta = np.stack([ct * np.cos(phi), ct * np.sin(phi), -st], axis=1)  # ∂u/∂θ
         self.d_theta = d_theta
         self.rings, self.ring_widths, self.n_phi = theta, widths, int(n_phi[0])
-        self.gain4 = sonar.directivity(self.theta) ** 4
+        self.gain4 = self.beam.one_way(*self.body.T) ** 4
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         self.span_rad, self.quality, self.aims = span, fan.quality, fan.aim_objects
@@ -173,24 +167,20 @@ class EchoSounderFrontEnd(FrontEnd):
         return self._aim[1]
 
     def _gain_of(self, body: np.ndarray, rx_shift: np.ndarray | None) -> np.ndarray:
-        """b²(θ)·b²(θ_rx) of body-frame unit directions (n, 3) (``rx_shift`` (n,) per direction, or None)."""
-        theta = np.arccos(np.clip(body[:, 2], -1.0, 1.0))
-        b = self.sonar.directivity(theta)
+        """b²(u)·b²(u_rx) of body-frame unit directions (n, 3), the receive beam's along-track cosine shifted by
+        ``rx_shift`` (n,) per direction (or None: b⁴); docs/physics.md §16."""
+        b = self.beam.one_way(body[:, 0], body[:, 1], body[:, 2])
         if rx_shift is None or not np.any(rx_shift):
             return b ** 4
-        b_rx = self.sonar.directivity(np.arcsin(np.minimum(np.hypot(body[:, 0] - rx_shift, body[:, 1]), 1.0)))
-        return b * b * b_rx * b_rx
+        return b * b * self.beam.one_way(body[:, 0] - rx_shift, body[:, 1], body[:, 2]) ** 2
 
     def _gain(self, rx_shift, n_p: int) -> np.ndarray:
         """b⁴·dΩ of every ray of the block, (n_p·n,); moving during the ping (``rx_shift`` (n_p,) δ = 2·v_fwd/c, not
-        all 0) the receive factor b²(θ_rx) has sin θ_rx = |(u_fwd − δ, u_side)| (docs/physics.md §16)."""
+        all 0) the receive factor is b² at (u_fwd − δ, u_side) (docs/physics.md §16)."""
         if rx_shift is None or not np.any(rx_shift):
             return np.tile(self.gain4 * self.d_omega, n_p)
-        fwd = self.body[None, :, 0] - np.asarray(rx_shift, dtype=np.float64)[:, None]
-        sin_rx = np.minimum(np.hypot(fwd, self.body[None, :, 1]), 1.0)
-        b_rx = self.sonar.directivity(np.arcsin(sin_rx))
-        b = self.sonar.directivity(self.theta)
-        return ((b * b * self.d_omega)[None, :] * b_rx * b_rx).reshape(-1)
+        shift = np.repeat(np.asarray(rx_shift, dtype=np.float64), self.body.shape[0])
+        return self._gain_of(np.tile(self.body, (n_p, 1)), shift) * np.tile(self.d_omega, n_p)
 
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """Echoes of a block of pings (one channel each); arguments as for the side-scan front end, ``rx_shift``

@@ -2,7 +2,8 @@
 the scattering law's scale, absorption, a sea surface's multipath, refraction in a sound-speed profile, the
 source level and the receiver's codes, each checked against its closed form, parametrised over the side-scan, the
 MSIS (whose ping is the side-scan's fan on a head), the forward-looking sonar (the side-scan's fan turned forward,
-its azimuth lines beamformed) and the echo sounder (rings of rays about its down axis, curved in a profile).
+its azimuth lines beamformed) and the echo sounder (rings of rays about its down axis, curved in a profile), with
+its circular and its square piston.
 """
 import dataclasses
 
@@ -25,8 +26,9 @@ def _case(kind, n=40, **kw):
     if kind == "sidescan":
         return (se.Sonar(max_range_m=30.0, **kw),
                 se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), n).stop_and_hop())
-    if kind == "echosounder":  # a 30° beam (its modelled cone reaches 89°); twice the pings (one channel), 1 m apart
-        return (se.EchoSounder(beamwidth_deg=30.0, max_range_m=30.0, **kw),
+    if kind.startswith("echosounder"):  # a 30° beam (its cone reaches 89°); twice the pings (one channel), 1 m apart
+        beam = "square" if kind.endswith("square") else "piston"
+        return (se.EchoSounder(beamwidth_deg=30.0, max_range_m=30.0, beam=beam, **kw),
                 se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), 2 * n).stop_and_hop())
     if kind == "forward_looking":  # a small array (32 elements, 33 beams over 60°); a third of the pings, 6 m apart
         n = max(2, n // 3)
@@ -36,7 +38,7 @@ def _case(kind, n=40, **kw):
             se.Trajectory(np.tile([[0.0, 0.0, H]], (n, 1)), times_s=np.arange(float(n))))
 
 
-KINDS = ["sidescan", "msis", "forward_looking", "echosounder"]
+KINDS = ["sidescan", "msis", "forward_looking", "echosounder", "echosounder_square"]
 #: The sea surface's paths leave or reach the sonar upwards: a down-looking baffled piston has no gain there, so a
 #: surface changes nothing of the echo sounder's record (docs/physics.md §11).
 LOOKS_UP = {"sidescan", "msis", "forward_looking"}
