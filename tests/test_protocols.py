@@ -70,14 +70,29 @@ def test_every_sonar_type_declares_what_its_front_end_models(sonar_cls):
     assert sonar_cls.tilted == ("tilt_deg" in {f.name for f in dataclasses.fields(sonar_cls)})
 
 
-def test_the_echo_sounder_refuses_a_surface_and_a_profile_by_its_declaration():
+def test_a_sonar_type_that_declares_no_surface_or_profile_is_refused_them():
+    """models_surface and models_refraction are read as declared (every shipped type models both now): a type that
+    declares False gets a one-line error naming the environment's key and the type."""
+    import dataclasses
+
+    @dataclasses.dataclass(frozen=True)
+    class Dry(se.EchoSounder):
+        models_surface = False
+        models_refraction = False
+
+    from sonar_embree.sonars import FRONT_ENDS, EchoSounderFrontEnd
     scene = se.Scene().add(se.seafloor.flat(size_m=(60, 60)), label="seafloor")
     traj = se.Trajectory.line((0, 0, 10), (1, 0, 10), 2)
-    for env, key in ((se.Environment(surface=se.SeaSurface(z_m=20.0)), "Environment.surface"),
-                     (se.Environment(sound_speed=se.SoundSpeedProfile.linear(1500.0, 0.1, surface_z_m=20.0)),
-                      "Environment.sound_speed")):
-        with pytest.raises(se.ConfigError, match=f"{key}: .* not EchoSounder"):
+    FRONT_ENDS[Dry] = EchoSounderFrontEnd
+    try:
+        for env, key in ((se.Environment(surface=se.SeaSurface(z_m=20.0)), "Environment.surface"),
+                         (se.Environment(sound_speed=se.SoundSpeedProfile.linear(1500.0, 0.1, surface_z_m=20.0)),
+                          "Environment.sound_speed")):
+            with pytest.raises(se.ConfigError, match=f"{key}: .* Dry"):
+                se.simulate(scene, traj, Dry(max_range_m=20.0), se.Pulse.cw(), environment=env)
             se.simulate(scene, traj, se.EchoSounder(max_range_m=20.0), se.Pulse.cw(), environment=env)
+    finally:
+        del FRONT_ENDS[Dry]
 
 
 @pytest.mark.parametrize("name, law", sorted(LAWS.items()))
