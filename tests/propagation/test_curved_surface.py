@@ -153,6 +153,32 @@ def test_surface_paths_in_a_profile_match_the_ray_map_quadrature(records):
         assert np.max(np.abs(off)) > 1.0, np.max(np.abs(off))
 
 
+def test_each_surface_path_starts_within_a_sample_of_the_quadrature(records, monkeypatch):
+    """The one- and the two-bounce path alone (the other's echoes weighed zero), each against its own quadrature:
+    the first sample above 10⁻³ of its peak within one sample, and its level within 0.5 dB over its 30 dB."""
+    wet, dry, _ = records
+    t = wet.time_s
+    _, one, two = quadrature(t, wet.sonar.alpha_db_per_m)
+    for keep, ref in (("mixed_echoes", one), ("image_echoes", two)):
+        drop = "image_echoes" if keep == "mixed_echoes" else "mixed_echoes"
+        real = getattr(curved_surface, drop)
+
+        def silenced(*a, real=real, **k):
+            out = real(*a, **k)
+            e = out[0] if isinstance(out, tuple) else out
+            e.weight[:] = 0.0
+            return out
+        monkeypatch.setattr(curved_surface, drop, silenced)
+        path = _record().starboard[0] - dry.starboard[0]
+        monkeypatch.undo()
+        first = t[np.argmax(path > 1e-3 * ref.max())]
+        assert abs(first - t[np.argmax(ref > 1e-3 * ref.max())]) <= 1.0 / FS, keep
+        lit = (ref > 1e-3 * ref.max()) & (t < 2 * RANGE / C_SONAR - 2 * TAU)
+        lit &= np.abs(t - first) > 2.0 / FS
+        assert lit.sum() > 500
+        assert np.max(np.abs(10 * np.log10(path[lit] / ref[lit]))) < 0.5, keep
+
+
 def test_surface_eigenrays_against_the_ray_integrals():
     """surface_eigenrays on a profile with a zero-gradient, a falling and a rising layer: the ray it finds covers
     the horizontal distance asked for, and its time, path length, surface point and tube area A₂ equal the ray
