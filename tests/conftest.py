@@ -34,6 +34,7 @@ SLOW = frozenset({
     "test_batch.py::test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds",
     "test_batch.py::test_killed_batch_resumes_to_the_same_files",
     "test_batch.py::test_two_workers_on_a_scheduler_give_identical_files",
+    "test_batch.py::test_a_real_scheduler_and_two_worker_processes_give_identical_files",
     "test_dem.py::test_mosaic_of_streamed_stores_equals_the_in_memory_one",
     "test_errors.py::test_console_script_prints_one_line_without_traceback",
     "test_first_hour.py::test_a_million_row_trajectory_csv_is_refused_in_one_line",

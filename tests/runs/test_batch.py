@@ -130,6 +130,44 @@ def test_two_workers_on_a_scheduler_give_identical_files(sweep_file, reference, 
     _same_tree(reference, tmp_path / "out")
 
 
+def test_a_real_scheduler_and_two_worker_processes_give_identical_files(sweep_file, reference, tmp_path):
+    """Not a LocalCluster: ``dask scheduler`` and two ``dask worker`` processes started on loopback as a cluster's
+    nodes would be (one thread each, a memory limit, their own scratch folders), the batch sent by address; the
+    files equal the one-worker run's, bit for bit; the workers' resident memory is reported."""
+    from distributed import Client
+
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    sched_file = tmp_path / "scheduler.json"
+    dask = [sys.executable, "-m", "distributed.cli.dask_scheduler"]
+    procs = [subprocess.Popen(dask + ["--host", "127.0.0.1", "--port", "0", "--dashboard-address", ":0",
+                                      "--scheduler-file", str(sched_file)], env=env, stdout=subprocess.DEVNULL,
+                              stderr=subprocess.DEVNULL)]
+    try:
+        for _ in range(600):
+            if sched_file.exists() and sched_file.stat().st_size > 0:
+                break
+            time.sleep(0.1)
+        address = json.loads(sched_file.read_text())["address"]
+        for k in range(2):
+            procs.append(subprocess.Popen(
+                [sys.executable, "-m", "distributed.cli.dask_worker", address, "--nthreads", "1", "--nworkers", "1",
+                 "--memory-limit", "2GiB", "--local-directory", str(tmp_path / f"w{k}"), "--name", f"w{k}"],
+                env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        with Client(address, timeout="60s") as client:
+            client.wait_for_workers(2, timeout=120)
+            assert cli.main(["batch", str(sweep_file), "-o", str(tmp_path / "out"), "--scheduler", address,
+                             "--no-progress"]) == 0
+            rss = client.run(lambda: __import__("psutil").Process().memory_info().rss)
+        _same_tree(reference, tmp_path / "out")
+        assert len(rss) == 2
+        print("worker RSS (MiB):", sorted(round(v / 2 ** 20) for v in rss.values()))
+    finally:
+        for p in procs[::-1]:
+            p.terminate()
+        for p in procs:
+            p.wait(timeout=60)
+
+
 def test_killed_batch_resumes_to_the_same_files(sweep_file, reference, tmp_path):
     out = tmp_path / "out"
     cmd = [sys.executable, "-m", "sonar_embree.runs.cli", "batch", str(sweep_file), "-o", str(out), "--workers", "1",
