@@ -135,7 +135,9 @@ def test_function_local_package_imports_do_not_grow():
                                                 ("numba", "sonar_embree.kernels._numba"),
                                                 ("pyproj", "sonar_embree.io.geo"),
                                                 ("pyxtf", "sonar_embree.io.xtf"),
-                                                ("rasterio", "sonar_embree.io.geotiff")])
+                                                ("rasterio", "sonar_embree.io.geotiff"),
+                                                ("dask", "sonar_embree.survey.cluster"),
+                                                ("distributed", "sonar_embree.survey.cluster")])
 def test_one_owner_per_dependency(dependency, owner):
     users = set()
     for name, _, tree in _modules():

@@ -39,3 +39,8 @@ NO_LAYOUT = np.zeros((0, 5))
 def num_threads() -> int:
     """Threads Numba's parallel kernels use (``NUMBA_NUM_THREADS``)."""
     return int(numba.get_num_threads())
+
+
+def set_num_threads(n: int) -> None:
+    """Run Numba's parallel kernels on ``n`` threads from now on (at most ``NUMBA_NUM_THREADS``)."""
+    numba.set_num_threads(int(n))

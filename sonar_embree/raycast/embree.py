@@ -5,13 +5,13 @@ refit of every hit is the interface's (:class:`sonar_embree.raycast.Caster`).
 """
 from __future__ import annotations
 
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from embreex import rtcore_scene as rtcs
 from embreex.mesh_construction import TriangleMesh
 
+from .. import kernels
 from ..scene import CompiledScene
 from .base import Caster
 
@@ -23,12 +23,13 @@ class EmbreeCaster(Caster):
     """An Embree BVH of a :class:`CompiledScene`, built once and cast many times."""
 
     def __init__(self, compiled: CompiledScene, threads: int | None = None):
-        """Build the BVH. ``threads``: Embree calls in parallel per batch (default: the CPU count)."""
+        """Build the BVH. ``threads``: Embree calls in parallel per batch (default: the threads of Numba's kernels,
+        the CPU count unless ``NUMBA_NUM_THREADS`` says less: a single-threaded worker process casts on one)."""
         self.compiled = compiled
         self._scene = rtcs.EmbreeScene()
         TriangleMesh(self._scene, compiled.vertices.astype(np.float32),
                      compiled.faces.astype(np.int32))
-        self.threads = max(int(threads if threads is not None else (os.cpu_count() or 1)), 1)
+        self.threads = max(int(threads if threads is not None else kernels.num_threads()), 1)
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         one = np.zeros((1, 3), dtype=np.float32)
         self._scene.run(one, one + np.float32([0, 0, 1]), dists=np.ones(1, np.float32), output=0)  # build the BVH now

@@ -1,4 +1,4 @@
-"""Batch rendering of sweeps on Dask (the only module that imports dask/distributed).
+"""Batch rendering of sweeps on Dask (its clients and ordering: :mod:`sonar_embree.survey.cluster`).
 
 :func:`run` expands a sweep (:mod:`sonar_embree.runs.sweep`) into jobs, splits each
 job's trajectory into tasks of ``pings_per_task`` pings (``simulate`` with
@@ -35,6 +35,7 @@ from ..record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 from ..errors import SonarEmbreeError
 from ..simulate import simulate
+from ..survey.cluster import as_completed, client_for, threads_of
 
 log = logging.getLogger(__name__)
 
@@ -166,7 +167,7 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
         this process, which writes every file.
     workers : int, optional
         Worker processes of the ``LocalCluster`` started when neither ``client`` nor
-        ``scheduler`` is given (default: the CPU count, at most 8).
+        ``scheduler`` is given (default: the CPU count, at most 8), one Numba thread each.
     resume : bool
         Continue a batch in ``out_dir``: finished jobs are kept, the rest run. Refused
         when any input (settings, trajectories, mesh and CSV file contents) changed.
@@ -227,40 +228,10 @@ def _remove_started(out_dir: str, created: bool) -> None:
             os.rmdir(out_dir)
 
 
-@contextlib.contextmanager
-def _cluster(client, scheduler, workers, dashboard):
-    """The client to run on: the caller's, one connected to ``scheduler``, or a quiet LocalCluster's."""
-    if client is not None:
-        yield client
-        return
-    from distributed import Client, LocalCluster
-
-    if scheduler is not None:
-        try:
-            own = Client(scheduler, timeout="20s")
-        except OSError as exc:
-            raise ConfigError(f"batch: cannot reach the Dask scheduler at {scheduler!r} ({exc})") from None
-        with own:
-            yield own
-        return
-    import dask
-
-    n = workers or max(1, min(os.cpu_count() or 1, 8))
-    # Without a dashboard the scheduler's HTTP server (health routes only) listens on a free loopback port.
-    http = {} if dashboard else {"dashboard": False, "dashboard_address": "127.0.0.1:0"}
-    with dask.config.set({"distributed.scheduler.http.routes": [] if not dashboard else
-                          dask.config.get("distributed.scheduler.http.routes")}):
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=dashboard,
-                               silence_logs=logging.ERROR, scheduler_kwargs=http)
-    with cluster, Client(cluster) as own:
-        yield own
-
-
 def _run_on_cluster(sweep, todo, out_dir, client, scheduler, workers, dashboard, max_in_flight, progress):
-    with _cluster(client, scheduler, workers, dashboard) as c:
+    with client_for(client, scheduler, workers, dashboard) as c:
         if max_in_flight is None:
-            threads = sum(c.nthreads().values()) or 1
-            max_in_flight = max(8, 4 * threads)
+            max_in_flight = max(8, 4 * threads_of(c))
         _run_jobs(c, sweep, todo, out_dir, progress, max_in_flight)
 
 
@@ -275,8 +246,6 @@ def _tasks(sweep: Sweep, todo: list):
 def _run_jobs(client, sweep: Sweep, todo: list, out_dir: str, progress: bool, max_in_flight: int,
               stats: dict | None = None) -> None:
     """Submit tasks with back-pressure (at most ``max_in_flight`` uncollected) and write jobs as they finish."""
-    from distributed import as_completed
-
     tag = sweep.manifest_digest()[:10]
     tasks = _tasks(sweep, todo)
     parts: dict = {}              # job id -> {start: Record}

@@ -31,7 +31,8 @@ from ..validation import check_bool
 from ..config import Sonar
 from ..record import Record
 from ..scene import TiledDEM
-from ..simulate import tile_reach_m
+from ..simulate import progress_bar as pings_bar, simulate, tile_reach_m
+from .cluster import client_for, in_order, lazy_zeros, threads_of
 
 log = logging.getLogger(__name__)
 
@@ -158,7 +159,6 @@ def _resumed(path: str, key: str, xtf_path, resume: bool, overwrite: bool) -> di
 
 def _template(ds, n_pings: int, block: int):
     """The whole line's dataset with lazy (dask) ping-long variables shaped like the block's ``ds``."""
-    import dask.array as da
     import xarray as xr
 
     def whole(var):
@@ -166,7 +166,7 @@ def _template(ds, n_pings: int, block: int):
             return var
         shape = tuple(n_pings if d == "ping" else ds.sizes[d] for d in var.dims)
         chunks = tuple(block if d == "ping" else ds.sizes[d] for d in var.dims)
-        return xr.Variable(var.dims, da.zeros(shape, dtype=var.dtype, chunks=chunks), var.attrs)
+        return xr.Variable(var.dims, lazy_zeros(shape, var.dtype, chunks), var.attrs)
 
     return xr.Dataset({k: whole(v) for k, v in ds.data_vars.items()},
                       coords={k: whole(v.variable) for k, v in ds.coords.items()}, attrs=ds.attrs)
@@ -270,7 +270,8 @@ def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
 
 def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings: int = 512, xtf_path=None,
                 xtf_scale="auto", resume: bool = True, overwrite: bool = False, progress_bar: bool = False,
-                png_path=None, xtf_samples: int | None = None, **simulate_kwargs) -> str:
+                png_path=None, xtf_samples: int | None = None, workers: int | None = None,
+                scheduler: str | None = None, client=None, **simulate_kwargs) -> str:
     """Simulate ``trajectory`` block by block into a Zarr store at ``path`` (and an XTF file), memory bounded by
     one block.
 
@@ -302,12 +303,24 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         Also draw the finished line's waterfall PNG from the store (:meth:`Record.load`, a block of pings at a
         time) at the ground's aspect, at most :data:`PNG_MAX_ROWS` rows (atomic; a file that is not a PNG is
         refused).
+    workers : int, optional
+        Render the blocks on this many worker processes of a Dask ``LocalCluster`` (one Numba thread each; 1: in
+        this process, on its threads). Default: on :func:`~sonar_embree.survey.cluster.default_workers` processes
+        for a line of at least :data:`AUTO_MIN_PINGS` pings and :data:`AUTO_MIN_BLOCKS` blocks left on a machine of
+        at least :data:`AUTO_MIN_CPUS` CPUs, else in this process. The blocks and their bits are the same either way; the store and the XTF are
+        written here, in ping order.
+    scheduler : str, optional
+        Render the blocks on a running Dask scheduler (``tcp://host:8786``); workers need the package and, for a
+        :class:`~sonar_embree.TiledDEM`, its tiles at the same paths.
+    client : distributed.Client, optional
+        Render the blocks on this client's cluster.
 
     Returns
     -------
     str
         ``path``.
     """
+    _checked_cluster(workers, scheduler, client)
     path = os.path.abspath(os.fspath(path))
     xtf_path = None if xtf_path is None else os.path.abspath(os.fspath(xtf_path))
     _checked_args(block_pings, {"resume": resume, "overwrite": overwrite, "progress_bar": progress_bar},
@@ -320,8 +333,9 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     with folder_lock(path):
         progress = _resumed(path, key, xtf_path, resume, overwrite)
         try:
-            _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, (xtf_scale, xtf_samples),
-                        progress, progress_bar, simulate_kwargs)
+            run = _run_blocks_on_cluster if _on_cluster(n, block, progress, workers, scheduler, client) else _run_blocks
+            run(scene, trajectory, path, sonar, pulse, block, key, xtf_path, (xtf_scale, xtf_samples), progress,
+                progress_bar, simulate_kwargs, (workers, scheduler, client))
         except OSError as exc:
             raise os_error_line(exc, exc.filename or path) from None
     if png_path is not None:
@@ -333,10 +347,61 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
 PNG_MAX_ROWS = 8192
 
 
-def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
-                simulate_kwargs) -> None:
-    from ..simulate import progress_bar as pings_bar, simulate
+#: A line is rendered on worker processes by default from this many pings and blocks left, on a machine of this many
+#: CPUs (render_line ``workers``). One process's threads saturate at 4–5× a single thread (issue 37's measurement
+#: on 16 cores: 3.7× on 8), while on 2 CPUs two worker processes render fewer pings per second than two threads
+#: (scripts/bench_scale.py, docs/benchmarks.md): below 8 CPUs threads stay the default.
+AUTO_MIN_PINGS, AUTO_MIN_BLOCKS, AUTO_MIN_CPUS = 4096, 4, 8
 
+
+def _checked_cluster(workers, scheduler, client) -> None:
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
+                                or workers < 1):
+        raise ConfigError(f"render_line: workers must be an integer >= 1, got {workers!r}")
+    if sum(x is not None for x in (workers, scheduler, client)) > 1:
+        raise ConfigError("render_line: give one of workers, scheduler and client")
+
+
+def _on_cluster(n: int, block: int, progress, workers, scheduler, client) -> bool:
+    """Whether the blocks go to Dask workers (see render_line's ``workers``)."""
+    if scheduler is not None or client is not None:
+        return True
+    if workers is not None:
+        return workers > 1
+    left = n - (0 if progress is None else progress["pings_done"])
+    return (os.cpu_count() or 1) >= AUTO_MIN_CPUS and left >= AUTO_MIN_PINGS and -(-left // block) >= AUTO_MIN_BLOCKS
+
+
+def render_block(scene, trajectory, sonar, pulse, first: int, simulate_kwargs: dict) -> Record:
+    """One block of a line (pings ``first`` … of the whole line): what a worker runs."""
+    return simulate(_block_scene(scene, trajectory, sonar), trajectory, sonar, pulse, ping_offset=first,
+                    **simulate_kwargs)
+
+
+def _run_blocks_on_cluster(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
+                           simulate_kwargs, cluster) -> None:
+    """The blocks on Dask workers (:mod:`sonar_embree.survey.cluster`), written here in ping order as they come."""
+    n = len(trajectory)
+    first = 0 if progress is None else progress["pings_done"]
+    bar = pings_bar(bar, n, first)
+    workers, scheduler, client = cluster
+    with client_for(client, scheduler, workers, what="render_line") as c:
+        shared = c.scatter(scene, broadcast=True)
+        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs))
+                 for a in range(first, n, block))
+        for a, rec in zip(range(first, n, block), in_order(c, render_block, calls, 2 * threads_of(c) + 1,
+                                                               f"sonar-embree-line-{key[:10]}")):
+            if progress is None:
+                progress = _start(path, rec, n, block, key, xtf_path, xtf_opts)
+            _write_block(path, rec, a, progress, xtf_path)
+            if bar is not None:
+                bar.update(rec.n_pings)
+    if bar is not None:
+        bar.close()
+
+
+def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
+                simulate_kwargs, cluster=None) -> None:
     n = len(trajectory)
     a = first = 0 if progress is None else progress["pings_done"]
     bar = pings_bar(bar, n, a)

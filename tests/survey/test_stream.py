@@ -73,10 +73,9 @@ def test_killed_and_resumed_gives_the_same_bytes(tmp_path, monkeypatch):
         se.stream.render_line(_scene(), LINE, cut, SONAR, **kw)
     monkeypatch.undo()
     assert stream._progress(str(cut))["pings_done"] == 16
-    sim = sys.modules["sonar_embree.simulate"]
     done = []
-    real = sim.simulate
-    monkeypatch.setattr(sim, "simulate", lambda *a, **k: done.append(k["ping_offset"]) or real(*a, **k))
+    real = stream.simulate
+    monkeypatch.setattr(stream, "simulate", lambda *a, **k: done.append(k["ping_offset"]) or real(*a, **k))
     se.stream.render_line(_scene(), LINE, cut, SONAR, **kw)
     assert done == [16, 24]                                    # only the blocks not done are simulated again
     assert _files(cut) == _files(whole)
@@ -278,3 +277,53 @@ def test_a_second_writer_is_refused(tmp_path):
     with folder_lock(tmp_path / "t.zarr"):
         with pytest.raises(se.ConfigError, match="t.zarr: another run is writing this folder now"):
             se.stream.render_line(_scene(), LINE[:4], tmp_path / "t.zarr", SONAR, block_pings=4)
+
+
+def test_a_line_on_two_worker_processes_gives_the_same_bytes_and_resumes(tmp_path, monkeypatch):
+    """The blocks rendered on a LocalCluster of two single-threaded worker processes, written here in ping order:
+    the store and the XTF equal the in-process run's, byte for byte (speckle and labels on); a line killed in
+    process after two blocks resumes on the workers to the same bytes."""
+    kw = dict(block_pings=8, speckle=True, labels=True, seed=4, start_time=START, xtf_scale=1.0)
+    here = tmp_path / "here"
+    here.mkdir()
+    se.stream.render_line(_scene(), LINE, here / "l.zarr", SONAR, xtf_path=here / "l.xtf", workers=1, **kw)
+    there = tmp_path / "there"
+    there.mkdir()
+    se.stream.render_line(_scene(), LINE, there / "l.zarr", SONAR, xtf_path=there / "l.xtf", workers=2, **kw)
+    data = lambda d: {k: v for k, v in _files(d / "l.zarr").items() if k != "stream.json"}  # noqa: E731 (its paths)
+    assert data(there) == data(here)
+    assert (there / "l.xtf").read_bytes() == (here / "l.xtf").read_bytes()
+    cut = tmp_path / "cut"
+    cut.mkdir()
+    saved = stream._save_progress
+
+    def dies(path, progress):
+        if progress["pings_done"] == 24:
+            raise _Killed
+        saved(path, progress)
+    monkeypatch.setattr(stream, "_save_progress", dies)
+    with pytest.raises(_Killed):
+        se.stream.render_line(_scene(), LINE, cut / "l.zarr", SONAR, xtf_path=cut / "l.xtf", workers=1, **kw)
+    monkeypatch.undo()
+    se.stream.render_line(_scene(), LINE, cut / "l.zarr", SONAR, xtf_path=cut / "l.xtf", workers=2, **kw)
+    assert data(cut) == data(here)
+    assert (cut / "l.xtf").read_bytes() == (here / "l.xtf").read_bytes()
+
+
+def test_where_a_line_runs_by_default_and_bad_cluster_options(monkeypatch):
+    """In this process below AUTO_MIN_PINGS pings or AUTO_MIN_BLOCKS blocks left or AUTO_MIN_CPUS CPUs, on worker
+    processes above; workers=1 keeps it here; a scheduler or a client sends it out; one option at most."""
+    monkeypatch.setattr(stream.os, "cpu_count", lambda: stream.AUTO_MIN_CPUS)
+    n = stream.AUTO_MIN_PINGS
+    assert stream._on_cluster(n, n // stream.AUTO_MIN_BLOCKS, None, None, None, None)
+    assert not stream._on_cluster(n - 1, 64, None, None, None, None)
+    assert not stream._on_cluster(n, n, None, None, None, None)                      # one block
+    assert not stream._on_cluster(n, 64, {"pings_done": 64}, None, None, None)        # fewer left
+    assert not stream._on_cluster(n, 64, None, 1, None, None)
+    assert stream._on_cluster(10, 8, None, 2, None, None) and stream._on_cluster(10, 8, None, None, "tcp://x:1", None)
+    monkeypatch.setattr(stream.os, "cpu_count", lambda: stream.AUTO_MIN_CPUS - 1)
+    assert not stream._on_cluster(n, 64, None, None, None, None)
+    with pytest.raises(se.ConfigError, match="workers must be an integer >= 1, got 0"):
+        se.stream.render_line(_scene(), LINE, "unused.zarr", SONAR, workers=0)
+    with pytest.raises(se.ConfigError, match="one of workers, scheduler and client"):
+        se.stream.render_line(_scene(), LINE, "unused.zarr", SONAR, workers=2, scheduler="tcp://127.0.0.1:1")
