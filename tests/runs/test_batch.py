@@ -132,8 +132,9 @@ def test_two_workers_on_a_scheduler_give_identical_files(sweep_file, reference, 
 
 def test_a_real_scheduler_and_two_worker_processes_give_identical_files(sweep_file, reference, tmp_path):
     """Not a LocalCluster: ``dask scheduler`` and two ``dask worker`` processes started on loopback as a cluster's
-    nodes would be (one thread each, a memory limit, their own scratch folders), the batch sent by address; the
-    files equal the one-worker run's, bit for bit; the workers' resident memory is reported."""
+    nodes would be (one thread each, a memory limit, their own scratch folders), the batch and a streamed line sent
+    by address; the batch's files equal the one-worker run's and the line's XTF and data the in-process line's, bit
+    for bit; the workers' resident memory is reported."""
     from distributed import Client
 
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
@@ -158,7 +159,17 @@ def test_a_real_scheduler_and_two_worker_processes_give_identical_files(sweep_fi
             assert cli.main(["batch", str(sweep_file), "-o", str(tmp_path / "out"), "--scheduler", address,
                              "--no-progress"]) == 0
             rss = client.run(lambda: __import__("psutil").Process().memory_info().rss)
+            line = se.Trajectory.line((-6.0, 0.0, 7.0), (6.0, 0.0, 7.0), 24)
+            floor = se.seafloor.ripples((40.0, 40.0), resolution_m=0.4, wavelength_m=1.6)
+            scene = se.Scene().add(floor, label="seafloor")
+            kw = dict(block_pings=6, speckle=True, seed=2, start_time="2000-01-01")
+            for name, how in (("here", {"workers": 1}), ("there", {"scheduler": address})):
+                se.stream.render_line(scene, line, tmp_path / name / "l.zarr", se.Sonar(max_range_m=16.0),
+                                      xtf_path=tmp_path / name / "l.xtf", xtf_scale=1.0, **how, **kw)
         _same_tree(reference, tmp_path / "out")
+        assert (tmp_path / "here" / "l.xtf").read_bytes() == (tmp_path / "there" / "l.xtf").read_bytes()
+        np.testing.assert_array_equal(se.Record.load(tmp_path / "here" / "l.zarr").data,
+                                      se.Record.load(tmp_path / "there" / "l.zarr").data)
         assert len(rss) == 2
         print("worker RSS (MiB):", sorted(round(v / 2 ** 20) for v in rss.values()))
     finally:
