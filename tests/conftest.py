@@ -36,6 +36,7 @@ SLOW = frozenset({
     "test_batch.py::test_two_workers_on_a_scheduler_give_identical_files",
     "test_batch.py::test_a_real_scheduler_and_two_worker_processes_give_identical_files",
     "test_stream.py::test_a_line_on_two_worker_processes_gives_the_same_bytes_and_resumes",
+    "test_survey_cli.py::test_a_survey_on_two_worker_processes_writes_the_same_line",
     "test_dem.py::test_mosaic_of_streamed_stores_equals_the_in_memory_one",
     "test_errors.py::test_console_script_prints_one_line_without_traceback",
     "test_first_hour.py::test_a_million_row_trajectory_csv_is_refused_in_one_line",

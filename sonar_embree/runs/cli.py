@@ -192,6 +192,10 @@ def _add_survey_parser(sub) -> None:
     s.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new, empty or an earlier "
                                                                         "survey's: resumed)")
     s.add_argument("--overwrite", action="store_true", help="replace what is in OUT")
+    s.add_argument("--workers", type=int, metavar="N", help="render each line's blocks on N worker processes "
+                   "(1: this process; default: workers from 8 CPUs and 4096 pings a line)")
+    s.add_argument("--scheduler", metavar="ADDRESS", help="render each line's blocks on a running Dask scheduler "
+                   "(tcp://host:8786)")
     s.add_argument("--no-progress", action="store_true", help="hide the progress bars")
 
 
@@ -211,7 +215,7 @@ def _survey(args) -> list:
     if "navs" not in kw and "plan" not in kw:
         raise SonarEmbreeError("survey: give --nav or --plan (or a --config with nav or plan)")
     return run_survey(kw.pop("dem"), kw.pop("navs", None), args.output, kw.pop("device"), overwrite=args.overwrite,
-                      progress=not args.no_progress, **kw)
+                      progress=not args.no_progress, workers=args.workers, scheduler=args.scheduler, **kw)
 
 
 def _examples(args) -> list:

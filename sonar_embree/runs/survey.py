@@ -35,7 +35,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
                layback_m: float | None = None, cable_out_m: float | None = None, pixel_m: float = 0.5,
                quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True,
                plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2,
-               crs=None) -> list:
+               crs=None, workers: int | None = None, scheduler: str | None = None) -> list:
     """Run the survey; returns the files written (the summary last).
 
     Parameters
@@ -67,6 +67,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         ``speed_m_s`` with the sonar ``depth_m`` below the surface.
     crs : int or str, optional
         The CRS of a mesh ``dem`` (an EPSG code or a CRS string); needed for latitude/longitude logs.
+    workers, scheduler : optional
+        Where each line's blocks are rendered (:func:`~sonar_embree.survey.stream.render_line`).
     """
     navs = [os.fspath(n) for n in ([navs] if isinstance(navs, (str, os.PathLike)) else (navs or []))]
     if bool(navs) == (plan is not None):
@@ -89,7 +91,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         files = {ext: os.path.join(folder, f"line.{ext}") for ext in ("zarr", "xtf", "png")}
         stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"],
                               png_path=files["png"], xtf_samples=samples, labels=True, speckle=speckle,
-                              quality=quality, overwrite=overwrite, progress_bar=progress)
+                              quality=quality, overwrite=overwrite, progress_bar=progress, workers=workers,
+                              scheduler=scheduler)
         written += list(files.values())
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "files": files})
     written += _products(tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)

@@ -148,3 +148,23 @@ def test_a_survey_over_a_mesh_seabed_from_a_projected_log(tmp_path):
         "lines"][0]["pings"] == 51
     with rasterio.open(tmp_path / "out" / "truth.tif") as t:
         assert t.crs.to_epsg() == 32631 and np.nanmax(np.abs(t.read(1) + 20.0)) < 1e-6
+
+
+def test_a_survey_on_two_worker_processes_writes_the_same_line(tmp_path):
+    """``--workers 2`` renders each line's blocks on two processes: the line's XTF and data equal the in-process
+    survey's; ``--workers 0`` is refused in one line."""
+    _dem(tmp_path / "dem.tif")
+    _nav(tmp_path / "nav.csv")
+    base = [sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--dem", str(tmp_path / "dem.tif"), "--nav",
+            str(tmp_path / "nav.csv"), "--device", "cmax-cm2-325", "--no-progress"]
+    for name, workers in (("one", "1"), ("two", "2")):
+        proc = subprocess.run(base + ["--workers", workers, "-o", str(tmp_path / name)], capture_output=True,
+                              text=True, timeout=600)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+    line = "line_00/line.xtf"
+    assert (tmp_path / "one" / line).read_bytes() == (tmp_path / "two" / line).read_bytes()
+    one, two = (xr.open_zarr(tmp_path / d / "line_00" / "line.zarr") for d in ("one", "two"))
+    np.testing.assert_array_equal(one["port"].values, two["port"].values)
+    proc = subprocess.run(base + ["--workers", "0", "-o", str(tmp_path / "bad")], capture_output=True, text=True,
+                          timeout=600)
+    assert proc.returncode != 0 and "workers must be an integer >= 1, got 0" in proc.stderr
