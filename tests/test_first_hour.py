@@ -97,7 +97,9 @@ def test_local_cluster_serves_no_dashboard():
             return s.connect_ex(("127.0.0.1", port)) == 0
 
     assert not listening(8787)
-    with batch._cluster(None, None, 1, None) as client:
+    from sonar_embree.survey.cluster import client_for
+
+    with client_for(None, None, 1, None) as client:
         assert not listening(8787)
         link = client.dashboard_link
         with pytest.raises(urllib.error.HTTPError) as err:
