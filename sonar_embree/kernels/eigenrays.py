@@ -51,25 +51,37 @@ def _log1p_over(a):
     return math.log1p(a) / a
 
 
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _piece(z, c, j, xi, d_end):
+    """(Δz, c_a, c_b, s_a, s_b) of piece j clipped at ``d_end`` (it starts above it); s NaN where the ray turns."""
+    bottom = d_end if j + 1 >= z.shape[0] else min(d_end, z[j + 1])
+    ca, cb = c[j], _speed(z, c, bottom)
+    pa, pb = 1.0 - (xi * ca) ** 2, 1.0 - (xi * cb) ** 2
+    if not (pa > 0.0 and pb > 0.0):
+        return bottom - z[j], ca, cb, math.nan, math.nan
+    return bottom - z[j], ca, cb, math.sqrt(pa), math.sqrt(pb)
+
+
+@njit(cache=True, nogil=True)
+def _x_terms(dz, ca, cb, sa, sb, xi):
+    """A piece's x/ξ and ∂x/∂ξ."""
+    q = dz * (ca + cb) / (sa + sb)
+    return q, q * (1.0 + xi * xi * (ca * ca / sa + cb * cb / sb) / (sa + sb))
+
+
 @njit(cache=True, nogil=True)
 def _leg(z, c, xi, d_end):
     """(x/ξ, ∂x/∂ξ, T, L) of the ray of invariant ξ from depth 0 to ``d_end``; NaN where it turns on the way."""
     x_xi, dx, t, length = 0.0, 0.0, 0.0, 0.0
-    m = z.shape[0]
-    for j in range(m):
-        top = z[j]
-        if d_end <= top:
+    for j in range(z.shape[0]):
+        if d_end <= z[j]:
             break
-        bottom = d_end if j + 1 >= m else min(d_end, z[j + 1])
-        dz = bottom - top
-        ca, cb = c[j], _speed(z, c, bottom)
-        pa, pb = 1.0 - (xi * ca) ** 2, 1.0 - (xi * cb) ** 2
-        if not (pa > 0.0 and pb > 0.0):
+        dz, ca, cb, sa, sb = _piece(z, c, j, xi, d_end)
+        if not sa == sa:
             return math.nan, math.nan, math.nan, math.nan
-        sa, sb = math.sqrt(pa), math.sqrt(pb)
-        q = dz * (ca + cb) / (sa + sb)
+        q, dq = _x_terms(dz, ca, cb, sa, sb, xi)
         x_xi += q
-        dx += q * (1.0 + xi * xi * (ca * ca / sa + cb * cb / sb) / (sa + sb))
+        dx += dq
         g_dz = cb - ca
         r = xi * xi * g_dz * (ca + cb) / ((sa + sb) * (1.0 + sb))
         t += dz / ca * _log1p_over(g_dz / ca) + xi * xi * dz * (ca + cb) / ((sa + sb) * (1.0 + sb)) * _log1p_over(r)
@@ -85,20 +97,15 @@ def _leg(z, c, xi, d_end):
 def _leg_x(z, c, xi, d_end):
     """(x/ξ, ∂x/∂ξ) of :func:`_leg` alone (the search needs no time or length)."""
     x_xi, dx = 0.0, 0.0
-    m = z.shape[0]
-    for j in range(m):
-        top = z[j]
-        if d_end <= top:
+    for j in range(z.shape[0]):
+        if d_end <= z[j]:
             break
-        bottom = d_end if j + 1 >= m else min(d_end, z[j + 1])
-        ca, cb = c[j], _speed(z, c, bottom)
-        pa, pb = 1.0 - (xi * ca) ** 2, 1.0 - (xi * cb) ** 2
-        if not (pa > 0.0 and pb > 0.0):
+        dz, ca, cb, sa, sb = _piece(z, c, j, xi, d_end)
+        if not sa == sa:
             return math.nan, math.nan
-        sa, sb = math.sqrt(pa), math.sqrt(pb)
-        q = (bottom - top) * (ca + cb) / (sa + sb)
+        q, dq = _x_terms(dz, ca, cb, sa, sb, xi)
         x_xi += q
-        dx += q * (1.0 + xi * xi * (ca * ca / sa + cb * cb / sb) / (sa + sb))
+        dx += dq
     return x_xi, dx
 
 
@@ -141,22 +148,30 @@ def surface_eigenrays(z, c, d_src, d_dst, x, out):
         Written: the columns ``E_*`` (ξ, time, path, A₂ = (x/ξ)·(∂x/∂ξ)·sin θ_S·sin θ_P / c_S², x_up, the three
         sines, c at P); time NaN where no unturned ray reaches the point.
     """
-    top_speed = c[0]
     for i in prange(x.shape[0]):
-        xi = _solve(z, c, d_src[i], d_dst[i], x[i], _c_max(z, c, d_src[i], d_dst[i]))
-        c_src, c_dst = _speed(z, c, d_src[i]), _speed(z, c, d_dst[i])
+        xi, t, length, spread, x_up, s_src, s_dst, s_top2, c_dst = _eigenray(z, c, d_src[i], d_dst[i], x[i])
         out[i, E_XI], out[i, E_C_DST] = xi, c_dst
         if not xi == xi:
             for k in range(1, EIGEN_WIDTH - 1):
                 out[i, k] = math.nan
             continue
-        up, down = _leg(z, c, xi, d_src[i]), _leg(z, c, xi, d_dst[i])
-        s_src, s_dst = math.sqrt(1.0 - (xi * c_src) ** 2), math.sqrt(1.0 - (xi * c_dst) ** 2)
-        out[i, E_TIME], out[i, E_PATH] = up[2] + down[2], up[3] + down[3]
-        out[i, E_SPREAD] = (up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / (c_src * c_src)
-        out[i, E_XUP] = xi * up[0]
-        out[i, E_SIN_SRC], out[i, E_SIN_DST] = s_src, s_dst
-        out[i, E_SIN_TOP] = math.sqrt(1.0 - (xi * top_speed) ** 2)
+        out[i, E_TIME], out[i, E_PATH], out[i, E_SPREAD], out[i, E_XUP] = t, length, spread, x_up
+        out[i, E_SIN_SRC], out[i, E_SIN_DST], out[i, E_SIN_TOP] = s_src, s_dst, math.sqrt(s_top2)
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _eigenray(z, c, d_src, d_dst, x):
+    """(ξ, T, L, A₂, x_up, sin θ_S, sin θ_P, sin²θ at the surface, c_P) of the surface ray from depth d_src to d_dst
+    over x (:func:`surface_eigenrays`); ξ NaN (and the rest unset but c_P) where no unturned ray reaches it."""
+    xi = _solve(z, c, d_src, d_dst, x, _c_max(z, c, d_src, d_dst))
+    c_src, c_dst = _speed(z, c, d_src), _speed(z, c, d_dst)
+    if not xi == xi:
+        return xi, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, c_dst
+    up, down = _leg(z, c, xi, d_src), _leg(z, c, xi, d_dst)
+    s_src, s_dst = math.sqrt(1.0 - (xi * c_src) ** 2), math.sqrt(1.0 - (xi * c_dst) ** 2)
+    spread = (up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / (c_src * c_src)
+    return (xi, up[2] + down[2], up[3] + down[3], spread, xi * up[0], s_src, s_dst, 1.0 - (xi * c[0]) ** 2,
+            c_dst)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -252,13 +267,11 @@ def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
     else:                                                   # straight below: any azimuth (ξ = 0)
         hx, hy = 1.0, 0.0
     d_src, d_dst = z_s - pos[b, 2], z_s - point[i, 2]
-    xi = _solve(z, c, d_src, d_dst, x, _c_max(z, c, d_src, d_dst))
+    xi, t2, l2, spread, x_up, s_src, s_dst, s_top2, c_dst = _eigenray(z, c, d_src, d_dst, x)
     if not xi == xi:
         return
-    up, down = _leg(z, c, xi, d_src), _leg(z, c, xi, d_dst)
-    c_src, c_dst = _speed(z, c, d_src), _speed(z, c, d_dst)
-    s_src, s_dst = math.sqrt(1.0 - (xi * c_src) ** 2), math.sqrt(1.0 - (xi * c_dst) ** 2)
-    spread = max((up[0] + down[0]) * (up[1] + down[1]) * s_src * s_dst / (c_src * c_src), r_min * r_min)
+    c_src = _speed(z, c, d_src)
+    spread = max(spread, r_min * r_min)
     u2 = (hx * xi * c_src, hy * xi * c_src, s_src)              # S → surface, world (z up)
     v = (-hx * xi * c_dst, -hy * xi * c_dst, s_dst)             # P → where the surface path comes from
     n0, n1, n2 = face_normals[prim[i], 0], face_normals[prim[i], 1], face_normals[prim[i], 2]
@@ -275,18 +288,17 @@ def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
     g1 = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], 0.0)
     g1r = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], delta)
     g2, g2r = _membrane(beam, side, e0, e1, e2, 0.0), _membrane(beam, side, e0, e1, e2, delta)
-    s_top2 = 1.0 - (xi * c[0]) ** 2
     w = ((g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2) * math.exp(-4.0 * kh * kh * s_top2)
-         * math.exp(-0.5 * two_way * (np.float64(path[i]) + up[3] + down[3])) * ds * dbeta[i] / (spread * cos_i))
+         * math.exp(-0.5 * two_way * (np.float64(path[i]) + l2)) * ds * dbeta[i] / (spread * cos_i))
     if not w > 0.0:
         return
-    out[i, M_W], out[i, M_T] = w, 0.5 * time[i] + up[2] + down[2]
+    out[i, M_W], out[i, M_T] = w, 0.5 * time[i] + t2
     nf = n0 * hx + n1 * hy
     f0, f1, f2 = hx - n0 * nf, hy - n1 * nf, -n2 * nf              # away from the sonar, in the facet
     p1 = a0 * f0 + a1 * f1 + a2 * f2
     p2 = -(v[0] * f0 + v[1] * f1 + v[2] * f2)
     out[i, M_EXT] = 0.5 * extent[i] * (1.0 + min(abs(p2) / max(abs(p1), 1e-12), 10.0))
-    out[i, M_COS_I], out[i, M_COS_S], out[i, M_XUP] = cos_i, cos_s, xi * up[0]
+    out[i, M_COS_I], out[i, M_COS_S], out[i, M_XUP] = cos_i, cos_s, x_up
     if want_phi:
         out[i, M_PHI] = _azimuth(n0, n1, n2, a0, a1, a2, v[0], v[1], v[2])
 
