@@ -30,7 +30,7 @@ from ..environment import SoundSpeedProfile
 from .buffers import Buffers
 from .echoes import Echoes
 from .fan import BlockEchoes, ray_cells
-from .multipath import can_block, apply_bistatic, block_legs, mirror_pose, wants_azimuth
+from .multipath import apply_bistatic, block_legs, can_block, mirror_pose, wants_azimuth, wave_kh
 from .refraction import cast_refracted
 
 #: The unfolded profile's depth 0 lies this far (m) above its mirrored deepest depth.
@@ -41,17 +41,16 @@ def unfolded(profile: SoundSpeedProfile, surface_z_m: float) -> SoundSpeedProfil
     """The profile mirrored about its depth 0 (the surface at world z ``surface_z_m``): depth 0 of the result is
     :data:`UNFOLD_MARGIN_M` above the profile's deepest depth D over the surface, so that c(D' − d) = c(D' + d) = the
     profile's c(d) (D' = D + margin) and every image transducer lies below it."""
-    z, c = np.asarray(profile.depth_m), np.asarray(profile.speed_m_s)
+    z, c = knots(profile)
     deep = float(z[-1]) + UNFOLD_MARGIN_M
-    if z[0] > 0.0:                                                 # c is held above the first depth: a knot at 0
-        z, c = np.concatenate([[0.0], z]), np.concatenate([[c[0]], c])
     depth = np.concatenate([deep - z[::-1], deep + z[1:]])
     speed = np.concatenate([c[::-1], c[1:]])
     return SoundSpeedProfile(tuple(depth), tuple(speed), surface_z_m + deep)
 
 
 def knots(profile: SoundSpeedProfile):
-    """The profile as the eigenray kernels read it: knots from depth 0 (m) and the speeds there (m/s)."""
+    """The profile as the eigenray kernels read it: knots from depth 0 (m) and the speeds there (m/s); c is held
+    above the first depth, so a profile that starts deeper gets a knot at 0."""
     z, c = np.asarray(profile.depth_m, dtype=np.float64), np.asarray(profile.speed_m_s, dtype=np.float64)
     if z[0] > 0.0:
         z, c = np.concatenate([[0.0], z]), np.concatenate([[c[0]], c])
@@ -104,7 +103,7 @@ def _environment_unfolded(environment):
 
 def _reflection(front, sin_top: np.ndarray, bounces: int) -> np.ndarray:
     """|R_s|^(2·bounces) = exp(−4·bounces·(k·h_w)²·sin²θg) of a rough surface (1 for a mirror)."""
-    kh = front.sonar.wavenumber_rad_m * front.sonar.environment.surface.wave_height_m
+    kh = wave_kh(front.sonar)
     return np.exp(-4.0 * bounces * kh * kh * sin_top ** 2)
 
 
@@ -160,7 +159,7 @@ def mixed_echoes(front, caster, blk: BlockEchoes, rot, pos_local, z_s_local: flo
     n = blk.weight.shape[0]
     body, row, dbeta = ray_cells(blk.plan.s, blk.el_start, blk.beta, blk.dbeta)
     shift = np.zeros(rot.shape[0]) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
-    kh = sonar.wavenumber_rad_m * sonar.environment.surface.wave_height_m
+    kh = wave_kh(sonar)
     want_phi = wants_azimuth(c)
     out = np.empty((n, kernels.MIX_WIDTH))
     kernels.curved_mixed(CurvedHits(blk.point_m, blk.prim, blk.arrival, blk.tfar, blk.time_s, blk.extent_s,

@@ -188,7 +188,7 @@ def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
     n, buf = blk.weight.shape[0], front.buffers
     w, up, leg = buf.take("image_w", n), buf.take("image_up", (n, 3)), buf.take("image_leg", n)
     w[:] = blk.echo_weight
-    kernels.two_bounce(blk.ray_start, blk.point_m, pos_i, z_s_local, _wave_kh(s), w, up, leg)
+    kernels.two_bounce(blk.ray_start, blk.point_m, pos_i, z_s_local, wave_kh(s), w, up, leg)
     block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, up, leg, w)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
 
@@ -200,12 +200,12 @@ def image_aimed_echoes(front, caster, iblk, rot, pos_local, z_s_local) -> Echoes
     _, pos_i = mirror_pose(rot, pos_local, z_s_local)
     n, buf = e.weight.shape[0], Buffers()
     w, up, leg = e.weight.copy(), np.empty((n, 3)), np.empty(n)
-    kernels.two_bounce(e.ray_start, e.point_m, pos_i, z_s_local, _wave_kh(front.sonar), w, up, leg)
+    kernels.two_bounce(e.ray_start, e.point_m, pos_i, z_s_local, wave_kh(front.sonar), w, up, leg)
     block_legs(caster, buf, e.ray_start, e.point_m, pos_local, True, up, leg, w)
     return Echoes(2, e.ray_start, e.travel_time_s, e.extent_s, w, e.point_m, e.object_id)
 
 
-def _wave_kh(sonar) -> float:
+def wave_kh(sonar) -> float:
     """k·h_w of the sonar's sea surface."""
     return sonar.wavenumber_rad_m * sonar.environment.surface.wave_height_m
 
@@ -305,7 +305,7 @@ def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, d
                        Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift), c.face_normals,
                        Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, np.inf, plan.slope_cap_m_rad,
                                  2.0 / s.sound_speed_m_s),
-                       Bistatic(z_s_local, _wave_kh(s), mu, c.face_object, want_phi, any(legs)),
+                       Bistatic(z_s_local, wave_kh(s), mu, c.face_object, want_phi, any(legs)),
                        MixedOut(t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2), layout)
     if not lambert:
         apply_bistatic(c, s.frequency_hz, prim, x, w, cos_i, cos_s, phi if want_phi else None)

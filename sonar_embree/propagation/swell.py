@@ -29,7 +29,7 @@ from .echoes import Echoes
 from ..kernels import aim as K
 from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
 from ..laws import apply_laws
-from .multipath import (LEG_EPSILON_M, _below_top, _wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
+from .multipath import (LEG_EPSILON_M, _below_top, wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
                         surface_caster, surface_strips, wants_azimuth)
 
 
@@ -113,7 +113,7 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift, buf):
                         np.sin(fan["beta"]), fan["dbeta"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"], b["prim"],
                         b["t2"], b["seen"], swell.compiled.face_normals, c.face_normals,
                         np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, plan.beam, plan.ds,
-                        plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad, s.sound_speed_m_s, _wave_kh(s),
+                        plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad, s.sound_speed_m_s, wave_kh(s),
                         fan["max_range_m"], LEG_EPSILON_M, o["want_phi"], o["mu"], c.face_object, o["x"], o["w1"],
                         o["t1"], o["e1"], o["w2"],
                         o["t2"], o["e2"], o["cos_i"], o["cos_s"], o["phi"], o["leg"], o["r"],
