@@ -147,7 +147,8 @@ class EchoSounderFrontEnd(FrontEnd):
         self.body_dtheta = np.stack([ct * np.cos(phi), ct * np.sin(phi), -st], axis=1)  # ∂u/∂θ
         self.d_theta = d_theta
         self.rings, self.ring_widths, self.n_phi = theta, widths, int(n_phi[0])
-        self.gain4 = self.beam.one_way(*self.body.T) ** 4
+        self.b = self.beam.one_way(*self.body.T)
+        self.gain4 = self.b ** 4
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         self.span_rad, self.quality, self.aims = span, fan.quality, fan.aim_objects
@@ -179,8 +180,9 @@ class EchoSounderFrontEnd(FrontEnd):
         all 0) the receive factor is b² at (u_fwd − δ, u_side) (docs/physics.md §16)."""
         if rx_shift is None or not np.any(rx_shift):
             return np.tile(self.gain4 * self.d_omega, n_p)
-        shift = np.repeat(np.asarray(rx_shift, dtype=np.float64), self.body.shape[0])
-        return self._gain_of(np.tile(self.body, (n_p, 1)), shift) * np.tile(self.d_omega, n_p)
+        fwd = self.body[None, :, 0] - np.asarray(rx_shift, dtype=np.float64)[:, None]
+        b_rx = self.beam.one_way(fwd, self.body[None, :, 1], self.body[None, :, 2])      # (n_p, n): the ring's b once
+        return ((self.b * self.b)[None, :] * b_rx ** 2 * self.d_omega[None, :]).reshape(-1)
 
     def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """Echoes of a block of pings (one channel each); arguments as for the side-scan front end, ``rx_shift``
