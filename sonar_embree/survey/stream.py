@@ -307,8 +307,8 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         Render the blocks on this many worker processes of a Dask ``LocalCluster`` (one Numba thread each; 1: in
         this process, on its threads). Default: on :func:`~sonar_embree.survey.cluster.default_workers` processes
         for a line of at least :data:`AUTO_MIN_PINGS` pings and :data:`AUTO_MIN_BLOCKS` blocks left on a machine of
-        at least :data:`AUTO_MIN_CPUS` CPUs, else in this process. The blocks and their bits are the same either way; the store and the XTF are
-        written here, in ping order.
+        at least :data:`AUTO_MIN_CPUS` CPUs, else in this process. The blocks and their bits are the same either
+        way; the store and the XTF are written here, in ping order.
     scheduler : str, optional
         Render the blocks on a running Dask scheduler (``tcp://host:8786``); workers need the package and, for a
         :class:`~sonar_embree.TiledDEM`, its tiles at the same paths.
@@ -333,9 +333,12 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     with folder_lock(path):
         progress = _resumed(path, key, xtf_path, resume, overwrite)
         try:
-            run = _run_blocks_on_cluster if _on_cluster(n, block, progress, workers, scheduler, client) else _run_blocks
-            run(scene, trajectory, path, sonar, pulse, block, key, xtf_path, (xtf_scale, xtf_samples), progress,
-                progress_bar, simulate_kwargs, (workers, scheduler, client))
+            args = (scene, trajectory, path, sonar, pulse, block, key, xtf_path, (xtf_scale, xtf_samples), progress,
+                    progress_bar, simulate_kwargs)
+            if _on_cluster(n, block, progress, workers, scheduler, client):
+                _run_blocks_on_cluster(*args, (workers, scheduler, client))
+            else:
+                _run_blocks(*args)
         except OSError as exc:
             raise os_error_line(exc, exc.filename or path) from None
     if png_path is not None:
@@ -382,34 +385,31 @@ def _run_blocks_on_cluster(scene, trajectory, path, sonar, pulse, block, key, xt
                            simulate_kwargs, cluster) -> None:
     """The blocks on Dask workers (:mod:`sonar_embree.survey.cluster`), written here in ping order as they come."""
     n = len(trajectory)
-    first = 0 if progress is None else progress["pings_done"]
-    bar = pings_bar(bar, n, first)
+    starts = range(0 if progress is None else progress["pings_done"], n, block)
     workers, scheduler, client = cluster
     with client_for(client, scheduler, workers, what="render_line") as c:
         shared = c.scatter(scene, broadcast=True)
-        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs))
-                 for a in range(first, n, block))
-        for a, rec in zip(range(first, n, block), in_order(c, render_block, calls, 2 * threads_of(c) + 1,
-                                                               f"sonar-embree-line-{key[:10]}")):
-            if progress is None:
-                progress = _start(path, rec, n, block, key, xtf_path, xtf_opts)
-            _write_block(path, rec, a, progress, xtf_path)
-            if bar is not None:
-                bar.update(rec.n_pings)
-    if bar is not None:
-        bar.close()
+        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs)) for a in starts)
+        records = in_order(c, render_block, calls, 2 * threads_of(c) + 1, f"sonar-embree-line-{key[:10]}")
+        _write_blocks(zip(starts, records), path, n, block, key, xtf_path, xtf_opts, progress, bar)
 
 
 def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
-                simulate_kwargs, cluster=None) -> None:
+                simulate_kwargs) -> None:
+    """The blocks in this process, one after the other."""
     n = len(trajectory)
-    a = first = 0 if progress is None else progress["pings_done"]
-    bar = pings_bar(bar, n, a)
+    starts = range(0 if progress is None else progress["pings_done"], n, block)
+    records = (render_block(scene, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs) for a in starts)
+    _write_blocks(zip(starts, records), path, n, block, key, xtf_path, xtf_opts, progress, bar)
+
+
+def _write_blocks(blocks, path, n, block, key, xtf_path, xtf_opts, progress, bar) -> None:
+    """Write each (first ping, record) of ``blocks`` in turn (the store started with the first), counting them."""
+    first = 0 if progress is None else progress["pings_done"]
+    bar = pings_bar(bar, n, first)
     t0 = time.perf_counter()
-    while a < n:
-        b = min(a + block, n)
-        rec = simulate(_block_scene(scene, trajectory[a:b], sonar), trajectory[a:b], sonar, pulse, ping_offset=a,
-                       **simulate_kwargs)
+    for a, rec in blocks:
+        b = a + rec.n_pings
         if progress is None:
             progress = _start(path, rec, n, block, key, xtf_path, xtf_opts)
         _write_block(path, rec, a, progress, xtf_path)
@@ -418,7 +418,6 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
         if a == first and b < n:                                     # the first block sets the pace
             log.info("render_line: about %.0f s for the %d pings left (%.1f ms per ping, block written)",
                      (time.perf_counter() - t0) / (b - a) * (n - b), n - b, 1e3 * (time.perf_counter() - t0) / (b - a))
-        a = b
     if bar is not None:
         bar.close()
 
