@@ -3,11 +3,13 @@ NumPy between them), issue 37's measure of what one process cannot spread over c
 
     python scripts/bench_serial.py          # prints one JSON line (run with one thread: set here)
 
-Cases as scripts/bench_stages.py: the flat floor (64 pings) and the shipwreck pass (30 pings), quality 1,
-speckle-free, and the shipwreck with coherent CW baseband speckle; one profiled run each after a warm-up. Kernel
-time is the own time (cProfile's tottime) of every Numba dispatcher of the package, Embree's that of the caster's
-functions (embreex's compiled ``run`` inside them); "serial" is the rest of the wall time, in ms per ping and as a
-share. No test reads it.
+Cases as scripts/bench_stages.py: the flat floor (64 and 192 pings over the same 6.4 m) and the shipwreck pass
+(30 and 90 pings over the same 60 m), quality 1, speckle-free, and the shipwreck with coherent CW baseband
+speckle; profiled runs after a warm-up, best of three. Kernel time is the own time (cProfile's tottime) of every
+Numba dispatcher of the package, Embree's that of the caster's functions (embreex's compiled ``run`` inside
+them); "serial" is the rest of the wall time. Per-ping figures are the long run's less the short run's over the
+pings it adds: what a ping costs in a long line, the run's set-up and finishing excluded (those are reported
+apart, "serial per run", ms). Profiling adds a little to the serial part. No test reads it.
 """
 import cProfile
 import importlib
@@ -41,8 +43,8 @@ def _is_kernel(path: str, name: str) -> bool:
         return False
 
 
-def _shares(scene, traj, **kw):
-    se.simulate(scene, traj[:2], start_time="2000-01-01", **kw)
+def _profile(scene, traj, **kw):
+    """(wall, kernel, Embree) seconds of one profiled simulate() call."""
     prof = cProfile.Profile()
     t0 = time.perf_counter()
     prof.enable()
@@ -55,19 +57,31 @@ def _shares(scene, traj, **kw):
             embree += tottime
         elif _is_kernel(path, name):
             kernel += tottime
-    n = len(traj)
+    return wall, kernel, embree
+
+
+def _shares(scene, short_traj, long_traj, repeat=3, **kw):
+    """Per-ping figures as the difference of a long run and a short one over the same ground (best of ``repeat``
+    each): what each added ping costs, without the run's set-up and finishing (reported as "per run", ms)."""
+    se.simulate(scene, short_traj[:2], start_time="2000-01-01", **kw)
+    n, n_long = len(short_traj), len(long_traj)
+    short = min((_profile(scene, short_traj, **kw) for _ in range(repeat)), key=lambda t: t[0])
+    long = min((_profile(scene, long_traj, **kw) for _ in range(repeat)), key=lambda t: t[0])
+    wall, kernel, embree = ((b - a) / (n_long - n) for a, b in zip(short, long))
     serial = wall - kernel - embree
-    return {"ms/ping": round(1e3 * wall / n, 2), "kernels": round(1e3 * kernel / n, 2),
-            "embree": round(1e3 * embree / n, 2), "serial": round(1e3 * serial / n, 2),
-            "serial share": round(serial / wall, 3)}
+    per_run = (short[0] - short[1] - short[2]) - n * serial
+    return {"ms/ping": round(1e3 * wall, 2), "kernels": round(1e3 * kernel, 2), "embree": round(1e3 * embree, 2),
+            "serial": round(1e3 * serial, 2), "serial share": round(serial / wall, 3),
+            "serial per run (ms)": round(1e3 * per_run, 1)}
 
 
 def main() -> int:
     flat = se.Scene().add(se.seafloor.flat((400.0, 200.0)), label="seafloor")
-    line = se.Trajectory.line((-3.2, 0.0, 10.0), (3.2, 0.0, 10.0), 64)
-    ship, ship_pass = shipwreck.shipwreck_scene(resolution_m=0.2), shipwreck.straight_pass(30, ping_rate_hz=1.0)
-    out = {"threads": se.kernels.num_threads(), "flat": _shares(flat, line), "ship": _shares(ship, ship_pass),
-           "ship coherent": _shares(ship, ship_pass, speckle=True, seed=1)}
+    lines = [se.Trajectory.line((-3.2, 0.0, 10.0), (3.2, 0.0, 10.0), n) for n in (64, 192)]
+    ship = shipwreck.shipwreck_scene(resolution_m=0.2)
+    passes = [shipwreck.straight_pass(30 * k, ping_rate_hz=1.0 * k) for k in (1, 3)]
+    out = {"threads": se.kernels.num_threads(), "flat": _shares(flat, *lines), "ship": _shares(ship, *passes),
+           "ship coherent": _shares(ship, *passes, speckle=True, seed=1)}
     print(json.dumps(out))
     return 0
 
