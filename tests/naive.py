@@ -126,6 +126,37 @@ def place_rows(edges, density, counts):
     return np.concatenate(beta), np.concatenate(dbeta)
 
 
+def elevation_density(beta_rad, range_m, dr_target_m, max_step_rad, slope_cap_m_rad, empty_step_factor,
+                      edge_density_factor):
+    """The ray budget's density per probe cell, in whole-array NumPy (the library's before issue 37)."""
+    beta = np.asarray(beta_rad, dtype=np.float64)
+    r = np.asarray(range_m, dtype=np.float64)
+    dbeta = np.diff(beta)
+    slope = np.abs(np.diff(r, axis=-1)) / dbeta  # NaN where either end missed
+    nan_col = np.full(r.shape[:-1] + (1,), np.nan)
+    pad = np.concatenate((nan_col, slope, nan_col), axis=-1)
+    left, right = pad[..., :-2], pad[..., 2:]
+    with np.errstate(invalid="ignore"):
+        neigh = np.fmax(left, right)  # NaN only if both are NaN
+        jump = np.isfinite(slope) & np.isfinite(neigh) & (slope > 4.0 * neigh)
+    slope = np.where(jump, neigh, slope)
+    hit = np.isfinite(r)
+    partial = ~np.isfinite(slope) & (hit[..., :-1] | hit[..., 1:])
+    slope = np.where(partial, neigh, slope)
+    live = hit[..., :-1] | hit[..., 1:]
+    no = np.zeros(r.shape[:-1] + (1,), dtype=bool)
+    live_pad = np.concatenate((no, live, no), axis=-1)
+    near = live | live_pad[..., :-2] | live_pad[..., 2:]
+    slope = np.where(np.isfinite(slope), np.minimum(slope, slope_cap_m_rad), 0.0)
+    floor = np.where(near, 1.0 / max_step_rad, 1.0 / (empty_step_factor * max_step_rad))
+    # edges of objects (range jumps, silhouettes against nothing) and their neighbours: a finer step
+    edge = jump | partial
+    edge_pad = np.concatenate((no, edge, no), axis=-1)
+    edge = edge | edge_pad[..., :-2] | edge_pad[..., 2:]
+    floor = np.where(edge, np.maximum(floor, edge_density_factor / max_step_rad), floor)
+    return np.maximum(floor, slope / dr_target_m)
+
+
 def fan_directions(s, beta, el_start, rot):
     """World unit directions of a block's rays: body (s, ±cosψ cosβ, cosψ sinβ) rotated, azimuth-major per row."""
     out = []

@@ -49,6 +49,96 @@ def place_rows(edges, density, el_start, beta, dbeta):
             lo = hi
 
 
+@njit(cache=True, nogil=True)
+def _fmax(a, b):
+    """np.fmax: the larger, NaN only if both are NaN."""
+    if math.isnan(a):
+        return b
+    if math.isnan(b):
+        return a
+    return max(a, b)
+
+
+@njit(cache=True, nogil=True)
+def _row_density(beta, r, dr_target, max_step, slope_cap, empty_factor, edge_factor, raw, edge, out):
+    """One probe line of :func:`elevation_density` (``raw``, ``edge``: (m − 1,) scratch)."""
+    n_c = beta.shape[0] - 1
+    for j in range(n_c):
+        raw[j] = abs(r[j + 1] - r[j]) / (beta[j + 1] - beta[j])
+    for j in range(n_c):
+        neigh = _fmax(raw[j - 1] if j > 0 else np.nan, raw[j + 1] if j < n_c - 1 else np.nan)
+        slope = raw[j]
+        jump = math.isfinite(slope) and math.isfinite(neigh) and slope > 4.0 * neigh
+        if jump:
+            slope = neigh
+        live = math.isfinite(r[j]) or math.isfinite(r[j + 1])
+        partial = (not math.isfinite(slope)) and live
+        if partial:
+            slope = neigh
+        edge[j] = jump or partial
+        near = live or (j > 0 and (math.isfinite(r[j - 1]) or math.isfinite(r[j]))) or \
+            (j < n_c - 1 and (math.isfinite(r[j + 1]) or math.isfinite(r[j + 2])))
+        out[j] = min(slope, slope_cap) if math.isfinite(slope) else 0.0
+        raw_floor = 1.0 / max_step if near else 1.0 / (empty_factor * max_step)
+        out[j] = max(raw_floor, out[j] / dr_target)   # the edge floor is applied below, once edges are known
+    for j in range(n_c):
+        if edge[j] or (j > 0 and edge[j - 1]) or (j < n_c - 1 and edge[j + 1]):
+            out[j] = max(out[j], edge_factor / max_step)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def elevation_density(beta, r, dr_target, max_step, slope_cap, empty_factor, edge_factor, out):
+    """Rays per radian wanted in each probe cell of every probe line, from the probed slant ranges.
+
+    The rules, per line (:func:`sonar_embree.instrument.beam.elevation_density`, its NumPy twin in
+    ``tests/naive.py``): |dR/dβ| by finite differences; a cell four times steeper than both neighbours is a range
+    jump and takes their slope, as does a cell with one end out of range; the slope is capped at ``slope_cap``;
+    the density is at least 1/``max_step`` near anything in range (1/(``empty_factor``·``max_step``) elsewhere) and
+    ``edge_factor``/``max_step`` at and beside jumps and silhouettes.
+
+    Parameters
+    ----------
+    beta : (m,) float64
+        Probe depressions, rad, increasing.
+    r : (rows, m) float64
+        Probed slant range, m, NaN where nothing is in range.
+    dr_target, max_step, slope_cap, empty_factor, edge_factor : float
+        Wanted range step (m), largest step near a surface (rad), cap on |dR/dβ| (m/rad), and the two factors.
+    out : (rows, m − 1) float64
+        Written with the density per cell, rays per radian.
+    """
+    for k in prange(r.shape[0]):
+        raw, edge = np.empty(beta.shape[0] - 1), np.empty(beta.shape[0] - 1, dtype=np.bool_)
+        _row_density(beta, r[k], dr_target, max_step, slope_cap, empty_factor, edge_factor, raw, edge, out[k])
+
+
+@njit(cache=True, nogil=True)
+def probe_rays(body, rot, pos, dirs, dirs32, origins32):
+    """World directions of a block's probe rays (float64, and float32 for Embree) and their float32 origins.
+
+    Parameters
+    ----------
+    body : (k, 3) float64
+        Body-frame probe directions of a ping.
+    rot : (pings, 3, 3) float64
+        Body-to-world rotation per ping.
+    pos : (pings, 3) float64
+        Sonar position per ping in the scene's local frame, m.
+    dirs : (pings, k, 3) float64
+        Written with ``rot[b] @ body[j]``, summed as :func:`fan_rays` sums.
+    dirs32, origins32 : (pings·k, 3) float32
+        Written with ``dirs`` and the ping's position, for the caster.
+    """
+    k = body.shape[0]
+    for b in range(rot.shape[0]):
+        for j in range(k):
+            for q in range(3):
+                d = rot[b, q, 0] * body[j, 0] + rot[b, q, 1] * body[j, 1] + rot[b, q, 2] * body[j, 2]
+                dirs[b, j, q] = d
+                dirs32[b * k + j, q] = d
+                origins32[b * k + j, q] = pos[b, q]
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def fan_rays(s, cos_beta, sin_beta, el_start, rot, pos, dirs, origins):
     """Float32 origins and world directions of every ray of a block of pings, for Embree.

@@ -109,7 +109,7 @@ def _splat_box(row, x, width, w, n):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def splat_rows(ray_start, delay_samples, width_samples, weights, out):
+def splat_rows(ray_start, delay_s, width_s, weights, rate_hz, out):
     """Footprint splatting of every row of a block: each ray's weight spread over its delay interval.
 
     ``out[r, k] += w/W · ∫_{x−W/2}^{x+W/2} Λ(u − k) du`` (Λ the linear-interpolation
@@ -121,14 +121,17 @@ def splat_rows(ray_start, delay_samples, width_samples, weights, out):
     ----------
     ray_start : (rows + 1,) int64
         Rays of row r are ``ray_start[r] … ray_start[r + 1] − 1``.
-    delay_samples, width_samples : (n,) float64
-        Centre and width of each ray's delay interval, in samples.
+    delay_s, width_s : (n,) float64
+        Centre and width of each ray's delay interval, s (in samples with ``rate_hz`` = 1).
     weights : (n,) float64
         Echo of each ray (zero: skipped).
+    rate_hz : float
+        Sample rate: the delays are scaled to samples here, in the loop, rather than by two array products before
+        it (the same bits).
     out : (rows, n_samples) float64
         Accumulator, added to in place.
     """
     n = out.shape[1]
     for r in prange(ray_start.shape[0] - 1):
         for i in range(ray_start[r], ray_start[r + 1]):
-            _splat_box(out[r], delay_samples[i], width_samples[i], weights[i], n)
+            _splat_box(out[r], delay_s[i] * rate_hz, width_s[i] * rate_hz, weights[i], n)

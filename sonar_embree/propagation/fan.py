@@ -253,10 +253,12 @@ def probe_ranges(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.n
     """The probe rays of a block of pings cast from ``pos_local`` (pings, 3) with attitudes ``rot``: (ranges
     (pings, probes) float64, NaN for nothing within ``max_range_m``; world directions (pings, probes, 3);
     seconds in the caster). Probes per ping: :attr:`FanPlan.probe_body`, port then starboard."""
-    dirs = np.matmul(plan.probe_body, rot.transpose(0, 2, 1))
-    org = np.repeat(pos_local, plan.probe_body.shape[0], axis=0)
+    n_p, k = rot.shape[0], plan.probe_body.shape[0]
+    dirs, dirs32, org32 = np.empty((n_p, k, 3)), np.empty((n_p * k, 3), np.float32), np.empty((n_p * k, 3), np.float32)
+    kernels.probe_rays(plan.probe_body, np.ascontiguousarray(rot, dtype=np.float64),
+                       np.ascontiguousarray(pos_local, dtype=np.float64), dirs, dirs32, org32)
     t = time.perf_counter()
-    prim, tfar = caster.cast_raw(org.astype(np.float32), dirs.reshape(-1, 3).astype(np.float32), max_range_m)
+    prim, tfar = caster.cast_raw(org32, dirs32, max_range_m)
     t_embree = time.perf_counter() - t
     return np.where(prim >= 0, tfar.astype(np.float64), np.nan).reshape(dirs.shape[:2]), dirs, t_embree
 

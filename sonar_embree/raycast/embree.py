@@ -48,14 +48,19 @@ class EmbreeCaster(Caster):
         return {k: np.concatenate([np.asarray(p[k]) for p in parts]) for k in ("primID", "tfar")}
 
     def occluded(self, origins_f32, directions_f32, dists_f32):
-        """Embree's occlusion query (any hit before each ray's own distance); as :meth:`Caster.occluded`."""
+        """Embree's occlusion query (any hit before each ray's own distance); as :meth:`Caster.occluded`.
+
+        Embree writes into the distances it is given: a contiguous float32 ``dists_f32`` is overwritten."""
         if directions_f32.shape[0] == 0:
             return np.zeros(0, dtype=bool)
         return np.asarray(self._run(origins_f32, directions_f32, np.ascontiguousarray(dists_f32, dtype=np.float32),
                                     None, "OCCLUDED")) >= 0
 
     def cast_segments(self, origins_f32, directions_f32, dists_f32):
-        """Embree's first hits on segments of their own lengths; as :meth:`Caster.cast_segments`."""
+        """Embree's first hits on segments of their own lengths; as :meth:`Caster.cast_segments`.
+
+        Embree writes each hit distance into the distances it is given: a contiguous float32 ``dists_f32`` is
+        overwritten (the returned ``tfar`` may be that array)."""
         if directions_f32.shape[0] == 0:
             return np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.float32)
         res = self._run(origins_f32, directions_f32, np.ascontiguousarray(dists_f32, dtype=np.float32), 1)

@@ -158,7 +158,7 @@ class ExpectedSynthesis:
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
         for part in e.parts:  # a block's paths one after the other: row by row, the merged order
-            kernels.splat_rows(part.ray_start, part.travel_time_s * fs, part.extent_s * fs, part.weight,
+            kernels.splat_rows(part.ray_start, part.travel_time_s, part.extent_s, part.weight, fs,
                                self.out[a:b].reshape(part.ray_start.shape[0] - 1, self.out.shape[-1]))
 
     def finish(self):

@@ -221,8 +221,8 @@ def object_echo_block(e: Echoes, is_seafloor: np.ndarray, rate_hz: float, kernel
     n_s = n_out + lead
     for k in np.unique(obj[obj >= 0]):
         buf = np.zeros((n_in * n_p, n_s))
-        kernels.splat_rows(e.ray_start, e.travel_time_s * rate_hz, e.extent_s * rate_hz,
-                           np.where(obj == k, e.weight, 0.0), buf)
+        kernels.splat_rows(e.ray_start, e.travel_time_s, e.extent_s, np.where(obj == k, e.weight, 0.0), rate_hz,
+                           buf)
         img = convolve_time(buf, kernel, lead)[:, :n_out]
         if beams is not None:
             img = np.matmul(beams, img.reshape(n_p, n_in, n_out)).reshape(n_p * n_ch, n_out)

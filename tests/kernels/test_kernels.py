@@ -27,14 +27,15 @@ def test_zero_width_splat_rows_is_linear_splatting(rng):
     order = np.argsort(channel, kind="stable")
     ray_start = np.searchsorted(channel[order], [0, 1, 2])
     out = np.zeros((2, 300))
-    kernels.splat_rows(ray_start, delay[order], np.zeros(delay.size), w[order], out)
+    kernels.splat_rows(ray_start, delay[order], np.zeros(delay.size), w[order], 1.0, out)
     ref = naive.splat_linear(channel, delay, w, np.zeros((2, 300)))
     np.testing.assert_allclose(out, ref, rtol=1e-12, atol=1e-12)
 
 
 def test_splat_conserves_weight_and_never_wraps():
     out = np.zeros((1, 10))
-    kernels.splat_rows(np.array([0, 3]), np.array([-0.5, 3.25, 9.5]), np.zeros(3), np.array([7.0, 1.0, 5.0]), out)
+    kernels.splat_rows(np.array([0, 3]), np.array([-0.5, 3.25, 9.5]), np.zeros(3), np.array([7.0, 1.0, 5.0]), 1.0,
+                       out)
     assert out.sum() == 1.0  # only the in-window contribution, no wrap-around of the negative delay
     np.testing.assert_allclose(out[0, 3:5], [0.75, 0.25])
 
@@ -149,6 +150,36 @@ def _block(rng, n_p=3):
     return s, beta, dbeta, el_start, rot, pos
 
 
+def test_elevation_density_matches_naive_bit_for_bit(rng):
+    """Jumps, silhouettes against nothing, lines with nothing in range and lines out of range at one end: the
+    kernel's densities equal the whole-array twin's exactly (they set ray counts, so the records' bits)."""
+    beta = np.sort(rng.uniform(-0.3, 1.5, 61))
+    r = 10.0 / np.sin(np.clip(beta, 0.05, None)) + rng.normal(0.0, 0.3, (9, 61))
+    r[1, 20:26] = 4.0                                   # an object: two range jumps
+    r[2, ::7] = np.nan                                  # holes
+    r[3] = np.nan                                       # nothing in range
+    r[4, 40:] = np.nan                                  # a silhouette against nothing
+    r[5, :3] = np.nan
+    r[6, 30] = 80.0                                     # a single spike
+    got = np.empty((9, 60))
+    kernels.elevation_density(beta, r, 0.02, 0.01, 500.0, 8.0, 4.0, got)
+    ref = naive.elevation_density(beta, r, 0.02, 0.01, 500.0, 8.0, 4.0)
+    assert np.array_equal(got, ref)
+    assert np.all(got[3] == 1.0 / (8.0 * 0.01))                # nothing in range: the coarse empty step
+
+
+def test_probe_rays_match_the_rotated_body_directions(rng):
+    """probe_rays is rot·body per ping (NumPy's matmul as the twin, to rounding) with the ping's position."""
+    body = rng.normal(size=(11, 3))
+    rot = np.stack([np.linalg.qr(rng.normal(size=(3, 3)))[0] for _ in range(4)])
+    pos = rng.normal(size=(4, 3)) * 50.0
+    dirs, d32, o32 = np.empty((4, 11, 3)), np.empty((44, 3), np.float32), np.empty((44, 3), np.float32)
+    kernels.probe_rays(body, rot, pos, dirs, d32, o32)
+    np.testing.assert_allclose(dirs, np.matmul(body, rot.transpose(0, 2, 1)), rtol=0, atol=1e-14)
+    assert np.array_equal(d32, dirs.reshape(-1, 3).astype(np.float32))
+    assert np.array_equal(o32, np.repeat(pos, 11, axis=0).astype(np.float32))
+
+
 def test_place_rows_matches_naive(rng):
     edges = np.linspace(-1.0, 1.5, 60)
     density = rng.uniform(0, 500, (4, 59))
@@ -230,13 +261,13 @@ def test_splat_rows_matches_naive_and_conserves_weight(rng):
     w = rng.uniform(0, 1, 100)
     w[::11] = 0.0
     got = np.zeros((3, n_s))
-    kernels.splat_rows(ray_start, delay, width, w, got)
+    kernels.splat_rows(ray_start, delay / 8.0, width / 8.0, w, 8.0, got)  # in seconds at 8 Hz
     ref = naive.splat_rows(ray_start, delay, width, w, np.zeros((3, n_s)))
     np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-9)
     assert np.all(got[1] == 0.0)
     inside = (delay - width / 2 >= 0) & (delay + width / 2 <= n_s - 1)
     one = np.zeros((1, n_s))
-    kernels.splat_rows(np.array([0, int(inside.sum())]), delay[inside], width[inside], w[inside], one)
+    kernels.splat_rows(np.array([0, int(inside.sum())]), delay[inside], width[inside], w[inside], 1.0, one)
     assert one.sum() == pytest.approx(w[inside].sum(), rel=1e-12)
 
 
