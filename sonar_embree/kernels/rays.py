@@ -112,6 +112,15 @@ def elevation_density(beta, r, dr_target, max_step, slope_cap, empty_factor, edg
         _row_density(beta, r[k], dr_target, max_step, slope_cap, empty_factor, edge_factor, raw, edge, out[k])
 
 
+@njit(cache=True, nogil=True, parallel=True)
+def cos_sin(x, cos_x, sin_x):
+    """cos and sin of every element of ``x`` (n,) into ``cos_x``, ``sin_x`` (n,): the fan's per-ray trigonometry
+    spread over the threads rather than done by NumPy in the calling thread."""
+    for i in prange(x.shape[0]):
+        cos_x[i] = math.cos(x[i])
+        sin_x[i] = math.sin(x[i])
+
+
 @njit(cache=True, nogil=True)
 def probe_rays(body, rot, pos, dirs, dirs32, origins32):
     """World directions of a block's probe rays (float64, and float32 for Embree) and their float32 origins.

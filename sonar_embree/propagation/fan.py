@@ -11,6 +11,7 @@ rays or samples.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -106,15 +107,22 @@ def moving_lines(plan: FanPlan, rx_shift: np.ndarray):
         return plan, None
     k = np.floor(np.abs(rx_shift) / plan.ds + 1e-9)
     lo, hi = np.where(rx_shift < 0, k, 0.0), np.where(rx_shift > 0, k, 0.0)
-    i0, i1 = round(plan.s[0] / plan.ds), round(plan.s[-1] / plan.ds)
-    null = beam.on_null(plan.beam[0] * plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null
-    i0, i1 = i0 - int(null[0]), i1 + int(null[1])
-    extra = [np.arange(i0 - int(lo.max()), i0) * plan.ds, np.arange(i1 + 1, i1 + int(hi.max()) + 1) * plan.ds]
-    extra = [x[~beam.on_null(plan.beam[0] * x)] for x in extra]
-    moved = dataclasses.replace(plan, s=np.concatenate([extra[0], plan.s, extra[1]]))
+    moved, i0, i1 = _moved(plan, int(lo.max()), int(hi.max()))
     if lo.min() == lo.max() and hi.min() == hi.max():
         return moved, None
     return moved, np.stack([(i0 - lo - 0.5) * plan.ds, (i1 + hi + 0.5) * plan.ds], axis=1)
+
+
+@functools.lru_cache(maxsize=16)
+def _moved(plan: FanPlan, n_lo: int, n_hi: int):
+    """The plan with ``n_lo`` lattice lines added below its span and ``n_hi`` above (:func:`moving_lines`), and the
+    span's end indices i0, i1; kept, as a line's blocks mostly move alike (plans hash by identity)."""
+    i0, i1 = round(plan.s[0] / plan.ds), round(plan.s[-1] / plan.ds)
+    null = beam.on_null(plan.beam[0] * plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null
+    i0, i1 = i0 - int(null[0]), i1 + int(null[1])
+    extra = [np.arange(i0 - n_lo, i0) * plan.ds, np.arange(i1 + 1, i1 + n_hi + 1) * plan.ds]
+    extra = [x[~beam.on_null(plan.beam[0] * x)] for x in extra]
+    return dataclasses.replace(plan, s=np.concatenate([extra[0], plan.s, extra[1]])), i0, i1
 
 
 def own_lines(s: np.ndarray, keep: np.ndarray) -> np.ndarray:
@@ -318,7 +326,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     dirs = np.empty((n, 3), dtype=np.float32)
     org = np.empty((n, 3), dtype=np.float32)
     rot = np.ascontiguousarray(rot, dtype=np.float64)
-    cos_b, sin_b = np.cos(beta), np.sin(beta)
+    cos_b, sin_b = np.empty_like(beta), np.empty_like(beta)
+    kernels.cos_sin(beta, cos_b, sin_b)
     kernels.fan_rays(plan.s, cos_b, sin_b, el_start, rot, pos_local, dirs, org)
     t = time.perf_counter()
     prim, tfar = caster.cast_raw(org, dirs, max_range_m)

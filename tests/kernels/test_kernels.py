@@ -168,6 +168,14 @@ def test_elevation_density_matches_naive_bit_for_bit(rng):
     assert np.all(got[3] == 1.0 / (8.0 * 0.01))                # nothing in range: the coarse empty step
 
 
+def test_cos_sin_matches_numpy(rng):
+    x = rng.uniform(-4.0, 4.0, 1001)
+    c, s = np.empty_like(x), np.empty_like(x)
+    kernels.cos_sin(x, c, s)
+    np.testing.assert_allclose(c, np.cos(x), rtol=0, atol=2e-16)
+    np.testing.assert_allclose(s, np.sin(x), rtol=0, atol=2e-16)
+
+
 def test_probe_rays_match_the_rotated_body_directions(rng):
     """probe_rays is rot·body per ping (NumPy's matmul as the twin, to rounding) with the ping's position."""
     body = rng.normal(size=(11, 3))
