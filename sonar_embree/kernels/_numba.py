@@ -10,6 +10,7 @@ os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 import numba  # noqa: E402
 import numpy as np  # noqa: E402
 from numba import njit, prange  # noqa: E402,F401 (re-exported)
+from numba.extending import register_jitable  # noqa: E402,F401 (re-exported)
 
 
 # Helpers that take arrays and are called per ray, node or scatterer are marked inline='always': a call with
@@ -34,6 +35,13 @@ REFIT_REL_TOL = 1e-3
 #: arc_echoes) when the rays are the fan's: no rows. Always passed: an array default argument would make Numba
 #: compile the kernel again in every process (its on-disk cache cannot key an array default).
 NO_LAYOUT = np.zeros((0, 5))
+
+
+def cuda_module():
+    """``numba.cuda``, loaded on first use (the GPU caster only): the simulator where ``NUMBA_ENABLE_CUDASIM=1``."""
+    from numba import cuda
+
+    return cuda
 
 
 def num_threads() -> int:

@@ -3,19 +3,24 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree.raycast import RayCaster
+from sonar_embree.raycast import BvhCaster, RayCaster
 from conftest import box, flat_scene, line_along_x
 
 
-def _caster(*meshes):
+#: Embree, and the project's own BVH (the GPU caster's code, run on the CPU): the same contract.
+CASTERS = pytest.mark.parametrize("cls", [RayCaster, BvhCaster], ids=["embree", "bvh"])
+
+
+def _caster(*meshes, cls=RayCaster):
     scene = se.Scene()
     for i, m in enumerate(meshes):
         scene.add(m, label=f"m{i}")
-    return RayCaster(scene.compiled()), scene.compiled()
+    return cls(scene.compiled()), scene.compiled()
 
 
-def test_hit_fields_and_back_faces():
-    caster, c = _caster(se.seafloor.flat((10, 10)), box((1, 1, 1), (3, 0, 2)))
+@CASTERS
+def test_hit_fields_and_back_faces(cls):
+    caster, c = _caster(se.seafloor.flat((10, 10)), box((1, 1, 1), (3, 0, 2)), cls=cls)
     o = np.array([0.0, 0.0, 5.0]) - c.origin_m
     d = np.array([[0, 0, -1.0], [0.6, 0, -0.8], [0, 0, 1.0]])
     h = caster.cast(o, d, 100.0)
@@ -29,8 +34,9 @@ def test_hit_fields_and_back_faces():
     assert hb.tri[0] >= 0 and hb.cos_inc[0] < 0 and not hb.echo[0]
 
 
-def test_range_limit_and_grazing():
-    caster, c = _caster(se.seafloor.flat((100, 100)))
+@CASTERS
+def test_range_limit_and_grazing(cls):
+    caster, c = _caster(se.seafloor.flat((100, 100)), cls=cls)
     o = np.array([0.0, 0.0, 1.0]) - c.origin_m
     h = caster.cast(o, np.array([[0, 0, -1.0]]), 0.5)
     assert h.tri[0] == -1                                   # beyond max range: a miss
@@ -38,10 +44,11 @@ def test_range_limit_and_grazing():
     assert not graze.echo[0]                                # in-plane ray: never an echo
 
 
-def test_shared_edges_and_vertices_neither_leak_nor_double_count():
+@CASTERS
+def test_shared_edges_and_vertices_neither_leak_nor_double_count(cls):
     """Rays aimed exactly at the diagonal edge and the centre vertex of a gridded floor all hit once."""
     floor = se.seafloor.from_heights(np.zeros((3, 3)), 1.0, (-1.0, -1.0))   # shared edges through (0,0)
-    caster, c = _caster(floor)
+    caster, c = _caster(floor, cls=cls)
     targets = np.array([[0, 0, 0], [0.5, 0.5, 0], [-0.5, -0.5, 0], [0, 0.5, 0], [0.5, 0, 0], [-1, 1, 0.0]])
     o = np.array([0.3, -0.2, 3.0])
     d = targets - o
@@ -51,10 +58,11 @@ def test_shared_edges_and_vertices_neither_leak_nor_double_count():
     np.testing.assert_allclose(h.range_m, np.linalg.norm(targets - o, axis=1), rtol=1e-12)
 
 
-def test_float64_ranges_at_utm_scale_on_sloped_facets():
+@CASTERS
+def test_float64_ranges_at_utm_scale_on_sloped_facets(cls):
     off = np.array([512_000.0, 5_412_000.0, 0.0])
     z = np.array([[0.0, 0.7], [0.3, 1.3]])
-    caster, c = _caster(se.seafloor.from_heights(z, 10.0, (off[0], off[1])))
+    caster, c = _caster(se.seafloor.from_heights(z, 10.0, (off[0], off[1])), cls=cls)
     o = off + [3.1, 4.7, 20.0]
     d = np.array([[0.05, 0.03, -1.0]])
     d /= np.linalg.norm(d)

@@ -1,0 +1,158 @@
+"""The project's own BVH caster (issue 37 item 5): the Karras hierarchy against a recursive twin, its boxes, its
+hits against Embree and the reference caster, the whole pipeline through it, and the CUDA build of the same code
+through numba's CUDA simulator (a subprocess: the simulator is chosen when numba loads)."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import trimesh
+
+import sonar_embree as se
+from conftest import box, flat_scene, line_along_x
+from sonar_embree import kernels
+from sonar_embree.raycast import BvhCaster, CudaCaster, EmbreeCaster, NumpyCaster
+from sonar_embree.raycast.bvh import build_bvh
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def _reference_scene(rng):
+    """The reference-caster test scene (tests/raycast/test_reference_caster.py): a rough height field and a box."""
+    heights = rng.uniform(-0.3, 0.3, (9, 9))
+    floor = se.seafloor.from_heights(heights, spacing_m=6.0, origin_m=(-24, -24))
+    return se.Scene().add(floor, label="seafloor").add(box((1.0, 2.0, 1.0), (0.0, -12.0, 0.5)), label="box")
+
+
+def _rays(rng, c, n):
+    d = rng.normal(size=(n, 3))
+    d[:, 2] = -np.abs(d[:, 2])
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    o = np.broadcast_to(np.array([0.0, 0.0, 10.0]) - c.origin_m, (n, 3))
+    return np.ascontiguousarray(o, dtype=np.float32), np.ascontiguousarray(d, dtype=np.float32)
+
+
+def _recursive_tree(keys, first, last):
+    """The binary radix tree by its definition: split a run of sorted unique keys where the highest bit in which
+    its ends differ turns from 0 to 1. Leaves are ("leaf", k); a node is (left, right)."""
+    if first == last:
+        return ("leaf", first)
+    bit = (int(keys[first]) ^ int(keys[last])).bit_length() - 1
+    split = first
+    while not (int(keys[split + 1]) >> bit) & 1:
+        split += 1
+    return (_recursive_tree(keys, first, split), _recursive_tree(keys, split + 1, last))
+
+
+def _kernel_tree(child, node, n):
+    if node >= n - 1:
+        return ("leaf", node - (n - 1))
+    return (_kernel_tree(child, child[node, 0], n), _kernel_tree(child, child[node, 1], n))
+
+
+@pytest.mark.parametrize("n, spread", [(2, 4), (3, 1), (97, 2 ** 30), (500, 64), (300, 1)])
+def test_the_linear_bvh_is_the_radix_tree_of_its_keys(rng, n, spread):
+    """Karras's parallel construction gives the tree the recursive highest-bit split gives, duplicates (ties broken
+    by position) included; spread 1: every code equal."""
+    codes = np.sort(rng.integers(0, spread, n)).astype(np.int64)
+    child = np.empty((n - 1, 2), dtype=np.int32)
+    kernels.lbvh_children(codes, child)
+    keys = [(int(c) << 32) | k for k, c in enumerate(codes)]      # codes, then positions: unique keys
+    assert _kernel_tree(child, 0, n) == _recursive_tree(keys, 0, n - 1)
+
+
+def test_boxes_hold_their_triangles_and_children(rng):
+    c = _reference_scene(rng).compiled()
+    box_, child, tri, v0, e1, e2 = build_bvh(c)
+    n = tri.shape[0]
+    corners = np.asarray(c.vertices, dtype=np.float32)[c.faces][tri]
+    np.testing.assert_array_equal(box_[n - 1:, :3], corners.min(axis=1))
+    np.testing.assert_array_equal(box_[n - 1:, 3:], corners.max(axis=1))
+    for k in range(2):
+        assert np.all(box_[:n - 1, :3] <= box_[child[:, k], :3]) and np.all(box_[:n - 1, 3:] >= box_[child[:, k], 3:])
+    assert sorted(tri) == list(range(n))                           # every triangle in one leaf
+    assert sorted(np.concatenate([child.ravel(), [0]])) == list(range(2 * n - 1))   # a tree: each node one parent
+    np.testing.assert_allclose(v0 + e1, np.asarray(c.vertices, dtype=np.float32)[c.faces[:, 1]], atol=1e-5)
+
+
+def test_bvh_caster_agrees_with_embree_and_the_reference_ray_by_ray(rng):
+    c = _reference_scene(rng).compiled()
+    o32, d32 = _rays(rng, c, 4000)
+    pe, te = EmbreeCaster(c).cast_raw(o32, d32, 40.0)
+    pb, tb = BvhCaster(c).cast_raw(o32, d32, 40.0)
+    pn, tn = NumpyCaster(c).cast_raw(o32, d32, 40.0)
+    assert (pe >= 0).sum() > 1000 and (pe < 0).sum() > 100
+    for p, t in ((pe, te), (pn, tn)):
+        same = p == pb
+        assert same.mean() > 0.999                  # a ray through a shared edge may pick either triangle
+        hit = same & (p >= 0)
+        np.testing.assert_allclose(tb[hit], t[hit], rtol=2e-6)
+    np.testing.assert_array_equal(tb[pb < 0], np.float32(40.0))
+
+
+@pytest.mark.parametrize("n_faces", [1, 2])
+def test_one_and_two_triangle_scenes(n_faces):
+    """The smallest trees: one triangle (the root is its leaf) and two (one internal node)."""
+    v = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+    faces = np.array([[0, 1, 2], [0, 2, 3]])[:n_faces]
+    c = se.Scene().add(trimesh.Trimesh(v, faces, process=False), label="plate").compiled()
+    o = (np.array([[0.5, -0.5, 3.0], [-0.5, 0.5, 3.0], [5.0, 5.0, 3.0]]) - c.origin_m).astype(np.float32)
+    d = np.tile(np.array([0.0, 0.0, -1.0], dtype=np.float32), (3, 1))
+    pb, tb = BvhCaster(c).cast_raw(o, d, 10.0)
+    pe, te = EmbreeCaster(c).cast_raw(o, d, 10.0)
+    np.testing.assert_array_equal(pb, pe)
+    assert pb[0] == 0 and pb[2] == -1 and (pb[1] == 1) == (n_faces == 2)
+    np.testing.assert_allclose(tb[pb >= 0], 3.0, rtol=1e-6)
+
+
+def test_simulate_with_the_bvh_caster_matches_embree():
+    scene = flat_scene().add(box((1.0, 1.0, 1.0), (0.0, -14.0, 0.5)), label="box")
+    traj = line_along_x(n_pings=2, length=0.2)
+    sonar = se.Sonar(max_range_m=25.0)
+    kw = dict(start_time="2000-01-01", quality=0.5, labels=True)
+    a = se.simulate(scene, traj, sonar, caster=EmbreeCaster, **kw)
+    b = se.simulate(scene, traj, sonar, caster=BvhCaster, **kw)
+    for x, y in ((a.port, b.port), (a.starboard, b.starboard)):
+        assert x.max() > 0
+        np.testing.assert_allclose(y, x, rtol=2e-3, atol=1e-9 * x.max())   # float32 distances' last bits
+    assert (a.labels.kind == b.labels.kind).mean() > 0.99
+
+
+def test_cuda_caster_without_a_gpu_is_a_one_line_error(monkeypatch):
+    monkeypatch.setattr(kernels, "cuda_available", lambda: False)
+    c = flat_scene().compiled()
+    with pytest.raises(se.ConfigError, match="CudaCaster: numba.cuda finds no GPU.*NUMBA_ENABLE_CUDASIM"):
+        CudaCaster(c)
+
+
+CUDA_SCRIPT = """
+import json, sys
+import numpy as np
+sys.path.insert(0, {here!r})
+from test_bvh_caster import _reference_scene, _rays
+from sonar_embree.raycast import CudaCaster, EmbreeCaster
+rng = np.random.default_rng(7)
+c = _reference_scene(rng).compiled()
+o, d = _rays(rng, c, 600)
+pc, tc = CudaCaster(c).cast_raw(o, d, 40.0)
+pe, te = EmbreeCaster(c).cast_raw(o, d, 40.0)
+same = (pc == pe)
+hit = same & (pe >= 0)
+empty = len(CudaCaster(c).cast_raw(o[:0], d[:0], 1.0)[0])
+print(json.dumps(dict(same=float(same.mean()), hits=int(hit.sum()), misses=int((pe < 0).sum()),
+                      rel=float(np.max(np.abs(tc[hit] / te[hit] - 1.0))), empty=empty)))
+"""
+
+
+def test_cuda_caster_through_numbas_cuda_simulator():
+    """The CUDA kernel (device functions, local stack, one ray per thread, the copies to and from the device) run
+    by numba's CUDA simulator on the reference scene: the same hits as Embree to float32."""
+    env = dict(os.environ, NUMBA_ENABLE_CUDASIM="1")
+    out = subprocess.run([sys.executable, "-c", CUDA_SCRIPT.format(here=HERE)], env=env, capture_output=True,
+                         text=True, timeout=600, cwd=os.path.dirname(HERE))
+    assert out.returncode == 0, out.stderr[-2000:]
+    r = json.loads(out.stdout.strip().splitlines()[-1])
+    assert r["same"] > 0.995 and r["hits"] > 200 and r["misses"] > 20 and r["empty"] == 0
+    assert r["rel"] < 2e-6
