@@ -7,9 +7,12 @@ A line over a 2 M-triangle height field (the default side-scan, 40 m range) stre
 ``block_pings`` 64: in this process with one Numba thread (``numba.set_num_threads(1)``), in this process with
 every thread, and on 1, 2, … worker processes of a LocalCluster (one Numba thread each), speckle-free and
 coherent (CW baseband speckle). Wall time of the whole call (the cluster's start included) and pings per second;
-the stores are checked to hold the same bits. No test reads it.
+the stores are checked to hold the same bits. With ``--steady``, also the rate a line adds once running (a run of
+n/3 pings subtracted from one of n, on one cluster): what the workers give a long line, without the one-off
+start, shipping of the scene and BVH builds. No test reads it.
 """
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -37,10 +40,24 @@ def _run(scene, traj, out, how, coherent):
     return time.perf_counter() - t
 
 
+def _steady(scene, traj, tmp, mode, coherent, workers):
+    """Pings per second a line adds once running: (t(n) − t(n/3)) over the 2n/3 pings between, the cluster started
+    once for both and the scene shipped, compiled and its BVH built in each call (so those cancel)."""
+    from sonar_embree.survey.cluster import client_for
+
+    n = len(traj)
+    with client_for(workers=workers, what="bench") if workers > 1 else contextlib.nullcontext() as client:
+        how = {"client": client} if workers > 1 else {"workers": 1}
+        secs = [_run(scene, traj[:k], os.path.join(tmp, f"steady-{mode}-{workers}-{k}.zarr"), how, coherent)
+                for k in (n // 3, n)]
+    return round((n - n // 3) / (secs[1] - secs[0]), 1)
+
+
 def main() -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--pings", type=int, default=1024)
     p.add_argument("--workers", type=int, nargs="*", default=[1, 2])
+    p.add_argument("--steady", action="store_true", help="also the steady rate of 1 thread and of the workers")
     args = p.parse_args()
     scene, traj = _line(args.pings)
     out, stores = {"cpus": os.cpu_count(), "pings": args.pings}, {}
@@ -57,6 +74,12 @@ def main() -> int:
                 secs = _run(scene, traj, path, how, coherent)
                 row[label] = round(args.pings / secs, 1)
                 stores[path] = np.asarray(se.Record.load(path).data)
+            if args.steady:
+                kernels.set_num_threads(1)
+                row["steady, 1 thread"] = _steady(scene, traj, tmp, mode, coherent, 1)
+                kernels.set_num_threads(threads)
+                for w in (w for w in args.workers if w > 1):
+                    row[f"steady, {w} workers"] = _steady(scene, traj, tmp, mode, coherent, w)
             kernels.set_num_threads(threads)
             out[mode] = row
             same = [np.array_equal(a, next(iter(stores.values()))) for a in stores.values()]

@@ -77,9 +77,9 @@ def test_the_readme_is_a_front_page_with_the_two_set_up_commands():
     demo = ("python3 -m venv .venv && . .venv/bin/activate && python -m pip install -q -e . && "
             "sonar-embree demo -o out/demo")
     tests = ('python3 -m venv .venv && . .venv/bin/activate && python -m pip install -q -e ".[test]" && '
-             "python -m pytest -q")
+             "python -m pytest -q -n 2")
     assert blocks[:2] == [demo, tests]
     ci = open(os.path.join(ROOT, ".ci", "run"), encoding="utf-8").read()
-    assert 'python -m pip install -q -e ".[test]" && python -m pytest -q' in ci
+    assert 'python -m pip install -q -e ".[test]" && python -m pytest -q -n 2' in ci
     for link in re.findall(r"\]\(((?!https?:)[^)#]+)\)", text):
         assert os.path.exists(os.path.join(ROOT, link)), link
