@@ -107,6 +107,17 @@ def test_local_cluster_serves_no_dashboard():
         assert err.value.code == 404  # nothing is served, not even the status page
 
 
+def test_local_workers_start_with_one_thread_and_glibcs_own_malloc_thresholds():
+    """One Numba thread per worker, and no ``MALLOC_TRIM_THRESHOLD_`` (Dask's default sets it, which makes every
+    block's arrays fresh mmaps that fault in page by page: 20–45 % of a worker's ping, docs/benchmarks.md)."""
+    from sonar_embree.survey.cluster import client_for
+
+    with client_for(None, None, 1, None) as client:
+        env = next(iter(client.run(lambda: {k: os.environ.get(k) for k in (
+            "NUMBA_NUM_THREADS", "MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS")}).values()))
+    assert env == {"NUMBA_NUM_THREADS": "1", "MALLOC_TRIM_THRESHOLD_": None, "OPENBLAS_NUM_THREADS": "1"}
+
+
 def test_back_pressure_bounds_the_tasks_in_flight(multi_sweep, tmp_path):
     """40 tasks with at most 3 submitted at a time; the output equals the unbounded run."""
     from distributed import Client, LocalCluster
