@@ -78,6 +78,8 @@ SLOW = frozenset({
     "test_scripts.py::test_msis_figure_script_draws_both_scans",
     "test_scripts.py::test_multipath_figure_shows_the_surface_paths",
     "test_scripts.py::test_paper_modes_script_writes_every_mode",
+    "test_stream.py::test_a_whole_record_on_two_worker_processes_has_simulates_bits",
+    "test_record_cli.py::test_cli_render_on_two_workers_writes_the_same_files",
     "test_scripts.py::test_physics_plots_script_writes_beam_pattern_and_ping",
     "test_scripts.py::test_refraction_figure_ends_the_floor_at_the_ray_maps_shadow_edge",
     "test_scripts.py::test_seafloor_gallery_orders_the_presets_and_draws_sigma",

@@ -18,6 +18,7 @@ from .. import assets
 from ..config import FanSettings
 from ..config import SignalChain
 from ..simulate import simulate
+from ..survey.stream import render_record
 from .runconfig import load_run_config
 
 EPILOG = """\
@@ -133,6 +134,10 @@ def _parser() -> argparse.ArgumentParser:
     r.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (created if missing)")
     r.add_argument("--overwrite", action="store_true", help="replace the outputs of an earlier run in OUT")
     r.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    r.add_argument("--workers", type=int, metavar="N", help="render the line's blocks on N worker processes of a "
+                   "local Dask cluster (same data bits; default: this process)")
+    r.add_argument("--scheduler", metavar="ADDRESS", help="render the line's blocks on a running Dask scheduler "
+                   "(tcp://host:8786)")
     _add_chain_options(r)
 
     b = sub.add_parser("batch", help="render a sweep of scenes x trajectories x settings x seeds on Dask",
@@ -317,9 +322,13 @@ def _run(args) -> list:
     o = cfg.output
     if not o.formats():
         raise SonarEmbreeError(f"{args.config}: [output] every format is false; nothing to write")
-    rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, chain=_chain(args, cfg.chain),
-                   fan=_fan(args, cfg.fan), progress=not args.no_progress, start_time=args.start_time,
-                   labels=o.needs_labels())
+    kw = dict(chain=_chain(args, cfg.chain), fan=_fan(args, cfg.fan), progress=not args.no_progress,
+              start_time=args.start_time, labels=o.needs_labels())
+    if (args.workers or 1) > 1 or args.scheduler is not None:   # the blocks on Dask workers, joined here
+        rec = render_record(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, workers=args.workers,
+                            scheduler=args.scheduler, **kw)
+    else:
+        rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, **kw)
     if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
     return registry.write_set(rec, args.output, o.formats(), registry.WriteOptions(o.png_kwargs()))

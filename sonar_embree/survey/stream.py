@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from ..io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
-from ..validation import check_bool
+from ..validation import check_bool, iso_utc
 from ..config import Sonar
 from ..record import Record
 from ..scene import TiledDEM
@@ -172,6 +172,16 @@ def _template(ds, n_pings: int, block: int):
                       coords={k: whole(v.variable) for k, v in ds.coords.items()}, attrs=ds.attrs)
 
 
+def _one_clock(simulate_kwargs: dict, trajectory, progress: dict | None = None) -> dict:
+    """``simulate_kwargs`` with one ``start_time`` for every block: the caller's, else the trajectory's, else the one
+    a resumed line started with, else now. Left to each block, "now" moved on between blocks, and the XTF's ping
+    times jumped by the render time at every block."""
+    if simulate_kwargs.get("start_time") is not None or trajectory.start_time is not None:
+        return simulate_kwargs
+    start = (progress or {}).get("start_time")
+    return {**simulate_kwargs, "start_time": start if start is not None else iso_utc(None)}
+
+
 def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_opts):
     """Create the store (metadata, sample coordinates) and the XTF header from the first block's record.
 
@@ -180,7 +190,7 @@ def _start(path, first, n_pings, block, fingerprint, xtf_path, xtf_opts):
     from ..io.xtf import xtf_bytes
 
     progress = {"fingerprint": fingerprint, "pings_done": 0, "n_pings": n_pings, "block_pings": block,
-                "xtf": None, "xtf_path": xtf_path}
+                "xtf": None, "xtf_path": xtf_path, "start_time": first.attrs.get("start_time")}
     _save_progress(path, progress)
     ds = to_xarray(first)
     encoding = {name: {"chunks": tuple(block if d == "ping" else ds.sizes[d] for d in var.dims)}
@@ -332,6 +342,7 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     _claim(path, overwrite)
     with folder_lock(path):
         progress = _resumed(path, key, xtf_path, resume, overwrite)
+        simulate_kwargs = _one_clock(simulate_kwargs, trajectory, progress)
         try:
             args = (scene, trajectory, path, sonar, pulse, block, key, xtf_path, (xtf_scale, xtf_samples), progress,
                     progress_bar, simulate_kwargs)
@@ -357,12 +368,12 @@ PNG_MAX_ROWS = 8192
 AUTO_MIN_PINGS, AUTO_MIN_BLOCKS, AUTO_MIN_CPUS = 4096, 4, 8
 
 
-def _checked_cluster(workers, scheduler, client) -> None:
+def _checked_cluster(workers, scheduler, client, what: str = "render_line") -> None:
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
                                 or workers < 1):
-        raise ConfigError(f"render_line: workers must be an integer >= 1, got {workers!r}")
+        raise ConfigError(f"{what}: workers must be an integer >= 1, got {workers!r}")
     if sum(x is not None for x in (workers, scheduler, client)) > 1:
-        raise ConfigError("render_line: give one of workers, scheduler and client")
+        raise ConfigError(f"{what}: give one of workers, scheduler and client")
 
 
 def _on_cluster(n: int, block: int, progress, workers, scheduler, client) -> bool:
@@ -379,6 +390,49 @@ def render_block(scene, trajectory, sonar, pulse, first: int, simulate_kwargs: d
     """One block of a line (pings ``first`` … of the whole line): what a worker runs."""
     return simulate(_block_scene(scene, trajectory, sonar), trajectory, sonar, pulse, ping_offset=first,
                     **simulate_kwargs)
+
+
+def render_record(scene, trajectory, sonar=None, pulse=None, *, block_pings: int = 512, workers: int | None = None,
+                  scheduler: str | None = None, client=None, **simulate_kwargs) -> Record:
+    """What :func:`~sonar_embree.simulate` returns, rendered block by block on Dask worker processes.
+
+    The one-shot counterpart of :func:`render_line` (``sonar-embree render --workers``): blocks of
+    ``block_pings`` pings are simulated with their ``ping_offset`` on the workers and joined in ping order
+    (:meth:`Record.concatenate`), so the data, labels and altitudes have the bits of one ``simulate`` call; only
+    ``attrs["rays_per_ping"]``, a mean over blocks, may differ in its last digits. The whole record is held here.
+
+    Parameters
+    ----------
+    scene, trajectory, sonar, pulse
+        As :func:`~sonar_embree.simulate`.
+    block_pings : int
+        Pings per task.
+    workers, scheduler, client
+        One of: a LocalCluster of ``workers`` single-threaded processes (default: the CPU count, at most 8), a
+        running scheduler's address, or a ``distributed.Client``.
+    **simulate_kwargs
+        As :func:`~sonar_embree.simulate` (not ``ping_offset``; ``progress`` shows a bar over the pings here).
+    """
+    _checked_cluster(workers, scheduler, client, "render_record")
+    if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
+        raise ConfigError(f"render_record: block_pings must be an integer >= 1, got {block_pings!r}")
+    if "ping_offset" in simulate_kwargs:
+        raise ConfigError("render_record: ping_offset is set per block here; render a piece with simulate()")
+    bar = pings_bar(bool(simulate_kwargs.pop("progress", False)), len(trajectory))
+    simulate_kwargs = _one_clock(simulate_kwargs, trajectory)
+    n, block = len(trajectory), int(block_pings)
+    with client_for(client, scheduler, workers, what="render_record") as c:
+        shared = c.scatter(scene, broadcast=True)
+        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs))
+                 for a in range(0, n, block))
+        parts = []
+        for rec in in_order(c, render_block, calls, 2 * threads_of(c) + 1, "sonar-embree-render"):
+            parts.append(rec)
+            if bar is not None:
+                bar.update(rec.n_pings)
+    if bar is not None:
+        bar.close()
+    return Record.concatenate(parts)
 
 
 def _run_blocks_on_cluster(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,

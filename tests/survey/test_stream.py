@@ -310,6 +310,66 @@ def test_a_line_on_two_worker_processes_gives_the_same_bytes_and_resumes(tmp_pat
     assert (cut / "l.xtf").read_bytes() == (here / "l.xtf").read_bytes()
 
 
+def test_a_whole_record_on_two_worker_processes_has_simulates_bits():
+    """render_record: blocks of 7 pings on two worker processes, joined in ping order, equal one simulate() call
+    (speckle, labels and the complex signal on): data, altitudes, the complex signal and every label array."""
+    kw = dict(speckle=True, labels=True, seed=4, start_time=START, keep_complex=True)
+    one = se.simulate(_scene(), LINE, SONAR, **kw)
+    split = stream.render_record(_scene(), LINE, SONAR, block_pings=7, workers=2, **kw)
+    for name in ("data", "altitude_m", "complex_data", "time_s"):
+        assert np.array_equal(getattr(split, name), getattr(one, name)), name
+    assert np.array_equal(split.trajectory.positions_m, one.trajectory.positions_m)
+    for k, v in vars(one.labels).items():
+        if isinstance(v, np.ndarray):
+            assert np.array_equal(getattr(split.labels, k), v, equal_nan=True), k
+    assert split.attrs["rays_per_ping"] == pytest.approx(one.attrs["rays_per_ping"], rel=1e-12)
+
+
+def test_render_record_refuses_bad_options():
+    with pytest.raises(se.ConfigError, match="render_record: workers must be an integer >= 1, got 0"):
+        stream.render_record(_scene(), LINE, SONAR, workers=0)
+    with pytest.raises(se.ConfigError, match="render_record: give one of workers, scheduler and client"):
+        stream.render_record(_scene(), LINE, SONAR, workers=2, scheduler="tcp://127.0.0.1:1")
+    with pytest.raises(se.ConfigError, match="render_record: block_pings must be an integer >= 1, got 0"):
+        stream.render_record(_scene(), LINE, SONAR, block_pings=0, workers=2)
+    with pytest.raises(se.ConfigError, match="ping_offset is set per block"):
+        stream.render_record(_scene(), LINE, SONAR, workers=2, ping_offset=3)
+
+
+def _xtf_seconds(path):
+    import pyxtf
+
+    _, packets = pyxtf.xtf_read(str(path))
+    return np.array([q.Hour * 3600 + q.Minute * 60 + q.Second + q.HSeconds / 100.0
+                     for q in packets[pyxtf.XTFHeaderType.sonar]])
+
+
+def test_a_line_without_a_start_time_keeps_one_clock_across_blocks_and_a_resume(tmp_path, monkeypatch):
+    """No start time given: every block's pings count from one start (the XTF's ping times step as the
+    trajectory's, never by the time a block took to render), a resumed line's too. ``simulate``'s own "now" is
+    made to move an hour per call, as it would move on between blocks."""
+    sim = sys.modules["sonar_embree.simulate"]
+    real, hours = sim.iso_utc, iter(range(1, 24))
+    moving = lambda v=None: real(v) if v is not None else f"2026-05-01T{next(hours):02d}:00:00Z"  # noqa: E731
+    monkeypatch.setattr(sim, "iso_utc", moving)
+    step = np.diff(LINE.times_s)
+    se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf", block_pings=8)
+    np.testing.assert_allclose(np.diff(_xtf_seconds(tmp_path / "a.xtf")), step, atol=0.011)
+    saved = stream._save_progress
+
+    def dies(path, progress):
+        if progress["pings_done"] == 16:
+            raise _Killed
+        saved(path, progress)
+    monkeypatch.setattr(stream, "_save_progress", dies)
+    with pytest.raises(_Killed):
+        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", block_pings=8)
+    monkeypatch.setattr(stream, "_save_progress", saved)
+    monkeypatch.setattr(stream, "iso_utc", lambda v=None: real(v) if v is not None else "2026-05-02T00:00:00Z")
+    se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", block_pings=8)
+    np.testing.assert_allclose(np.diff(_xtf_seconds(tmp_path / "b.xtf")), step, atol=0.011)
+
+
 def test_where_a_line_runs_by_default_and_bad_cluster_options(monkeypatch):
     """In this process below AUTO_MIN_PINGS pings or AUTO_MIN_BLOCKS blocks left or AUTO_MIN_CPUS CPUs, on worker
     processes above; workers=1 keeps it here; a scheduler or a client sends it out; one option at most."""
