@@ -11,10 +11,11 @@ are float32, taken from the float32 vertices the ray test uses, so they hold the
 The traversal (:func:`first_hit`) is written once, as functions that Numba compiles for whichever target calls
 them (``register_jitable``): :func:`traverse_cpu` runs it on the CPU threads, :func:`cuda_traverse` on a GPU
 (compiled on first use, so that nothing loads ``numba.cuda`` unless a CUDA caster is made). The device code
-uses no float64 and no builtin min/max (numba 0.68's CUDA target does not compile them). Its ray test is
-Möller–Trumbore (T. Möller and B. Trumbore, "Fast, minimum storage ray-triangle intersection", Journal of
-Graphics Tools 2(1), 21–28, 1997) in float32 with a barycentric slack of :data:`EDGE_SLACK`, so that a ray
-through an edge shared by two triangles hits one of them rather than slipping between.
+uses no builtin min/max (numba 0.68's CUDA target does not compile them). The boxes are tested in float32; the
+ray test is Möller–Trumbore (T. Möller and B. Trumbore, "Fast, minimum storage ray-triangle intersection",
+Journal of Graphics Tools 2(1), 21–28, 1997) in float64 on the float32 vertices, with a barycentric slack of
+:data:`EDGE_SLACK`, so that a ray through an edge shared by two triangles hits one of them rather than slipping
+between.
 """
 from __future__ import annotations
 
@@ -28,8 +29,13 @@ from ._numba import cuda_module, njit, prange, register_jitable
 #: Nodes a traversal can hold pending: at most one per level and the root; the depth is at most 62 (30 code
 #: bits, 32 index bits).
 STACK_DEPTH = 96
-#: Barycentric slack of the float32 ray test (dimensionless): shared edges do not leak.
-EDGE_SLACK = np.float32(1e-6)
+#: Barycentric slack of the ray–triangle test (float64, dimensionless): a ray through an edge shared by two triangles
+#: hits one of them. In float32 the test erred by several 10⁻⁶ for a ray 40 m from a 1 m triangle (3 rays in
+#: 200 000 slipped through the demo's floor); in float64 on the float32 vertices it errs by ~10⁻¹⁵.
+EDGE_SLACK = 1e-9
+#: Relative slack on a box's exit distance: float32 rounding of (lo − o)/d must not cull a box the ray grazes
+#: (Ize 2013, "Robust BVH ray traversal", takes 1 + 2γ₃; this is 14 times that).
+BOX_SLACK = np.float32(1e-5)
 _F0, _F1, _TINY = np.float32(0.0), np.float32(1.0), np.float32(1e-30)
 
 
@@ -212,28 +218,38 @@ def _box_entry(box, node, ox, oy, oz, ix, iy, iz, t_best):
     a1, b1 = _slab(oy, iy, box[node, 1], box[node, 4])
     a2, b2 = _slab(oz, iz, box[node, 2], box[node, 5])
     t_in = _larger(_larger(a0, a1), _larger(a2, _F0))
-    t_out = _smaller(_smaller(b0, b1), _smaller(b2, t_best))
+    t_out = _smaller(_smaller(b0, b1), b2) * (_F1 + BOX_SLACK)
+    t_out = _smaller(t_out, t_best * (_F1 + BOX_SLACK))
     return t_in if t_in <= t_out else np.float32(-1.0)
 
 
 @register_jitable
-def _triangle(tri, v0, e1, e2, k, ox, oy, oz, dx, dy, dz, t_best):
-    """Möller–Trumbore on triangle ``tri[k]``: the hit distance, or −1 for no hit nearer than ``t_best``."""
+def _triangle(tri, v0, v1, v2, k, ox, oy, oz, dx, dy, dz, t_best):
+    """Möller–Trumbore on triangle ``tri[k]`` in float64: the hit distance (float32), or −1 for no hit nearer
+    than ``t_best``.
+
+    The float32 vertices and ray are widened to float64, where their differences are exact: the two triangles of a
+    shared edge see the same edge, and the barycentric tests err by ~10⁻¹⁵, far inside :data:`EDGE_SLACK`.
+    """
     f = tri[k]
-    px, py, pz = dy * e2[f, 2] - dz * e2[f, 1], dz * e2[f, 0] - dx * e2[f, 2], dx * e2[f, 1] - dy * e2[f, 0]
-    det = e1[f, 0] * px + e1[f, 1] * py + e1[f, 2] * pz
-    if det == _F0:
+    ax, ay, az = np.float64(v0[f, 0]), np.float64(v0[f, 1]), np.float64(v0[f, 2])
+    e1x, e1y, e1z = np.float64(v1[f, 0]) - ax, np.float64(v1[f, 1]) - ay, np.float64(v1[f, 2]) - az
+    e2x, e2y, e2z = np.float64(v2[f, 0]) - ax, np.float64(v2[f, 1]) - ay, np.float64(v2[f, 2]) - az
+    rx, ry, rz = np.float64(dx), np.float64(dy), np.float64(dz)
+    px, py, pz = ry * e2z - rz * e2y, rz * e2x - rx * e2z, rx * e2y - ry * e2x
+    det = e1x * px + e1y * py + e1z * pz
+    if det == 0.0:
         return np.float32(-1.0)
-    inv = _F1 / det
-    sx, sy, sz = ox - v0[f, 0], oy - v0[f, 1], oz - v0[f, 2]
+    inv = 1.0 / det
+    sx, sy, sz = np.float64(ox) - ax, np.float64(oy) - ay, np.float64(oz) - az
     u = (sx * px + sy * py + sz * pz) * inv
-    if u < -EDGE_SLACK or u > _F1 + EDGE_SLACK:
+    if u < -EDGE_SLACK or u > 1.0 + EDGE_SLACK:
         return np.float32(-1.0)
-    qx, qy, qz = sy * e1[f, 2] - sz * e1[f, 1], sz * e1[f, 0] - sx * e1[f, 2], sx * e1[f, 1] - sy * e1[f, 0]
-    v = (dx * qx + dy * qy + dz * qz) * inv
-    if v < -EDGE_SLACK or u + v > _F1 + EDGE_SLACK:
+    qx, qy, qz = sy * e1z - sz * e1y, sz * e1x - sx * e1z, sx * e1y - sy * e1x
+    v = (rx * qx + ry * qy + rz * qz) * inv
+    if v < -EDGE_SLACK or u + v > 1.0 + EDGE_SLACK:
         return np.float32(-1.0)
-    t = (e2[f, 0] * qx + e2[f, 1] * qy + e2[f, 2] * qz) * inv
+    t = np.float32((e2x * qx + e2y * qy + e2z * qz) * inv)
     return t if _F0 <= t <= t_best else np.float32(-1.0)
 
 
@@ -244,10 +260,10 @@ def _inverse(d):
 
 
 @register_jitable
-def first_hit(box, child, tri, v0, e1, e2, ox, oy, oz, dx, dy, dz, t_max, stack):
+def first_hit(box, child, tri, v0, v1, v2, ox, oy, oz, dx, dy, dz, t_max, stack):
     """The nearest triangle hit within ``t_max`` along one ray: (sorted-leaf triangle index or −1, distance).
 
-    ``stack``: (:data:`STACK_DEPTH`,) int32 scratch. All arithmetic in float32.
+    ``stack``: (:data:`STACK_DEPTH`,) int32 scratch. Boxes in float32, the triangle test in float64.
     """
     n_int = child.shape[0]
     ix, iy, iz = _inverse(dx), _inverse(dy), _inverse(dz)
@@ -260,7 +276,7 @@ def first_hit(box, child, tri, v0, e1, e2, ox, oy, oz, dx, dy, dz, t_max, stack)
         if _box_entry(box, node, ox, oy, oz, ix, iy, iz, t_best) < _F0:
             continue
         if node >= n_int:
-            t = _triangle(tri, v0, e1, e2, node - n_int, ox, oy, oz, dx, dy, dz, t_best)
+            t = _triangle(tri, v0, v1, v2, node - n_int, ox, oy, oz, dx, dy, dz, t_best)
             if t >= _F0 and (t < t_best or best < 0):
                 best, t_best = tri[node - n_int], t
         else:                                  # depth ≤ 62 (30 code bits, 32 index bits): the stack never fills
@@ -271,7 +287,7 @@ def first_hit(box, child, tri, v0, e1, e2, ox, oy, oz, dx, dy, dz, t_max, stack)
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def traverse_cpu(box, child, tri, v0, e1, e2, origins, dirs, t_max, prim, tfar):
+def traverse_cpu(box, child, tri, v0, v1, v2, origins, dirs, t_max, prim, tfar):
     """First hits of every ray through the BVH on the CPU threads (the GPU kernel's twin, same code).
 
     Parameters
@@ -279,8 +295,8 @@ def traverse_cpu(box, child, tri, v0, e1, e2, origins, dirs, t_max, prim, tfar):
     box, child : the BVH (:func:`lbvh_boxes`, :func:`lbvh_children`)
     tri : (n,) int32
         Triangle of each sorted leaf.
-    v0, e1, e2 : (n_faces, 3) float32
-        First vertex and edges of every triangle, m.
+    v0, v1, v2 : (n_faces, 3) float32
+        The vertices of every triangle, m.
     origins, dirs : (m, 3) float32
         Rays.
     t_max : float32
@@ -291,17 +307,17 @@ def traverse_cpu(box, child, tri, v0, e1, e2, origins, dirs, t_max, prim, tfar):
     """
     for i in prange(origins.shape[0]):
         stack = np.empty(STACK_DEPTH, dtype=np.int32)
-        prim[i], tfar[i] = first_hit(box, child, tri, v0, e1, e2, origins[i, 0], origins[i, 1], origins[i, 2],
+        prim[i], tfar[i] = first_hit(box, child, tri, v0, v1, v2, origins[i, 0], origins[i, 1], origins[i, 2],
                                           dirs[i, 0], dirs[i, 1], dirs[i, 2], t_max, stack)
 
 
-def _traverse_one_ray(box, child, tri, v0, e1, e2, origins, dirs, t_max, prim, tfar):
+def _traverse_one_ray(box, child, tri, v0, v1, v2, origins, dirs, t_max, prim, tfar):
     """The GPU kernel's body: one ray per thread, its first hit through the BVH (arguments as
     :func:`traverse_cpu`); ``cuda`` is this module's global, so that numba's simulator can stand in for it."""
     i = cuda.grid(1)
     if i < origins.shape[0]:
         stack = cuda.local.array(STACK_DEPTH, dtype=np.int32)
-        p, t = first_hit(box, child, tri, v0, e1, e2, origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0],
+        p, t = first_hit(box, child, tri, v0, v1, v2, origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0],
                          dirs[i, 1], dirs[i, 2], t_max, stack)
         prim[i] = p
         tfar[i] = t
@@ -313,7 +329,7 @@ cuda = None
 
 @functools.lru_cache(maxsize=1)
 def cuda_traverse():
-    """The GPU kernel ``traverse[blocks, threads](box, child, tri, v0, e1, e2, origins, dirs, t_max, prim, tfar)``
+    """The GPU kernel ``traverse[blocks, threads](box, child, tri, v0, v1, v2, origins, dirs, t_max, prim, tfar)``
     (arguments as :func:`traverse_cpu`), compiled by ``numba.cuda`` on first use."""
     global cuda
     cuda = cuda_module()
@@ -326,7 +342,7 @@ class DeviceBvh:
     Parameters
     ----------
     arrays : tuple
-        (box, child, tri, v0, e1, e2) as :func:`traverse_cpu` takes them.
+        (box, child, tri, v0, v1, v2) as :func:`traverse_cpu` takes them.
     """
 
     def __init__(self, arrays: tuple, threads: int = 128):

@@ -22,9 +22,8 @@ def build_bvh(compiled: CompiledScene) -> tuple:
     Returns
     -------
     tuple
-        (box (2n − 1, 6) float32, child (n − 1, 2) int32, tri (n,) int32, v0, e1, e2 (n, 3) float32): node boxes,
-        children, the triangle of each sorted leaf, and every triangle's first vertex and edges in the local
-        frame, m.
+        (box (2n − 1, 6) float32, child (n − 1, 2) int32, tri (n,) int32, v0, v1, v2 (n, 3) float32): node
+        boxes, children, the triangle of each sorted leaf, and every triangle's vertices in the local frame, m.
     """
     v = np.asarray(compiled.vertices, dtype=np.float32)
     f = np.asarray(compiled.faces, dtype=np.int64)
@@ -39,9 +38,7 @@ def build_bvh(compiled: CompiledScene) -> tuple:
     kernels.lbvh_children(np.ascontiguousarray(codes[order]), child)
     box = np.empty((2 * f.shape[0] - 1, 6), dtype=np.float32)
     kernels.lbvh_boxes(child, np.ascontiguousarray(lo[order]), np.ascontiguousarray(hi[order]), box)
-    v0 = np.ascontiguousarray(corners[:, 0])
-    return (box, child, order.astype(np.int32), v0, np.ascontiguousarray(corners[:, 1] - v0),
-            np.ascontiguousarray(corners[:, 2] - v0))
+    return (box, child, order.astype(np.int32), *(np.ascontiguousarray(corners[:, k]) for k in range(3)))
 
 
 class BvhCaster(Caster):
