@@ -17,6 +17,7 @@ from ..io.files import STALE_PREFIXES
 from .. import assets
 from ..config import FanSettings
 from ..config import SignalChain
+from ..raycast import BvhCaster, CudaCaster, EmbreeCaster
 from ..simulate import simulate
 from ..survey.stream import render_record
 from .runconfig import load_run_config
@@ -254,7 +255,13 @@ def _add_chain_options(p):
                    help="time of the first ping, e.g. 2026-05-01T09:30:00Z (default: now); in the record, XTF and Zarr")
     p.add_argument("--quality", type=float, metavar="Q",
                    help="ray density, trading error for speed (overrides [fan] quality; default 1)")
+    p.add_argument("--caster", choices=tuple(CASTERS), default="embree",
+                   help="ray caster: embree (default), bvh (the project's BVH on the CPU), cuda (the same on a CUDA "
+                        "GPU, through numba.cuda)")
 
+
+#: The ray casters ``--caster`` names (docs/physics.md §8b).
+CASTERS = {"embree": EmbreeCaster, "bvh": BvhCaster, "cuda": CudaCaster}
 
 _CHAIN_FLAGS = ("speckle", "band", "detection", "matched_filter", "tvg", "noise_db_per_hz", "lowpass_hz", "seed")
 
@@ -313,7 +320,7 @@ def _run(args) -> list:
         _check_output_folder(args.output, args.overwrite)
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
         rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress,
-                       start_time=args.start_time)
+                       start_time=args.start_time, caster=CASTERS[args.caster])
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(DEMO_ORIGIN_DEG)})
         return registry.write_set(rec, args.output, ("npz", "png", "xtf"), registry.WriteOptions(DEMO_PNG))
 
@@ -323,7 +330,7 @@ def _run(args) -> list:
     if not o.formats():
         raise SonarEmbreeError(f"{args.config}: [output] every format is false; nothing to write")
     kw = dict(chain=_chain(args, cfg.chain), fan=_fan(args, cfg.fan), progress=not args.no_progress,
-              start_time=args.start_time, labels=o.needs_labels())
+              start_time=args.start_time, labels=o.needs_labels(), caster=CASTERS[args.caster])
     if (args.workers or 1) > 1 or args.scheduler is not None:   # the blocks on Dask workers, joined here
         rec = render_record(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, workers=args.workers,
                             scheduler=args.scheduler, **kw)
