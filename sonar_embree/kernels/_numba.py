@@ -49,6 +49,11 @@ def num_threads() -> int:
     return int(numba.get_num_threads())
 
 
+def max_threads() -> int:
+    """The most threads Numba's kernels may run on in this process (``NUMBA_NUM_THREADS``)."""
+    return int(numba.config.NUMBA_NUM_THREADS)
+
+
 def set_num_threads(n: int) -> None:
     """Run Numba's parallel kernels on ``n`` threads from now on (at most ``NUMBA_NUM_THREADS``)."""
     numba.set_num_threads(int(n))

@@ -23,22 +23,29 @@ class EmbreeCaster(Caster):
     """An Embree BVH of a :class:`CompiledScene`, built once and cast many times."""
 
     def __init__(self, compiled: CompiledScene, threads: int | None = None):
-        """Build the BVH. ``threads``: Embree calls in parallel per batch (default: the threads of Numba's kernels,
-        the CPU count unless ``NUMBA_NUM_THREADS`` says less: a single-threaded worker process casts on one)."""
+        """Build the BVH. ``threads``: Embree calls in parallel per batch (default: the threads Numba's kernels run
+        on at each call, ``kernels.set_num_threads``, so that the caster a scene keeps follows a later change of
+        it; a single-threaded worker process casts on one)."""
         self.compiled = compiled
         self._scene = rtcs.EmbreeScene()
         TriangleMesh(self._scene, compiled.vertices.astype(np.float32),
                      compiled.faces.astype(np.int32))
-        self.threads = max(int(threads if threads is not None else kernels.num_threads()), 1)
-        self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
+        self._fixed = None if threads is None else max(int(threads), 1)
+        size = self._fixed if self._fixed is not None else kernels.max_threads()
+        self._pool = ThreadPoolExecutor(size) if size > 1 else None
         one = np.zeros((1, 3), dtype=np.float32)
         self._scene.run(one, one + np.float32([0, 0, 1]), dists=np.ones(1, np.float32), output=0)  # build the BVH now
 
+    @property
+    def threads(self) -> int:
+        """Embree calls in parallel per batch now: the fixed count, or Numba's current thread count."""
+        return self._fixed if self._fixed is not None else kernels.num_threads()
+
     def _run(self, origins_f32, directions_f32, dists_f32, output: int | None, query: str = "INTERSECT"):
-        n = directions_f32.shape[0]
-        if self._pool is None or n < THREADED_MIN_RAYS:
+        n, threads = directions_f32.shape[0], self.threads
+        if self._pool is None or threads < 2 or n < THREADED_MIN_RAYS:
             return self._scene.run(origins_f32, directions_f32, dists=dists_f32, query=query, output=output)
-        cuts = np.linspace(0, n, self.threads + 1).astype(int)  # each ray is independent: same bits for any split
+        cuts = np.linspace(0, n, threads + 1).astype(int)  # each ray is independent: same bits for any split
         parts = list(self._pool.map(
             lambda ab: self._scene.run(origins_f32[ab[0]:ab[1]], directions_f32[ab[0]:ab[1]],
                                        dists=dists_f32[ab[0]:ab[1]], query=query, output=output),

@@ -100,3 +100,20 @@ def test_empty_range_window_gives_zero_record(mode):
         se.simulate(flat_scene(), traj, se.Sonar(max_range_m=50), **mode)
     rec = se.simulate(flat_scene().add(decoy_above(traj), label="decoy"), traj, se.Sonar(max_range_m=50), **mode)
     assert np.all(rec.port == 0) and np.all(rec.starboard == 0) and np.all(np.isnan(rec.altitude_m))
+
+
+def test_the_default_embree_caster_follows_numbas_thread_count():
+    """A scene keeps its caster between runs: one built on two threads casts on one once Numba is set to one
+    (bench_scale's "one thread" had cast on two), and a count given when it was built stays."""
+    from sonar_embree import kernels
+
+    caster, c = _caster(se.seafloor.flat((10, 10)))
+    was = kernels.num_threads()
+    try:
+        kernels.set_num_threads(1)
+        assert caster.threads == 1
+        kernels.set_num_threads(kernels.max_threads())
+        assert caster.threads == kernels.max_threads()
+    finally:
+        kernels.set_num_threads(was)
+    assert RayCaster(c, threads=3).threads == 3
