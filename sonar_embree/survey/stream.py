@@ -420,18 +420,19 @@ def render_record(scene, trajectory, sonar=None, pulse=None, *, block_pings: int
         raise ConfigError("render_record: ping_offset is set per block here; render a piece with simulate()")
     bar = pings_bar(bool(simulate_kwargs.pop("progress", False)), len(trajectory))
     simulate_kwargs = _one_clock(simulate_kwargs, trajectory)
-    n, block = len(trajectory), int(block_pings)
-    with client_for(client, scheduler, workers, what="render_record") as c:
-        shared = c.scatter(scene, broadcast=True)
-        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs))
-                 for a in range(0, n, block))
-        parts = []
-        for rec in in_order(c, render_block, calls, 2 * threads_of(c) + 1, "sonar-embree-render"):
-            parts.append(rec)
-            if bar is not None:
-                bar.update(rec.n_pings)
-    if bar is not None:
-        bar.close()
+    n, block, parts = len(trajectory), int(block_pings), []
+    try:
+        with client_for(client, scheduler, workers, what="render_record") as c:
+            shared = c.scatter(scene, broadcast=True)
+            calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs))
+                     for a in range(0, n, block))
+            for rec in in_order(c, render_block, calls, 2 * threads_of(c) + 1, "sonar-embree-render"):
+                parts.append(rec)
+                if bar is not None:
+                    bar.update(rec.n_pings)
+    finally:
+        if bar is not None:
+            bar.close()
     return Record.concatenate(parts)
 
 
