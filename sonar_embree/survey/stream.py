@@ -363,8 +363,9 @@ PNG_MAX_ROWS = 8192
 
 #: A line is rendered on worker processes by default from this many pings and blocks left, on a machine of this many
 #: CPUs (render_line ``workers``). One process's threads saturate at 4–5× a single thread (issue 37's measurement
-#: on 16 cores: 3.7× on 8), while on 2 CPUs two worker processes render fewer pings per second than two threads
-#: (scripts/bench_scale.py, docs/benchmarks.md): below 8 CPUs threads stay the default.
+#: on 16 cores: 3.7× on 8). On 2 CPUs two workers, once running, beat two threads (310–343 against 248–258
+#: pings/s speckle-free), but their start (cluster, scene, a BVH each) costs seconds, so a 3072-ping line is still
+#: faster on threads (scripts/bench_scale.py, docs/benchmarks.md): below 8 CPUs threads stay the default.
 AUTO_MIN_PINGS, AUTO_MIN_BLOCKS, AUTO_MIN_CPUS = 4096, 4, 8
 
 
