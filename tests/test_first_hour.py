@@ -107,15 +107,18 @@ def test_local_cluster_serves_no_dashboard():
         assert err.value.code == 404  # nothing is served, not even the status page
 
 
-def test_local_workers_start_with_one_thread_and_glibcs_own_malloc_thresholds():
+def test_local_workers_start_with_one_thread_and_glibcs_own_malloc_thresholds(monkeypatch):
     """One Numba thread per worker, and no ``MALLOC_TRIM_THRESHOLD_`` (Dask's default sets it, which makes every
-    block's arrays fresh mmaps that fault in page by page: 20–45 % of a worker's ping, docs/benchmarks.md)."""
+    block's arrays fresh mmaps that fault in page by page: 20–45 % of a worker's ping, docs/benchmarks.md), even
+    where an earlier Dask cluster left it set in this process, as a Nanny does before it spawns."""
     from sonar_embree.survey.cluster import client_for
 
+    monkeypatch.setenv("MALLOC_TRIM_THRESHOLD_", "65536")
     with client_for(None, None, 1, None) as client:
         env = next(iter(client.run(lambda: {k: os.environ.get(k) for k in (
             "NUMBA_NUM_THREADS", "MALLOC_TRIM_THRESHOLD_", "OPENBLAS_NUM_THREADS")}).values()))
     assert env == {"NUMBA_NUM_THREADS": "1", "MALLOC_TRIM_THRESHOLD_": None, "OPENBLAS_NUM_THREADS": "1"}
+    assert os.environ["MALLOC_TRIM_THRESHOLD_"] == "65536"                  # this process's own is left as it was
 
 
 def test_back_pressure_bounds_the_tasks_in_flight(multi_sweep, tmp_path):

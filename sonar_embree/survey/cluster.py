@@ -22,6 +22,7 @@ WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 #: array of every block is a fresh mmap whose pages fault in on first touch: a worker's ping cost 7.0 ms against
 #: 5.9 ms in process, and two workers side by side 8.1–9.3 ms each; without it 6.3 ms (docs/benchmarks.md).
 PRE_SPAWN = {"OMP_NUM_THREADS": 1, "MKL_NUM_THREADS": 1, "OPENBLAS_NUM_THREADS": 1}
+MALLOC_TRIM = "MALLOC_TRIM_THRESHOLD_"
 
 
 def default_workers() -> int:
@@ -53,12 +54,24 @@ def client_for(client=None, scheduler: str | None = None, workers: int | None = 
     http = {} if dashboard else {"dashboard": False, "dashboard_address": "127.0.0.1:0"}
     with dask.config.set({"distributed.scheduler.http.routes": [] if not dashboard else
                           dask.config.get("distributed.scheduler.http.routes"),
-                          "distributed.nanny.pre-spawn-environ": PRE_SPAWN}):
+                          "distributed.nanny.pre-spawn-environ": PRE_SPAWN}), _without_env(MALLOC_TRIM):
         cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
                                dashboard_address=dashboard, silence_logs=logging.ERROR, scheduler_kwargs=http,
                                env=dict(WORKER_ENV))
     with cluster, Client(cluster) as own:
         yield own
+
+
+@contextlib.contextmanager
+def _without_env(name: str):
+    """This process's environment without ``name`` while workers are spawned (they inherit it): an earlier Dask
+    cluster in this process leaves ``MALLOC_TRIM_THRESHOLD_`` set here, a Nanny setting it before it spawns."""
+    saved = os.environ.pop(name, None)
+    try:
+        yield
+    finally:
+        if saved is not None:
+            os.environ[name] = saved
 
 
 def lazy_zeros(shape, dtype, chunks):
