@@ -90,8 +90,8 @@ def _row_density(beta, r, dr_target, max_step, slope_cap, empty_factor, edge_fac
 def elevation_density(beta, r, dr_target, max_step, slope_cap, empty_factor, edge_factor, out):
     """Rays per radian wanted in each probe cell of every probe line, from the probed slant ranges.
 
-    The rules, per line (:func:`sonar_embree.instrument.beam.elevation_density`, its NumPy twin in
-    ``tests/naive.py``): |dR/dβ| by finite differences; a cell four times steeper than both neighbours is a range
+    Called through :func:`sonar_embree.instrument.beam.elevation_density`; its NumPy twin is in ``tests/naive.py``.
+    The rules, per line: |dR/dβ| by finite differences; a cell four times steeper than both neighbours is a range
     jump and takes their slope, as does a cell with one end out of range; the slope is capped at ``slope_cap``;
     the density is at least 1/``max_step`` near anything in range (1/(``empty_factor``·``max_step``) elsewhere) and
     ``edge_factor``/``max_step`` at and beside jumps and silhouettes.
