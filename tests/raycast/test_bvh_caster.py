@@ -63,6 +63,23 @@ def test_the_linear_bvh_is_the_radix_tree_of_its_keys(rng, n, spread):
     assert _kernel_tree(child, 0, n) == _recursive_tree(keys, 0, n - 1)
 
 
+def test_morton_codes_interleave_the_quantised_box_centres(rng):
+    """kernels.morton_codes against its twin: each box centre quantised to 10 bits per axis in the mesh's bounds,
+    the bits of x, y and z interleaved one by one (x highest), written out bit by bit here."""
+    lo = rng.uniform(-50.0, 50.0, (300, 3)).astype(np.float32)
+    hi = lo + rng.uniform(0.0, 3.0, (300, 3)).astype(np.float32)
+    lo[:, 2] = hi[:, 2] = 1.5                                   # a flat axis: its coordinate is the middle, 512
+    got = np.empty(300, dtype=np.int64)
+    kernels.morton_codes(lo, hi, got)
+    b_lo, b_hi = lo.min(axis=0).astype(float), hi.max(axis=0).astype(float)
+    for i in range(300):
+        centre = 0.5 * (lo[i].astype(float) + hi[i].astype(float))
+        q = [min(max(int((centre[a] - b_lo[a]) / (b_hi[a] - b_lo[a]) * 1024.0), 0), 1023) if b_hi[a] > b_lo[a]
+             else 512 for a in range(3)]
+        want = sum(((q[a] >> bit) & 1) << (3 * bit + 2 - a) for bit in range(10) for a in range(3))
+        assert got[i] == want, i
+
+
 def test_boxes_hold_their_triangles_and_children(rng):
     c = _reference_scene(rng).compiled()
     box_, child, tri, v0, v1, v2 = build_bvh(c)
