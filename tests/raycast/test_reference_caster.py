@@ -4,7 +4,7 @@ import pytest
 
 import sonar_embree as se
 from conftest import box, flat_scene, line_along_x
-from sonar_embree.raycast import Caster, EmbreeCaster, NumpyCaster
+from sonar_embree.raycast import BvhCaster, Caster, EmbreeCaster, NumpyCaster
 
 
 def _scene(rng):
@@ -32,14 +32,16 @@ def test_reference_caster_agrees_with_embree_ray_by_ray(rng):
     np.testing.assert_array_equal(hn.object_id[same], he.object_id[same])
 
 
-def test_simulate_with_the_reference_caster_matches_embree():
-    """The whole pipeline through the reference caster: the flat floor and a box give the same record."""
+@pytest.mark.parametrize("cls", [NumpyCaster, BvhCaster], ids=["reference", "bvh"])
+def test_simulate_with_the_reference_caster_matches_embree(cls):
+    """The whole pipeline through the reference caster (and the project's BVH, the GPU caster's code on the CPU):
+    the flat floor and a box give the same record."""
     scene = flat_scene().add(box((1.0, 1.0, 1.0), (0.0, -14.0, 0.5)), label="box")
     traj = line_along_x(n_pings=2, length=0.2)
     sonar = se.Sonar(max_range_m=25.0)
     kw = dict(start_time="2000-01-01", quality=0.5, labels=True)
     a = se.simulate(scene, traj, sonar, caster=EmbreeCaster, **kw)
-    b = se.simulate(scene, traj, sonar, caster=NumpyCaster, **kw)
+    b = se.simulate(scene, traj, sonar, caster=cls, **kw)
     for x, y in ((a.port, b.port), (a.starboard, b.starboard)):
         assert x.max() > 0
         # float32 probe distances differ in the last bits between casters, so the rays sit a hair apart: a sample

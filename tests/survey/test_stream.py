@@ -54,6 +54,24 @@ class _Killed(Exception):
     pass
 
 
+def _render_killed_at(monkeypatch, pings_done, *args, **kw):
+    """``render_line(*args, **kw)`` killed just before it counts ``pings_done`` pings as done (that block's data
+    written, its progress not); the progress writer is restored after."""
+    saved = stream._save_progress
+
+    def dies(path, progress):
+        if progress["pings_done"] == pings_done:
+            raise _Killed
+        saved(path, progress)
+
+    monkeypatch.setattr(stream, "_save_progress", dies)
+    try:
+        with pytest.raises(_Killed):
+            se.stream.render_line(*args, **kw)
+    finally:
+        monkeypatch.setattr(stream, "_save_progress", saved)
+
+
 def test_killed_and_resumed_gives_the_same_bytes(tmp_path, monkeypatch):
     kw = dict(block_pings=8, xtf_path=None, start_time=START)
     whole = tmp_path / "whole.zarr"
@@ -86,17 +104,8 @@ def test_xtf_is_cut_back_on_resume(tmp_path, monkeypatch):
     for d in "ab":                                            # the same XTF name in two folders (ThisFileName)
         (tmp_path / d).mkdir()
     se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a" / "l.xtf", **kw)
-    saved = stream._save_progress
-
-    def dies(path, progress):
-        if progress["pings_done"] == 16:
-            raise _Killed
-        saved(path, progress)
-
-    monkeypatch.setattr(stream, "_save_progress", dies)
-    with pytest.raises(_Killed):
-        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b" / "l.xtf", **kw)
-    monkeypatch.undo()
+    _render_killed_at(monkeypatch, 16, _scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b" / "l.xtf",
+                      **kw)
     a_xtf, b_xtf = tmp_path / "a" / "l.xtf", tmp_path / "b" / "l.xtf"
     assert b_xtf.stat().st_size > a_xtf.stat().st_size * 16 / 30 - 1   # block 2 in
     se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=b_xtf, **kw)
@@ -162,18 +171,8 @@ def test_an_unrelated_xtf_survives(tmp_path):
 
 
 def _cut_after_two_blocks(tmp_path, monkeypatch, name):
-    saved = stream._save_progress
-
-    def dies(path, progress):
-        if progress["pings_done"] == 24:
-            raise _Killed
-        saved(path, progress)
-
-    monkeypatch.setattr(stream, "_save_progress", dies)
-    with pytest.raises(_Killed):
-        se.stream.render_line(_scene(), LINE, tmp_path / f"{name}.zarr", SONAR, xtf_path=tmp_path / f"{name}.xtf",
-                              block_pings=8, xtf_scale=1.0, start_time=START)
-    monkeypatch.undo()
+    _render_killed_at(monkeypatch, 24, _scene(), LINE, tmp_path / f"{name}.zarr", SONAR,
+                      xtf_path=tmp_path / f"{name}.xtf", block_pings=8, xtf_scale=1.0, start_time=START)
 
 
 def test_a_short_or_missing_xtf_is_refused_on_resume(tmp_path, monkeypatch):
@@ -295,16 +294,7 @@ def test_a_line_on_two_worker_processes_gives_the_same_bytes_and_resumes(tmp_pat
     assert (there / "l.xtf").read_bytes() == (here / "l.xtf").read_bytes()
     cut = tmp_path / "cut"
     cut.mkdir()
-    saved = stream._save_progress
-
-    def dies(path, progress):
-        if progress["pings_done"] == 24:
-            raise _Killed
-        saved(path, progress)
-    monkeypatch.setattr(stream, "_save_progress", dies)
-    with pytest.raises(_Killed):
-        se.stream.render_line(_scene(), LINE, cut / "l.zarr", SONAR, xtf_path=cut / "l.xtf", workers=1, **kw)
-    monkeypatch.undo()
+    _render_killed_at(monkeypatch, 24, _scene(), LINE, cut / "l.zarr", SONAR, xtf_path=cut / "l.xtf", workers=1, **kw)
     se.stream.render_line(_scene(), LINE, cut / "l.zarr", SONAR, xtf_path=cut / "l.xtf", workers=2, **kw)
     assert data(cut) == data(here)
     assert (cut / "l.xtf").read_bytes() == (here / "l.xtf").read_bytes()
@@ -355,16 +345,8 @@ def test_a_line_without_a_start_time_keeps_one_clock_across_blocks_and_a_resume(
     step = np.diff(LINE.times_s)
     se.stream.render_line(_scene(), LINE, tmp_path / "a.zarr", SONAR, xtf_path=tmp_path / "a.xtf", block_pings=8)
     np.testing.assert_allclose(np.diff(_xtf_seconds(tmp_path / "a.xtf")), step, atol=0.011)
-    saved = stream._save_progress
-
-    def dies(path, progress):
-        if progress["pings_done"] == 16:
-            raise _Killed
-        saved(path, progress)
-    monkeypatch.setattr(stream, "_save_progress", dies)
-    with pytest.raises(_Killed):
-        se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", block_pings=8)
-    monkeypatch.setattr(stream, "_save_progress", saved)
+    _render_killed_at(monkeypatch, 16, _scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf",
+                      block_pings=8)
     monkeypatch.setattr(stream, "iso_utc", lambda v=None: real(v) if v is not None else "2026-05-02T00:00:00Z")
     se.stream.render_line(_scene(), LINE, tmp_path / "b.zarr", SONAR, xtf_path=tmp_path / "b.xtf", block_pings=8)
     np.testing.assert_allclose(np.diff(_xtf_seconds(tmp_path / "b.xtf")), step, atol=0.011)
