@@ -268,9 +268,13 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
     _save_progress(path, progress)
 
 
-def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
+def _checked_block(block_pings, what: str) -> None:
     if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
-        raise ConfigError(f"render_line: block_pings must be an integer >= 1, got {block_pings!r}")
+        raise ConfigError(f"{what}: block_pings must be an integer >= 1, got {block_pings!r}")
+
+
+def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
+    _checked_block(block_pings, "render_line")
     for name, value in flags.items():
         check_bool("render_line", name, value)
     for key in ("ping_offset", "keep_complex"):
@@ -415,8 +419,7 @@ def render_record(scene, trajectory, sonar=None, pulse=None, *, block_pings: int
         As :func:`~sonar_embree.simulate` (not ``ping_offset``; ``progress`` shows a bar over the pings here).
     """
     _checked_cluster(workers, scheduler, client, "render_record")
-    if not isinstance(block_pings, (int, np.integer)) or isinstance(block_pings, bool) or block_pings < 1:
-        raise ConfigError(f"render_record: block_pings must be an integer >= 1, got {block_pings!r}")
+    _checked_block(block_pings, "render_record")
     if "ping_offset" in simulate_kwargs:
         raise ConfigError("render_record: ping_offset is set per block here; render a piece with simulate()")
     bar = pings_bar(bool(simulate_kwargs.pop("progress", False)), len(trajectory))
