@@ -21,6 +21,7 @@ kernels only for a scene that has them.
 from __future__ import annotations
 
 
+from .apl_uw import AplUw
 from .chapman_harris import ChapmanHarris
 from .composite import Composite, Summable
 from .kirchhoff import Kirchhoff
@@ -30,7 +31,8 @@ from .tabulated import Tabulated
 from .texture import KTexture
 
 #: The laws by the name a TOML ``scattering = { kind = "…", … }`` table gives.
-LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff, "tabulated": Tabulated, "chapman-harris": ChapmanHarris}
+LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff, "tabulated": Tabulated, "chapman-harris": ChapmanHarris,
+        "apl-uw": AplUw}
 
-__all__ = ["ChapmanHarris", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
+__all__ = ["AplUw", "ChapmanHarris", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
            "apply_laws", "law_table"]

@@ -33,25 +33,8 @@ import numpy as np
 
 from ..errors import ConfigError
 from . import Composite, Kirchhoff, Lambert
+from .apl_uw import apl_class, apl_density_ratio, apl_sound_speed_ratio
 from .composite import Summable
-
-
-def apl_density_ratio(mz_phi: float) -> float:
-    """APL-UW TR 9407 regression of the sediment/water density ratio on mean grain size Mz (φ), −1 ≤ Mz ≤ 9."""
-    if mz_phi < 1.0:
-        return 0.007797 * mz_phi ** 2 - 0.17057 * mz_phi + 2.3139
-    if mz_phi < 5.3:
-        return -0.0165406 * mz_phi ** 3 + 0.2290201 * mz_phi ** 2 - 1.1069031 * mz_phi + 3.0455
-    return -0.0012973 * mz_phi + 1.1565
-
-
-def apl_sound_speed_ratio(mz_phi: float) -> float:
-    """APL-UW TR 9407 regression of the sediment/water sound-speed ratio on mean grain size Mz (φ), −1 ≤ Mz ≤ 9."""
-    if mz_phi < 1.0:
-        return 0.002709 * mz_phi ** 2 - 0.056452 * mz_phi + 1.2778
-    if mz_phi < 5.3:
-        return -0.0014881 * mz_phi ** 3 + 0.0213937 * mz_phi ** 2 - 0.1382798 * mz_phi + 1.3425
-    return -0.0024324 * mz_phi + 1.0019
 
 
 @dataclass(frozen=True)
@@ -132,9 +115,12 @@ STEEL = Sediment("steel", -30.0, 7.7 / 1.026, 5900.0 / 1500.0, 0.02,
 PRESETS = {s.name: s for s in (MUD, SANDY_MUD, FINE_SAND, COARSE_SAND, GRAVEL, ROCK, CONCRETE, STEEL)}
 
 
-def preset(name: str) -> Sediment:
-    """The preset called ``name`` (spaces or underscores), a one-line error naming the choices otherwise."""
+def preset(name: str):
+    """The preset called ``name`` (spaces or underscores), a one-line error naming the choices otherwise;
+    ``"apl-uw <class>"`` is the APL-UW model's class (:func:`sonar_embree.laws.apl_uw.apl_class`)."""
     key = str(name).replace("_", " ").strip().lower()
+    if key.startswith("apl-uw "):
+        return apl_class(key[len("apl-uw "):])
     if key not in PRESETS:
         raise ConfigError(f"unknown sediment {name!r}; one of {sorted(PRESETS)}")
     return PRESETS[key]

@@ -32,7 +32,8 @@ from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..record import registry
 from ..laws import sediments
-from ..laws import LAWS, Composite, KTexture, Tabulated
+from ..laws import LAWS, AplUw, Composite, KTexture, Tabulated
+from ..laws.apl_uw import apl_class
 from ..laws.maps import BackscatterMap
 from ..scene import Scene, seafloor
 from ..sonars import MSIS, EchoSounder, ForwardLooking
@@ -289,11 +290,24 @@ def parse_law(law, source: str, where: str, base: str = ""):
             raise ConfigError(f"{source}: {where} terms must be a list of laws")
         return _build(source, where, Composite,
                       {"terms": [parse_law(t, source, f"{where} term #{i + 1}", base) for i, t in enumerate(terms)]})
+    if kind == "apl-uw" and ("sediment" in law or "mean_grain_size_phi" in law):
+        return _apl_uw(law, source, where)
     if kind == "tabulated" and "csv" in law:
         _check_keys(where, law, ("csv",), source)
         return _build(source, where, Tabulated.from_csv, {"path": _resolve(base, law["csv"])})
     _check_keys(where, law, field_names(LAWS[kind]), source)
     return _build(source, where, LAWS[kind], law)
+
+
+def _apl_uw(law: dict, source: str, where: str):
+    """``{ kind = "apl-uw", sediment = "fine sand" }`` or ``{ kind = "apl-uw", mean_grain_size_phi = 2.5, … }``
+    (the handbook's parameters at that grain size, any of them overridden)."""
+    if "sediment" in law:
+        _check_keys(where, law, ("sediment",), source)
+        return _build(source, where, apl_class, {"name": law["sediment"]})
+    _check_keys(where, law, field_names(AplUw), source)
+    mz = law.pop("mean_grain_size_phi")
+    return _build(source, where, lambda **kw: AplUw.from_grain_size(mz, **kw), law)
 
 
 def parse_material(table, source: str, where: str, base: str = "") -> Material:
