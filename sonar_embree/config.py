@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 
 from .instrument.devices import device
+from .instrument.directivity import membrane_directivity_index_db
 from .environment import Environment
 from .instrument.receiver import Receiver, receiver_of
 from .errors import ConfigError
@@ -195,12 +196,14 @@ class Sonar(Transducer):
 
     @property
     def directivity_index_db(self) -> float:
-        """Receiving directivity index DI = 10·log10(4π·lx·ly/λ²) of the baffled membrane, dB (docs/physics.md §14).
+        """Receiving directivity index DI = 10·log10(4π/∫ b² dΩ) of the baffled membrane, dB (docs/physics.md §14).
 
-        The large-aperture form for a rectangular piston in a baffle (R. J. Urick, *Principles of Underwater
-        Sound*, 3rd ed., McGraw-Hill, 1983, §3.6): 28.1 dB for the default 190 mm × 3.8 mm at 400 kHz.
+        The integral of the power pattern over the hemisphere (Urick 1983, §3.6;
+        :func:`sonar_embree.instrument.directivity.membrane_directivity_index_db`): 28.23 dB for the default
+        190 mm × 3.8 mm at 400 kHz, where the large-aperture 10·log10(4π·lx·ly/λ²) gives 28.10 dB.
         """
-        return 10.0 * math.log10(4.0 * math.pi * self.length_m * self.height_m / self.wavelength_m ** 2)
+        k = self.wavenumber_rad_m
+        return membrane_directivity_index_db(0.5 * k * self.length_m, 0.5 * k * self.height_m)
 
     @property
     def tilt_rad(self) -> float:

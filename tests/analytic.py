@@ -140,3 +140,25 @@ def sphere_quadrature(a, centre, positions, alpha_db_m, mu_db, n=240, gamma=side
         f = g ** 4 * 10 ** (mu_db / 10) * ci ** 2 * 10 ** (-2 * alpha_db_m * R / 10) / R ** 4 * dA
         out.append(f[lit].sum())
     return np.array(out)
+
+
+def directivity_index_db(pattern, n_theta=1200, n_phi=2048):
+    """DI = 10·log10(4π / ∫ b² dΩ) by brute quadrature in spherical angles about the boresight (docs/physics.md
+    §14): θ from the axis on Gauss–Legendre nodes over [0, π/2], φ on a uniform periodic grid (spectrally exact
+    for the periodic integrand). ``pattern(u, v)``: the one-way pressure b at direction cosines u = sin θ cos φ,
+    v = sin θ sin φ along the aperture's sides."""
+    x, w = np.polynomial.legendre.leggauss(n_theta)
+    theta, w = np.pi / 4 * (x + 1), np.pi / 4 * w
+    phi = 2 * np.pi * np.arange(n_phi) / n_phi
+    total = 0.0
+    for i in range(0, n_theta, 250):
+        st = np.sin(theta[i:i + 250])[:, None]
+        b = pattern(st * np.cos(phi), st * np.sin(phi))
+        total += float(np.sum(w[i:i + 250] * st[:, 0] * (b * b).sum(axis=1)) * 2 * np.pi / n_phi)
+    return 10 * np.log10(4 * np.pi / total)
+
+
+def membrane_pattern(length_m, height_m, wavelength_m):
+    """b(u, v) = sinc(k·lx/2·u)·sinc(k·ly/2·v) of a rectangular membrane (docs/physics.md §2)."""
+    a, b = np.pi * length_m / wavelength_m, np.pi * height_m / wavelength_m
+    return lambda u, v: np.sinc(a * u / np.pi) * np.sinc(b * v / np.pi)

@@ -5,7 +5,8 @@ References, typed independently of the simulator:
 - ambient noise (Coates 1990, as in Stojanovic 2007, eqs. 5–6), f in kHz, dB re 1 µPa²/Hz:
   turbulence 17 − 30 log f; shipping 40 + 20(s − 0.5) + 26 log f − 60 log(f + 0.03);
   wind 50 + 7.5 √w + 20 log f − 40 log(f + 0.4); thermal −15 + 20 log f; powers summed;
-- receiving directivity index of a baffled rectangular piston DI = 10 log10(4π lx ly / λ²) (Urick 1983, §3.6);
+- receiving directivity index DI = 10 log10(4π/∫ b² dΩ) of the baffled membrane's pattern, by the brute quadrature
+  of tests/analytic.py (Urick 1983, §3.6);
 - the receiver band of a complex-baseband record is its sample rate fs: noise power per sample N0·fs;
 - the reverberation form of the sonar equation for a flat floor and a rectangular pulse τ,
   RL = SL − 2TL + 10 log10(μ sin²θg) + 10 log10(A) + 40 log10 b_el(θ),
@@ -14,8 +15,10 @@ References, typed independently of the simulator:
 import dataclasses
 
 import numpy as np
+from scipy.special import j1
 import pytest
 
+import analytic
 import sonar_embree as se
 
 
@@ -54,7 +57,7 @@ def test_noise_only_samples_match_coates_times_band_minus_di(frequency_hz, wind)
     fs = rec.sonar.sample_rate_hz
     water = rec.time_s < 2 * 24.0 / 1500.0                                  # before any floor echo
     measured = 10 * np.log10(rec.data[:, :, water].mean())
-    di = 10 * np.log10(4 * np.pi * 50 * lam * lam / lam ** 2)
+    di = analytic.directivity_index_db(analytic.membrane_pattern(50 * lam, lam, lam))
     expected = coates_db(frequency_hz, wind) - di + 10 * np.log10(fs)
     assert measured == pytest.approx(expected, abs=0.3)
     assert rec.attrs["intensity_unit"] == "uPa^2"
@@ -90,7 +93,8 @@ def test_floor_snr_at_40_m_matches_the_sonar_equation():
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, h), (0.2, 0, h), 2).stop_and_hop(), sonar,
                       se.Pulse.cw(duration_s=tau, taper=0.0), start_time="2000-01-01")
     fs, c, alpha = rec.sonar.sample_rate_hz, 1500.0, rec.sonar.alpha_db_per_m
-    noise = 10 ** ((coates_db(400e3, 10.0) - 10 * np.log10(4 * np.pi * 0.19 * 0.0038 / 0.00375 ** 2)) / 10)
+    noise = 10 ** ((coates_db(400e3, 10.0) - analytic.directivity_index_db(analytic.membrane_pattern(0.19, 0.0038,
+                                                                                      0.00375))) / 10)
     noise = (noise + 10 ** 3.0) * fs                                          # + self-noise, over the band
     k = int(round((2 * r / c + tau) * fs))                                   # the pulse fully on the annulus at R
     snr = 10 * np.log10((rec.starboard[:, k].mean() - noise) / noise)
@@ -156,7 +160,7 @@ def test_noise_from_toml_and_off(tmp_path):
 
 
 def test_echo_sounder_noise_uses_the_circular_piston_di():
-    """EchoSounder: the same noise path with DI = 20 log10(ka) of its piston, ka from the −3 dB width
+    """EchoSounder: the same noise path with the DI of its piston's pattern, ka from the −3 dB width
     (2·J1(x)/x = 1/√2 at x = 1.6163)."""
     es = se.EchoSounder(max_range_m=30.0, source_level_db=200.0,
                         environment=se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
@@ -164,5 +168,7 @@ def test_echo_sounder_noise_uses_the_circular_piston_di():
                       speckle=True, seed=5, start_time="2000-01-01")
     water = rec.time_s < 2 * 24.0 / 1500.0
     ka = 1.6163 / np.sin(np.radians(10.0) / 2)
-    expected = coates_db(200e3, 8.0) - 20 * np.log10(ka) + 10 * np.log10(rec.sonar.sample_rate_hz)
+    di = analytic.directivity_index_db(lambda u, v: 2 * j1(ka * np.hypot(u, v) + 1e-12) / (ka * np.hypot(u, v) + 1e-12),
+                                       n_phi=64)
+    expected = coates_db(200e3, 8.0) - di + 10 * np.log10(rec.sonar.sample_rate_hz)
     assert 10 * np.log10(rec.data[:, :, water].mean()) == pytest.approx(expected, abs=0.3)

@@ -193,7 +193,7 @@ def test_receiver_noise_is_added_per_beam(speckle):
     rec = se.simulate(far, traj, sonar, se.Pulse.cw(duration_s=TAU, taper=0.0), speckle=speckle,
                       start_time="2000-01-01")
     amb = sonar.environment.noise.spectral_density_db(F0)
-    elem_di = 10 * np.log10(4 * np.pi * (LAM / 2) * _height() / LAM ** 2)
+    elem_di = analytic.directivity_index_db(analytic.membrane_pattern(LAM / 2, _height(), LAM))
     n = 10 ** ((amb - elem_di - 10 * np.log10(M)) / 10) + 10 ** 2.0
     if speckle:
         assert rec.data.mean() == pytest.approx(n * FS, rel=0.05)

@@ -28,7 +28,8 @@ class Beam:
 
     @property
     def directivity_index_db(self) -> float:
-        """DI = 10·log10(4π·A/λ²) of a large baffled aperture of area A, dB (Kinsler et al., §8.9; Urick, ch. 3)."""
+        """DI = 10·log10(4π·A/λ²) of a large baffled aperture of area A, dB (Kinsler et al., §8.9; Urick, ch. 3): the
+        fallback of a beam without its own pattern integral (the piston and the square have theirs)."""
         return 10.0 * math.log10(4.0 * math.pi * self.area_m2 / self.wavelength_m ** 2)
 
     @property

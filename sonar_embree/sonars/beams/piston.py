@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...instrument.directivity import piston_directivity_index_db
 from .base import Beam
 from scipy.special import j1
 
@@ -54,5 +55,6 @@ class CircularPiston(Beam):
 
     @property
     def directivity_index_db(self) -> float:
-        """DI = 10·log10((ka)²) = 10·log10(4π·πa²/λ²), dB (Kinsler et al., §8.9, large ka)."""
-        return 20.0 * math.log10(self.ka)
+        """DI = 10·log10(4π/∫ b² dΩ), dB: the pattern's integral (:mod:`sonar_embree.instrument.directivity`);
+        10·log10((ka)²) for large ka (Kinsler et al., §8.9)."""
+        return piston_directivity_index_db(float(self.ka))

@@ -2,7 +2,8 @@
 et al., *Fundamentals of Acoustics*, 4th ed., §8.9, with equal sides; u the direction cosines with the aperture's
 edges), 0 behind the baffle. Its one-way −3 dB full width θ3 in either principal plane gives
 k·L/2·sin(θ3/2) = 1.39156 (sinc x = 1/√2); the main lobe's widest edge is its first null along a diagonal,
-sin θ = √2·λ/L. Directivity index 10·log10(4π·L²/λ²)."""
+sin θ = √2·λ/L. Directivity index from the pattern's integral (10·log10(4π·L²/λ²) for a large
+piston)."""
 from __future__ import annotations
 
 import math
@@ -10,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...instrument.directivity import membrane_directivity_index_db
 from .base import Beam
 
 #: k·L/2·sin(θ3/2) of a square piston at its one-way −3 dB point in a principal plane, sin(x)/x = 1/√2.
@@ -41,3 +43,9 @@ class SquarePiston(Beam):
         a = math.pi * self.side_m / self.wavelength_m
         b = np.sinc(a * np.asarray(u_fwd) / math.pi) * np.sinc(a * np.asarray(u_side) / math.pi)
         return np.where(np.asarray(u_down) > 0, b, 0.0)
+
+    @property
+    def directivity_index_db(self) -> float:
+        """DI = 10·log10(4π/∫ b² dΩ), dB (:func:`sonar_embree.instrument.directivity.membrane_directivity_index_db`)."""
+        a = math.pi * self.side_m / self.wavelength_m
+        return membrane_directivity_index_db(a, a)
