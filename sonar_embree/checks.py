@@ -215,6 +215,19 @@ def check_ping_spacing(sonar, positions_m: np.ndarray) -> float | None:
     return foot
 
 
+def check_receiver_band(sonar, pulse) -> None:
+    """Refuse a receiver band-pass narrower than the pulse's band, max(sweep, 1/τ): it would shape the echoes too,
+    which the simulator does not model (it filters the noise only; docs/physics.md §14)."""
+    rx = sonar.receiver
+    if rx is None or rx.bandwidth_hz is None:
+        return
+    f_lo, f_hi = pulse.frequency_span_hz(sonar.frequency_hz)
+    need = max(f_hi - f_lo, 1.0 / pulse.duration_s)
+    if rx.bandwidth_hz < need:
+        raise ConfigError(f"Receiver.bandwidth_hz = {rx.bandwidth_hz:g} Hz is narrower than the pulse's band "
+                          f"({need:g} Hz): the echoes would be filtered too, which is not modelled; widen it")
+
+
 def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
     """Refuse a sea surface the multipath model cannot honour (docs/physics.md §13).
 

@@ -304,6 +304,7 @@ class _Run:
         pos_local = trajectory.positions_m - compiled.origin_m
         checks.check_setup(caster, sonar, pos_local, max_r + c * pulse.duration_s / 2.0)
         checks.check_ping_spacing(sonar, pos_local)
+        checks.check_receiver_band(sonar, pulse)
         checks.check_surface(compiled, sonar, pos_local)
         if sonar.environment.surface is not None:
             multipath.leg_boxes(compiled, True)  # the objects' boxes and height fields: once per scene, at set-up

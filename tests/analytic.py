@@ -162,3 +162,14 @@ def membrane_pattern(length_m, height_m, wavelength_m):
     """b(u, v) = sinc(k·lx/2·u)·sinc(k·ly/2·v) of a rectangular membrane (docs/physics.md §2)."""
     a, b = np.pi * length_m / wavelength_m, np.pi * height_m / wavelength_m
     return lambda u, v: np.sinc(a * u / np.pi) * np.sinc(b * v / np.pi)
+
+
+def coates_db(f_hz, wind, shipping=0.5, thermal=True):
+    """Ambient noise spectral density, dB re 1 µPa²/Hz: Coates (1990) as summarised by Stojanovic (2007), the sum of
+    the turbulence, shipping, wind and thermal terms (docs/physics.md §14)."""
+    f = f_hz / 1e3
+    terms = [17 - 30 * np.log10(f), 40 + 20 * (shipping - 0.5) + 26 * np.log10(f) - 60 * np.log10(f + 0.03),
+             50 + 7.5 * np.sqrt(wind) + 20 * np.log10(f) - 40 * np.log10(f + 0.4)]
+    if thermal:
+        terms.append(-15 + 20 * np.log10(f))
+    return 10 * np.log10(sum(10 ** (t / 10) for t in terms))

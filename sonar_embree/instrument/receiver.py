@@ -4,12 +4,16 @@ From the record's mean-square pressure I(t) in µPa² (a sonar with a source lev
 stores, per ping and channel::
 
     v(t)   = 10^(S/20)·√I(t)                       volts rms at the hydrophone's output, S in dB re 1 V/µPa
-    g(t)   = G(R)/20 dB, R = c·t/2                 TVG: G(R) = G0 + k·log10(max(R, 1 m)) + 2αR, k = 20, 30, 40
+    g(t)   = G(R)/20 dB, R = c·t/2                 TVG: G(R) = min(G0 + k·log10 R' + 2αR', G_max), R' = max(R, R0, 1 m)
            = target·V_fs / √⟨(v)²⟩_window          or AGC: a centred moving mean over ``window_s``
-    code   = clip(round(v·10^(g)/Δ), 0, 2^b − 1),  Δ = V_fs/(2^b − 1)
+    code   = clip(round(v·10^(g)/Δ), 0, 2^b − 1),  Δ = V_fs/(2^b − 1)       linear encoding
+           = clip(round((20·log10(v·10^g/V_fs) + D)/D·(2^b − 1)), 0, 2^b − 1)   logarithmic, D dB of range
 
 the ADC sampling the detected envelope (unipolar), rounding to the nearest level and clipping at full scale
-V_fs. The TVG law is the textbook one that undoes spreading (k = 40: two-way spherical spreading of a point
+V_fs. A TVG starts at a range R0 (the gain is held at G(R0) before it, as a device holds it until its TVG
+start) and stops rising at a ceiling G_max (the amplifier's largest gain; beyond it noise and echoes are both
+flat in gain). A logarithmic encoding spreads the codes over the top D dB below full scale (devices that store
+8 bits usually do). The TVG law is the textbook one that undoes spreading (k = 40: two-way spherical spreading of a point
 target, 30: of a seafloor's reverberation, 20: cylindrical) and absorption (Urick 1983, §12.5; Lurton,
 *An Introduction to Underwater Acoustics*, 2nd ed., Springer, 2010, §9.2); the quantisation error of a
 rounding ADC is uniform on ±Δ/2 with variance Δ²/12 (Widrow and Kollár, *Quantization Noise*, Cambridge
@@ -44,15 +48,24 @@ class TVG:
         Spreading law: 20, 30 or 40 (dB per decade of range).
     absorption : bool
         Include the 2αR term (default True).
+    start_range_m : float
+        R0, m: the law starts there, the gain held at G(R0) before (default 0: from 1 m).
+    max_gain_db : float or None
+        G_max, dB: the ceiling of the gain (default None: none).
     """
 
     g0_db: float = 20.0
     k: float = 30.0
     absorption: bool = True
+    start_range_m: float = 0.0
+    max_gain_db: float | None = None
 
     def __post_init__(self):
         check_number("TVG", "g0_db", self.g0_db, lo=-100.0, hi=200.0)
         check_bool("TVG", "absorption", self.absorption)
+        check_number("TVG", "start_range_m", self.start_range_m, lo=0.0, hi=1e5)
+        if self.max_gain_db is not None:
+            check_number("TVG", "max_gain_db", self.max_gain_db, lo=-100.0, hi=300.0)
         if self.k not in (20, 30, 40):
             raise ConfigError(f"TVG.k must be 20, 30 or 40 (dB per decade), got {self.k!r}")
 
@@ -69,9 +82,11 @@ class TVG:
                       f"the {MAX_DEVICE_TVG_DB:g} dB a device's TVG spans; the far range will clip")
 
     def gain_db(self, range_m: np.ndarray, alpha_db_per_m: float) -> np.ndarray:
-        """G(R) in dB for slant ranges ``range_m`` (m; below 1 m held at 1 m)."""
-        r = np.maximum(np.asarray(range_m, dtype=float), 1.0)
-        return self.g0_db + self.k * np.log10(r) + (2.0 * alpha_db_per_m * r if self.absorption else 0.0)
+        """G(R) in dB for slant ranges ``range_m`` (m; held at G(max(R0, 1 m)) below R0 and 1 m, and at the
+        ceiling ``max_gain_db`` above it)."""
+        r = np.maximum(np.asarray(range_m, dtype=float), max(self.start_range_m, 1.0))
+        g = self.g0_db + self.k * np.log10(r) + (2.0 * alpha_db_per_m * r if self.absorption else 0.0)
+        return g if self.max_gain_db is None else np.minimum(g, self.max_gain_db)
 
 
 @dataclass(frozen=True)
@@ -118,12 +133,24 @@ class Receiver:
         ADC resolution, 1 to 16 bits: samples are uint8 up to 8 bits, uint16 above.
     full_scale_v : float
         ADC full scale, V (the envelope clips there).
+    encoding : {"linear", "log"}
+        How codes map to volts: linear steps of Δ = V_fs/(2^b − 1), or logarithmic over the top
+        ``log_range_db`` below full scale.
+    log_range_db : float
+        D, the dynamic range of the logarithmic encoding, dB (default 96).
+    bandwidth_hz : float or None
+        The receiver's band-pass around the carrier, Hz (its noise bandwidth B): the noise per sample is then
+        N0·B, correlated as the filter makes it, instead of white over the record's sample band (default None:
+        white over the band). At least the pulse's bandwidth (the echoes are taken to pass unchanged).
     """
 
     sensitivity_db: float = -180.0
     gain: TVG | AGC = TVG()
     adc_bits: int = 16
     full_scale_v: float = 1.0
+    encoding: str = "linear"
+    log_range_db: float = 96.0
+    bandwidth_hz: float | None = None
 
     def __post_init__(self):
         check_number("Receiver", "sensitivity_db", self.sensitivity_db, lo=-260.0, hi=-100.0)
@@ -131,6 +158,11 @@ class Receiver:
         if isinstance(self.adc_bits, bool) or not isinstance(self.adc_bits, (int, np.integer)) \
                 or not 1 <= self.adc_bits <= 16:
             raise ConfigError(f"Receiver.adc_bits must be an integer in 1 … 16, got {self.adc_bits!r}")
+        if self.encoding not in ("linear", "log"):
+            raise ConfigError(f"Receiver.encoding must be 'linear' or 'log', got {self.encoding!r}")
+        check_number("Receiver", "log_range_db", self.log_range_db, positive=True, hi=400.0)
+        if self.bandwidth_hz is not None:
+            check_number("Receiver", "bandwidth_hz", self.bandwidth_hz, positive=True, hi=1e8)
         object.__setattr__(self, "gain", _gain(self.gain))
 
     @property
@@ -148,9 +180,17 @@ class Receiver:
         return 10.0 ** (self.sensitivity_db / 20.0) * np.sqrt(np.maximum(intensity_upa2, 0.0))
 
     def digitise(self, volts) -> np.ndarray:
-        """The ADC: round to the nearest of 2^b levels Δ apart, clip to [0, 2^b − 1]; ``dtype`` codes."""
-        code = np.rint(np.asarray(volts, dtype=float) / self.step_v)
-        return np.clip(code, 0, 2 ** self.adc_bits - 1).astype(self.dtype)
+        """The ADC: round to the nearest of 2^b levels (Δ apart, or D/(2^b − 1) dB apart with the logarithmic
+        encoding), clip to [0, 2^b − 1]; ``dtype`` codes."""
+        top = 2 ** self.adc_bits - 1
+        v = np.asarray(volts, dtype=float)
+        if self.encoding == "linear":
+            code = np.rint(v / self.step_v)
+        else:
+            with np.errstate(divide="ignore"):
+                level_db = 20.0 * np.log10(v / self.full_scale_v)
+            code = np.rint((level_db + self.log_range_db) / self.log_range_db * top)
+        return np.clip(code, 0, top).astype(self.dtype)
 
     def gained(self, volts: np.ndarray, time_s: np.ndarray, sound_speed_m_s: float, alpha_db_per_m: float,
                sample_rate_hz: float) -> np.ndarray:

@@ -55,7 +55,8 @@ def _flat_attrs(record) -> dict:
     if rx is not None:
         for k, v in dataclasses.asdict(rx).items():
             for kk, vv in (v.items() if isinstance(v, dict) else ((None, v),)):
-                attrs[f"receiver.{k}" + ("" if kk is None else f".{kk}")] = _attr_value(vv)
+                if vv is not None:  # unset (a TVG without a ceiling, a receiver without a band)
+                    attrs[f"receiver.{k}" + ("" if kk is None else f".{kk}")] = _attr_value(vv)
         attrs["receiver.gain.kind"] = type(rx.gain).__name__.lower()
     for k, v in record.attrs.items():
         if v is not None:

@@ -131,6 +131,27 @@ def complex_noise(rng, shape, variance: float):
     return rng.normal(0.0, s, shape) + 1j * rng.normal(0.0, s, shape)
 
 
+def band_taps(bandwidth_hz: float | None, rate_hz: float):
+    """Complex-baseband taps of a receiver's band-pass of width ``bandwidth_hz`` centred on the carrier: a
+    linear-phase Kaiser low-pass with cut-off B/2 and transition B/4 at the record rate, unit gain in the band, so
+    its noise bandwidth rate·Σh² is B within 1 % (docs/physics.md §14). None (no filter) without a bandwidth or
+    when B is no narrower than the record's band ``rate_hz``."""
+    if bandwidth_hz is None or bandwidth_hz >= rate_hz:
+        return None
+    return lowpass_taps(0.5 * bandwidth_hz, rate_hz, 0.25 * bandwidth_hz)
+
+
+def band_noise(rng, shape, variance: float, taps):
+    """Circular complex Gaussian noise of density ``variance``/rate through the band-pass ``taps`` (None: white,
+    E|n|² = ``variance``): white noise a filter length longer, convolved in full ("valid"), so every sample has
+    the same statistics, E|n|² = variance·Σh² and neighbours correlated as the filter's autocorrelation."""
+    if taps is None:
+        return complex_noise(rng, shape, variance)
+    m = taps.shape[0]
+    w = complex_noise(rng, tuple(shape[:-1]) + (shape[-1] + m - 1,), variance)
+    return oaconvolve(w, np.reshape(taps, (1,) * (len(shape) - 1) + (-1,)), mode="valid", axes=-1)
+
+
 def sinc_interpolator(half_width: int = 8, rate: int = 512, beta: float = 8.0):
     """Kaiser-windowed sinc h(u) = sinc(u)·w(u/half_width) tabulated for band-limited splatting.
 

@@ -142,6 +142,12 @@ def _carrier_ping(synth: WaveformTables, sonar, chain: SignalChain, buf, noise_b
     return processing.square_law(x, f0, fc)[:, ::m]
 
 
+def _band(sonar):
+    """The taps of the sonar's receiver band-pass at its sample rate, or None (:func:`processing.band_taps`)."""
+    rx = sonar.receiver
+    return processing.band_taps(None if rx is None else rx.bandwidth_hz, sonar.sample_rate_hz)
+
+
 class ExpectedSynthesis:
     """Speckle-free: footprint splatting, then one convolution with the unit echo's intensity."""
 
@@ -169,10 +175,15 @@ class ExpectedSynthesis:
         return intensity, None
 
     def _noise_mean(self, n0: float) -> float:
-        """Mean intensity of receiver noise of density ``n0`` after the matched filter."""
+        """Mean intensity of receiver noise of density ``n0`` after the receiver's band-pass and the matched filter:
+        n0·fs·Σ|h|², h the two filters in turn."""
         f0, fs = self.sonar.frequency_hz, self.sonar.sample_rate_hz
-        gain = 1.0 / np.sum(np.abs(pulses.replica(self.pulse, f0, fs)) ** 2) if self.chain.matched_filter else 1.0
-        return n0 * fs * gain
+        h = _band(self.sonar)
+        h = np.ones(1) if h is None else h
+        if self.chain.matched_filter:
+            r = pulses.replica(self.pulse, f0, fs)
+            h = np.convolve(h, np.conj(r[::-1]) / np.sum(np.abs(r) ** 2))
+        return n0 * fs * float(np.sum(np.abs(h) ** 2))
 
     def noise_source(self, run):
         """For a beamformer: ``noise(shape, complex_)`` of the run's density on its outputs (the mean intensity)."""
@@ -187,6 +198,7 @@ class SpeckleSynthesis:
     def __init__(self, sonar, pulse: Pulse, chain: SignalChain, shape: tuple, n0):
         self.sonar, self.pulse, self.chain, self.n0 = sonar, pulse, chain, n0
         self.lattice = ScattererLattice(chain.speckle_cell_m, chain.seed, kernels.num_threads())
+        self.band = _band(sonar)
         self.tables = WaveformTables.build(sonar, pulse, chain)
         coherent = chain.detection == "coherent"
         self.out = np.zeros(shape, dtype=np.complex128) if coherent else np.zeros(shape)
@@ -211,7 +223,7 @@ class SpeckleSynthesis:
             noise = None
             if self.n0 is not None:  # per-ping stream: the same bits for any ping order, block or worker count
                 rng = np.random.default_rng([chain.seed, 0x5EED_0015E, survey_a + b])
-                noise = processing.complex_noise(rng, (n_ch, n_s), self.n0 * fs)
+                noise = processing.band_noise(rng, (n_ch, n_s), self.n0 * fs, self.band)
             if chain.band == "baseband":
                 if noise is not None:
                     out[b] += noise
@@ -255,7 +267,7 @@ class SpeckleSynthesis:
             fs, out = self.sonar.sample_rate_hz, np.empty(shape, dtype=np.complex128)
             for b in range(shape[0]):
                 rng = np.random.default_rng([self.chain.seed, 0xBEA4F0, run.first_ping + b])
-                out[b] = processing.complex_noise(rng, shape[1:], run.n0 * fs)
+                out[b] = processing.band_noise(rng, shape[1:], run.n0 * fs, self.band)
             if self.chain.matched_filter:
                 out = processing.matched_filter(out, pulses.replica(self.pulse, self.sonar.frequency_hz, fs))
             return out

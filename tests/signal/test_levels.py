@@ -20,15 +20,7 @@ import pytest
 
 import analytic
 import sonar_embree as se
-
-
-def coates_db(f_hz, wind, shipping=0.5, thermal=True):
-    f = f_hz / 1e3
-    terms = [17 - 30 * np.log10(f), 40 + 20 * (shipping - 0.5) + 26 * np.log10(f) - 60 * np.log10(f + 0.03),
-             50 + 7.5 * np.sqrt(wind) + 20 * np.log10(f) - 40 * np.log10(f + 0.4)]
-    if thermal:
-        terms.append(-15 + 20 * np.log10(f))
-    return 10 * np.log10(sum(10 ** (t / 10) for t in terms))
+from analytic import coates_db
 
 
 def _floor():
