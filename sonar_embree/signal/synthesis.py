@@ -179,7 +179,9 @@ class ExpectedSynthesis:
         n0·fs·Σ|h|², h the two filters in turn."""
         f0, fs = self.sonar.frequency_hz, self.sonar.sample_rate_hz
         h = _band(self.sonar)
-        h = np.ones(1) if h is None else h
+        if h is None:  # white over the band: the matched filter's Σ|h_mf|² = 1/Σ|r|²
+            gain = 1.0 / np.sum(np.abs(pulses.replica(self.pulse, f0, fs)) ** 2) if self.chain.matched_filter else 1.0
+            return n0 * fs * gain
         if self.chain.matched_filter:
             r = pulses.replica(self.pulse, f0, fs)
             h = np.convolve(h, np.conj(r[::-1]) / np.sum(np.abs(r) ** 2))
