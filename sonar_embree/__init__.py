@@ -20,6 +20,7 @@ from .errors import ConfigError, SceneError, SonarEmbreeError
 from .signal.labels import Labels
 from .trajectory.motion import Motion
 from .laws.maps import BackscatterMap
+from .laws.clutter import Clutter
 from .laws.texture import KTexture
 from .instrument.receiver import AGC, TVG, Receiver
 from .record import Record
@@ -29,6 +30,6 @@ from .simulate import simulate
 from .sonars import MSIS, EchoSounder, ForwardLooking
 from .trajectory import Trajectory
 
-__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "ForwardLooking", "MSIS", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError", "TiledDEM",
+__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Clutter", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "ForwardLooking", "MSIS", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError", "TiledDEM",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "geo", "laws", "mosaic", "planning", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

@@ -17,6 +17,7 @@ from .environment import Environment
 from .instrument.receiver import Receiver, receiver_of
 from .errors import ConfigError
 from .laws import Lambert, Summable
+from .laws.clutter import Clutter
 from .laws.texture import KTexture
 from .validation import check_number as _check_number, field_names  # noqa: F401 (field_names re-exported)
 from .instrument.beam import membrane_size_for_beamwidth
@@ -406,12 +407,16 @@ class Material:
     texture : KTexture, optional
         Non-Rayleigh (K-distributed) texture frozen to the surface; default none
         (Rayleigh speckle).
+    clutter : Clutter, optional
+        Discrete point scatterers on the surface (shell, gravel), beside its law
+        (:class:`sonar_embree.laws.clutter.Clutter`); default none.
     """
 
     backscatter_db: float = -27.0
     two_sided: bool = False
     scattering: object = None
     texture: object = None
+    clutter: object = None
 
     def __post_init__(self):
         if not isinstance(self.two_sided, bool):
@@ -430,6 +435,8 @@ class Material:
             object.__setattr__(self, "backscatter_db", law.backscatter_db)
         if self.texture is not None and not isinstance(self.texture, KTexture):
             raise ConfigError(f"Material.texture must be a sonar_embree.KTexture, got {self.texture!r}")
+        if self.clutter is not None and not isinstance(self.clutter, Clutter):
+            raise ConfigError(f"Material.clutter must be a sonar_embree.Clutter, got {self.clutter!r}")
 
     @property
     def law(self):

@@ -22,6 +22,7 @@ import numpy as np
 
 from . import checks, sonars
 from .propagation import multipath
+from .propagation.clutter import ClutterField, check_clutter, clutter_echoes, clutter_field
 from .signal import processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .environment import Environment
@@ -209,7 +210,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         vel = None if trajectory.velocity_m_s is None else trajectory.velocity_m_s[a:b]
-        run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel)
+        run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel,
+                           points=None if run.clutter is None else _clutter_block(run, a, b))
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
@@ -278,6 +280,7 @@ class _Run:
     n0: float | None = None  # receiver noise density, unit-source intensity per Hz
     rx_shift: np.ndarray | None = None  # motion during the ping: δ = 2·v_fwd/c per ping
     first_ping: int = 0  # the trajectory's first ping within a longer survey (ping_offset)
+    clutter: ClutterField | None = None  # the scene's frozen clutter scatterers, if it has any
 
     @classmethod
     def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster,
@@ -309,6 +312,7 @@ class _Run:
         if sonar.environment.surface is not None:
             multipath.leg_boxes(compiled, True)  # the objects' boxes and height fields: once per scene, at set-up
         checks.check_profile(compiled, sonar, pos_local, labels)
+        check_clutter(compiled, sonar)
         n0 = _noise_density(sonar, chain)
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
         kernel = (pulses.expected_kernel(pulse, sonar.frequency_hz, fs, chain.matched_filter)
@@ -320,7 +324,14 @@ class _Run:
         rots = _mounted(front, trajectory, ping_offset)
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
                    np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,
-                   ping_offset)
+                   ping_offset,
+                   clutter_field(compiled, chain.seed))
+
+
+def _clutter_block(run: _Run, a: int, b: int):
+    """The clutter echoes of pings a … b − 1 (:func:`sonar_embree.propagation.clutter.clutter_echoes`)."""
+    return clutter_echoes(run.clutter, run.sonar, run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r,
+                          processing.absorption_np_per_m(run.sonar.alpha_db_per_m))
 
 
 def _mounted(front, trajectory, ping_offset: int) -> np.ndarray:

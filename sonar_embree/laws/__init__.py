@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from .apl_uw import AplUw
 from .chapman_harris import ChapmanHarris
+from .clutter import Clutter
 from .composite import Composite, Summable
 from .kirchhoff import Kirchhoff
 from .lambert import Lambert
@@ -34,5 +35,5 @@ from .texture import KTexture
 LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff, "tabulated": Tabulated, "chapman-harris": ChapmanHarris,
         "apl-uw": AplUw}
 
-__all__ = ["AplUw", "ChapmanHarris", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
+__all__ = ["AplUw", "ChapmanHarris", "Clutter", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
            "apply_laws", "law_table"]

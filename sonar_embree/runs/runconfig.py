@@ -32,7 +32,7 @@ from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..record import registry
 from ..laws import sediments
-from ..laws import LAWS, AplUw, Composite, KTexture, Tabulated
+from ..laws import LAWS, AplUw, Clutter, Composite, KTexture, Tabulated
 from ..laws.apl_uw import apl_class
 from ..laws.maps import BackscatterMap
 from ..scene import Scene, seafloor
@@ -312,7 +312,8 @@ def _apl_uw(law: dict, source: str, where: str):
 
 def parse_material(table, source: str, where: str, base: str = "") -> Material:
     """A ``material`` table: ``backscatter_db``, ``two_sided``, ``scattering`` (or ``law``, see
-    :func:`parse_law`) and ``texture = { shape = …, correlation_m = …, seed = … }``."""
+    :func:`parse_law`), ``texture = { shape = …, correlation_m = …, seed = … }`` and
+    ``clutter = { density_per_m2 = …, strength_db = …, spread_db = … }``."""
     _check_keys(f"{where} material", table, field_names(Material) + ("law",), source)
     table = dict(table)
     if "law" in table:
@@ -327,6 +328,9 @@ def parse_material(table, source: str, where: str, base: str = "") -> Material:
         tex = table["texture"]
         _check_keys(f"{where} material texture", tex, field_names(KTexture), source)
         table["texture"] = _build(source, f"{where} material texture", KTexture, tex)
+    if "clutter" in table:
+        _check_keys(f"{where} material clutter", table["clutter"], field_names(Clutter), source)
+        table["clutter"] = _build(source, f"{where} material clutter", Clutter, table["clutter"])
     return _build(source, f"{where} material", Material, table)
 
 

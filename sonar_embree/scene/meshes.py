@@ -59,6 +59,12 @@ class SceneObject:
     uv: np.ndarray | None = None
 
 
+def _clutter_of(objects) -> tuple:
+    """Each object's clutter (or None); empty when no object has any (a scene without clutter pays nothing)."""
+    c = tuple(o.material.clutter for o in objects)
+    return c if any(x is not None for x in c) else ()
+
+
 class Prepared:
     """What runs build once per compiled scene and keep with it, each under its own name (not run state: a
     compiled scene stays immutable; a copy sent to another process arrives without them and rebuilds them).
@@ -78,9 +84,12 @@ class Prepared:
         The objects' bounding spheres (:func:`sonar_embree.propagation.aim.bounding_spheres`).
     seafloor_scenes : dict
         The seafloor alone, by which objects are seafloor (:func:`sonar_embree.signal.truth.seafloor_caster`).
+    clutter_fields : dict
+        The clutter's frozen scatterers, by seed (:mod:`sonar_embree.propagation.clutter`).
     """
 
-    __slots__ = ("casters", "law_tables", "leg_boxes", "surfaces", "bounding_spheres", "seafloor_scenes")
+    __slots__ = ("casters", "law_tables", "leg_boxes", "surfaces", "bounding_spheres", "seafloor_scenes",
+                 "clutter_fields")
 
     def __init__(self):
         self.clear()
@@ -88,6 +97,7 @@ class Prepared:
     def clear(self) -> None:
         """Drop everything kept (rebuilt on next use)."""
         self.casters, self.law_tables, self.leg_boxes, self.surfaces, self.seafloor_scenes = {}, {}, {}, {}, {}
+        self.clutter_fields = {}
         self.bounding_spheres = None
 
     def __reduce__(self):
@@ -120,6 +130,8 @@ class CompiledScene:
         The objects' backscatter maps (:mod:`sonar_embree.laws.maps`), None without any.
     textures : TextureTable or None
         The materials' K textures (:mod:`sonar_embree.laws.texture`), None without any.
+    clutter : tuple
+        Each object's :class:`~sonar_embree.laws.clutter.Clutter` or None (empty: none anywhere).
     prepared : Prepared
         What runs build once for this scene and keep with it (casters, law tables, …).
     is_seafloor : (n_objects,) bool
@@ -140,6 +152,7 @@ class CompiledScene:
     laws: tuple = ()
     maps: object = None
     textures: object = None
+    clutter: tuple = ()
     prepared: Prepared = field(default_factory=Prepared, init=False, repr=False, compare=False)  # own per copy
 
     @property
@@ -631,4 +644,5 @@ class Scene:
                              np.array([o.seafloor for o in self._objects], dtype=bool),
                              np.array([o.material.two_sided for o in self._objects], dtype=bool),
                              tuple(o.material.scattering for o in self._objects), MapTable.build(self._objects),
-                             TextureTable.build([o.material.texture for o in self._objects]))
+                             TextureTable.build([o.material.texture for o in self._objects]),
+                             _clutter_of(self._objects))

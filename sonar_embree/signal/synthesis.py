@@ -158,12 +158,15 @@ class ExpectedSynthesis:
         self.out = np.zeros(shape)
         self.kernel, self.lead = echo_kernel
 
-    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None) -> None:
-        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey); the
+    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None,
+                  points=None) -> None:
+        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey) and the clutter's
+        ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None): their expected intensities; the
         velocity ``vel_world`` moves only speckle phases, so it is not needed here."""
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
-        for part in e.parts:  # a block's paths one after the other: row by row, the merged order
+        parts = e.parts if points is None else e.parts + (points.echoes,)
+        for part in parts:  # a block's paths one after the other: row by row, the merged order
             kernels.splat_rows(part.ray_start, part.travel_time_s, part.extent_s, part.weight, fs,
                                self.out[a:b].reshape(part.ray_start.shape[0] - 1, self.out.shape[-1]))
 
@@ -205,21 +208,25 @@ class SpeckleSynthesis:
         coherent = chain.detection == "coherent"
         self.out = np.zeros(shape, dtype=np.complex128) if coherent else np.zeros(shape)
 
-    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None) -> None:
-        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise); the
-        vehicle moves at ``vel_world`` (pings, 3) m/s during them (None: at rest)."""
+    def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None,
+                  points=None) -> None:
+        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise) and the
+        clutter's ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None); the vehicle moves at
+        ``vel_world`` (pings, 3) m/s during them (None: at rest)."""
         e = merged(e)
         s, chain, out = self.sonar, self.chain, self.out[a:a + e.n_pings]
         fs, f0 = s.sample_rate_hz, s.frequency_hz
         n_b, n_ch, n_s = out.shape
         if chain.band == "baseband" and self.tables.baseband_pulse is not None:
-            self._impulses(e, origin_m, pos_world, out, vel_world)
+            self._impulses(e, origin_m, pos_world, out, vel_world, points)
         elif chain.band == "baseband":
             self._lattice(e, origin_m, pos_world, fs, 0.0, out, vel_world)  # coherent
+            self._points(points, fs, 0.0, out)
         else:
             m = self.tables.carrier_factor
             buf = np.zeros((n_b, n_ch, (n_s - 1) * m + 1), dtype=np.complex128)
             self._lattice(e, origin_m, pos_world, m * fs, f0, buf, vel_world)
+            self._points(points, m * fs, f0, buf)
         t = time.perf_counter()
         for b in range(n_b):
             noise = None
@@ -235,7 +242,21 @@ class SpeckleSynthesis:
         clock["processing"] = clock.get("processing", 0.0) + dt
         clock["synthesis"] = clock.get("synthesis", 0.0) - dt
 
-    def _impulses(self, e: Echoes, origin_m, pos_world, out, vel_world=None) -> None:
+    def _points(self, points, rate_hz: float, phase_cycles_per_s: float, out, delay_s: float = 0.0) -> None:
+        """Add the clutter's point echoes to ``out`` (pings, channels, n) complex: √w·e^(j2π·cycles), times the
+        carrier's e^(j2π·f0·t) on the carrier, splatted with the waveform table at t + ``delay_s``."""
+        if points is None or points.echoes.weight.size == 0:
+            return
+        e = points.echoes
+        amp = np.sqrt(e.weight) * np.exp(2j * np.pi * points.cycles)
+        if phase_cycles_per_s != 0.0:
+            amp = amp * np.exp(2j * np.pi * ((phase_cycles_per_s * e.travel_time_s) % 1.0))
+        row = np.repeat(np.arange(e.ray_start.shape[0] - 1), np.diff(e.ray_start))
+        t = self.tables
+        kernels.splat_table(row, (e.travel_time_s + delay_s) * rate_hz, amp, t.table, t.table_start, t.table_rate,
+                            out.reshape(-1, out.shape[-1]))
+
+    def _impulses(self, e: Echoes, origin_m, pos_world, out, vel_world=None, points=None) -> None:
         """A long pulse in baseband: the scatterers as band-limited impulses (delayed by the interpolator's half
         width so that none loses its early taps), then one FFT convolution with p̃(n/fs) per block, added to
         ``out``."""
@@ -243,6 +264,7 @@ class SpeckleSynthesis:
         buf = np.zeros(out.shape[:-1] + (out.shape[-1] + lead,), dtype=np.complex128)
         late = dataclasses.replace(e, travel_time_s=e.travel_time_s + lead / fs)
         self._lattice(late, origin_m, pos_world, fs, 0.0, buf, vel_world)
+        self._points(points, fs, 0.0, buf, lead / fs)
         out += convolve_time(buf, self.tables.baseband_pulse, lead=lead)[..., :out.shape[-1]]
 
     def _lattice(self, e: Echoes, origin_m, pos_world, rate_hz: float, phase_cycles_per_s: float, out,
