@@ -25,11 +25,11 @@ from .laws.texture import KTexture
 from .instrument.receiver import AGC, TVG, Receiver
 from .record import Record
 from .runs import batch, demo, runconfig, sweep  # not cli: python -m sonar_embree.runs.cli runs it
-from .scene import Scene, TiledDEM, seafloor, shipwreck
+from .scene import Scene, TiledDEM, features, seafloor, shipwreck
 from .simulate import simulate
 from .sonars import MSIS, EchoSounder, ForwardLooking
 from .trajectory import Trajectory
 
 __all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Clutter", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "ForwardLooking", "MSIS", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError", "TiledDEM",
-           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "geo", "laws", "mosaic", "planning", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "features", "geo", "laws", "mosaic", "planning", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]
