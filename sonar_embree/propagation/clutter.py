@@ -155,3 +155,6 @@ def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range
     e = Echoes(2, start, np.concatenate(times), np.zeros(n), np.concatenate(weights), np.zeros((0, 3)),
                np.zeros(0, dtype=np.int32))
     return PointEchoes(e, np.concatenate(cycles))
+
+
+__all__ = ["AZIMUTH_NULLS", "ClutterField", "PointEchoes", "check_clutter", "clutter_echoes", "clutter_field", "side_gamma"]
