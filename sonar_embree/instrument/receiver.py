@@ -7,7 +7,7 @@ stores, per ping and channel::
     g(t)   = G(R)/20 dB, R = c·t/2                 TVG: G(R) = min(G0 + k·log10 R' + 2αR', G_max), R' = max(R, R0, 1 m)
            = target·V_fs / √⟨(v)²⟩_window          or AGC: a centred moving mean over ``window_s``
     code   = clip(round(v·10^(g)/Δ), 0, 2^b − 1),  Δ = V_fs/(2^b − 1)       linear encoding
-           = clip(round((20·log10(v·10^g/V_fs) + D)/D·(2^b − 1)), 0, 2^b − 1)   logarithmic, D dB of range
+           = clip(round((20·log10(v·10^g/V_fs) + D)/D·(2^b − 1)), 0, 2^b − 1)  logarithmic, D dB
 
 the ADC sampling the detected envelope (unipolar), rounding to the nearest level and clipping at full scale
 V_fs. A TVG starts at a range R0 (the gain is held at G(R0) before it, as a device holds it until its TVG

@@ -157,4 +157,5 @@ def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range
     return PointEchoes(e, np.concatenate(cycles))
 
 
-__all__ = ["AZIMUTH_NULLS", "ClutterField", "PointEchoes", "check_clutter", "clutter_echoes", "clutter_field", "side_gamma"]
+__all__ = ["AZIMUTH_NULLS", "ClutterField", "PointEchoes", "check_clutter", "clutter_echoes", "clutter_field",
+           "side_gamma"]
