@@ -13,8 +13,8 @@ the ADC sampling the detected envelope (unipolar), rounding to the nearest level
 V_fs. A TVG starts at a range R0 (the gain is held at G(R0) before it, as a device holds it until its TVG
 start) and stops rising at a ceiling G_max (the amplifier's largest gain; beyond it noise and echoes are both
 flat in gain). A logarithmic encoding spreads the codes over the top D dB below full scale (devices that store
-8 bits usually do). The TVG law is the textbook one that undoes spreading (k = 40: two-way spherical spreading of a point
-target, 30: of a seafloor's reverberation, 20: cylindrical) and absorption (Urick 1983, §12.5; Lurton,
+8 bits usually do). The TVG law is the textbook one that undoes spreading (k = 40: two-way spherical spreading
+of a point target, 30: of a seafloor's reverberation, 20: cylindrical) and absorption (Urick 1983, §12.5; Lurton,
 *An Introduction to Underwater Acoustics*, 2nd ed., Springer, 2010, §9.2); the quantisation error of a
 rounding ADC is uniform on ±Δ/2 with variance Δ²/12 (Widrow and Kollár, *Quantization Noise*, Cambridge
 University Press, 2008, ch. 4).
