@@ -201,7 +201,8 @@ def _ping_times(h, start: dt.datetime, times_s) -> None:
 
 
 def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto",
-           surface_z_m: float | None = None, samples: bool = True, samples_per_channel: int | None = None) -> None:
+           surface_z_m: float | None = None, samples: bool = True, samples_per_channel: int | None = None,
+           decimation: str = "max") -> None:
     """Write ``record`` as an XTF file (atomic); conventions in this module's docstring.
 
     Parameters
@@ -222,9 +223,12 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
     samples_per_channel : int, optional
         Decimate each side to this many samples as a device does (the largest of each run, :func:`decimate_max`;
         a preset's :attr:`~sonar_embree.instrument.devices.Device.samples_per_channel`); default every sample.
+    decimation : {"max", "mean"}
+        How: each run's largest sample or its mean (:func:`decimate`), written as the channels' DownsampleMethod.
     """
     header, packets = xtf_bytes(record, start, scale=scale, surface_z_m=surface_z_m, samples=samples,
-                                file_name=os.path.basename(os.fspath(path)), samples_per_channel=samples_per_channel)
+                                file_name=os.path.basename(os.fspath(path)), samples_per_channel=samples_per_channel,
+                                decimation=decimation)
 
     def write(tmp):
         with open(tmp, "wb") as fh:
@@ -235,10 +239,11 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
 
 
 def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0,
-              file_name: str = "", samples_per_channel: int | None = None):
+              file_name: str = "", samples_per_channel: int | None = None, decimation: str = "max"):
     """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
     start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.survey.stream`); ``file_name`` goes into the
-    header's ThisFileName; ``samples_per_channel``: decimate each side to that many samples (:func:`decimate_max`)."""
+    header's ThisFileName; ``samples_per_channel``: decimate each side to that many samples by ``decimation``
+    (:func:`decimate`)."""
     if tuple(record.channels) != ("port", "starboard"):
         names = ", ".join(record.channels[:3]) + (f", … ({len(record.channels)} channels)"
                                                    if len(record.channels) > 3 else "")
@@ -259,23 +264,38 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
                               f"surface at surface_z_m = {surface_z_m} m")
     sides = (record.port * factor, record.starboard * factor) if ints is None else (ints[:, 0], ints[:, 1])
     if samples_per_channel is not None:
-        sides = tuple(decimate_max(s, samples_per_channel) for s in sides)
+        sides = tuple(decimate(s, samples_per_channel, decimation) for s in sides)
     packet = _packets(record, when, surface_z_m, ints, sides[0].shape[1])
+    if samples_per_channel is not None and sides[0].shape[1] < record.data.shape[2]:
+        for side in ("port_head", "stbd_head"):
+            packet[side]["DownsampleMethod"] = DOWNSAMPLE_METHODS[decimation]
     packet["head"]["PingNumber"] += first_ping
     packet["head"]["EventNumber"] += first_ping
     packet["port"], packet["stbd"] = sides[0][:, ::-1], sides[1]
     return _file_header(record, factor, ints, file_name, sides[0].shape[1]).tobytes(), packet.tobytes()
 
 
-def decimate_max(x, n: int) -> np.ndarray:
-    """(pings, ≤ n) the largest sample of each of ``n`` nearly equal runs of the samples of ``x`` (pings, samples):
-    a device's decimation by MAX to its stated samples per side (``x`` as is when it has no more than ``n``)."""
+def decimate(x, n: int, how: str = "max") -> np.ndarray:
+    """(pings, ≤ n) one value per each of ``n`` nearly equal runs of the samples of ``x`` (pings, samples): the
+    run's largest (``how="max"``, XTF DownsampleMethod 2) or its mean (``"mean"``), as a device decimates to its
+    stated samples per side (``x`` as is when it has no more than ``n``). Integer codes keep their dtype (a mean
+    rounded to the nearest code)."""
     if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
         raise ConfigError(f"to_xtf: samples_per_channel must be an integer >= 1, got {n!r}")
+    if how not in DOWNSAMPLE_METHODS:
+        raise ConfigError(f"to_xtf: decimation must be one of {sorted(DOWNSAMPLE_METHODS)}, got {how!r}")
     if x.shape[1] <= n:
         return x
-    edges = np.linspace(0, x.shape[1], n + 1).astype(np.int64)[:-1]
-    return np.maximum.reduceat(x, edges, axis=1)
+    edges = np.linspace(0, x.shape[1], n + 1).astype(np.int64)
+    if how == "max":
+        return np.maximum.reduceat(x, edges[:-1], axis=1)
+    mean = np.add.reduceat(x.astype(np.float64), edges[:-1], axis=1) / np.diff(edges)
+    return np.rint(mean).astype(x.dtype) if np.issubdtype(x.dtype, np.integer) else mean.astype(x.dtype)
+
+
+def decimate_max(x, n: int) -> np.ndarray:
+    """:func:`decimate` by the largest sample of each run."""
+    return decimate(x, n, "max")
 
 
 #: A record attribute: (latitude, longitude) in degrees of the local frame's origin, for a record without a CRS
@@ -362,6 +382,9 @@ def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
             c[name] = value
     return packet
 
+
+#: XTF channel headers' DownsampleMethod by decimation (the spec's 2 = MAX; a mean has no code of its own: 0).
+DOWNSAMPLE_METHODS = {"max": 2, "mean": 0}
 
 #: XTF packets start with this magic number (the spec's 0xFACE).
 MAGIC = 0xFACE

@@ -229,7 +229,7 @@ class Record:
         to_zarr(self, path)
 
     def to_xtf(self, path, start=None, *, scale="auto", surface_z_m: float | None = None, samples: bool = True,
-               samples_per_channel: int | None = None) -> None:
+               samples_per_channel: int | None = None, decimation: str = "max") -> None:
         """Write an XTF file (2 sonar channels, one packet per ping) that pyxtf reads; atomic.
 
         A record with a receiver's integer ``samples`` is written as the device would (``samples=False``:
@@ -237,12 +237,13 @@ class Record:
         the image visible in viewers, written in the header); port is stored from far
         range to nadir, starboard from nadir outwards; ping times from ``start``
         (default ``attrs["start_time"]``); ``samples_per_channel`` decimates each side to that many samples as a
-        device does. Conventions in :mod:`sonar_embree.io.xtf`.
+        device does, by each run's largest sample or its mean (``decimation``). Conventions in
+        :mod:`sonar_embree.io.xtf`.
         """
         from ..io.xtf import to_xtf
 
         to_xtf(self, path, start=start, scale=scale, surface_z_m=surface_z_m, samples=samples,
-               samples_per_channel=samples_per_channel)
+               samples_per_channel=samples_per_channel, decimation=decimation)
 
     def to_coco(self, path, file_name: str = "waterfall.png", categories=None, max_columns: int | None = 1024):
         """Write COCO JSON with each object's box in the waterfall PNG ``file_name``; atomic.

@@ -153,3 +153,30 @@ def test_shipped_side_scan_configs_write_latitude_and_longitude(tmp_path):
     (tmp_path / "b.toml").write_text(text.replace("[54.45, 10.30]", "[95.0, 10.0]"))
     with pytest.raises(se.ConfigError, match="geo_origin_deg"):
         load_run_config(tmp_path / "b.toml")
+
+
+@pytest.mark.parametrize("how, code", [("max", 2), ("mean", 0)])
+def test_decimation_by_max_and_mean_against_their_twins_and_the_header(tmp_path, how, code):
+    """Each of the 700 samples per side is the largest, or the rounded mean, of its run of the record's codes
+    (runs between ⌊k·n/700⌋, a loop written here); DownsampleMethod says which (the spec's 2 for MAX)."""
+    from sonar_embree.io.xtf import decimate
+
+    scene = se.Scene().add(se.seafloor.flat((300, 300), z_m=-22.0), label="seafloor")
+    sonar = se.Sonar.preset("imagenex-872-800", max_range_m=30.0,
+                            receiver=se.devices.device("imagenex-872-800").receiver())
+    rec = se.simulate(scene, se.Trajectory.line((-1, 0, -12), (1, 0, -12), 3), sonar,
+                      se.Pulse.preset("imagenex-872-800"), speckle=True, seed=2, start_time="2026-05-01T12:00:00Z")
+    rec.to_xtf(tmp_path / "d.xtf", samples_per_channel=700, decimation=how)
+    _, packets = pyxtf.xtf_read(str(tmp_path / "d.xtf"))
+    ping = packets[pyxtf.XTFHeaderType.sonar][1]
+    n = rec.samples.shape[2]
+    edges = [k * n // 700 for k in range(701)]
+    runs = [rec.samples[1, 1, edges[k]:edges[k + 1]].astype(float) for k in range(700)]
+    want = [r.max() for r in runs] if how == "max" else [np.rint(r.mean()) for r in runs]
+    np.testing.assert_array_equal(ping.data[1], want)
+    assert ping.ping_chan_headers[1].DownsampleMethod == code
+    floats = rec.data[:, 0]
+    np.testing.assert_allclose(decimate(floats, 50, "mean")[0, 3], floats[0, (3 * n) // 50:(4 * n) // 50].mean(),
+                               rtol=1e-12)
+    with pytest.raises(se.ConfigError, match="decimation must be one of"):
+        decimate(floats, 50, "median")
