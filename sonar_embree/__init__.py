@@ -12,7 +12,7 @@ from ._version import __version__
 from . import assets, laws, raycast
 from .instrument import devices
 from .io import geo
-from .survey import mosaic, planning, stream
+from .survey import mosaic, planning, replay, stream
 from .laws import sediments
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
@@ -31,5 +31,5 @@ from .sonars import MSIS, EchoSounder, ForwardLooking
 from .trajectory import Trajectory
 
 __all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Clutter", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "ForwardLooking", "MSIS", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError", "TiledDEM",
-           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "features", "geo", "laws", "mosaic", "planning", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
+           "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "features", "geo", "laws", "mosaic", "planning", "replay", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

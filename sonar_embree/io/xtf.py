@@ -473,3 +473,92 @@ def read_navigation(path) -> dict:
     return dict(nav_units=int(header.NavUnits), x=field("SensorXcoordinate"), y=field("SensorYcoordinate"),
                 depth_m=field("SensorDepth"), heading_deg=field("SensorHeading"), pitch_deg=field("SensorPitch"),
                 roll_deg=field("SensorRoll"), speed_m_s=field("SensorSpeed") * KNOT_M_S, times=times)
+
+
+def read_sonar(path) -> dict:
+    """The settings and samples of an XTF file's side-scan pings, as a replay needs them (pyxtf reads it).
+
+    Returns
+    -------
+    dict
+        ``frequency_hz``, ``slant_range_m``, ``samples_per_channel``, ``sample_rate_hz`` (NumSamples/TimeDuration,
+        the rate of what is stored), ``sound_speed_m_s`` (2·SoundVelocity), ``bytes_per_sample``, ``integer``
+        (codes, not floats), ``tvg`` (ProcessingFlags' TVG bit), ``gain_code`` (a TVG's k, 0 if none),
+        ``initial_gain_db`` (InitialGainCode), ``altitude_m`` (n,) and ``data`` (n, 2, samples) float64 with port
+        turned nadir first (the stored values, not converted). A file whose pings differ in range, frequency or
+        samples per channel is refused (a replay needs one layout), as are truncated files.
+    """
+    import pyxtf
+
+    path = str(path)
+    if not os.path.isfile(path):
+        raise ConfigError(f"{path}: no such XTF file")
+    check_packets(path)
+    try:
+        header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise ConfigError(f"{path}: cannot read XTF sonar pings ({exc})") from None
+    pings = [p[0] if isinstance(p, list) else p for p in packets.get(pyxtf.XTFHeaderType.sonar, [])]
+    if not pings:
+        raise ConfigError(f"{path}: the XTF file holds no sonar pings")
+    layouts = {(c.SlantRange, c.Frequency, c.NumSamples) for p in pings for c in p.ping_chan_headers[:2]}
+    if len(layouts) != 1 or len(pings[0].data) < 2:
+        raise ConfigError(f"{path}: its pings change range, frequency or samples per channel ({len(layouts)} "
+                          "layouts) or hold fewer than two channels; a replay needs one two-channel layout")
+    c, info = pings[0].ping_chan_headers[0], header.ChanInfo[0]
+    data = np.stack([np.stack([np.asarray(p.data[0], dtype=np.float64)[::-1], np.asarray(p.data[1], np.float64)])
+                     for p in pings])
+    return dict(frequency_hz=1e3 * float(c.Frequency), slant_range_m=float(c.SlantRange),
+                samples_per_channel=int(c.NumSamples), sample_rate_hz=float(c.NumSamples) / float(c.TimeDuration),
+                sound_speed_m_s=2.0 * float(pings[0].SoundVelocity), bytes_per_sample=int(info.BytesPerSample),
+                integer=int(info.SampleFormat) != SAMPLE_FORMAT_FLOAT32, tvg=bool(c.ProcessingFlags & PROCESSING_TVG),
+                gain_code=int(c.GainCode), initial_gain_db=float(c.InitialGainCode),
+                altitude_m=np.array([float(p.SensorPrimaryAltitude) for p in pings]), data=data)
+
+
+def _sonar_samples_at(raw: bytes, pos: int, bytes_per_sample: int) -> list:
+    """(offset, count) of the two channels' samples of the sonar packet at byte ``pos`` (ping header 256 bytes,
+    then per channel a 64-byte channel header with NumSamples, then its samples)."""
+    out, at = [], pos + _PING_HEADER.itemsize
+    for _ in range(2):
+        chan = np.frombuffer(raw, dtype=_CHAN_HEADER, count=1, offset=at)[0]
+        out.append((at + _CHAN_HEADER.itemsize, int(chan["NumSamples"])))
+        at += _CHAN_HEADER.itemsize + int(chan["NumSamples"]) * bytes_per_sample
+    return out
+
+
+def write_like(source, path, data, *, overwrite: bool = False) -> None:
+    """A copy of the XTF file ``source`` at ``path`` (atomic) with its sonar pings' samples replaced by ``data``
+    (pings, 2, samples; port nadir first, as :func:`read_sonar` returns it): every header and every other packet
+    kept byte for byte; the values cast to the file's sample format (float32, or codes rounded and clipped to
+    their range). A ``path`` that exists is refused unless ``overwrite``."""
+    source, path = os.fspath(source), os.fspath(path)
+    if os.path.exists(path) and not overwrite:
+        raise ConfigError(f"{path}: exists; pass overwrite=True (--overwrite) to replace it")
+    check_packets(source)
+    raw = bytearray(open(source, "rb").read())
+    head = np.frombuffer(raw, dtype=_FILE_HEADER, count=1)[0]
+    info = head["ChanInfo"][0]
+    width = int(info["BytesPerSample"])
+    kind = {(5, 4): np.dtype("<f4"), (3, 2): np.dtype("<u2"), (8, 1): np.dtype("u1")}.get(
+        (int(info["SampleFormat"]), width), np.dtype("<u2") if width == 2 else np.dtype("u1") if width == 1
+        else np.dtype("<f4"))
+    n_chan = int(head["NumberOfSonarChannels"]) + int(head["NumberOfBathymetryChannels"])
+    pos, ping = 1024 + 1024 * max(0, -(-(n_chan - 6) // 8)), 0
+    while pos < len(raw):
+        if raw[pos + 2] == 0:                                                # a sonar packet
+            if ping >= data.shape[0]:
+                raise ConfigError(f"write_like: {source} has more sonar pings than the {data.shape[0]} given")
+            for ch, (off, n) in enumerate(_sonar_samples_at(raw, pos, width)):
+                v = np.asarray(data[ping, ch][:n], dtype=np.float64)
+                v = v[::-1] if ch == 0 else v                                  # port stored from far range
+                if kind.kind == "u":
+                    v = np.clip(np.rint(v), 0, np.iinfo(kind).max)
+                raw[off:off + n * width] = v.astype(kind).tobytes()
+            ping += 1
+        pos += int.from_bytes(raw[pos + 10:pos + 14], "little")
+
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            fh.write(bytes(raw))
+    atomic_write(path, write, suffix=".xtf")

@@ -19,6 +19,7 @@ from ..config import FanSettings
 from ..config import SignalChain
 from ..raycast import BvhCaster, CudaCaster, EmbreeCaster
 from ..simulate import simulate
+from ..survey.replay import FIT_CLASSES, replay
 from ..survey.stream import render_record
 from .runconfig import load_run_config
 
@@ -110,6 +111,19 @@ example:
 """
 
 
+REPLAY_HELP = """\
+Replay a recorded side-scan line: read REAL.xtf's navigation, attitude, altitude, frequency, range, samples per
+channel and sample format; simulate the same line over a flat floor of --sediment; write OUT/replay.xtf (the same
+layout, every header kept), OUT/report.json and OUT/report.png.
+- The report compares: level against range and grazing angle, the noise floor, the scintillation index and the
+  level histogram per range band, and the correlation along range and along track.
+- --fit picks the sediment class and the gain offset that match best, calibrating the simulator to your sonar.
+
+example:
+  sonar-embree replay line07.xtf --fit -o out/line07
+"""
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="sonar-embree",
                                 description="Physically based side-scan sonar simulator (Embree ray casting).",
@@ -155,12 +169,31 @@ def _parser() -> argparse.ArgumentParser:
                    help="serve the local cluster's Dask dashboard (default address :8787; off unless given)")
     b.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     _add_survey_parser(sub)
+    _add_replay_parser(sub)
     x = sub.add_parser("examples", help="list the shipped scenes, configs and sweeps, or copy one out",
                        description="The files shipped with the package. Configs and sweeps name their meshes "
                                    "as asset:NAME, so a copy works from any folder; render or batch them as "
                                    "asset:NAME.toml or as the copy.")
     x.add_argument("--copy", nargs=2, metavar=("NAME", "DEST"), help="copy a shipped file to DEST (a file or folder)")
     return p
+
+
+def _add_replay_parser(sub) -> None:
+    p = sub.add_parser("replay", help="simulate a recorded XTF line over a flat floor and compare (report, fit)",
+                       description=REPLAY_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("xtf", metavar="REAL.xtf", help="the recorded line (navigation, attitude, altitude, settings)")
+    p.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new or empty)")
+    p.add_argument("--flat", action="store_true", help="a flat seafloor at each ping's altitude (the default; the "
+                                                      "only seafloor so far)")
+    p.add_argument("--sediment", default="apl-uw fine sand", help="the floor's sediment preset (default "
+                                                                   "'apl-uw fine sand')")
+    p.add_argument("--fit", action="store_true", help="fit the gain offset and the sediment class "
+                                                      "(among --classes)")
+    p.add_argument("--classes", default=",".join(FIT_CLASSES), help="comma-separated sediment presets --fit tries")
+    p.add_argument("--gain-db", type=float, help="the gain offset, dB (default: the median level difference)")
+    p.add_argument("--device", metavar="PRESET", help="a device preset for the beam and pulse")
+    p.add_argument("--seed", type=int, default=0, help="speckle seed (default 0)")
+    p.add_argument("--overwrite", action="store_true", help="replace an earlier replay's files in OUT")
 
 
 def _add_survey_parser(sub) -> None:
@@ -312,6 +345,12 @@ def _run(args) -> list:
         return [os.path.join(args.output, i) for i in ids]
     if args.command == "survey":
         return _survey(args)
+    if args.command == "replay":
+        classes = [c.strip() for c in args.classes.split(",") if c.strip()] if args.fit else None
+        replay(args.xtf, args.output, sediment=args.sediment, fit_classes=classes, gain_db=args.gain_db,
+               device=args.device, seed=args.seed, overwrite=args.overwrite)
+        return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png")
+                if os.path.exists(os.path.join(args.output, f))]
     if args.command == "demo":
         from .demo import DEMO_ORIGIN_DEG, DEMO_PNG, anchor_mine_setup
 

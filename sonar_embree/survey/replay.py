@@ -1,0 +1,275 @@
+"""Replay a recorded side-scan line and compare (docs/guide/surveys.md, "Replay and calibrate").
+
+:func:`replay` reads a recorded XTF file, simulates the same line over a flat seafloor, writes the result in the
+file's layout and reports the difference:
+
+- what it reads: navigation and attitude (:meth:`~sonar_embree.Trajectory.from_xtf`), altitude, frequency, range,
+  samples per channel, sample format and the TVG flag (:func:`sonar_embree.io.xtf.read_sonar`);
+- how it simulates: the vehicle flies at each ping's recorded altitude over the plane z = 0, with the file's
+  heading, pitch and roll. The sonar is the file's frequency, range and sound speed, on a device preset's beam
+  when one is named.
+- how it matches the file's layout: simulated at a whole multiple of the file's sample rate (at least the pulse's),
+  then decimated by the maximum to the file's samples per channel, as devices do. The file's TVG is applied when
+  its flag is set: the GainCode's k (30 if none) and the InitialGainCode.
+
+Levels are compared in dB of what is stored: 10·log10 of float samples (intensities) and 20·log10 of integer
+codes (amplitudes). The measures (:func:`measures`), per file, are:
+
+- the median level against slant range and against grazing angle (flat floor: sin θg = altitude/R);
+- the noise floor in the water column;
+- per range band, the scintillation index and a histogram of the level about its median;
+- the correlation of the intensity at one and two samples along range, and one ping along track.
+
+With ``fit``, :func:`fit` chooses the sediment class and the gain offset that bring the simulated measures closest
+to the recorded ones, so a user calibrates the simulator to their own sonar:
+
+- the offset is the median level difference over the floor;
+- the class is the one whose level-against-grazing curve, after that offset, has the smallest RMS difference.
+"""
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+
+import numpy as np
+
+from ..config import Material, Pulse, Sonar
+from ..display import plotting
+from ..environment import Environment
+from ..errors import ConfigError
+from ..io.files import atomic_write
+from ..io.xtf import decimate, read_sonar, write_like
+from ..laws import sediments
+from ..scene import Scene, seafloor
+from ..simulate import simulate
+from ..trajectory import Trajectory
+from ..validation import warn_once
+
+#: Range bands of the per-patch statistics and bins of the level curves.
+N_BANDS, N_RANGE_BINS, GRAZING_BIN_DEG = 4, 32, 2.0
+#: The classes a fit tries by default (APL-UW classes, docs/physics.md §10b).
+FIT_CLASSES = ("apl-uw coarse sand", "apl-uw fine sand", "apl-uw coarse silt", "apl-uw clay")
+#: Grazing angles the class fit compares, degrees (the near-nadir lobe and the shadows left out).
+FIT_GRAZING_DEG = (4.0, 60.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class Line:
+    """A recorded line: its :func:`~sonar_embree.io.xtf.read_sonar` settings and data, and its trajectory over the
+    plane z = 0 (positions at each ping's altitude)."""
+
+    settings: dict
+    trajectory: Trajectory
+
+    @classmethod
+    def read(cls, path) -> "Line":
+        s = read_sonar(path)
+        nav = Trajectory.from_xtf(path)
+        if np.any(s["altitude_m"] <= 0.0):
+            raise ConfigError(f"{os.fspath(path)}: {int(np.sum(s['altitude_m'] <= 0))} pings have no altitude "
+                              "(SensorPrimaryAltitude 0); a flat-floor replay needs each ping's altitude")
+        pos = nav.positions_m.copy()
+        pos[:, 2] = s["altitude_m"]
+        return cls(s, dataclasses.replace(nav, positions_m=pos))
+
+    @property
+    def slant_range_m(self) -> np.ndarray:
+        """(samples,) slant range of each stored sample, m."""
+        s = self.settings
+        return 0.5 * s["sound_speed_m_s"] * np.arange(s["samples_per_channel"]) / s["sample_rate_hz"]
+
+
+def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | None = None, seed: int = 0,
+                  gain_db: float = 0.0, clutter=None) -> np.ndarray:
+    """The line simulated over a flat floor of ``law`` (a sediment name or law), in the file's layout: (pings, 2,
+    samples) values as the file stores them (intensity, or amplitude for integer formats), ``gain_db`` added."""
+    s, traj = line.settings, line.trajectory
+    pulse = pulse or (Pulse.preset(device) if device else Pulse.cw(duration_s=100e-6))
+    factor = max(1, math.ceil(4.0 / pulse.duration_s / s["sample_rate_hz"]))
+    kw = dict(max_range_m=s["slant_range_m"], sample_rate_hz=factor * s["sample_rate_hz"],
+              environment=Environment(sound_speed_m_s=s["sound_speed_m_s"]))
+    sonar = (Sonar.preset(device, frequency_hz=s["frequency_hz"], **kw) if device
+             else Sonar(frequency_hz=s["frequency_hz"], **kw))
+    law = sediments.preset(law) if isinstance(law, str) else law
+    xy = traj.positions_m[:, :2]
+    size = np.ptp(xy, axis=0) + 2.2 * s["slant_range_m"]
+    floor = seafloor.flat(tuple(size), center_m=tuple(xy.mean(axis=0)))
+    scene = Scene().add(floor, material=Material(scattering=law, clutter=clutter), label="seafloor")
+    rec = simulate(scene, traj, sonar, pulse, speckle=True, seed=seed, start_time=traj.start_time or "2000-01-01")
+    n = s["samples_per_channel"]
+    data = np.stack([decimate(rec.data[:, ch, :], n, "max")[:, :n] for ch in (0, 1)], axis=1)
+    if s["tvg"]:
+        k = s["gain_code"] if s["gain_code"] in (20, 30, 40) else 30
+        r = np.maximum(0.5 * sonar.sound_speed_m_s * np.arange(data.shape[2]) / s["sample_rate_hz"], 1.0)
+        data = data * 10.0 ** ((s["initial_gain_db"] + k * np.log10(r) + 2 * sonar.alpha_db_per_m * r) / 10.0)
+    data = np.sqrt(data) if s["integer"] else data
+    return data * 10.0 ** (gain_db / (20.0 if s["integer"] else 10.0))
+
+
+def level_db(values: np.ndarray, integer: bool) -> np.ndarray:
+    """dB of stored values: 20·log10 of codes, 10·log10 of intensities; −inf for zeros."""
+    with np.errstate(divide="ignore"):
+        return (20.0 if integer else 10.0) * np.log10(np.maximum(values, 0.0))
+
+
+def _bins(x: np.ndarray, edges: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Median of ``values`` in each bin of ``x`` (NaN where empty)."""
+    k = np.digitize(x, edges) - 1
+    return np.array([np.median(values[k == i]) if np.any(k == i) else np.nan for i in range(edges.size - 1)])
+
+
+def _correlation(i: np.ndarray, axis: int, lag: int) -> float:
+    """Correlation coefficient of intensities ``lag`` apart along ``axis`` (each range column standardised)."""
+    z = (i - i.mean(axis=0)) / np.maximum(i.std(axis=0), 1e-300)
+    a, b = (z[:-lag], z[lag:]) if axis == 0 else (z[:, :-lag], z[:, lag:])
+    return float(np.mean(a * b))
+
+
+def measures(values: np.ndarray, line: Line) -> dict:
+    """The comparison measures of one file's values (pings, 2, samples) on ``line``'s geometry (module docstring)."""
+    s, r = line.settings, line.slant_range_m
+    alt = line.trajectory.positions_m[:, 2][:, None]
+    lev = level_db(values, s["integer"])
+    inten = values ** 2 if s["integer"] else values
+    floor = (r[None, :] > alt * 1.02) & np.isfinite(lev[:, 0])
+    water = r[None, :] < 0.9 * alt
+    grazing = np.degrees(np.arcsin(np.clip(alt / np.maximum(r[None, :], 1e-9), 0.0, 1.0)))
+    both = np.concatenate([lev[:, 0][floor], lev[:, 1][floor]])
+    rr = np.broadcast_to(r, floor.shape)[floor]
+    gg = grazing[floor]
+    r_edges = np.linspace(0.0, s["slant_range_m"], N_RANGE_BINS + 1)
+    g_edges = np.arange(0.0, 90.0 + GRAZING_BIN_DEG, GRAZING_BIN_DEG)
+    out = {"range_m": (0.5 * (r_edges[1:] + r_edges[:-1])).tolist(),
+           "level_vs_range_db": _bins(np.concatenate([rr, rr]), r_edges, both).tolist(),
+           "grazing_deg": (0.5 * (g_edges[1:] + g_edges[:-1])).tolist(),
+           "level_vs_grazing_db": _bins(np.concatenate([gg, gg]), g_edges, both).tolist(),
+           "noise_floor_db": float(np.median(lev[:, :, :][np.broadcast_to(water[:, None, :], lev.shape)]))
+           if water.any() else None}
+    out.update(_patches(inten, lev, r, alt, s["slant_range_m"]))
+    return out
+
+
+def _patches(inten, lev, r, alt, r_max) -> dict:
+    """Per range band of the floor: scintillation index (of the intensity, each range column divided by its mean
+    over pings and sides), level histogram about the median, correlations."""
+    lo = float(np.max(alt)) * 1.05
+    edges = np.linspace(lo, r_max, N_BANDS + 1)
+    hist_edges = np.arange(-20.0, 16.0, 1.0)
+    si, hists, c1, c2, ca = [], [], [], [], []
+    for a, b in zip(edges[:-1], edges[1:]):
+        cols = (r >= a) & (r < b)
+        i = np.concatenate([inten[:, 0][:, cols], inten[:, 1][:, cols]], axis=0)
+        d = np.concatenate([lev[:, 0][:, cols], lev[:, 1][:, cols]], axis=0)
+        good = np.isfinite(d)
+        norm = i / np.maximum(i.mean(axis=0), 1e-300)                   # each range column about its mean
+        si.append(float(norm.var()) if i.size else None)
+        hists.append(np.histogram(d[good] - np.median(d[good]), hist_edges)[0].tolist() if good.any() else [])
+        c1.append(_correlation(i, 1, 1) if i.shape[1] > 2 else None)
+        c2.append(_correlation(i, 1, 2) if i.shape[1] > 3 else None)
+        ca.append(_correlation(inten[:, 1][:, cols], 0, 1) if inten.shape[0] > 2 and cols.any() else None)
+    return {"band_edges_m": edges.tolist(), "scintillation_index": si, "histogram_edges_db": hist_edges.tolist(),
+            "histograms": hists, "correlation_range_lag1": c1, "correlation_range_lag2": c2,
+            "correlation_along_lag1": ca}
+
+
+def gain_offset_db(real: dict, sim: dict) -> float:
+    """The median level difference real − simulated over the range bins both fill, dB."""
+    d = np.array(real["level_vs_range_db"], float) - np.array(sim["level_vs_range_db"], float)
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        raise ConfigError("replay: the recorded and simulated lines share no range with floor echoes")
+    return float(np.median(d))
+
+
+def shape_error_db(real: dict, sim: dict, offset_db: float) -> float:
+    """RMS of real − (simulated + offset) against grazing angle within :data:`FIT_GRAZING_DEG`, dB."""
+    g = np.array(real["grazing_deg"])
+    d = np.array(real["level_vs_grazing_db"], float) - np.array(sim["level_vs_grazing_db"], float) - offset_db
+    keep = np.isfinite(d) & (g >= FIT_GRAZING_DEG[0]) & (g <= FIT_GRAZING_DEG[1])
+    return float(np.sqrt(np.mean(d[keep] ** 2))) if keep.any() else math.inf
+
+
+def fit(line: Line, real: dict, classes=FIT_CLASSES, **kw) -> dict:
+    """The class of ``classes`` and the gain offset (dB) that bring the simulation closest to ``real``
+    (:func:`measures` of the recorded values): ``{"sediment", "gain_offset_db", "errors_db" {class: RMS dB}}``."""
+    errors, offsets = {}, {}
+    for name in classes:
+        sim = measures(simulate_line(line, name, **kw), line)
+        offsets[name] = gain_offset_db(real, sim)
+        errors[name] = shape_error_db(real, sim, offsets[name])
+    best = min(errors, key=errors.get)
+    return {"sediment": best, "gain_offset_db": offsets[best], "errors_db": errors}
+
+
+def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
+           device: str | None = None, seed: int = 0, overwrite: bool = False) -> dict:
+    """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
+    ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
+
+    Parameters
+    ----------
+    sediment : str
+        The seafloor's sediment (a preset name of :mod:`sonar_embree.laws.sediments`, e.g. "apl-uw fine sand").
+    fit_classes : sequence of str, optional
+        Fit the sediment among these classes and the gain offset (:func:`fit`); ``sediment`` is then ignored.
+    gain_db : float, optional
+        The gain offset added to the simulation, dB; default: the median level difference (or the fit's).
+    device, seed
+        A device preset for the beam and pulse; the speckle seed.
+    """
+    line = Line.read(path)
+    real = measures(line.settings["data"], line)
+    chosen = fit(line, real, fit_classes, device=device, seed=seed) if fit_classes else None
+    name = chosen["sediment"] if chosen else sediment
+    base = simulate_line(line, name, device=device, seed=seed)
+    offset = (gain_db if gain_db is not None else chosen["gain_offset_db"] if chosen
+              else gain_offset_db(real, measures(base, line)))
+    values = base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0))
+    sim = measures(values, line)
+    _check_out(out_dir, overwrite)
+    write_like(path, os.path.join(out_dir, "replay.xtf"), values, overwrite=overwrite)
+    report = {"source": os.path.abspath(os.fspath(path)), "sediment": name, "gain_offset_db": offset,
+              "fit": chosen, "shape_error_db": shape_error_db(real, sim, 0.0),
+              "settings": {k: v for k, v in line.settings.items() if k not in ("data", "altitude_m")},
+              "recorded": real, "simulated": sim}
+    atomic_write(os.path.join(out_dir, "report.json"),
+                 lambda tmp: open(tmp, "w").write(json.dumps(report, indent=1, allow_nan=True)), suffix=".json")
+    _report_png(report, os.path.join(out_dir, "report.png"))
+    return report
+
+
+def _check_out(out_dir, overwrite: bool) -> None:
+    """Create ``out_dir``; refuse one that holds anything but a replay's own files unless ``overwrite``."""
+    os.makedirs(out_dir, exist_ok=True)
+    held = sorted(set(os.listdir(out_dir)) - ({"replay.xtf", "report.json", "report.png"} if overwrite else set()))
+    if held:
+        raise ConfigError(f"{out_dir}: not empty (holds {held[0]!r}); choose another folder"
+                          + ("" if overwrite else " or pass overwrite (--overwrite) to replace a replay's files"))
+
+
+def _report_png(report: dict, path: str) -> None:
+    """Level against range and grazing angle, the scintillation index per band and a band's histogram, recorded
+    beside simulated (needs matplotlib; without it the PNG is left out with a warning)."""
+    rec, sim = report["recorded"], report["simulated"]
+    mid = lambda e: (0.5 * (np.array(e[1:]) + np.array(e[:-1]))).tolist()      # noqa: E731
+    band = N_BANDS // 2
+    panels = [dict(x=rec["range_m"], lines=[("recorded", rec["level_vs_range_db"]), ("simulated",
+                   sim["level_vs_range_db"], "--")], xlabel="slant range (m)", ylabel="level (dB)"),
+              dict(x=rec["grazing_deg"], lines=[("recorded", rec["level_vs_grazing_db"]), ("simulated",
+                   sim["level_vs_grazing_db"], "--")], xlabel="grazing angle (deg)", ylabel="level (dB)"),
+              dict(x=mid(rec["band_edges_m"]), lines=[("recorded", rec["scintillation_index"], "o-"),
+                   ("simulated", sim["scintillation_index"], "s--")], xlabel="band centre (m)",
+                   ylabel="scintillation index"),
+              dict(x=mid(rec["histogram_edges_db"]), lines=[("recorded", rec["histograms"][band]),
+                   ("simulated", sim["histograms"][band], "--")], xlabel="level about the median (dB)",
+                   ylabel="samples", title=f"band {band + 1} of {N_BANDS}")]
+    try:
+        plotting.line_panels_png(panels, path, title=f"replay: {report['sediment']}, gain offset "
+                                                    f"{report['gain_offset_db']:.1f} dB")
+    except ConfigError as exc:
+        warn_once(f"replay: {exc}; report.png left out")
+
+
+__all__ = ["FIT_CLASSES", "Line", "fit", "gain_offset_db", "measures", "replay", "shape_error_db", "simulate_line"]

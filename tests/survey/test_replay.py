@@ -1,0 +1,95 @@
+"""``sonar-embree replay``: the project's own XTF replayed reproduces its geometry and levels, and ``--fit`` recovers
+a hidden gain offset and sediment class (issue 38); the written XTF keeps the source's layout byte for byte but
+its samples."""
+import json
+import math
+
+import numpy as np
+import pyxtf
+import pytest
+
+import sonar_embree as se
+from sonar_embree.errors import ConfigError
+from sonar_embree.runs.cli import main
+from sonar_embree.survey import replay as R
+
+PULSE = se.Pulse.cw(duration_s=100e-6)
+
+
+def _line(tmp_path, sediment="apl-uw coarse silt", gain_db=0.0, seed=7, name="line.xtf"):
+    """A speckled line over a flat floor of ``sediment``, altitude 8 → 6 m, pitch and roll; its intensities times
+    10^(gain/10) written to XTF with scale 1 (the hidden settings)."""
+    law = se.sediments.preset(sediment)
+    scene = se.Scene().add(se.seafloor.flat((400, 400)), material=se.Material(scattering=law), label="seafloor")
+    traj = se.Trajectory.line((-15, 0, 8.0), (15, 0, 6.0), 60, pitch_deg=2.0, roll_deg=1.0)
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=30.0), PULSE, speckle=True, seed=seed,
+                      start_time="2026-05-01T12:00:00Z")
+    hidden = se.Record(rec.data * 10 ** (gain_db / 10), rec.time_s, rec.trajectory, rec.sonar, rec.pulse,
+                       rec.altitude_m, rec.attrs)
+    hidden.to_xtf(tmp_path / name, scale=1.0)
+    return rec
+
+
+def test_the_projects_own_line_replays_with_its_geometry_and_levels(tmp_path):
+    rec = _line(tmp_path)
+    rep = R.replay(tmp_path / "line.xtf", tmp_path / "out", sediment="apl-uw coarse silt", seed=1)
+    assert rep["gain_offset_db"] == pytest.approx(0.0, abs=0.5)        # same physics, same unit source: no offset
+    real, sim = np.array(rep["recorded"]["level_vs_grazing_db"]), np.array(rep["simulated"]["level_vs_grazing_db"])
+    g = np.array(rep["recorded"]["grazing_deg"])
+    keep = np.isfinite(real) & (g > 5) & (g < 60)
+    assert keep.sum() > 10 and np.max(np.abs(real[keep] - sim[keep])) < 1.0
+    _, packets = pyxtf.xtf_read(str(tmp_path / "out" / "replay.xtf"))
+    _, orig = pyxtf.xtf_read(str(tmp_path / "line.xtf"))
+    a, b = packets[pyxtf.XTFHeaderType.sonar], orig[pyxtf.XTFHeaderType.sonar]
+    assert len(a) == len(b) == 60
+    for p, q in zip(a[::13], b[::13]):                                     # same navigation and layout
+        assert (p.SensorXcoordinate, p.SensorHeading, p.SensorPitch, p.SensorPrimaryAltitude) == \
+            (q.SensorXcoordinate, q.SensorHeading, q.SensorPitch, q.SensorPrimaryAltitude)
+        assert p.data[1].shape == q.data[1].shape and p.data[1].dtype == q.data[1].dtype
+        first = lambda x: int(np.flatnonzero(x > 0)[0])                   # noqa: E731 the first bottom return
+        assert abs(first(p.data[1]) - first(q.data[1])) <= 1
+    assert not np.array_equal(a[5].data[1], b[5].data[1])                  # the samples are the simulation's
+    raw, copy = (tmp_path / "line.xtf").read_bytes(), (tmp_path / "out" / "replay.xtf").read_bytes()
+    assert len(raw) == len(copy) and raw[:1024] == copy[:1024]
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["sediment"] == "apl-uw coarse silt" and (tmp_path / "out" / "report.png").stat().st_size > 1000
+
+
+def test_fit_recovers_a_hidden_gain_and_sediment_class(tmp_path):
+    _line(tmp_path, sediment="apl-uw fine sand", gain_db=17.3)
+    assert main(["replay", str(tmp_path / "line.xtf"), "--fit", "-o", str(tmp_path / "fit"), "--seed", "2"]) == 0
+    report = json.loads((tmp_path / "fit" / "report.json").read_text())
+    assert report["fit"]["sediment"] == "apl-uw fine sand", report["fit"]["errors_db"]
+    assert report["gain_offset_db"] == pytest.approx(17.3, abs=0.5)
+    errors = report["fit"]["errors_db"]
+    assert errors["apl-uw fine sand"] < 0.5 * min(v for k, v in errors.items() if k != "apl-uw fine sand")
+
+
+def test_measures_against_closed_forms():
+    """On Rayleigh speckle of a known mean: scintillation index 1, lag correlation 0, the level curve flat."""
+    rng = np.random.default_rng(0)
+    settings = dict(sound_speed_m_s=1500.0, samples_per_channel=400, sample_rate_hz=20e3, slant_range_m=15.0,
+                    integer=False)
+    traj = se.Trajectory.line((0, 0, 5.0), (50, 0, 5.0), 2000)
+    line = R.Line(settings, traj)
+    values = rng.exponential(1.0, (2000, 2, 400))
+    m = R.measures(values, line)
+    assert all(si == pytest.approx(1.0, abs=0.03) for si in m["scintillation_index"])
+    assert all(abs(c) < 0.02 for c in m["correlation_range_lag1"] + m["correlation_along_lag1"])
+    lv = np.array(m["level_vs_range_db"])
+    assert np.nanmax(lv) - np.nanmin(lv) < 0.2                               # median of 10 log10 Exp(1): −1.59 dB
+    assert np.nanmean(lv) == pytest.approx(10 * math.log10(math.log(2)), abs=0.05)
+
+
+def test_a_file_without_altitude_or_an_occupied_folder_is_refused(tmp_path):
+    _line(tmp_path)
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "mine.txt").write_text("x")
+    with pytest.raises(ConfigError, match="not empty"):
+        R.replay(tmp_path / "line.xtf", tmp_path / "busy")
+    off_side = se.Scene().add(se.seafloor.flat((20, 20), center_m=(0.0, 15.0)))   # nothing below the sonar
+    rec = se.simulate(off_side, se.Trajectory.line((0, 0, 5), (1, 0, 5), 3), se.Sonar(max_range_m=20.0), PULSE,
+                      start_time="2026-05-01T12:00:00Z")
+    rec.to_xtf(tmp_path / "none.xtf")
+    with pytest.raises(ConfigError, match="no altitude"):
+        R.Line.read(tmp_path / "none.xtf")
