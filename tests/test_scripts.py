@@ -252,3 +252,16 @@ def test_bench_chirp_script_reports_the_chirp_beside_cw():
     assert proc.returncode == 0, proc.stderr[-2000:]
     rows = [line for line in proc.stdout.splitlines() if line.startswith("| ") and "ms/ping" not in line]
     assert len(rows) == 3 and all(float(r.split("|")[2]) > 0 for r in rows)
+
+
+def test_realism_figure_shows_heavier_tails_than_todays_line(tmp_path):
+    """Issue 38's figure: today's line and the realistic one side by side; the realistic line's far band has the
+    heavier tail (scintillation index) that clutter and the APL-UW fall-off give."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "realism_figure.py"), "-o", str(tmp_path),
+                           "--length", "3"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["realism.json", "waterfalls.png"]
+    img = iio.imread(tmp_path / "waterfalls.png")
+    assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
+    info = json.loads((tmp_path / "realism.json").read_text())
+    assert info["realistic"]["scintillation_index"][-1] > 2 * info["today"]["scintillation_index"][-1]

@@ -21,6 +21,7 @@ SCRIPTS = {
     "msis_figure": ("-o docs/msis", ["msis/polar.png"]),
     "fls_figure": ("-o docs/fls", ["fls/fan.png"]),
     "device_figure": ("-o docs/device", ["device/waterfalls.png"]),
+    "realism_figure": ("-o docs/realism", ["realism/waterfalls.png"]),
     "survey_from_dem": ("-o out/survey --figure docs/survey/survey.png", ["survey/survey.png"]),
     "make_detection_dataset": ("-o out/detection --example docs/detection_example.png", ["detection_example.png"]),
     "make_assets": ("", ["demo.png"]),
