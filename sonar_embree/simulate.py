@@ -23,6 +23,7 @@ import numpy as np
 from . import checks, sonars
 from .propagation import multipath
 from .propagation.clutter import ClutterField, check_clutter, clutter_echoes, clutter_field
+from .propagation.volume import VolumeBeam, volume_density
 from .signal import processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
 from .environment import Environment
@@ -211,7 +212,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         t = time.perf_counter()
         vel = None if trajectory.velocity_m_s is None else trajectory.velocity_m_s[a:b]
         run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel,
-                           points=None if run.clutter is None else _clutter_block(run, a, b))
+                           points=None if run.clutter is None else _clutter_block(run, a, b),
+                           volume=None if run.volume is None else _volume_block(run, trajectory, a, b))
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
@@ -281,6 +283,7 @@ class _Run:
     rx_shift: np.ndarray | None = None  # motion during the ping: δ = 2·v_fwd/c per ping
     first_ping: int = 0  # the trajectory's first ping within a longer survey (ping_offset)
     clutter: ClutterField | None = None  # the scene's frozen clutter scatterers, if it has any
+    volume: VolumeBeam | None = None  # the water column's reverberation beam, if it has any
 
     @classmethod
     def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster,
@@ -325,13 +328,30 @@ class _Run:
         return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
                    np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,
                    ping_offset,
-                   clutter_field(compiled, chain.seed))
+                   clutter_field(compiled, chain.seed), _volume_beam(sonar))
 
 
 def _clutter_block(run: _Run, a: int, b: int):
     """The clutter echoes of pings a … b − 1 (:func:`sonar_embree.propagation.clutter.clutter_echoes`)."""
     return clutter_echoes(run.clutter, run.sonar, run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r,
                           processing.absorption_np_per_m(run.sonar.alpha_db_per_m))
+
+
+def _volume_beam(sonar) -> VolumeBeam | None:
+    """The water column's reverberation beam (side-scan only; refused for another sonar type)."""
+    if sonar.environment.volume_backscatter_db is None:
+        return None
+    if type(sonar).__name__ != "Sonar":
+        raise ConfigError(f"Environment.volume_backscatter_db is simulated for the side-scan Sonar, not "
+                          f"{type(sonar).__name__}")
+    return VolumeBeam.of(sonar)
+
+
+def _volume_block(run: _Run, trajectory, a: int, b: int):
+    """The volume reverberation density of pings a … b − 1 (:func:`sonar_embree.propagation.volume.volume_density`),
+    on the back end's samples."""
+    return volume_density(run.volume, run.sonar, run.rots[a:b], trajectory.positions_m[a:b, 2], run.altitude[a:b],
+                          run.back.out.shape[-1])
 
 
 def _mounted(front, trajectory, ping_offset: int) -> np.ndarray:

@@ -142,20 +142,26 @@ def sphere_quadrature(a, centre, positions, alpha_db_m, mu_db, n=240, gamma=side
     return np.array(out)
 
 
-def directivity_index_db(pattern, n_theta=1200, n_phi=2048):
-    """DI = 10·log10(4π / ∫ b² dΩ) by brute quadrature in spherical angles about the boresight (docs/physics.md
-    §14): θ from the axis on Gauss–Legendre nodes over [0, π/2], φ on a uniform periodic grid (spectrally exact
-    for the periodic integrand). ``pattern(u, v)``: the one-way pressure b at direction cosines u = sin θ cos φ,
-    v = sin θ sin φ along the aperture's sides."""
-    x, w = np.polynomial.legendre.leggauss(n_theta)
-    theta, w = np.pi / 4 * (x + 1), np.pi / 4 * w
+def hemisphere_integral(f, n_theta=1200, n_phi=2048):
+    """∫ f dΩ over the hemisphere in front of an aperture by brute quadrature in spherical angles about its axis:
+    θ from the axis on Gauss–Legendre nodes over [0, π/2], φ on a uniform periodic grid (spectrally exact for the
+    periodic integrand). ``f(u, v, w)``: direction cosines u = sin θ cos φ, v = sin θ sin φ along the aperture's
+    sides and w = cos θ along its axis."""
+    x, wt = np.polynomial.legendre.leggauss(n_theta)
+    theta, wt = np.pi / 4 * (x + 1), np.pi / 4 * wt
     phi = 2 * np.pi * np.arange(n_phi) / n_phi
     total = 0.0
     for i in range(0, n_theta, 250):
         st = np.sin(theta[i:i + 250])[:, None]
-        b = pattern(st * np.cos(phi), st * np.sin(phi))
-        total += float(np.sum(w[i:i + 250] * st[:, 0] * (b * b).sum(axis=1)) * 2 * np.pi / n_phi)
-    return 10 * np.log10(4 * np.pi / total)
+        val = f(st * np.cos(phi), st * np.sin(phi), np.cos(theta[i:i + 250])[:, None] + 0 * phi)
+        total += float(np.sum(wt[i:i + 250] * st[:, 0] * val.sum(axis=1)) * 2 * np.pi / n_phi)
+    return total
+
+
+def directivity_index_db(pattern, n_theta=1200, n_phi=2048):
+    """DI = 10·log10(4π / ∫ b² dΩ) (docs/physics.md §14) by :func:`hemisphere_integral`; ``pattern(u, v)``: the
+    one-way pressure b at direction cosines u, v along the aperture's sides."""
+    return 10 * np.log10(4 * np.pi / hemisphere_integral(lambda u, v, w: pattern(u, v) ** 2, n_theta, n_phi))
 
 
 def membrane_pattern(length_m, height_m, wavelength_m):

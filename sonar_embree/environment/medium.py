@@ -60,6 +60,10 @@ class Environment:
         The sea's ambient noise (docs/physics.md §14), heard once the sonar has a source level
         (``Sonar.source_level_db``): default :class:`AmbientNoise` () (5 m/s wind, moderate
         shipping, thermal); None: a silent sea. A unit-source record never holds it.
+    volume_backscatter_db : float or None
+        Sv, the water column's volume backscattering strength, dB re 1 m⁻¹ (plankton, bubbles, suspended
+        sediment: some −90 to −50 dB), in [−200, 0]: its reverberation fills the record between the transducer
+        and the floor (docs/physics.md §14b; side-scan only). None (default): none.
     """
 
     sound_speed_m_s: float = 1500.0
@@ -72,6 +76,7 @@ class Environment:
     surface: SeaSurface | None = None
     sound_speed: SoundSpeedProfile | None = None
     noise: AmbientNoise | None = AmbientNoise()
+    volume_backscatter_db: float | None = None
 
     def __post_init__(self):
         check_number("Environment", "sound_speed_m_s", self.sound_speed_m_s, positive=True)
@@ -84,6 +89,8 @@ class Environment:
                               f"got {self.absorption_model!r}")
         if self.absorption_db_per_m is not None:
             check_number("Environment", "absorption_db_per_m", self.absorption_db_per_m, nonneg=True, hi=100.0)
+        if self.volume_backscatter_db is not None:
+            check_number("Environment", "volume_backscatter_db", self.volume_backscatter_db, lo=-200.0, hi=0.0)
         if isinstance(self.surface, dict):  # from TOML ([environment] surface = {…}) or a record's metadata
             unknown = sorted(set(self.surface) - set(field_names(SeaSurface)))
             if unknown:

@@ -159,9 +159,10 @@ class ExpectedSynthesis:
         self.kernel, self.lead = echo_kernel
 
     def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None,
-                  points=None) -> None:
-        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey) and the clutter's
-        ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None): their expected intensities; the
+                  points=None, volume=None) -> None:
+        """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey), the clutter's
+        ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None) and the water column's
+        reverberation density ``volume`` (pings, channels, n_s) per s (or None): their expected intensities; the
         velocity ``vel_world`` moves only speckle phases, so it is not needed here."""
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
@@ -169,6 +170,8 @@ class ExpectedSynthesis:
         for part in parts:  # a block's paths one after the other: row by row, the merged order
             kernels.splat_rows(part.ray_start, part.travel_time_s, part.extent_s, part.weight, fs,
                                self.out[a:b].reshape(part.ray_start.shape[0] - 1, self.out.shape[-1]))
+        if volume is not None:  # the water column: a continuum of echoes, ρ(t)·dt per sample
+            self.out[a:b] += volume / fs
 
     def finish(self):
         """Detected intensity (pings, channels, n_s) and no complex signal."""
@@ -209,10 +212,11 @@ class SpeckleSynthesis:
         self.out = np.zeros(shape, dtype=np.complex128) if coherent else np.zeros(shape)
 
     def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None,
-                  points=None) -> None:
-        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise) and the
-        clutter's ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None); the vehicle moves at
-        ``vel_world`` (pings, 3) m/s during them (None: at rest)."""
+                  points=None, volume=None) -> None:
+        """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise), the
+        clutter's ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None) and the water column's
+        reverberation density ``volume`` (pings, channels, n_s) per s (or None); the vehicle moves at ``vel_world``
+        (pings, 3) m/s during them (None: at rest)."""
         e = merged(e)
         s, chain, out = self.sonar, self.chain, self.out[a:a + e.n_pings]
         fs, f0 = s.sample_rate_hz, s.frequency_hz
@@ -233,6 +237,9 @@ class SpeckleSynthesis:
             if self.n0 is not None:  # per-ping stream: the same bits for any ping order, block or worker count
                 rng = np.random.default_rng([chain.seed, 0x5EED_0015E, survey_a + b])
                 noise = processing.band_noise(rng, (n_ch, n_s), self.n0 * fs, self.band)
+            if volume is not None:
+                reverb = self._reverberation(volume[b], survey_a + b)
+                noise = reverb if noise is None else noise + reverb
             if chain.band == "baseband":
                 if noise is not None:
                     out[b] += noise
@@ -241,6 +248,14 @@ class SpeckleSynthesis:
         dt = time.perf_counter() - t  # per-ping detection on the carrier is processing, not synthesis
         clock["processing"] = clock.get("processing", 0.0) + dt
         clock["synthesis"] = clock.get("synthesis", 0.0) - dt
+
+    def _reverberation(self, density, survey_ping: int):
+        """(channels, n_s) complex baseband volume reverberation of one ping: circular Gaussian samples of variance
+        ρ/fs from its own stream, convolved with the pulse's envelope p̃(m/fs), so E|z|² = Σ ρ/fs·|p̃|²."""
+        fs = self.sonar.sample_rate_hz
+        rng = np.random.default_rng([self.chain.seed, 0x5E4A_C01, survey_ping])
+        z = processing.complex_noise(rng, density.shape, 1.0) * np.sqrt(density / fs)
+        return convolve_time(z, pulses.replica(self.pulse, self.sonar.frequency_hz, fs))
 
     def _points(self, points, rate_hz: float, phase_cycles_per_s: float, out, delay_s: float = 0.0) -> None:
         """Add the clutter's point echoes to ``out`` (pings, channels, n) complex: √w·e^(j2π·cycles), times the
