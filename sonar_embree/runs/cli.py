@@ -15,7 +15,9 @@ from ..errors import SonarEmbreeError
 from ..record import registry
 from ..io.files import STALE_PREFIXES
 from .. import assets
-from ..config import FanSettings
+from ..config import FanSettings, Material
+from ..laws import sediments
+from ..scene import Scene, seafloor
 from ..config import SignalChain
 from ..raycast import BvhCaster, CudaCaster, EmbreeCaster
 from ..simulate import simulate
@@ -114,7 +116,8 @@ example:
 REPLAY_HELP = """\
 Replay a recorded side-scan line: read REAL.xtf's navigation, attitude, altitude, frequency, range, samples per
 channel and sample format; simulate the same line over a flat floor of --sediment; write OUT/replay.xtf (the same
-layout, every header kept), OUT/report.json and OUT/report.png.
+layout, every header kept), OUT/report.json and OUT/report.png. --dem or --scene replays it over that seabed
+instead, the sonar where the file's navigation puts it.
 - The report compares: level against range and grazing angle, the noise floor, the scintillation index and the
   level histogram per range band, and the correlation along range and along track.
 - --fit picks the sediment class and the gain offset that match best, calibrating the simulator to your sonar.
@@ -183,8 +186,12 @@ def _add_replay_parser(sub) -> None:
                        description=REPLAY_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("xtf", metavar="REAL.xtf", help="the recorded line (navigation, attitude, altitude, settings)")
     p.add_argument("-o", "--output", required=True, metavar="OUT", help="output folder (new or empty)")
-    p.add_argument("--flat", action="store_true", help="a flat seafloor at each ping's altitude (the default; the "
-                                                      "only seafloor so far)")
+    floor = p.add_mutually_exclusive_group()
+    floor.add_argument("--flat", action="store_true", help="a flat seafloor at each ping's altitude (the default)")
+    floor.add_argument("--dem", metavar="DEM.tif", help="a GeoTIFF DEM (projected metres, z = 0 the sea surface) of "
+                                                        "--sediment; the sonar where the file's navigation puts it")
+    floor.add_argument("--scene", metavar="RUN.toml", help="the scene of a run configuration (its objects and "
+                                                           "materials); the sonar where the file's navigation puts it")
     p.add_argument("--sediment", default="apl-uw fine sand", help="the floor's sediment preset (default "
                                                                    "'apl-uw fine sand')")
     p.add_argument("--fit", action="store_true", help="fit the gain offset and the sediment class "
@@ -348,7 +355,7 @@ def _run(args) -> list:
     if args.command == "replay":
         classes = [c.strip() for c in args.classes.split(",") if c.strip()] if args.fit else None
         replay(args.xtf, args.output, sediment=args.sediment, fit_classes=classes, gain_db=args.gain_db,
-               device=args.device, seed=args.seed, overwrite=args.overwrite)
+               device=args.device, seed=args.seed, overwrite=args.overwrite, scene=_replay_scene(args))
         return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png")
                 if os.path.exists(os.path.join(args.output, f))]
     if args.command == "demo":
@@ -378,6 +385,14 @@ def _run(args) -> list:
     if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
     return registry.write_set(rec, args.output, o.formats(), registry.WriteOptions(o.png_kwargs()))
+
+
+def _replay_scene(args):
+    """The seabed of ``replay --dem`` or ``--scene`` (None: the flat floor)."""
+    if args.dem:
+        return Scene().add(seafloor.from_dem(args.dem), label="seafloor", seafloor=True,
+                           material=Material(scattering=sediments.preset(args.sediment)))
+    return load_run_config(args.scene).scene if args.scene else None
 
 
 def _configure_logging(verbose: bool) -> None:

@@ -64,8 +64,12 @@ class Line:
     trajectory: Trajectory
 
     @classmethod
-    def read(cls, path) -> "Line":
+    def read(cls, path, scene: Scene | None = None) -> "Line":
+        """The line of ``path``; over a flat floor at its altitudes, or, with a ``scene``, where its navigation puts
+        it (z = −SensorDepth, x and y in the scene's CRS)."""
         s = read_sonar(path)
+        if scene is not None:
+            return cls(s, Trajectory.from_xtf(path, crs=scene.crs))
         nav = Trajectory.from_xtf(path)
         if np.any(s["altitude_m"] <= 0.0):
             raise ConfigError(f"{os.fspath(path)}: {int(np.sum(s['altitude_m'] <= 0))} pings have no altitude "
@@ -82,9 +86,10 @@ class Line:
 
 
 def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | None = None, seed: int = 0,
-                  gain_db: float = 0.0, clutter=None) -> np.ndarray:
-    """The line simulated over a flat floor of ``law`` (a sediment name or law), in the file's layout: (pings, 2,
-    samples) values as the file stores them (intensity, or amplitude for integer formats), ``gain_db`` added."""
+                  gain_db: float = 0.0, clutter=None, scene: Scene | None = None) -> np.ndarray:
+    """The line simulated over a flat floor of ``law`` (a sediment name or law), or over ``scene`` as it is, in the
+    file's layout: (pings, 2, samples) values as the file stores them (intensity, or amplitude for integer formats),
+    ``gain_db`` added."""
     s, traj = line.settings, line.trajectory
     pulse = pulse or (Pulse.preset(device) if device else Pulse.cw(duration_s=100e-6))
     factor = max(1, math.ceil(4.0 / pulse.duration_s / s["sample_rate_hz"]))
@@ -92,11 +97,12 @@ def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | 
               environment=Environment(sound_speed_m_s=s["sound_speed_m_s"]))
     sonar = (Sonar.preset(device, frequency_hz=s["frequency_hz"], **kw) if device
              else Sonar(frequency_hz=s["frequency_hz"], **kw))
-    law = sediments.preset(law) if isinstance(law, str) else law
-    xy = traj.positions_m[:, :2]
-    size = np.ptp(xy, axis=0) + 2.2 * s["slant_range_m"]
-    floor = seafloor.flat(tuple(size), center_m=tuple(xy.mean(axis=0)))
-    scene = Scene().add(floor, material=Material(scattering=law, clutter=clutter), label="seafloor")
+    if scene is None:
+        law = sediments.preset(law) if isinstance(law, str) else law
+        xy = traj.positions_m[:, :2]
+        size = np.ptp(xy, axis=0) + 2.2 * s["slant_range_m"]
+        floor = seafloor.flat(tuple(size), center_m=tuple(xy.mean(axis=0)))
+        scene = Scene().add(floor, material=Material(scattering=law, clutter=clutter), label="seafloor")
     rec = simulate(scene, traj, sonar, pulse, speckle=True, seed=seed, start_time=traj.start_time or "2000-01-01")
     n = s["samples_per_channel"]
     data = np.stack([decimate(rec.data[:, ch, :], n, "max")[:, :n] for ch in (0, 1)], axis=1)
@@ -130,7 +136,7 @@ def _correlation(i: np.ndarray, axis: int, lag: int) -> float:
 def measures(values: np.ndarray, line: Line) -> dict:
     """The comparison measures of one file's values (pings, 2, samples) on ``line``'s geometry (module docstring)."""
     s, r = line.settings, line.slant_range_m
-    alt = line.trajectory.positions_m[:, 2][:, None]
+    alt = np.where(s["altitude_m"] > 0.0, s["altitude_m"], np.nan)[:, None]   # the file's, as recorded
     lev = level_db(values, s["integer"])
     inten = values ** 2 if s["integer"] else values
     floor = (r[None, :] > alt * 1.02) & np.isfinite(lev[:, 0])
@@ -154,7 +160,7 @@ def measures(values: np.ndarray, line: Line) -> dict:
 def _patches(inten, lev, r, alt, r_max) -> dict:
     """Per range band of the floor: scintillation index (of the intensity, each range column divided by its mean
     over pings and sides), level histogram about the median, correlations."""
-    lo = float(np.max(alt)) * 1.05
+    lo = float(np.nanmax(alt)) * 1.05
     edges = np.linspace(lo, r_max, N_BANDS + 1)
     hist_edges = np.arange(-20.0, 16.0, 1.0)
     si, hists, c1, c2, ca = [], [], [], [], []
@@ -204,7 +210,7 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, **kw) -> dict:
 
 
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
-           device: str | None = None, seed: int = 0, overwrite: bool = False) -> dict:
+           device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -218,12 +224,18 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         The gain offset added to the simulation, dB; default: the median level difference (or the fit's).
     device, seed
         A device preset for the beam and pulse; the speckle seed.
+    scene : Scene, optional
+        The seabed to replay the line over (a DEM's, a TOML's), where the file's navigation puts the sonar; its own
+        materials hold (no ``sediment``, no fit). Default: a flat floor at each ping's altitude. The grazing angles
+        of the report take the altitude over a level floor either way.
     """
-    line = Line.read(path)
+    if scene is not None and fit_classes:
+        raise ConfigError("replay: --fit chooses the sediment of a flat floor; a --scene or --dem keeps its own")
+    line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
     chosen = fit(line, real, fit_classes, device=device, seed=seed) if fit_classes else None
-    name = chosen["sediment"] if chosen else sediment
-    base = simulate_line(line, name, device=device, seed=seed)
+    name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
+    base = simulate_line(line, name, device=device, seed=seed, scene=scene)
     offset = (gain_db if gain_db is not None else chosen["gain_offset_db"] if chosen
               else gain_offset_db(real, measures(base, line)))
     values = base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0))

@@ -69,7 +69,7 @@ def test_measures_against_closed_forms():
     """On Rayleigh speckle of a known mean: scintillation index 1, lag correlation 0, the level curve flat."""
     rng = np.random.default_rng(0)
     settings = dict(sound_speed_m_s=1500.0, samples_per_channel=400, sample_rate_hz=20e3, slant_range_m=15.0,
-                    integer=False)
+                    integer=False, altitude_m=np.full(2000, 5.0))
     traj = se.Trajectory.line((0, 0, 5.0), (50, 0, 5.0), 2000)
     line = R.Line(settings, traj)
     values = rng.exponential(1.0, (2000, 2, 400))
@@ -93,3 +93,28 @@ def test_a_file_without_altitude_or_an_occupied_folder_is_refused(tmp_path):
     rec.to_xtf(tmp_path / "none.xtf")
     with pytest.raises(ConfigError, match="no altitude"):
         R.Line.read(tmp_path / "none.xtf")
+
+
+def test_a_line_over_a_sloping_scene_replays_with_its_geometry(tmp_path):
+    """A line 12 m below the surface over a floor sloping 6° across track: replayed over that scene (where the
+    file's navigation puts the sonar) its first bottom returns fall on the original's, port and starboard, and its
+    levels need no offset."""
+    v = np.array([[-50.0, -60.0, -20.0 - 60.0 * math.tan(math.radians(6))], [50.0, -60.0, -20.0 - 60 * 0.1051],
+                  [50.0, 60.0, -20.0 + 60.0 * math.tan(math.radians(6))], [-50.0, 60.0, -20.0 + 60 * 0.1051]])
+    import trimesh
+    slope = trimesh.Trimesh(v, [[0, 1, 2], [0, 2, 3]], process=False)
+    scene = se.Scene().add(slope, label="seafloor", material=se.Material(scattering=se.sediments.FINE_SAND))
+    traj = se.Trajectory.line((-10, 0, -12.0), (10, 0, -12.0), 30)
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=30.0), PULSE, speckle=True, seed=5,
+                      start_time="2026-05-01T12:00:00Z")
+    rec.to_xtf(tmp_path / "slope.xtf", surface_z_m=0.0, scale=1.0)
+    rep = R.replay(tmp_path / "slope.xtf", tmp_path / "out", scene=scene)
+    _, a = pyxtf.xtf_read(str(tmp_path / "out" / "replay.xtf"))
+    first = lambda x: int(np.flatnonzero(np.asarray(x) > 0)[0])              # noqa: E731
+    for ping in a[pyxtf.XTFHeaderType.sonar][::7]:
+        k = ping.PingNumber
+        assert abs(first(ping.data[1]) - first(rec.starboard[k])) <= 1
+        assert abs(first(ping.data[0][::-1]) - first(rec.port[k])) <= 1
+    assert rep["gain_offset_db"] == pytest.approx(0.0, abs=0.5) and rep["sediment"] == "the scene's"
+    with pytest.raises(ConfigError, match="--fit chooses the sediment of a flat floor"):
+        R.replay(tmp_path / "slope.xtf", tmp_path / "out2", scene=scene, fit_classes=["apl-uw clay"])
