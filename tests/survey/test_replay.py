@@ -118,3 +118,28 @@ def test_a_line_over_a_sloping_scene_replays_with_its_geometry(tmp_path):
     assert rep["gain_offset_db"] == pytest.approx(0.0, abs=0.5) and rep["sediment"] == "the scene's"
     with pytest.raises(ConfigError, match="--fit chooses the sediment of a flat floor"):
         R.replay(tmp_path / "slope.xtf", tmp_path / "out2", scene=scene, fit_classes=["apl-uw clay"])
+
+
+def test_replay_over_a_dem_from_the_command_line(tmp_path):
+    """``replay --dem``: a georeferenced line (lat/lon XTF) over a GeoTIFF seabed 20 m down, replayed over that DEM
+    where the file's navigation puts the sonar: the first bottom returns within a sample of the original's."""
+    from sonar_embree.io.geotiff import write_grid
+
+    x0, y0 = 500000.0, 5700000.0
+    write_grid(tmp_path / "dem.tif", np.full((80, 80), -20.0), x0 - 40.0, y0 + 40.0, 1.0, crs="EPSG:32631")
+    dem = se.seafloor.from_dem(tmp_path / "dem.tif")
+    scene = se.Scene().add(dem, label="seafloor", material=se.Material(scattering=se.sediments.FINE_SAND))
+    traj = se.Trajectory.line((x0 - 5, y0, -12.0), (x0 + 5, y0, -12.0), 12)
+    traj = se.Trajectory(traj.positions_m, traj.heading_deg, traj.pitch_deg, traj.roll_deg, traj.times_s,
+                         crs="EPSG:32631")
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=25.0), PULSE, speckle=True, seed=1,
+                      start_time="2026-05-01T12:00:00Z")
+    rec.to_xtf(tmp_path / "geo.xtf", scale=1.0)
+    assert main(["replay", str(tmp_path / "geo.xtf"), "--dem", str(tmp_path / "dem.tif"), "--sediment", "fine sand",
+                 "-o", str(tmp_path / "out")]) == 0
+    _, a = pyxtf.xtf_read(str(tmp_path / "out" / "replay.xtf"))
+    first = lambda x: int(np.flatnonzero(np.asarray(x) > 0)[0])              # noqa: E731
+    for ping in a[pyxtf.XTFHeaderType.sonar][::5]:
+        assert abs(first(ping.data[1]) - first(rec.starboard[ping.PingNumber])) <= 1
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["gain_offset_db"] == pytest.approx(0.0, abs=0.5)
