@@ -25,6 +25,7 @@ SLOW = frozenset({
     "test_scripts.py::test_bench_swell_objects_script_reports_ms_per_ping_with_and_without_balls",
     "test_scripts.py::test_bench_chirp_script_reports_the_chirp_beside_cw",
     "test_scripts.py::test_realism_figure_shows_heavier_tails_than_todays_line",
+    "test_replay.py::test_fit_recovers_a_hidden_clutter_density_with_the_class",
     "test_survey_cli.py::test_a_survey_from_a_dem_and_a_nav_log_runs_from_the_cli",
     "test_survey_cli.py::test_a_planned_survey_covers_a_polygon",
     "test_objects_seen.py::test_a_small_ball_in_a_sound_speed_profile_is_seen_in_every_ping",

@@ -197,6 +197,8 @@ def _add_replay_parser(sub) -> None:
     p.add_argument("--fit", action="store_true", help="fit the gain offset and the sediment class "
                                                       "(among --classes)")
     p.add_argument("--classes", default=",".join(FIT_CLASSES), help="comma-separated sediment presets --fit tries")
+    p.add_argument("--clutter-densities", metavar="N,N,…", help="with --fit: clutter densities per m² to try too "
+                                                              "(0: none), e.g. 0,10,40,160")
     p.add_argument("--gain-db", type=float, help="the gain offset, dB (default: the median level difference)")
     p.add_argument("--device", metavar="PRESET", help="a device preset for the beam and pulse")
     p.add_argument("--seed", type=int, default=0, help="speckle seed (default 0)")
@@ -354,8 +356,10 @@ def _run(args) -> list:
         return _survey(args)
     if args.command == "replay":
         classes = [c.strip() for c in args.classes.split(",") if c.strip()] if args.fit else None
+        densities = _densities(args.clutter_densities)
         replay(args.xtf, args.output, sediment=args.sediment, fit_classes=classes, gain_db=args.gain_db,
-               device=args.device, seed=args.seed, overwrite=args.overwrite, scene=_replay_scene(args))
+               device=args.device, seed=args.seed, overwrite=args.overwrite, scene=_replay_scene(args),
+               fit_densities=densities)
         return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png")
                 if os.path.exists(os.path.join(args.output, f))]
     if args.command == "demo":
@@ -385,6 +389,20 @@ def _run(args) -> list:
     if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
     return registry.write_set(rec, args.output, o.formats(), registry.WriteOptions(o.png_kwargs()))
+
+
+def _densities(text):
+    """``--clutter-densities 0,10,40`` as (None, 10.0, 40.0) (0: no clutter); (None,) without it."""
+    if not text:
+        return (None,)
+    try:
+        values = [float(d) for d in text.split(",")]
+    except ValueError:
+        raise SonarEmbreeError(f"--clutter-densities must be numbers per m² separated by commas, got {text!r}") \
+            from None
+    if any(not (v >= 0) for v in values):
+        raise SonarEmbreeError(f"--clutter-densities must be >= 0 per m², got {text!r}")
+    return tuple(None if v == 0 else v for v in values)
 
 
 def _replay_scene(args):

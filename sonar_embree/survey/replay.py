@@ -42,6 +42,7 @@ from ..errors import ConfigError
 from ..io.files import atomic_write
 from ..io.xtf import decimate, read_sonar, write_like
 from ..laws import sediments
+from ..laws.clutter import Clutter
 from ..scene import Scene, seafloor
 from ..simulate import simulate
 from ..trajectory import Trajectory
@@ -197,20 +198,47 @@ def shape_error_db(real: dict, sim: dict, offset_db: float) -> float:
     return float(np.sqrt(np.mean(d[keep] ** 2))) if keep.any() else math.inf
 
 
-def fit(line: Line, real: dict, classes=FIT_CLASSES, **kw) -> dict:
-    """The class of ``classes`` and the gain offset (dB) that bring the simulation closest to ``real``
-    (:func:`measures` of the recorded values): ``{"sediment", "gain_offset_db", "errors_db" {class: RMS dB}}``."""
+def scintillation_error_db(real: dict, sim: dict) -> float:
+    """RMS over the range bands of 10·log10 of the recorded over the simulated scintillation index, dB."""
+    a = np.array([np.nan if v is None else v for v in real["scintillation_index"]], float)
+    b = np.array([np.nan if v is None else v for v in sim["scintillation_index"]], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        d = 10.0 * np.log10(a / b)
+    d = d[np.isfinite(d)]
+    return float(np.sqrt(np.mean(d ** 2))) if d.size else math.inf
+
+
+def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), **kw) -> dict:
+    """The class of ``classes``, the clutter density of ``densities`` (per m², None: no clutter; the clutter's
+    strength law :class:`~sonar_embree.laws.clutter.Clutter`'s defaults) and the gain offset (dB) that bring the
+    simulation closest to ``real`` (:func:`measures` of the recorded values). The error of a candidate is the RMS
+    level difference against grazing angle after its offset (:func:`shape_error_db`), plus, when densities are
+    fitted, the RMS ratio of the bands' scintillation indices in dB (:func:`scintillation_error_db`).
+
+    Returns
+    -------
+    dict
+        ``sediment``, ``clutter_density_per_m2``, ``gain_offset_db`` and ``errors_db`` {"class" or
+        "class @ density": error, dB}.
+    """
     errors, offsets = {}, {}
     for name in classes:
-        sim = measures(simulate_line(line, name, **kw), line)
-        offsets[name] = gain_offset_db(real, sim)
-        errors[name] = shape_error_db(real, sim, offsets[name])
+        for n in densities:
+            clutter = None if n is None else Clutter(float(n))
+            sim = measures(simulate_line(line, name, clutter=clutter, **kw), line)
+            key = (name, n)
+            offsets[key] = gain_offset_db(real, sim)
+            errors[key] = shape_error_db(real, sim, offsets[key]) + (
+                scintillation_error_db(real, sim) if len(densities) > 1 else 0.0)
     best = min(errors, key=errors.get)
-    return {"sediment": best, "gain_offset_db": offsets[best], "errors_db": errors}
+    label = lambda k: k[0] if len(densities) == 1 else f"{k[0]} @ {k[1]}"  # noqa: E731
+    return {"sediment": best[0], "clutter_density_per_m2": best[1], "gain_offset_db": offsets[best],
+            "errors_db": {label(k): v for k, v in errors.items()}}
 
 
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
-           device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None) -> dict:
+           device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
+           fit_densities=(None,)) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -220,6 +248,8 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         The seafloor's sediment (a preset name of :mod:`sonar_embree.laws.sediments`, e.g. "apl-uw fine sand").
     fit_classes : sequence of str, optional
         Fit the sediment among these classes and the gain offset (:func:`fit`); ``sediment`` is then ignored.
+    fit_densities : sequence of float or None
+        With ``fit_classes``: the clutter densities (per m²; None: none) the fit tries too.
     gain_db : float, optional
         The gain offset added to the simulation, dB; default: the median level difference (or the fit's).
     device, seed
@@ -233,16 +263,19 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         raise ConfigError("replay: --fit chooses the sediment of a flat floor; a --scene or --dem keeps its own")
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
-    chosen = fit(line, real, fit_classes, device=device, seed=seed) if fit_classes else None
+    chosen = fit(line, real, fit_classes, fit_densities, device=device, seed=seed) if fit_classes else None
     name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
-    base = simulate_line(line, name, device=device, seed=seed, scene=scene)
+    density = chosen["clutter_density_per_m2"] if chosen else None
+    base = simulate_line(line, name, device=device, seed=seed, scene=scene,
+                         clutter=None if density is None else Clutter(float(density)))
     offset = (gain_db if gain_db is not None else chosen["gain_offset_db"] if chosen
               else gain_offset_db(real, measures(base, line)))
     values = base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0))
     sim = measures(values, line)
     _check_out(out_dir, overwrite)
     write_like(path, os.path.join(out_dir, "replay.xtf"), values, overwrite=overwrite)
-    report = {"source": os.path.abspath(os.fspath(path)), "sediment": name, "gain_offset_db": offset,
+    report = {"source": os.path.abspath(os.fspath(path)), "sediment": name, "clutter_density_per_m2": density,
+              "gain_offset_db": offset,
               "fit": chosen, "shape_error_db": shape_error_db(real, sim, 0.0),
               "settings": {k: v for k, v in line.settings.items() if k not in ("data", "altitude_m")},
               "recorded": real, "simulated": sim}
@@ -284,4 +317,5 @@ def _report_png(report: dict, path: str) -> None:
         warn_once(f"replay: {exc}; report.png left out")
 
 
-__all__ = ["FIT_CLASSES", "Line", "fit", "gain_offset_db", "measures", "replay", "shape_error_db", "simulate_line"]
+__all__ = ["FIT_CLASSES", "Line", "fit", "gain_offset_db", "measures", "replay", "scintillation_error_db",
+           "shape_error_db", "simulate_line"]

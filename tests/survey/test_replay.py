@@ -143,3 +143,26 @@ def test_replay_over_a_dem_from_the_command_line(tmp_path):
         assert abs(first(ping.data[1]) - first(rec.starboard[ping.PingNumber])) <= 1
     report = json.loads((tmp_path / "out" / "report.json").read_text())
     assert report["gain_offset_db"] == pytest.approx(0.0, abs=0.5)
+
+
+def test_fit_recovers_a_hidden_clutter_density_with_the_class(tmp_path):
+    """A fine-sand line with 40 shells per m² (the Clutter defaults: −45 dB, 5 dB spread) and a hidden +9 dB:
+    the fit over two classes and four densities finds fine sand, 40 per m² and the offset, the scintillation index
+    telling the densities apart."""
+    law = se.sediments.preset("apl-uw fine sand")
+    mat = se.Material(scattering=law, clutter=se.Clutter(40.0))
+    scene = se.Scene().add(se.seafloor.flat((400, 400)), material=mat, label="seafloor")
+    traj = se.Trajectory.line((-15, 0, 8.0), (15, 0, 7.0), 60)
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=30.0), PULSE, speckle=True, seed=9,
+                      start_time="2026-05-01T12:00:00Z")
+    se.Record(rec.data * 10 ** 0.9, rec.time_s, rec.trajectory, rec.sonar, rec.pulse, rec.altitude_m,
+              rec.attrs).to_xtf(tmp_path / "c.xtf", scale=1.0)
+    argv = ["replay", str(tmp_path / "c.xtf"), "--fit", "--classes", "apl-uw fine sand,apl-uw clay",
+            "--clutter-densities", "0,10,40,160", "--seed", "3", "-o", str(tmp_path / "fit")]
+    assert main(argv) == 0
+    report = json.loads((tmp_path / "fit" / "report.json").read_text())
+    assert report["fit"]["sediment"] == "apl-uw fine sand", report["fit"]["errors_db"]
+    assert report["fit"]["clutter_density_per_m2"] == 40.0, report["fit"]["errors_db"]
+    assert report["gain_offset_db"] == pytest.approx(9.0, abs=0.5)
+    assert main(["replay", str(tmp_path / "c.xtf"), "--fit", "--clutter-densities", "x", "-o",
+                 str(tmp_path / "bad")]) == 2
