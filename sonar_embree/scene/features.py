@@ -13,7 +13,7 @@ into labelled objects; boulders are meshes of their own:
   1806–1816, 2012);
 - :func:`scour`: a scour pit around an object, depth d within radius a: d·(1 − (r/a)²)² (smooth at its rim);
 - :func:`outcrop`: a rock outcrop, a raised plateau of rough rock (Perlin relief) with soft edges;
-- :func:`dress`: fine roughness for a coarse DEM, upsampled by cubic splines with a power-law (fractal) relief of
+- :func:`dress` (:func:`sonar_embree.seafloor.dress`): fine roughness for a coarse DEM, upsampled by cubic splines with a power-law (fractal) relief of
   a given RMS at the scales below the DEM's spacing, so that its facets do not show;
 - :func:`boulders`: a boulder field, a Poisson process of a density per m² with diameters from a power law
   N(>D) ∝ D^(−b) above D_min (the size-frequency law of boulder fields; Golombek and Rapp, J. Geophys. Res.
@@ -29,14 +29,13 @@ import math
 
 import numpy as np
 import trimesh
-from scipy.ndimage import map_coordinates
 
 from ..config import Material
 from ..errors import ConfigError
 from ..laws import sediments
 from ..validation import check_number
 from .meshes import Scene
-from .seafloor import from_heights, perlin_noise
+from .seafloor import dress, from_heights, perlin_noise
 
 
 def _across(x, y, heading_deg: float):
@@ -114,31 +113,6 @@ def outcrop(x, y, centre_m, size_m, height_m: float, roughness: float = 0.3, see
     noise = perlin_noise((ny, nx), cells, seed=seed)
     z = height_m * edge * (1.0 + roughness * (noise - noise.mean()))
     return np.maximum(z, 0.0), r < 1.0
-
-
-def dress(heights_m, spacing_m: float, factor: int = 4, rms_m: float = 0.02, exponent: float = 3.0,
-          seed: int = 0):
-    """A coarse DEM upsampled ``factor`` times by cubic splines, plus a power-law relief of RMS ``rms_m`` at the
-    wavelengths it cannot hold (shorter than twice its spacing): its spectrum ∝ K^(−exponent) from K = 1/(2Δ) to
-    the new grid's Nyquist, none below. Returns (heights (factor·(ny − 1) + 1, factor·(nx − 1) + 1), new spacing).
-    """
-    z = np.asarray(heights_m, dtype=float)
-    check_number("dress", "spacing_m", spacing_m, positive=True)
-    check_number("dress", "factor", factor, lo=1, hi=64, integer=True)
-    check_number("dress", "rms_m", rms_m, lo=0.0)
-    if z.ndim != 2 or min(z.shape) < 2 or not np.all(np.isfinite(z)):
-        raise ConfigError(f"dress: heights_m must be a finite 2-D grid of at least 2x2, got shape {z.shape}")
-    ny, nx = (np.array(z.shape) - 1) * int(factor) + 1
-    jj, ii = np.meshgrid(np.arange(ny) / factor, np.arange(nx) / factor, indexing="ij")
-    fine = map_coordinates(z, [jj, ii], order=3, mode="nearest")
-    d = spacing_m / factor
-    ky, kx = np.fft.fftfreq(ny, d)[:, None], np.fft.fftfreq(nx, d)[None, :]
-    k = np.hypot(kx, ky)
-    shape = np.where(k > 1.0 / (2.0 * spacing_m), np.maximum(k, 1e-300) ** (-0.5 * exponent), 0.0)
-    rng = np.random.default_rng([int(seed), 0xD4E55])
-    rough = np.fft.ifft2(np.fft.fft2(rng.standard_normal((ny, nx))) * shape).real
-    sd = float(rough.std())
-    return fine + (rough * (rms_m / sd) if sd > 0 else 0.0), d
 
 
 def _ellipsoid(diameter: float, rng) -> trimesh.Trimesh:

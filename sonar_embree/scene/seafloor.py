@@ -10,8 +10,10 @@ import os
 
 import numpy as np
 import trimesh
+from scipy.ndimage import map_coordinates
 
 from ..errors import ConfigError
+from ..validation import check_number
 from .. import checks
 from ..laws.texture import gaussian_field_at
 from .tolerance import TOLERANCE
@@ -139,7 +141,8 @@ def check_dem_memory(shape, where: str) -> None:
                           "load it as se.TiledDEM(path) (meshed tile by tile as the pings need it)")
 
 
-def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimesh:
+def from_dem(path, band: int = 1, nodata: float | None = None, dress_factor: int | None = None,
+             dress_rms_m: float = 0.02) -> trimesh.Trimesh:
     """A seafloor from a digital elevation model raster (GeoTIFF, or anything GDAL reads; rasterio opens it).
 
     Vertices at the pixel centres (x = c + (j + ½)·a, y = f + (i + ½)·e of the raster's transform, so a
@@ -147,7 +150,9 @@ def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimes
     below a sea-level datum is negative); nodata pixels are holes (no triangle touches them). The raster's
     CRS, when it has one, is kept in ``mesh.metadata["crs"]`` and becomes the scene's (:attr:`Scene.crs`); it
     must be projected, in metres. ``nodata``: a height that means "no data" beyond the one the raster declares;
-    a common sentinel (-9999, …) held but not declared is refused.
+    a common sentinel (-9999, …) held but not declared is refused. ``dress_factor``: :func:`dress` the DEM,
+    ``dress_factor`` times finer with a relief of RMS ``dress_rms_m`` at the scales it cannot hold (a DEM without
+    holes, square pixels).
     """
     from ..io.geotiff import raster_info, read_grid
 
@@ -162,9 +167,47 @@ def from_dem(path, band: int = 1, nodata: float | None = None) -> trimesh.Trimes
         except ConfigError as exc:
             raise ConfigError(f"{os.fspath(path)}: {exc}") from None
     z = declared_nodata(grid.values, nodata, os.fspath(path))
-    mesh = grid_mesh(grid.x_m, grid.y_m, z, where=os.fspath(path))
+    x, y = grid.x_m, grid.y_m
+    if dress_factor is not None:
+        x, y, z = _dressed(x, y, z, dress_factor, dress_rms_m, os.fspath(path))
+    mesh = grid_mesh(x, y, z, where=os.fspath(path))
     mesh.metadata["crs"] = crs
     return mesh
+
+
+def dress(heights_m, spacing_m: float, factor: int = 4, rms_m: float = 0.02, exponent: float = 3.0,
+          seed: int = 0):
+    """A coarse DEM upsampled ``factor`` times by cubic splines, plus a power-law relief of RMS ``rms_m`` at the
+    wavelengths it cannot hold (shorter than twice its spacing): its spectrum ∝ K^(−exponent) from K = 1/(2Δ) to
+    the new grid's Nyquist, none below. Returns (heights (factor·(ny − 1) + 1, factor·(nx − 1) + 1), new spacing).
+    """
+    z = np.asarray(heights_m, dtype=float)
+    check_number("dress", "spacing_m", spacing_m, positive=True)
+    check_number("dress", "factor", factor, lo=1, hi=64, integer=True)
+    check_number("dress", "rms_m", rms_m, lo=0.0)
+    if z.ndim != 2 or min(z.shape) < 2 or not np.all(np.isfinite(z)):
+        raise ConfigError(f"dress: heights_m must be a finite 2-D grid of at least 2x2, got shape {z.shape}")
+    ny, nx = (np.array(z.shape) - 1) * int(factor) + 1
+    jj, ii = np.meshgrid(np.arange(ny) / factor, np.arange(nx) / factor, indexing="ij")
+    fine = map_coordinates(z, [jj, ii], order=3, mode="nearest")
+    d = spacing_m / factor
+    ky, kx = np.fft.fftfreq(ny, d)[:, None], np.fft.fftfreq(nx, d)[None, :]
+    k = np.hypot(kx, ky)
+    shape = np.where(k > 1.0 / (2.0 * spacing_m), np.maximum(k, 1e-300) ** (-0.5 * exponent), 0.0)
+    rng = np.random.default_rng([int(seed), 0xD4E55])
+    rough = np.fft.ifft2(np.fft.fft2(rng.standard_normal((ny, nx))) * shape).real
+    sd = float(rough.std())
+    return fine + (rough * (rms_m / sd) if sd > 0 else 0.0), d
+
+
+def _dressed(x, y, z, factor: int, rms_m: float, where: str):
+    """The DEM's axes and heights after :func:`dress` (refused with holes or unequal spacings)."""
+    dx, dy = float(abs(x[1] - x[0])), float(abs(y[1] - y[0]))
+    if np.isnan(z).any() or abs(dx - dy) > 1e-9 * dx:
+        raise ConfigError(f"{where}: dressing needs a DEM without holes and with square pixels "
+                          f"({dx:g} × {dy:g} m, {int(np.isnan(z).sum())} holes)")
+    fine, _ = dress(z, dx, factor, rms_m)
+    return (np.linspace(x[0], x[-1], fine.shape[1]), np.linspace(y[0], y[-1], fine.shape[0]), fine)
 
 
 def from_xyz(path, crs=None) -> trimesh.Trimesh:

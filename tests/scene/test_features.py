@@ -116,3 +116,23 @@ def test_a_boulders_shadow_ends_where_the_tangent_ray_meets_the_floor():
     end = r[np.flatnonzero(dark)].max() if dark.any() else 0.0
     dr = 1500.0 / (2 * 100e3)
     assert end == pytest.approx(r_s, abs=dr + 0.01 * r_s), (end, r_s)
+
+
+def test_a_dem_dressed_as_it_is_read(tmp_path):
+    """from_dem(dress_factor=4): the mesh 4× finer, the DEM's nodes kept within the added relief's few σ, the relief's
+    RMS as asked; a DEM with holes is refused."""
+    from sonar_embree.io.geotiff import write_grid
+
+    rng = np.random.default_rng(1)
+    z = -20.0 + np.cumsum(rng.normal(size=(21, 31)), axis=0) * 0.1
+    write_grid(tmp_path / "d.tif", z, 0.0, 40.0, 2.0, crs="EPSG:32631")
+    plain = se.seafloor.from_dem(tmp_path / "d.tif")
+    fine = se.seafloor.from_dem(tmp_path / "d.tif", dress_factor=4, dress_rms_m=0.05)
+    assert len(fine.vertices) == (4 * 20 + 1) * (4 * 30 + 1) and len(plain.vertices) == 21 * 31
+    bare = se.seafloor.from_dem(tmp_path / "d.tif", dress_factor=4, dress_rms_m=0.0)
+    assert np.std(fine.vertices[:, 2] - bare.vertices[:, 2]) == pytest.approx(0.05, rel=1e-3)
+    assert fine.metadata["crs"] == plain.metadata["crs"]
+    z[3, 4] = np.nan
+    write_grid(tmp_path / "h.tif", z, 0.0, 40.0, 2.0, crs="EPSG:32631")
+    with pytest.raises(ConfigError, match="without holes"):
+        se.seafloor.from_dem(tmp_path / "h.tif", dress_factor=2)
