@@ -50,8 +50,8 @@ def _scenes(se, length_m):
                        clutter=se.Clutter(40.0, strength_db=-45.0, spread_db=6.0))
     half = 0.5 * length_m
     real = se.features.seabed(
-        (length_m + 40.0, 70.0), 0.1, sand_waves_=dict(wavelength_m=8.0, height_m=0.3, crest_heading_deg=20.0,
-                                                       asymmetry=0.75),
+        (length_m + 40.0, 70.0), 0.1,
+        bedforms=dict(wavelength_m=8.0, height_m=0.3, crest_heading_deg=20.0, asymmetry=0.75),
         trawl_marks=[dict(start_m=(-half - 20, -25.0), end_m=(half + 20, -8.0), depth_m=0.2, width_m=1.0,
                           separation_m=3.0)],
         scours=[dict(centre_m=(0.3 * half, 18.0), radius_m=3.0, depth_m=0.3)],

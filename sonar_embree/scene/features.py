@@ -13,11 +13,12 @@ into labelled objects; boulders are meshes of their own:
   1806–1816, 2012);
 - :func:`scour`: a scour pit around an object, depth d within radius a: d·(1 − (r/a)²)² (smooth at its rim);
 - :func:`outcrop`: a rock outcrop, a raised plateau of rough rock (Perlin relief) with soft edges;
-- :func:`dress` (:func:`sonar_embree.seafloor.dress`): fine roughness for a coarse DEM, upsampled by cubic splines with a power-law (fractal) relief of
-  a given RMS at the scales below the DEM's spacing, so that its facets do not show;
+- :func:`dress` (:func:`sonar_embree.seafloor.dress`): fine roughness for a coarse DEM, upsampled by cubic
+  splines with a power-law (fractal) relief of a given RMS at the scales below the DEM's spacing, so that its
+  facets do not show;
 - :func:`boulders`: a boulder field, a Poisson process of a density per m² with diameters from a power law
   N(>D) ∝ D^(−b) above D_min (the size-frequency law of boulder fields; Golombek and Rapp, J. Geophys. Res.
-  102(E2), 4117–4129, 1997, use its exponential cousin), each an ellipsoid half buried, resting on the floor.
+  102(E2), 4117–4129, 1997, use its exponential cousin), each an ellipsoid a third buried in the floor.
 
 :func:`seabed` puts them together into a :class:`~sonar_embree.Scene` with one seafloor object per feature class
 (``seafloor``, ``seafloor/sand_wave``, ``seafloor/trawl_mark``, ``seafloor/scour``, ``seafloor/outcrop``) and the
@@ -49,8 +50,8 @@ def sand_waves(x, y, wavelength_m: float, height_m: float, crest_heading_deg: fl
     """Heights (m) of asymmetric bedforms on grids ``x``, ``y`` (m), trough at 0, crest at ``height_m``.
 
     The profile across the crests rises as a half cosine over ``asymmetry``·λ (the stoss side) and falls over the
-    rest (the lee side): the mean slopes are 2h/(aλ)·… in the ratio (1 − a)/a of lee to stoss. Returns
-    (heights, mask), the mask true everywhere.
+    rest (the lee side): mean slopes h/(aλ) up and h/((1 − a)λ) down, the steepest lee slope πh/(2(1 − a)λ).
+    Returns (heights, mask), the mask true everywhere.
     """
     check_number("sand_waves", "wavelength_m", wavelength_m, positive=True)
     check_number("sand_waves", "height_m", height_m, lo=0.0)
@@ -87,7 +88,9 @@ def trawl_mark(x, y, start_m, end_m, depth_m: float = 0.15, width_m: float = 1.0
 
 
 def scour(x, y, centre_m, radius_m: float, depth_m: float):
-    """A scour pit around ``centre_m`` (x, y): −d·(1 − (r/a)²)² within radius a. Returns (heights, mask r < a)."""
+    """A scour pit around ``centre_m`` (x, y): −d·(1 − (r/a)²)² within radius a.
+
+    Returns (heights, mask r < a)."""
     check_number("scour", "radius_m", radius_m, positive=True)
     check_number("scour", "depth_m", depth_m, lo=0.0)
     r2 = ((x - centre_m[0]) ** 2 + (y - centre_m[1]) ** 2) / radius_m ** 2
@@ -165,7 +168,7 @@ def boulders(extent_m, density_per_m2: float, d_min_m: float = 0.3, d_max_m: flo
 CLASSES = ("outcrop", "scour", "trawl_mark", "sand_wave")
 
 
-def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 0.0), sand_waves_=None,
+def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 0.0), bedforms=None,
            trawl_marks=(), scours=(), outcrops=(), boulder_field=None, materials=None, seed: int = 0):
     """A labelled seabed: a grid floor with the height features given, split into one seafloor object per feature
     class, and a boulder field as one more object.
@@ -174,7 +177,7 @@ def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 
     ----------
     size_m, resolution_m, center_m
         The floor's extent (x, y), grid spacing and centre, m.
-    sand_waves_ : dict, optional
+    bedforms : dict, optional
         Keywords of :func:`sand_waves` (its crests cover the floor).
     trawl_marks, scours, outcrops : sequence of dict
         Keywords of :func:`trawl_mark`, :func:`scour` and :func:`outcrop`, one dict per feature.
@@ -196,7 +199,7 @@ def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 
     xx, yy = np.meshgrid(x0 + np.arange(nx) * resolution_m, y0 + np.arange(ny) * resolution_m)
     z = np.zeros_like(xx)
     masks = {}
-    specs = {"sand_wave": [sand_waves_] if sand_waves_ else [], "trawl_mark": list(trawl_marks),
+    specs = {"sand_wave": [bedforms] if bedforms else [], "trawl_mark": list(trawl_marks),
              "scour": list(scours), "outcrop": [dict(o, seed=o.get("seed", seed + i)) for i, o in enumerate(outcrops)]}
     makers = {"sand_wave": sand_waves, "trawl_mark": trawl_mark, "scour": scour, "outcrop": outcrop}
     for name, kws in specs.items():
