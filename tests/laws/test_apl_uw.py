@@ -1,6 +1,10 @@
-"""The APL-UW bottom backscattering model (docs/physics.md §10b) against the handbook's equations and
-regressions typed here from APL-UW TR 9407 (1994) in scalar complex arithmetic, and recovered from a flat-floor
-record as the other laws are (tests/laws/test_law_recovery.py)."""
+"""The APL-UW bottom backscattering model (docs/physics.md §10b) against its equations written here in scalar complex
+arithmetic, and recovered from a flat-floor record as the other laws are (tests/laws/test_law_recovery.py).
+
+What the equations here are: TR 9407's Kirchhoff-roughness, small-roughness-perturbation and sediment-volume cross
+sections and its grain-size regressions (as the Navy's CASS codes them, routine gsiz2des), joined as
+(σ_kr⁻² + σ_pr⁻²)^(−1/2) (Williams and Jackson 1998). TR 9407's own join, an average of the perturbation term over
+the large-scale slopes, is not here: its text could not be read for this work (issue 38's closing note)."""
 import cmath
 import logging
 import math
@@ -16,7 +20,7 @@ from test_law_recovery import _recovered_sigma
 
 
 def _handbook_params(mz):
-    """(ρ, ν, δ, w2 [cm⁴], γ, σ2) at mean grain size Mz (φ): TR 9407's regressions."""
+    """(ρ, ν, δ, w2 [cm⁴], γ, σ2) at mean grain size Mz (φ): TR 9407's regressions (as CASS codes them)."""
     if mz < 1:
         rho, nu = 0.007797 * mz ** 2 - 0.17057 * mz + 2.3139, 0.002709 * mz ** 2 - 0.056452 * mz + 1.2778
     elif mz < 5.3:
