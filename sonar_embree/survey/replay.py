@@ -140,7 +140,7 @@ def measures(values: np.ndarray, line: Line) -> dict:
     alt = np.where(s["altitude_m"] > 0.0, s["altitude_m"], np.nan)[:, None]   # the file's, as recorded
     lev = level_db(values, s["integer"])
     inten = values ** 2 if s["integer"] else values
-    floor = (r[None, :] > alt * 1.02) & np.isfinite(lev[:, 0])
+    floor = (r[None, :] > alt * 1.02) & np.isfinite(lev[:, 0]) & np.isfinite(lev[:, 1])
     water = r[None, :] < 0.9 * alt
     grazing = np.degrees(np.arcsin(np.clip(alt / np.maximum(r[None, :], 1e-9), 0.0, 1.0)))
     both = np.concatenate([lev[:, 0][floor], lev[:, 1][floor]])
