@@ -54,7 +54,9 @@ dataclasses (units in the key names):
                 (all: motion_during_ping = true (default) | false for stop-and-hop)
   [[objects]]   path = mesh file (OBJ/PLY/STL/GLB, metres; up_axis = "z" (default)
                 or "y" for a Y-up export; GLB/glTF are read y up as specified)  or
-                seafloor = "flat" | "perlin" | "ripples" and its arguments (size_m, ...);
+                seafloor = "flat" | "perlin" | "ripples" and its arguments (size_m, ...)  or
+                [objects.seabed] size_m, resolution_m, bedforms, trawl_marks, scours, outcrops,
+                boulder_field (labelled features, se.features.seabed);
                 optional label, material = { backscatter_db = -27 }, and for mesh files
                 is_seafloor (default: label "seafloor" or "seafloor/...", for ground-truth
                 shadows) and materials = { name = { backscatter_db = -15 }, ... } per object

@@ -35,7 +35,7 @@ from ..laws import sediments
 from ..laws import LAWS, AplUw, Clutter, Composite, KTexture, Tabulated
 from ..laws.apl_uw import apl_class
 from ..laws.maps import BackscatterMap
-from ..scene import Scene, seafloor
+from ..scene import Scene, features, seafloor
 from ..sonars import MSIS, EchoSounder, ForwardLooking
 from ..trajectory import Trajectory
 from ..display.waterfall import DISPLAY_DEFAULTS, check_display
@@ -353,8 +353,12 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
     label = obj.pop("label", None)
     material = parse_material(obj.pop("material", {}), source, where, base)
     bmap = parse_map(obj.pop("backscatter_map", None), source, where, base)
-    if ("path" in obj) == ("seafloor" in obj):
-        raise ConfigError(f"{source}: {where} needs exactly one of 'path' or 'seafloor'")
+    if sum(k in obj for k in ("path", "seafloor", "seabed")) != 1:
+        raise ConfigError(f"{source}: {where} needs exactly one of 'path', 'seafloor' or 'seabed'")
+    if "seabed" in obj:
+        _check_keys(where, obj, ("seabed",), source)
+        _add_seabed(scene, obj["seabed"], material, source, where)
+        return
     if "path" in obj:
         _check_keys(where, obj, ("path", "is_seafloor", "materials", "up_axis"), source)
         is_floor = obj.get("is_seafloor")
@@ -376,6 +380,17 @@ def add_object(scene: Scene, obj, source: str, base: str, where: str) -> None:
             _add_sediments(scene, mesh, patches, label or "seafloor", source, where)
         else:
             scene.add(mesh, material=material, label=label or "seafloor", seafloor=True, backscatter_map=bmap)
+
+
+def _add_seabed(scene: Scene, table, material: Material, source: str, where: str) -> None:
+    """``seabed = { size_m = [100, 100], resolution_m = 0.25, bedforms = {…}, trawl_marks = [{…}], … }``: the
+    labelled seabed of :func:`sonar_embree.features.seabed`, its floor (and sand waves) of the object's material."""
+    if not isinstance(table, dict):
+        raise ConfigError(f"{source}: {where} seabed must be a table of sonar_embree.features.seabed's keywords")
+    keys = tuple(k for k in inspect.signature(features.seabed).parameters if k not in ("materials", "scene"))
+    _check_keys(f"{where} seabed", table, keys, source)
+    _build(source, f"{where} seabed", features.seabed,
+           {**table, "materials": {"seafloor": material, "sand_wave": material}, "scene": scene})
 
 
 def _add_sediments(scene: Scene, mesh, patches: dict, label: str, source: str, where: str) -> None:

@@ -169,7 +169,8 @@ CLASSES = ("outcrop", "scour", "trawl_mark", "sand_wave")
 
 
 def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 0.0), bedforms=None,
-           trawl_marks=(), scours=(), outcrops=(), boulder_field=None, materials=None, seed: int = 0):
+           trawl_marks=(), scours=(), outcrops=(), boulder_field=None, materials=None, seed: int = 0,
+           scene: Scene | None = None):
     """A labelled seabed: a grid floor with the height features given, split into one seafloor object per feature
     class, and a boulder field as one more object.
 
@@ -187,6 +188,8 @@ def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 
         Material by class name ("seafloor", the classes of :data:`CLASSES`, "boulders"); defaults: Lambert −27 dB,
         rock (:data:`sonar_embree.laws.sediments.ROCK`) for outcrops and boulders.
     seed : int
+    scene : Scene, optional
+        Add the objects to this scene (default: a new one).
 
     Returns
     -------
@@ -215,7 +218,7 @@ def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 
         if name in masks:
             cls[masks[name].ravel()] = k
     face_cls = cls[mesh.faces].min(axis=1)
-    scene = Scene()
+    scene = Scene() if scene is None else scene
     for k, name in enumerate(CLASSES + ("",)):
         faces = np.flatnonzero(face_cls == k)
         if faces.size:

@@ -136,3 +136,33 @@ def test_a_dem_dressed_as_it_is_read(tmp_path):
     write_grid(tmp_path / "h.tif", z, 0.0, 40.0, 2.0, crs="EPSG:32631")
     with pytest.raises(ConfigError, match="without holes"):
         se.seafloor.from_dem(tmp_path / "h.tif", dress_factor=2)
+
+
+def test_a_seabed_from_toml(tmp_path):
+    """``[[objects]] seabed = {…}`` in a run configuration: the labelled objects, the floor of the object's
+    material; an unknown key is named."""
+    from sonar_embree.runs.runconfig import load_run_config
+
+    run = """
+[sonar]
+max_range_m = 30.0
+[trajectory]
+start = [-1.0, 0.0, 8.0]
+end = [1.0, 0.0, 8.0]
+n_pings = 3
+[[objects]]
+material = { backscatter_db = -25.0 }
+[objects.seabed]
+size_m = [40.0, 40.0]
+resolution_m = 0.5
+bedforms = { wavelength_m = 6.0, height_m = 0.2 }
+trawl_marks = [{ start_m = [-20.0, 5.0], end_m = [20.0, 5.0] }]
+boulder_field = { density_per_m2 = 0.01 }
+"""
+    (tmp_path / "run.toml").write_text(run)
+    cfg = load_run_config(str(tmp_path / "run.toml"))
+    assert cfg.scene.labels == ("seafloor/trawl_mark", "seafloor/sand_wave", "boulders")
+    assert cfg.scene.objects[1].material.backscatter_db == -25.0
+    (tmp_path / "bad.toml").write_text(run.replace("bedforms", "bedform"))
+    with pytest.raises(ConfigError, match="bad.toml.*'bedform'"):
+        load_run_config(str(tmp_path / "bad.toml"))
