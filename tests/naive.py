@@ -830,3 +830,19 @@ def curved_mixed(hits, launch, poses, normals, medium, weighting):
     for j, col in enumerate(cols):
         out[k[ok], j] = col[ok]
     return out
+
+
+def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels):
+    """Twin of kernels.backproject: every pixel's sum over pings and elements, vectorised over pixels with
+    np.interp (zero outside the record)."""
+    n_p, n_k, n_s = data.shape
+    out = np.zeros(pixels.shape[0], dtype=np.complex128)
+    grid = t0_s + np.arange(n_s) / rate_hz
+    for p in range(n_p):
+        d_tx = np.linalg.norm(pixels - tx[p], axis=1)
+        for k in range(n_k):
+            tau = (d_tx + np.linalg.norm(pixels - rx[p, k], axis=1)) / sound_speed_m_s
+            inside = (tau >= grid[0]) & (tau < grid[-1])
+            s = np.interp(tau, grid, data[p, k].real) + 1j * np.interp(tau, grid, data[p, k].imag)
+            out += np.where(inside, s * np.exp(2j * np.pi * carrier_hz * tau), 0.0)
+    return out

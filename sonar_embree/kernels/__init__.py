@@ -9,6 +9,7 @@
 - :mod:`.swell`: the same paths off a meshed surface, between and after its Embree casts — front end;
 - :mod:`.refraction`: curved rays in a sound-speed profile, chord by chord — front end;
 - :mod:`.eigenrays`: the rays from the sonar by the sea surface to a point, in a profile — front end;
+- :mod:`.sas`: time-domain backprojection of receiver-array records (synthetic aperture) — image formation;
 - :mod:`.args`: named groups of kernel arguments (a block's fan, its poses, the scene's arrays, the outputs).
 
 :mod:`._numba` is the only module that imports numba (the scattering laws take ``njit`` and ``prange``
@@ -24,13 +25,14 @@ from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_
 from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start
 from .bvh import (DeviceBvh, cuda_available, lbvh_boxes, lbvh_children, morton_codes, traverse_cpu)
 from .rays import _sinc, cos_sin, elevation_density, fan_echoes, fan_rays, place_rows, probe_rays, sinc_rows
+from .sas import backproject
 from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
 from .splat import splat_rows, splat_table
 from .swell import (G_HB, G_HS, G_NB, G_NS, G_S0, G_B0, G_STRIP, GLINT_WIDTH, glint_rays, swell_glints, swell_launch,
                     swell_paths, swell_surface_hits)
 from .truth import label_rows
 
-__all__ = ["DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
+__all__ = ["backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "splat_rows",
            "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
            "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows"]
