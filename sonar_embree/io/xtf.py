@@ -221,7 +221,7 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
         Write the device's integer samples when the record has them (default); False:
         the float intensities.
     samples_per_channel : int, optional
-        Decimate each side to this many samples as a device does (the largest of each run, :func:`decimate_max`;
+        Decimate each side to this many samples as a device does (the largest of each run, :func:`decimate`;
         a preset's :attr:`~sonar_embree.instrument.devices.Device.samples_per_channel`); default every sample.
     decimation : {"max", "mean"}
         How: each run's largest sample or its mean (:func:`decimate`), written as the channels' DownsampleMethod.
@@ -291,11 +291,6 @@ def decimate(x, n: int, how: str = "max") -> np.ndarray:
         return np.maximum.reduceat(x, edges[:-1], axis=1)
     mean = np.add.reduceat(x.astype(np.float64), edges[:-1], axis=1) / np.diff(edges)
     return np.rint(mean).astype(x.dtype) if np.issubdtype(x.dtype, np.integer) else mean.astype(x.dtype)
-
-
-def decimate_max(x, n: int) -> np.ndarray:
-    """:func:`decimate` by the largest sample of each run."""
-    return decimate(x, n, "max")
 
 
 #: A record attribute: (latitude, longitude) in degrees of the local frame's origin, for a record without a CRS
@@ -435,6 +430,24 @@ def _times(pings) -> list:
     return coarse
 
 
+def _sonar_pings(path: str, what: str):
+    """(file header, sonar pings, one header per ping) of the XTF file ``path`` read by pyxtf, after checking its
+    packets; a missing, truncated or unreadable file, or one without sonar pings, is a one-line error."""
+    import pyxtf
+
+    if not os.path.isfile(path):
+        raise ConfigError(f"{path}: no such XTF file")
+    check_packets(path)
+    try:
+        header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
+    except (OSError, ValueError, RuntimeError) as exc:
+        raise ConfigError(f"{path}: cannot read XTF {what} ({exc})") from None
+    pings = [p[0] if isinstance(p, list) else p for p in packets.get(pyxtf.XTFHeaderType.sonar, [])]
+    if not pings:                                               # one header per ping (pyxtf: per channel)
+        raise ConfigError(f"{path}: the XTF file holds no sonar pings")
+    return header, pings
+
+
 def read_navigation(path) -> dict:
     """The navigation and attitude of every sonar ping of an XTF file, read by pyxtf.
 
@@ -448,20 +461,8 @@ def read_navigation(path) -> dict:
         NavFixMilliseconds where pings come faster than 100 per second). A truncated or corrupt file (a packet
         running past its end) is refused, never read in part.
     """
-    import pyxtf
-
     path = str(path)
-    if not os.path.isfile(path):
-        raise ConfigError(f"{path}: no such XTF file")
-    check_packets(path)
-    try:
-        header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise ConfigError(f"{path}: cannot read XTF navigation ({exc})") from None
-    pings = packets.get(pyxtf.XTFHeaderType.sonar, [])
-    if not pings:
-        raise ConfigError(f"{path}: the XTF file holds no sonar pings")
-    pings = [p[0] if isinstance(p, list) else p for p in pings]      # one header per ping (pyxtf: per channel)
+    header, pings = _sonar_pings(path, "navigation")
 
     def field(name):
         return np.array([float(getattr(p, name)) for p in pings])
@@ -488,19 +489,8 @@ def read_sonar(path) -> dict:
         turned nadir first (the stored values, not converted). A file whose pings differ in range, frequency or
         samples per channel is refused (a replay needs one layout), as are truncated files.
     """
-    import pyxtf
-
     path = str(path)
-    if not os.path.isfile(path):
-        raise ConfigError(f"{path}: no such XTF file")
-    check_packets(path)
-    try:
-        header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise ConfigError(f"{path}: cannot read XTF sonar pings ({exc})") from None
-    pings = [p[0] if isinstance(p, list) else p for p in packets.get(pyxtf.XTFHeaderType.sonar, [])]
-    if not pings:
-        raise ConfigError(f"{path}: the XTF file holds no sonar pings")
+    header, pings = _sonar_pings(path, "sonar pings")
     layouts = {(c.SlantRange, c.Frequency, c.NumSamples) for p in pings for c in p.ping_chan_headers[:2]}
     if len(layouts) != 1 or len(pings[0].data) < 2:
         raise ConfigError(f"{path}: its pings change range, frequency or samples per channel ({len(layouts)} "

@@ -311,7 +311,7 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
     overwrite : bool
         Replace a folder's or an XTF file's contents that this function did not write.
     xtf_samples : int, optional
-        Samples per side written to the XTF, decimated as a device does (:func:`sonar_embree.io.xtf.decimate_max`);
+        Samples per side written to the XTF, decimated as a device does (:func:`sonar_embree.io.xtf.decimate`);
         default every sample.
     png_path : str or PathLike, optional
         Also draw the finished line's waterfall PNG from the store (:meth:`Record.load`, a block of pings at a
