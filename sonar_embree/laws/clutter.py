@@ -54,20 +54,9 @@ class Clutter:
         return self.spread_db * math.log(10.0) / 10.0
 
     @property
-    def mean_sigma_m2(self) -> float:
-        """⟨σ⟩ = 10^(strength/10)·exp(s²/2), m²."""
-        return 10.0 ** (self.strength_db / 10.0) * math.exp(0.5 * self._s ** 2)
-
-    @property
     def moment_ratio(self) -> float:
         """⟨σ²⟩/⟨σ⟩² = ⟨a⁴⟩/⟨a²⟩² = exp(s²)."""
         return math.exp(self._s ** 2)
-
-    @property
-    def backscatter_db(self) -> float:
-        """The mean backscattering strength the population adds, 10·log10(n·⟨σ⟩), dB re 1 m² per m² (per sr, as
-        point scatterers' σ is per sr; at every angle)."""
-        return 10.0 * math.log10(self.density_per_m2 * self.mean_sigma_m2)
 
     def draw(self, rng, n: int) -> np.ndarray:
         """σ_k of ``n`` scatterers, m²."""

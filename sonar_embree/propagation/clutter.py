@@ -133,9 +133,9 @@ def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range
     for b in range(rot.shape[0]):
         idx = np.asarray(field.tree.query_ball_point(pos_local[b], max_range_m), dtype=np.int64)
         d = field.points[idx] - pos_local[b]
-        near = np.abs(d @ rot[b][:, 0]) <= AZIMUTH_NULLS * lam / sonar.length_m * np.linalg.norm(d, axis=1)
-        idx, d = idx[near], d[near]
         r = np.linalg.norm(d, axis=1)
+        near = np.abs(d @ rot[b][:, 0]) <= AZIMUTH_NULLS * lam / sonar.length_m * r
+        idx, d, r = idx[near], d[near], r[near]
         u = d / np.maximum(r, 1e-12)[:, None]
         front = field.two_sided[idx] | (np.einsum("ij,ij->i", field.normal[idx], u) < 0.0)
         g = np.stack([side_gamma(sonar, u @ rot[b], s) for s in (-1.0, 1.0)])

@@ -68,11 +68,6 @@ class VolumeBeam:
             dirs.append(uu.ravel()[:, None] * [1.0, 0.0, 0.0] + v.ravel()[:, None] * e2 + w.ravel()[:, None] * bore)
         return cls(np.stack(dirs), np.stack([weight, weight]), 10.0 ** (sv / 10.0))
 
-    @property
-    def psi_sr(self) -> float:
-        """Ψ = ∫ Γ⁴ dΩ of one side, sr."""
-        return float(self.weights[0].sum())
-
 
 def _panels(lo: float, hi: float, n: int):
     x, w = np.polynomial.legendre.leggauss(NODES)
