@@ -17,17 +17,12 @@ from sonar_embree.errors import ConfigError
 from sonar_embree.laws.apl_uw import AplUw, apl_class
 
 from test_law_recovery import _recovered_sigma
+from test_sediments import _apl_rho_nu
 
 
 def _handbook_params(mz):
     """(ρ, ν, δ, w2 [cm⁴], γ, σ2) at mean grain size Mz (φ): TR 9407's regressions (as CASS codes them)."""
-    if mz < 1:
-        rho, nu = 0.007797 * mz ** 2 - 0.17057 * mz + 2.3139, 0.002709 * mz ** 2 - 0.056452 * mz + 1.2778
-    elif mz < 5.3:
-        rho = -0.0165406 * mz ** 3 + 0.2290201 * mz ** 2 - 1.1069031 * mz + 3.0455
-        nu = -0.0014881 * mz ** 3 + 0.0213937 * mz ** 2 - 0.1382798 * mz + 1.3425
-    else:
-        rho, nu = -0.0012973 * mz + 1.1565, -0.0024324 * mz + 1.0019
+    rho, nu = _apl_rho_nu(mz)
     kp = (0.4556 if mz < 0 else 0.4556 + 0.0245 * mz if mz < 2.6 else 0.1978 + 0.1245 * mz if mz < 4.5
           else 8.0399 - 2.5228 * mz + 0.20098 * mz ** 2 if mz < 6 else 0.9431 - 0.2041 * mz + 0.0117 * mz ** 2)
     delta = kp * nu * 1528.0 * math.log(10) / (40000 * math.pi)      # dB/(m kHz) → Im k / Re k
