@@ -215,6 +215,12 @@ def check_ping_spacing(sonar, positions_m: np.ndarray) -> float | None:
     return foot
 
 
+def check_side_scan_only(sonar, feature: str) -> None:
+    """Refuse ``feature`` (clutter, volume reverberation, …) for a sonar type other than the side-scan ``Sonar``."""
+    if type(sonar).__name__ != "Sonar":
+        raise ConfigError(f"{feature} is simulated for the side-scan Sonar, not {type(sonar).__name__}")
+
+
 def check_receiver_band(sonar, pulse) -> None:
     """Refuse a receiver band-pass narrower than the pulse's band, max(sweep, 1/τ): it would shape the echoes too,
     which the simulator does not model (it filters the noise only; docs/physics.md §14)."""

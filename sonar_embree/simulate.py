@@ -341,9 +341,7 @@ def _volume_beam(sonar) -> VolumeBeam | None:
     """The water column's reverberation beam (side-scan only; refused for another sonar type)."""
     if sonar.environment.volume_backscatter_db is None:
         return None
-    if type(sonar).__name__ != "Sonar":
-        raise ConfigError(f"Environment.volume_backscatter_db is simulated for the side-scan Sonar, not "
-                          f"{type(sonar).__name__}")
+    checks.check_side_scan_only(sonar, "Environment.volume_backscatter_db")
     return VolumeBeam.of(sonar)
 
 

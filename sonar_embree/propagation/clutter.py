@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .. import checks
 from ..errors import ConfigError
 from ..instrument import beam
 from ..validation import warn_once
@@ -95,8 +96,7 @@ def check_clutter(compiled, sonar) -> None:
     """Refuse clutter for a sonar type other than the side-scan; warn that it keeps to direct, straight paths."""
     if not compiled.clutter:
         return
-    if type(sonar).__name__ != "Sonar":
-        raise ConfigError(f"Clutter is simulated for the side-scan Sonar, not {type(sonar).__name__}")
+    checks.check_side_scan_only(sonar, "Clutter")
     env = sonar.environment
     if env.surface is not None or env.sound_speed is not None:
         warn_once("Clutter: its scatterers are heard on the direct, straight path only (no sea-surface bounces, "
