@@ -12,7 +12,7 @@ from ._version import __version__
 from . import assets, laws, raycast
 from .instrument import devices
 from .io import geo
-from .survey import mosaic, planning, replay, stream
+from .survey import bathymetry, mosaic, planning, replay, stream
 from .laws import sediments
 from .config import FanSettings, Material, Pulse, SignalChain, Sonar
 from .environment import AmbientNoise, Environment, SeaSurface, SoundSpeedProfile
@@ -22,6 +22,7 @@ from .trajectory.motion import Motion
 from .laws.maps import BackscatterMap
 from .laws.clutter import Clutter
 from .laws.texture import KTexture
+from .instrument.array import ReceiverArray
 from .instrument.receiver import AGC, TVG, Receiver
 from .record import Record
 from .runs import batch, demo, runconfig, sweep  # not cli: python -m sonar_embree.runs.cli runs it
@@ -30,6 +31,6 @@ from .simulate import simulate
 from .sonars import MSIS, EchoSounder, ForwardLooking
 from .trajectory import Trajectory
 
-__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Clutter", "Receiver", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "ForwardLooking", "MSIS", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError", "TiledDEM",
+__all__ = ["AGC", "AmbientNoise", "BackscatterMap", "Clutter", "Receiver", "ReceiverArray", "bathymetry", "TVG", "KTexture", "sediments", "ConfigError", "EchoSounder", "ForwardLooking", "MSIS", "Environment", "SeaSurface", "SoundSpeedProfile", "assets", "devices", "FanSettings", "Labels", "Material", "Motion", "Pulse", "Record", "Scene", "SceneError", "TiledDEM",
            "SignalChain", "Sonar", "SonarEmbreeError", "Trajectory", "batch", "demo", "features", "geo", "laws", "mosaic", "planning", "replay", "stream", "raycast", "runconfig", "seafloor", "shipwreck", "simulate", "sweep",
            "__version__"]

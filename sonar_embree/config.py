@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from .instrument.devices import device
 from .instrument.directivity import membrane_directivity_index_db
 from .environment import Environment
+from .instrument.array import ReceiverArray, receive_array_of
 from .instrument.receiver import Receiver, receiver_of
 from .errors import ConfigError
 from .laws import Lambert, Summable
@@ -38,6 +39,9 @@ class Transducer:
     #: Whether its front end models the sea surface's paths (docs/physics.md §13) and curved rays (§12).
     models_surface = True
     models_refraction = True
+
+    #: Receive elements per side (:class:`~sonar_embree.ReceiverArray`); a side-scan's field, None for the others.
+    receive_array = None
 
     def _check_environment(self, owner: str) -> None:
         """Take a saved record's environment table as an :class:`Environment`; refuse anything else that is not one."""
@@ -163,6 +167,11 @@ class Sonar(Transducer):
     receiver : Receiver or None
         The device's receive chain (sensitivity, TVG or AGC, ADC; docs/physics.md §15): the
         record then also holds the integer ``samples`` a device would store. Needs a source level.
+    receive_array : ReceiverArray or None
+        Receive elements per side (an interferometric or a synthetic-aperture side-scan; docs/physics.md §20):
+        each element is synthesised along its own bistatic path, kept as ``Record.element_data`` (complex), and
+        element 0's intensity is the record's channel. Needs coherent speckle. None: one receiver per side, at
+        the transmitter.
     """
 
     frequency_hz: float = 400e3
@@ -175,10 +184,12 @@ class Sonar(Transducer):
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
+    receive_array: ReceiverArray | None = None
 
     def __post_init__(self):
         self._check_environment("Sonar")
         self._check_levels("Sonar")
+        object.__setattr__(self, "receive_array", receive_array_of(self.receive_array))
         for name in ("frequency_hz", "length_m", "height_m", "max_range_m"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)

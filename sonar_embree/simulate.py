@@ -213,7 +213,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         vel = None if trajectory.velocity_m_s is None else trajectory.velocity_m_s[a:b]
         run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel,
                            points=None if run.clutter is None else _clutter_block(run, a, b),
-                           volume=None if run.volume is None else _volume_block(run, trajectory, a, b))
+                           volume=None if run.volume is None else _volume_block(run, trajectory, a, b),
+                           receivers=run.front.receivers(run.rots[a:b], trajectory.positions_m[a:b]))
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
@@ -223,13 +224,13 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     if bar is not None:
         bar.close()
     t = time.perf_counter()
-    intensity, cplx, samples = _process(run, keep_complex)
+    intensity, cplx, samples, elements = _process(run, keep_complex)
     clock["processing"] = clock.get("processing", 0.0) + time.perf_counter() - t
     if not np.any(intensity):
         checks.warn_once(f"simulate: the record is all zero: no echo reached any of its {len(trajectory)} pings; "
                          "check the sonar's beam (tilt, beamwidths), its range and the scene's normals")
     return _record(run, intensity, cplx, samples, trajectory, fan,
-                   iso_utc(start_time if start_time is not None else trajectory.start_time))
+                   iso_utc(start_time if start_time is not None else trajectory.start_time), elements)
 
 
 def _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset, chain_kwargs):
@@ -300,6 +301,7 @@ class _Run:
         if front.beamforms and chain.speckle and chain.detection != "coherent":
             raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from complex signals; its speckle "
                               "needs detection='coherent'")
+        _check_array(sonar, chain)
         if labels and not front.supports_labels:
             raise ConfigError(f"simulate: labels are made for side-scan, MSIS and forward-looking sonars, not "
                               f"{type(sonar).__name__}")
@@ -329,6 +331,20 @@ class _Run:
                    np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,
                    ping_offset,
                    clutter_field(compiled, chain.seed), _volume_beam(sonar))
+
+
+def _check_array(sonar, chain: SignalChain) -> None:
+    """Refuse what a receiver array cannot be simulated with: its elements differ in phase, so they need coherent
+    speckle in full (no low-pass on the intensity), and the water column's reverberation is not yet made per
+    element."""
+    if sonar.receive_array is None:
+        return
+    if not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):
+        raise ConfigError("simulate: a receive_array needs speckle=True, detection='coherent' and no lowpass_hz "
+                          "(its elements differ in phase, which only the coherent signal holds)")
+    if sonar.environment.volume_backscatter_db is not None:
+        raise ConfigError("simulate: Environment.volume_backscatter_db is not simulated per element of a "
+                          "receive_array; leave one of them out")
 
 
 def _clutter_block(run: _Run, a: int, b: int):
@@ -384,11 +400,17 @@ def _process(run: _Run, keep_complex: bool):
     intensity, cplx = run.back.finish()
     if run.front.beamforms:
         intensity, cplx = run.front.beamform(intensity, cplx, None if run.n0 is None else run.back.noise_source(run))
+    elements = None
+    if sonar.receive_array is not None:  # element 0 of each channel is the record's channel
+        n_el = sonar.receive_array.n_elements
+        elements = cplx[..., :n_out].reshape(cplx.shape[0], -1, n_el, n_out)
+        intensity, cplx = intensity[:, ::n_el], cplx[:, ::n_el]
     intensity = intensity[..., :n_out]
     cplx = cplx[..., :n_out] if keep_complex else None
     if sonar.source_level_db is not None:  # unit source → µPa²: one scale, after the noise went in (scaled down)
         intensity = intensity * sonar.level_scale
         cplx = None if cplx is None else cplx * math.sqrt(sonar.level_scale)
+        elements = None if elements is None else elements * math.sqrt(sonar.level_scale)
     if chain.lowpass_hz is not None:
         intensity = processing.lowpass(intensity, chain.lowpass_hz, sonar.sample_rate_hz)
     samples = None
@@ -400,14 +422,16 @@ def _process(run: _Run, keep_complex: bool):
         intensity = intensity * gain
         if keep_complex:
             cplx = cplx * np.sqrt(gain)
+        if elements is not None:
+            elements = elements * np.sqrt(gain)
     np.maximum(intensity, 0.0, out=intensity)  # FFT/FIR round-off only; intensities are non-negative
     if not np.isfinite(intensity).all():  # never reached by valid settings; never let NaN/inf into a record
         raise ConfigError("simulate: the record would hold NaN or infinite values; check the absorption, "
                           "noise and TVG settings")
-    return intensity, cplx, samples
+    return intensity, cplx, samples, elements
 
 
-def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str) -> Record:
+def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str, elements=None) -> Record:
     sonar, chain = run.sonar, run.chain
     attrs = {"mode": run.back.mode, **dataclasses.asdict(chain), "alpha_db_per_m": sonar.alpha_db_per_m,
              "quality": fan.quality, "rays_per_ping": float(run.n_rays.mean()) if len(trajectory) else 0.0,
@@ -422,4 +446,4 @@ def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str
     return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,
                   run.pulse, run.altitude, attrs, None if run.truth is None else run.truth.labels(),
                   None if cplx is None else np.ascontiguousarray(cplx), channels=tuple(run.front.channels),
-                  samples=samples)
+                  samples=samples, element_data=None if elements is None else np.ascontiguousarray(elements))

@@ -43,8 +43,10 @@ LegOut = namedtuple("LegOut", "start end idx org dir length")
 #: A block's echoes for speckle: row offsets (channels·pings + 1,), hit points (n, 3) (local frame, m), the local
 #: frame's world origin (3,), and each echo's weight, two-way travel time (s) and its extent (s) (n,).
 SpeckleEchoes = namedtuple("SpeckleEchoes", "ray_start points origin weights times extents")
-#: Each ping's transmitting and receiving positions (pings, 3) (world, m) and the receiver's velocity (pings, 3).
-PathEnds = namedtuple("PathEnds", "tx rx vel_rx")
+#: Each ping's transmitting position (pings, 3) and receiving positions (pings, channels·receivers, 3) (world, m),
+#: the receivers' velocity (pings, 3), the receiver the echoes' times were made for (pings, 3) and the travel time
+#: per metre of path (1/c; 0: the receivers' own delays ignored), see kernels.speckle_block.
+PathEnds = namedtuple("PathEnds", "tx rx vel_rx rx_ref time_per_m")
 #: The frozen scatterer lattice: seed (int), spacing (m), acoustic wavelength (m), scatterers per node.
 Lattice = namedtuple("Lattice", "seed cell_m wavelength_m n_sub")
 #: A waveform table (as for kernels.splat_table: table, its first sample's offset, its rate per output sample), the

@@ -274,8 +274,9 @@ def _distance(ix, iy, iz, cell_m, pos):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node(nodes, node_key, q, pos_tx, pos_rx, vel_rx, lattice, waveform, out):
-    """Splat node q's ``n_sub`` frozen scatterers into its channel's row of ``out`` (see :func:`speckle_block`).
+def _emit_node(nodes, node_key, q, pos_tx, pos_rx, n_rx, vel_rx, rx_ref, time_per_m, lattice, waveform, out):
+    """Splat node q's ``n_sub`` frozen scatterers into each of its channel's receivers' rows of ``out`` (see
+    :func:`speckle_block`).
 
     Reads rows by index, never through a row view (kernels/_numba.py: views contend for the reference count).
     """
@@ -290,20 +291,28 @@ def _emit_node(nodes, node_key, q, pos_tx, pos_rx, vel_rx, lattice, waveform, ou
     ix = node_key[q, 1]
     iy = node_key[q, 2]
     iz = node_key[q, 3]
-    rx = (pos_rx[0] + vel_rx[0] * t_mean, pos_rx[1] + vel_rx[1] * t_mean, pos_rx[2] + vel_rx[2] * t_mean)
-    path = _distance(ix, iy, iz, cell_m, pos_tx) + _distance(ix, iy, iz, cell_m, rx)
-    cycles = (path / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
-    base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
     h = _node_hash(seed, ix, iy, iz)
     spread = math.sqrt(3.0) * sigma
-    for sub in range(n_sub):
-        g, v = _frozen(h, sub, n_sub)
-        r_env = min(max(t_mean + spread * (2.0 * v - 1.0), t_lo), t_hi)
-        a = base * g
-        if phase_cycles_per_s != 0.0:
-            ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
-            a = a * complex(math.cos(ph), math.sin(ph))
-        _splat_one(out, ch, r_env * rate_hz, a, table, table_start, table_rate)
+    d_tx = _distance(ix, iy, iz, cell_m, pos_tx)
+    d_ref = 0.0
+    if time_per_m != 0.0:  # receivers away from the one the echoes' times were made for: their own delays
+        d_ref = _distance(ix, iy, iz, cell_m, (rx_ref[0] + vel_rx[0] * t_mean, rx_ref[1] + vel_rx[1] * t_mean,
+                                               rx_ref[2] + vel_rx[2] * t_mean))
+    for k in range(n_rx):
+        j = ch * n_rx + k
+        rx = (pos_rx[j, 0] + vel_rx[0] * t_mean, pos_rx[j, 1] + vel_rx[1] * t_mean, pos_rx[j, 2] + vel_rx[2] * t_mean)
+        d_rx = _distance(ix, iy, iz, cell_m, rx)
+        cycles = ((d_tx + d_rx) / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
+        base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
+        shift = (d_rx - d_ref) * time_per_m if time_per_m != 0.0 else 0.0
+        for sub in range(n_sub):
+            g, v = _frozen(h, sub, n_sub)
+            r_env = min(max(t_mean + spread * (2.0 * v - 1.0), t_lo), t_hi) + shift
+            a = base * g
+            if phase_cycles_per_s != 0.0:
+                ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
+                a = a * complex(math.cos(ph), math.sin(ph))
+            _splat_one(out, j, r_env * rate_hz, a, table, table_start, table_rate)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -332,10 +341,14 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         making them world; ``weights``, ``times``, ``extents`` (n,) float64: expected intensity, two-way travel time
         (s) and its extent (s) of every echo.
     ends : :data:`~sonar_embree.kernels.args.PathEnds`
-        ``tx``, ``rx`` (pings, 3) float64: transmitting and receiving position per ping, world m (the same for the
-        direct path; the mirror image in the sea surface for a surface leg): the node phase is
-        (|X − tx| + |X − rx − v·t̄|)/λ; ``vel_rx`` (pings, 3): the receiver's velocity per ping, world m per unit of
-        ``times`` (zeros: stop-and-hop).
+        ``tx`` (pings, 3) float64: the transmitting position per ping, world m; ``rx`` (pings, channels·n_rx, 3)
+        float64: the receiving positions, n_rx per channel of the echoes (receiver k of channel ch writes row
+        ch·n_rx + k of ``out``; one per channel for a single receiver; the mirror image in the sea surface for a
+        surface leg): the node phase is (|X − tx| + |X − rx − v·t̄|)/λ; ``vel_rx`` (pings, 3): the receivers'
+        velocity per ping, world m per unit of ``times`` (zeros: stop-and-hop); ``rx_ref`` (pings, 3): the
+        receiver the echoes' times were made for, and ``time_per_m`` (units of ``times`` per m, 1/c; 0: none):
+        each receiver's envelope is delayed by (|X − rx − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m, its own
+        bistatic path (docs/physics.md §20).
     lattice : :data:`~sonar_embree.kernels.args.Lattice`
         Speckle ``seed`` (int), lattice spacing ``cell_m`` (m), acoustic wavelength (m) and scatterers per node
         ``n_sub``.
@@ -349,15 +362,16 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
     status : (pings,) int64
         0: to do (set to 1 when done, −1 when its table was too small: grow the
         tables, reset to 0 and call again; nothing was written for that ping).
-    out : (pings, channels, n_samples) complex128
+    out : (pings, channels·n_rx, n_samples) complex128
         Accumulator.
     """
     ray_start, points, origin, weights, times, extents = echoes
-    pos_world, pos_rx, vel_rx = ends
+    pos_world, pos_rx, vel_rx, rx_ref, time_per_m = ends
     cell_m = lattice.cell_m
     slots, epochs, nodes, node_key, caches = tables
     n_p = pos_world.shape[0]
-    n_ch = out.shape[1]
+    n_ch = (ray_start.shape[0] - 1) // max(n_p, 1)  # the echoes' channels; each heard by n_rx receivers
+    n_rx = out.shape[1] // max(n_ch, 1)
     n_t = slots.shape[0]
     for t in prange(n_t):
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
@@ -369,7 +383,8 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
             if count < 0:
                 status[b] = -1
                 continue
-            nodes_t, key_t, tx, rx, v_rx, out_b = nodes[t], node_key[t], pos_world[b], pos_rx[b], vel_rx[b], out[b]
+            nodes_t, key_t, tx, rx, v_rx, ref, out_b = (nodes[t], node_key[t], pos_world[b], pos_rx[b], vel_rx[b],
+                                                        rx_ref[b], out[b])
             for q in range(count):  # views made once per ping, not per node
-                _emit_node(nodes_t, key_t, q, tx, rx, v_rx, lattice, waveform, out_b)
+                _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
             status[b] = 1

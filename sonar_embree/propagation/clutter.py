@@ -50,8 +50,8 @@ class ClutterField:
 
 @dataclass(frozen=True, eq=False)
 class PointEchoes:
-    """The clutter echoes of a block: :class:`Echoes` (zero extent) and each one's phase ``cycles``
-    (φ_k − 2R/λ, in cycles)."""
+    """The clutter echoes of a block: :class:`Echoes` (zero extent; ``point_m`` each scatterer, local frame) and each
+    one's phase ``cycles`` (φ_k − 2R/λ, in cycles)."""
 
     echoes: Echoes
     cycles: np.ndarray
@@ -128,7 +128,7 @@ def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range
     two_way_np_per_m : float
         2α' of the two-way absorption, Np/m.
     """
-    rows, times, weights, cycles = [], [], [], []
+    rows, times, weights, cycles, points = [], [], [], [], []
     lam, c = sonar.wavelength_m, sonar.sound_speed_m_s
     for b in range(rot.shape[0]):
         idx = np.asarray(field.tree.query_ball_point(pos_local[b], max_range_m), dtype=np.int64)
@@ -149,11 +149,12 @@ def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range
             times.append(2.0 * r[k] / c)
             weights.append(field.sigma[idx[k]] * g[ch, k] ** 4 * np.exp(-two_way_np_per_m * r[k]) / r[k] ** 4)
             cycles.append((field.phase[idx[k]] - 2.0 * r[k] / lam) % 1.0)
+            points.append(field.points[idx[k]])
     row = np.concatenate(rows)
     start = np.concatenate(([0], np.cumsum(np.bincount(row, minlength=2 * rot.shape[0])))).astype(np.int64)
     n = row.size
-    e = Echoes(2, start, np.concatenate(times), np.zeros(n), np.concatenate(weights), np.zeros((0, 3)),
-               np.zeros(0, dtype=np.int32))
+    e = Echoes(2, start, np.concatenate(times), np.zeros(n), np.concatenate(weights),
+               np.concatenate(points).reshape(-1, 3), np.zeros(0, dtype=np.int32))
     return PointEchoes(e, np.concatenate(cycles))
 
 

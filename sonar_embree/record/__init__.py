@@ -49,6 +49,9 @@ class Record:
     samples : (n_pings, n_channels, n_samples) uint8 or uint16, or None
         The integers the sonar's :class:`~sonar_embree.Receiver` stores (gain, ADC), beside the
         physical ``data``; None without a receiver.
+    element_data : (n_pings, n_channels, n_elements, n_samples) complex128 or None
+        A receiver array's complex baseband per element (:class:`~sonar_embree.ReceiverArray`; matched-filtered
+        and TVG'd as ``complex_data``); element 0 is the channel's ``data``. None without an array.
     """
 
     data: np.ndarray
@@ -62,6 +65,7 @@ class Record:
     complex_data: np.ndarray | None = None
     channels: tuple = ("port", "starboard")
     samples: np.ndarray | None = None
+    element_data: np.ndarray | None = None
 
     def __post_init__(self):
         if self.data.ndim != 3 or self.data.shape[1] != len(self.channels):
@@ -69,6 +73,10 @@ class Record:
                               f"got {self.data.shape}")
         if self.samples is not None and self.samples.shape != self.data.shape:
             raise ConfigError(f"Record.samples must have the shape of data {self.data.shape}, got {self.samples.shape}")
+        e = self.element_data
+        if e is not None and (e.ndim != 4 or e.shape[:2] != self.data.shape[:2] or e.shape[3] != self.data.shape[2]):
+            raise ConfigError(f"Record.element_data must have shape (pings, channels, elements, samples) matching data "
+                              f"{self.data.shape}, got {e.shape}")
 
     def channel(self, name: str, complex_: bool = False) -> np.ndarray:
         """The (n_pings, n_samples) series of channel ``name`` (the complex signal with ``complex_``)."""
@@ -120,9 +128,10 @@ class Record:
         labels = None if first.labels is None else Labels.concatenate([p.labels for p in parts])
         cplx = None if first.complex_data is None else np.concatenate([p.complex_data for p in parts])
         ints = None if first.samples is None else np.concatenate([p.samples for p in parts])
+        elements = None if first.element_data is None else np.concatenate([p.element_data for p in parts])
         return cls(np.concatenate([p.data for p in parts]), first.time_s,
                    Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
-                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels, ints)
+                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels, ints, elements)
 
     # ------------------------------------------------------------------ files
     def metadata(self) -> dict:
@@ -151,6 +160,8 @@ class Record:
             extra.update({f"{ch}_complex": self.channel(ch, complex_=True) for ch in self.channels})
         if self.samples is not None:
             extra["samples"] = self.samples
+        if self.element_data is not None:
+            extra["element_data"] = self.element_data
         if t.velocity_m_s is not None:
             extra["velocity_m_s"] = t.velocity_m_s
         if t.ship_positions_m is not None:
@@ -213,7 +224,8 @@ class Record:
         sonar_cls = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")]
         sonar = sonar_cls(**legacy_medium(meta["sonar"], sonar_cls.__name__))     # files written before [environment]
         return cls(p["data"], p["time_s"], traj, sonar, Pulse(**meta["pulse"]), p["altitude_m"], meta.get("attrs", {}),
-                   labels, p.get("complex_data"), tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"))
+                   labels, p.get("complex_data"), tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"),
+                   p.get("element_data"))
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.record.dataset.to_xarray`)."""

@@ -114,7 +114,9 @@ def to_xarray(record):
     Variables: one per channel, ``port``, ``starboard`` for a side-scan (ping,
     sample), linear intensity (a multibeam, :class:`~sonar_embree.ForwardLooking`: one ``intensity`` (ping, beam,
     sample) with the coordinate ``beam_angle_deg``) (and ``port_complex``, ``starboard_complex`` when the record keeps them: NetCDF needs
-    ``to_netcdf(..., auto_complex=True)`` for those); ``altitude_m`` (ping); with
+    ``to_netcdf(..., auto_complex=True)`` for those); with a receiver array ``port_elements``, ``starboard_elements``
+    (ping, element, sample) complex and the coordinates ``element_forward_m``, ``element_outward_m``,
+    ``element_up_m`` (element); ``altitude_m`` (ping); with
     labels ``label_kind``, ``label_object_id``, ``label_shadow_of``,
     ``label_height_m``, ``label_ground_range_m`` (side, ping, sample). Coordinates
     ``time_s`` and ``slant_range_m`` (sample); per ping ``x_m``, ``y_m``, ``z_m``,
@@ -149,6 +151,12 @@ def to_xarray(record):
         coords["bearing_deg"] = (("ping",), record.sonar.bearings_deg(first + np.arange(record.n_pings)),
                                  {"units": "degree", "long_name": "head bearing, clockwise from the vehicle's forward "
                                                                   "axis"})
+    if record.element_data is not None:
+        offsets = np.asarray(record.sonar.receive_array.positions_m)
+        for i, (axis, text) in enumerate((("forward", "along the vehicle's forward axis"),
+                                          ("outward", "towards the side's look direction"), ("up", "upwards"))):
+            coords[f"element_{axis}_m"] = (("element",), offsets[:, i], {
+                "units": "m", "long_name": f"receive element's offset from the transmitter, {text}"})
     if beams:
         coords["beam_angle_deg"] = (("beam",), record.sonar.beam_angles_deg(),
                                     {"units": "degree", "long_name": "steering angle of the beam, to starboard"})
@@ -173,6 +181,11 @@ def _channel_variables(record, intensity) -> dict:
         if z is not None:
             data[f"{side}_complex"] = (("ping", "sample"), z, {"units": "1" if sl is None else "uPa",
                                                               "long_name": f"{side} complex baseband, |.|^2 = {side}"})
+    if record.element_data is not None:  # a receiver array: every element's complex series
+        for i, side in enumerate(record.channels):
+            data[f"{side}_elements"] = (("ping", "element", "sample"), record.element_data[:, i], {
+                "units": "1" if sl is None else "uPa",
+                "long_name": f"{side} complex baseband of each receive element (element 0: |.|^2 = {side})"})
     if record.samples is not None:  # the device's integers (Receiver), beside the physical intensity
         rx = record.sonar.receiver
         for i, side in enumerate(record.channels):
@@ -270,7 +283,7 @@ def to_zarr(record, path) -> None:
 def open_parts(path) -> dict:
     """What :meth:`Record.load` needs to open a Zarr store this package wrote (:meth:`Record.to_zarr`, a streamed
     line) as a record, lazily: the metadata (``meta``), ``data``, ``complex_data``, ``samples`` (ping, channel,
-    sample) and the labels' arrays (``labels``: name → (channel, ping, sample)) as dask arrays; the axes and poses
+    sample), ``element_data`` (ping, channel, element, sample) and the labels' arrays (``labels``: name → (channel, ping, sample)) as dask arrays; the axes and poses
     (``time_s``, ``altitude_m``, ``positions_m``, ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``times_s``,
     ``ship_positions_m``) read in full. A store without the record's metadata is refused in one line."""
     import xarray as xr
@@ -288,7 +301,11 @@ def open_parts(path) -> dict:
     ship = (np.column_stack([ds["ship_x_m"].values, ds["ship_y_m"].values, np.zeros(n)])
             if "ship_x_m" in ds.coords else None)
     labels = {k: ds[f"label_{k}"].data for k in Labels.ARRAYS} if "labels" in meta else None
-    return dict(meta=meta, data=data, complex_data=cplx, samples=ints, labels=labels, time_s=ds["time_s"].values,
+    names = [f"{ch}_elements" for ch in channels]
+    elements = (xr.concat([ds[n] for n in names], dim="channel").transpose("ping", "channel", "element", "sample").data
+                if all(n in ds for n in names) else None)
+    return dict(meta=meta, data=data, complex_data=cplx, samples=ints, labels=labels, element_data=elements,
+                time_s=ds["time_s"].values,
                 altitude_m=ds["altitude_m"].values, positions_m=np.column_stack([ds[f"{a}_m"].values for a in "xyz"]),
                 heading_deg=ds["heading_deg"].values, pitch_deg=ds["pitch_deg"].values,
                 roll_deg=ds["roll_deg"].values, times_s=ds["ping_time_s"].values, ship_positions_m=ship)

@@ -56,4 +56,48 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
     return out.reshape(xx.shape)
 
 
-__all__ = ["backprojection_image"]
+def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", positions_m=None,
+                 elements=None) -> np.ndarray:
+    """The backprojected image of a simulated receiver-array record (``Record.element_data``) on a world grid.
+
+    Parameters
+    ----------
+    record : Record
+        Of a :class:`~sonar_embree.Sonar` with a ``receive_array``, kept complex (coherent speckle; an LFM pulse is
+        compressed by default).
+    x_m, y_m : (nx,), (ny,) float
+        The image grid's world axes, m.
+    z_m : float
+        The grid's world height, m.
+    channel : str
+        The side imaged ("port" or "starboard").
+    positions_m : (pings, 3) float, optional
+        The navigation the image is formed with (default the record's own trajectory: motion-compensated with the
+        true positions); the elements follow it at their body offsets with the record's attitudes.
+    elements : sequence of int, optional
+        The elements used (default all).
+
+    Returns
+    -------
+    (ny, nx) complex128
+        Stop-and-hop: each element is taken where it is at the ping's time (motion during the ping not undone).
+    """
+    arr = record.sonar.receive_array
+    if record.element_data is None or arr is None:
+        raise ConfigError("record_image: the record has no element data (simulate a Sonar with a receive_array)")
+    if channel not in record.channels:
+        raise ConfigError(f"record_image: no channel {channel!r} (the record has {', '.join(record.channels)})")
+    ch = record.channels.index(channel)
+    pos = record.trajectory.positions_m if positions_m is None else np.asarray(positions_m, dtype=float)
+    if pos.shape != record.trajectory.positions_m.shape:
+        raise ConfigError(f"record_image: positions_m must be (pings, 3) = {record.trajectory.positions_m.shape}, "
+                          f"got {pos.shape}")
+    n_el = arr.n_elements
+    rx = arr.world_positions(record.trajectory.rotations(), pos)[:, ch * n_el:(ch + 1) * n_el]
+    k = np.arange(n_el) if elements is None else np.asarray(elements, dtype=np.int64)
+    s = record.sonar
+    return backprojection_image(record.element_data[:, ch][:, k], 0.0, s.sample_rate_hz, s.frequency_hz,
+                                s.sound_speed_m_s, pos, rx[:, k], x_m, y_m, z_m)
+
+
+__all__ = ["backprojection_image", "record_image"]

@@ -56,14 +56,21 @@ class ScattererLattice:
         self.caches = np.zeros((n_t, kernels.CACHE_WIDTH), dtype=np.int64)
 
     def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
-                   phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None, vel_rx=None):
+                   phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None, vel_rx=None,
+                   rx_ref=None, time_per_m: float = 0.0):
         """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table.
 
         ``pos_world`` transmits and ``pos_rx`` (default: the same) receives, world m per ping, the receiver
-        moving at ``vel_rx`` (m/s per ping; default at rest) during the ping.
+        moving at ``vel_rx`` (m/s per ping; default at rest) during the ping. ``pos_rx`` may instead hold a
+        receiver per output channel, (pings, channels, 3): an array's elements, each with its own path; then
+        ``rx_ref`` (pings, 3) is the receiver the echoes' times were made for and ``time_per_m`` (1/c, s/m) delays
+        each element's envelope by its path's difference (:func:`kernels.speckle_block`).
         """
         pos_world = np.ascontiguousarray(pos_world)
         pos_rx = pos_world if pos_rx is None else np.ascontiguousarray(pos_rx)
+        ref = pos_rx if rx_ref is None else np.ascontiguousarray(rx_ref)
+        if pos_rx.ndim == 2:  # one receiver heard on every channel
+            pos_rx = np.ascontiguousarray(np.repeat(pos_rx[:, None, :], out.shape[1], axis=1))
         vel_rx = np.zeros_like(pos_world) if vel_rx is None else np.ascontiguousarray(vel_rx, dtype=np.float64)
         status = np.zeros(pos_world.shape[0], dtype=np.int64)
         if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
@@ -71,7 +78,8 @@ class ScattererLattice:
         while True:
             kernels.speckle_block(
                 SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s),
-                PathEnds(pos_world, pos_rx, vel_rx), Lattice(self.seed, self.cell_m, wavelength_m, self.SUB_SCATTERERS),
+                PathEnds(pos_world, pos_rx, vel_rx, ref, float(time_per_m)),
+                Lattice(self.seed, self.cell_m, wavelength_m, self.SUB_SCATTERERS),
                 Waveform(synth.table, synth.table_start, synth.table_rate, rate_hz, phase_cycles_per_s),
                 NodeTables(self.slots, self.epochs, self.nodes, self.node_key, self.caches), status, out)
             if np.all(status > 0):
@@ -159,11 +167,12 @@ class ExpectedSynthesis:
         self.kernel, self.lead = echo_kernel
 
     def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None,
-                  points=None, volume=None) -> None:
+                  points=None, volume=None, receivers=None) -> None:
         """Splat the echoes of pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey), the clutter's
         ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None) and the water column's
         reverberation density ``volume`` (pings, channels, n_s) per s (or None): their expected intensities; the
-        velocity ``vel_world`` moves only speckle phases, so it is not needed here."""
+        velocity ``vel_world`` moves only speckle phases and a receiver array's ``receivers`` need speckle
+        (refused at set-up), so neither is needed here."""
         fs = self.sonar.sample_rate_hz
         b = a + e.n_pings
         parts = e.parts if points is None else e.parts + (points.echoes,)
@@ -198,6 +207,35 @@ class ExpectedSynthesis:
         return lambda shape, complex_: np.full(shape, self._noise_mean(run.n0))
 
 
+@dataclass(frozen=True, eq=False)
+class _Ends:
+    """A block's path ends: the scene's local origin (3,), the transmitter (pings, 3) and its velocity (pings, 3)
+    or None, world m and m/s, and a receiver array's elements (pings, channels, 3) or None."""
+
+    origin_m: np.ndarray
+    pos_world: np.ndarray
+    vel_world: np.ndarray | None
+    receivers: np.ndarray | None
+
+
+def _element_points(e: Echoes, row, cycles, ends: _Ends, sonar, n_out_ch: int):
+    """The clutter's point echoes heard by every element: (echo index, output row, travel time (s), phase (cycles)),
+    one per echo and element, each element's path |X − p_k| replacing the return leg |X − p_tx| (docs/physics.md
+    §20)."""
+    n_ch = (e.ray_start.shape[0] - 1) // ends.pos_world.shape[0]
+    n_el = n_out_ch // n_ch
+    ping, ch = row // n_ch, row % n_ch
+    x = e.point_m + ends.origin_m                                       # (n, 3) world
+    d_ref = np.linalg.norm(x - ends.pos_world[ping], axis=1)
+    k = np.arange(n_el)
+    rx = ends.receivers[ping[:, None], ch[:, None] * n_el + k]          # (n, elements, 3)
+    extra = np.linalg.norm(x[:, None, :] - rx, axis=2) - d_ref[:, None]  # (n, elements) m
+    out_row = (ping[:, None] * n_out_ch + ch[:, None] * n_el + k).ravel()
+    idx = np.repeat(np.arange(row.size), n_el)
+    times = (e.travel_time_s[:, None] + extra / sonar.sound_speed_m_s).ravel()
+    return idx, out_row, times, (cycles[:, None] - extra / sonar.wavelength_m).ravel() % 1.0
+
+
 class SpeckleSynthesis:
     """Frozen scatterers synthesised in baseband or on the carrier, then detected (docs/physics.md §4)."""
 
@@ -212,25 +250,27 @@ class SpeckleSynthesis:
         self.out = np.zeros(shape, dtype=np.complex128) if coherent else np.zeros(shape)
 
     def add_block(self, e: Echoes, a: int, survey_a: int, origin_m, pos_world, clock: dict, vel_world=None,
-                  points=None, volume=None) -> None:
+                  points=None, volume=None, receivers=None) -> None:
         """Synthesise pings a … a + e.n_pings − 1 (``survey_a``: their index in the survey, for noise), the
         clutter's ``points`` (:class:`~sonar_embree.propagation.clutter.PointEchoes`, or None) and the water column's
         reverberation density ``volume`` (pings, channels, n_s) per s (or None); the vehicle moves at ``vel_world``
-        (pings, 3) m/s during them (None: at rest)."""
+        (pings, 3) m/s during them (None: at rest). ``receivers`` (pings, channels, 3), world m: a receiver array's
+        element per synthesised channel, each on its own path (None: every channel receives at ``pos_world``)."""
         e = merged(e)
         s, chain, out = self.sonar, self.chain, self.out[a:a + e.n_pings]
         fs, f0 = s.sample_rate_hz, s.frequency_hz
         n_b, n_ch, n_s = out.shape
+        ends = _Ends(origin_m, np.ascontiguousarray(pos_world), vel_world, receivers)
         if chain.band == "baseband" and self.tables.baseband_pulse is not None:
-            self._impulses(e, origin_m, pos_world, out, vel_world, points)
+            self._impulses(e, ends, out, points)
         elif chain.band == "baseband":
-            self._lattice(e, origin_m, pos_world, fs, 0.0, out, vel_world)  # coherent
-            self._points(points, fs, 0.0, out)
+            self._lattice(e, ends, fs, 0.0, out)  # coherent
+            self._points(points, ends, fs, 0.0, out)
         else:
             m = self.tables.carrier_factor
             buf = np.zeros((n_b, n_ch, (n_s - 1) * m + 1), dtype=np.complex128)
-            self._lattice(e, origin_m, pos_world, m * fs, f0, buf, vel_world)
-            self._points(points, m * fs, f0, buf)
+            self._lattice(e, ends, m * fs, f0, buf)
+            self._points(points, ends, m * fs, f0, buf)
         t = time.perf_counter()
         for b in range(n_b):
             noise = None
@@ -257,46 +297,57 @@ class SpeckleSynthesis:
         z = processing.complex_noise(rng, density.shape, 1.0) * np.sqrt(density / fs)
         return convolve_time(z, pulses.replica(self.pulse, self.sonar.frequency_hz, fs))
 
-    def _points(self, points, rate_hz: float, phase_cycles_per_s: float, out, delay_s: float = 0.0) -> None:
+    def _points(self, points, ends: "_Ends", rate_hz: float, phase_cycles_per_s: float, out,
+                delay_s: float = 0.0) -> None:
         """Add the clutter's point echoes to ``out`` (pings, channels, n) complex: √w·e^(j2π·cycles), times the
-        carrier's e^(j2π·f0·t) on the carrier, splatted with the waveform table at t + ``delay_s``."""
+        carrier's e^(j2π·f0·t) on the carrier, splatted with the waveform table at t + ``delay_s``; with a receiver
+        array, each element's at its own delay and phase (:func:`_element_points`)."""
         if points is None or points.echoes.weight.size == 0:
             return
         e = points.echoes
-        amp = np.sqrt(e.weight) * np.exp(2j * np.pi * points.cycles)
-        if phase_cycles_per_s != 0.0:
-            amp = amp * np.exp(2j * np.pi * ((phase_cycles_per_s * e.travel_time_s) % 1.0))
         row = np.repeat(np.arange(e.ray_start.shape[0] - 1), np.diff(e.ray_start))
+        weight, times, cycles = e.weight, e.travel_time_s, points.cycles
+        if ends.receivers is not None:
+            idx, row, times, cycles = _element_points(e, row, cycles, ends, self.sonar, out.shape[1])
+            weight = weight[idx]
+        amp = np.sqrt(weight) * np.exp(2j * np.pi * cycles)
+        if phase_cycles_per_s != 0.0:
+            amp = amp * np.exp(2j * np.pi * ((phase_cycles_per_s * times) % 1.0))
         t = self.tables
-        kernels.splat_table(row, (e.travel_time_s + delay_s) * rate_hz, amp, t.table, t.table_start, t.table_rate,
+        kernels.splat_table(row, (times + delay_s) * rate_hz, amp, t.table, t.table_start, t.table_rate,
                             out.reshape(-1, out.shape[-1]))
 
-    def _impulses(self, e: Echoes, origin_m, pos_world, out, vel_world=None, points=None) -> None:
+    def _impulses(self, e: Echoes, ends: "_Ends", out, points=None) -> None:
         """A long pulse in baseband: the scatterers as band-limited impulses (delayed by the interpolator's half
         width so that none loses its early taps), then one FFT convolution with p̃(n/fs) per block, added to
         ``out``."""
         fs, lead = self.sonar.sample_rate_hz, IMPULSE_HALF_WIDTH
         buf = np.zeros(out.shape[:-1] + (out.shape[-1] + lead,), dtype=np.complex128)
         late = dataclasses.replace(e, travel_time_s=e.travel_time_s + lead / fs)
-        self._lattice(late, origin_m, pos_world, fs, 0.0, buf, vel_world)
-        self._points(points, fs, 0.0, buf, lead / fs)
+        self._lattice(late, ends, fs, 0.0, buf)
+        self._points(points, ends, fs, 0.0, buf, lead / fs)
         out += convolve_time(buf, self.tables.baseband_pulse, lead=lead)[..., :out.shape[-1]]
 
-    def _lattice(self, e: Echoes, origin_m, pos_world, rate_hz: float, phase_cycles_per_s: float, out,
-                 vel_world=None) -> None:
+    def _lattice(self, e: Echoes, ends: "_Ends", rate_hz: float, phase_cycles_per_s: float, out) -> None:
         """The lattice's echoes of every path: each its own gather and phase, the frozen scatterers shared; the
-        receiver (or its image) moves at ``vel_world`` (or its mirror) during the ping."""
-        s = self.sonar
+        receiver (or its image) moves at the block's velocity (or its mirror) during the ping; a receiver array's
+        elements (or their images) each on their own path."""
+        s, origin_m, pos, vel, rcv = self.sonar, ends.origin_m, ends.pos_world, ends.vel_world, ends.receivers
+        time_per_m = 0.0 if rcv is None else 1.0 / s.sound_speed_m_s
         if e.path.shape[0] == 0:
-            self.lattice.synthesise(e, origin_m, pos_world, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
-                                    out, vel_rx=vel_world)
+            self.lattice.synthesise(e, origin_m, pos, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
+                                    out, pos_rx=rcv, vel_rx=vel, rx_ref=pos, time_per_m=time_per_m)
             return
-        image = multipath.mirror(pos_world, s.environment.surface.z_m)
-        v, v_image = (None, None) if vel_world is None else (vel_world, vel_world * [1.0, 1.0, -1.0])
-        for p, (tx, rx, vr) in enumerate(((pos_world, pos_world, v), (pos_world, image, v_image),
-                                          (image, image, v_image))):
+        z_s = s.environment.surface.z_m
+        image = multipath.mirror(pos, z_s)
+        rcv_image = None if rcv is None else multipath.mirror(rcv, z_s)
+        v, v_image = (None, None) if vel is None else (vel, vel * [1.0, 1.0, -1.0])
+        for p, (tx, rx, ref, vr) in enumerate(((pos, rcv if rcv is not None else pos, pos, v),
+                                               (pos, rcv_image if rcv is not None else image, image, v_image),
+                                               (image, rcv_image if rcv is not None else image, image, v_image))):
             self.lattice.synthesise(select(e, e.path == p), origin_m, tx, s.wavelength_m, rate_hz,
-                                    phase_cycles_per_s, self.tables, out, pos_rx=rx, vel_rx=vr)
+                                    phase_cycles_per_s, self.tables, out, pos_rx=rx, vel_rx=vr, rx_ref=ref,
+                                    time_per_m=time_per_m)
 
     def noise_source(self, run):
         """For a beamformer: ``noise(shape, complex_)`` of the run's density on its outputs (pings, beams, n_s), each

@@ -49,6 +49,12 @@ class FrontEnd:
         """Whether the record's channels are beams formed from the synthesised channels (:meth:`beamform`)."""
         return self.beam_power is not None
 
+    def receivers(self, rot: np.ndarray, pos_world: np.ndarray) -> np.ndarray | None:
+        """Each synthesised channel's receiving position per ping, (pings, synth channels, 3) world m, for a
+        receiver array (:class:`~sonar_embree.instrument.array.ReceiverArray`); None (default): every channel
+        receives at the transmitter."""
+        return None
+
     def mount(self, rot: np.ndarray, pings: np.ndarray) -> np.ndarray:
         """Body-to-world rotations of the transducer at ping indices ``pings`` from the vehicle's ``rot``
         (pings, 3, 3); default: mounted on the vehicle's axes, ``rot`` itself."""

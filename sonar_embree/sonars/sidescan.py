@@ -38,6 +38,13 @@ class SideScanFrontEnd(FrontEnd):
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
         self.quality, self.aims = fan.quality, self.aims and fan.aim_objects
         self._aim = (None, None)  # (compiled scene, its AimPlan)
+        self.array = sonar.receive_array
+        if self.array is not None:  # each side's elements are synthesised as channels of their own
+            self.n_synth_channels = len(self.channels) * self.array.n_elements
+
+    def receivers(self, rot: np.ndarray, pos_world: np.ndarray) -> np.ndarray | None:
+        """The receive elements' world positions per ping, port's then starboard's (None: no array)."""
+        return None if self.array is None else self.array.world_positions(rot, pos_world)
 
     def aim_plan(self, compiled) -> AimPlan | None:
         """The objects of ``compiled`` to aim rays at (built once per compiled scene); None for none."""

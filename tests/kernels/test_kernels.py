@@ -298,7 +298,8 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     rx = pos if n_tables != 2 else pos * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * (origin[2] + 15.0)]  # a surface image
     vel = np.zeros((n_p, 3)) if n_tables == 1 else rng.uniform(-0.1, 0.1, (n_p, 3))  # receiver moving on (per unit r)
     def speckle(tab, size, status, out):
-        kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext), PathEnds(pos, rx, vel),
+        rx_each = np.ascontiguousarray(np.repeat(rx[:, None], 2, axis=1))  # one receiver per channel
+        kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext), PathEnds(pos, rx_each, vel, rx, 0.0),
                               Lattice(7, 0.1, 0.00375, 4), Waveform(tab, -2.0, 10.0, 16.0, 533.3),
                               NodeTables(*_speckle_tables(n_tables, size)), status, out)
 
