@@ -237,9 +237,12 @@ def splat_rows(ray_start, delay, width, weights, out, sub=4001):
 
 def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
                   delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out, pos_rx=None,
-                  vel_rx=None):
+                  vel_rx=None, receivers=None, time_per_m=0.0):
     """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table
-    (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in)."""
+    (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in).
+    ``receivers`` (pings, 2·n_rx, 3): n_rx receivers per channel, receiver k of channel ch writing row ch·n_rx + k,
+    each delayed by (|X − rx_k| − |X − rx|)·time_per_m."""
+    n_rx = out.shape[1] // 2
     for b in range(pos_world.shape[0]):
         lo, mid, hi = ray_start[2 * b], ray_start[2 * b + 1], ray_start[2 * b + 2]
         ch = np.where(np.arange(lo, hi) < mid, 0, 1)
@@ -251,15 +254,20 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
         w, r_mean, m2, rmin, rmax = vals.T
         sigma = np.sqrt(m2 / w)
         g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
-        rx = pos_world[b] if pos_rx is None else pos_rx[b]
-        rx = rx + (0.0 if vel_rx is None else vel_rx[b] * r_mean[:, None])   # (nodes, 3)
-        l_node = (np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
-                  + np.linalg.norm(keys[:, 1:] * cell_m - rx, axis=1))            # 2R for the direct path
-        base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))
-        r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None], rmax[:, None])
-        amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
-        splat_table(np.repeat(keys[:, 0], n_sub), r_env.ravel() * delay_per_m, amp.ravel(), table, table_start,
-                    table_rate, out[b])
+        move = 0.0 if vel_rx is None else vel_rx[b] * r_mean[:, None]
+        ref = (pos_world[b] if pos_rx is None else pos_rx[b]) + move             # (nodes, 3)
+        x = keys[:, 1:] * cell_m
+        d_ref = np.linalg.norm(x - ref, axis=1)
+        for k in range(n_rx):
+            rx = ref if receivers is None else receivers[b, keys[:, 0] * n_rx + k] + move
+            d_rx = np.linalg.norm(x - rx, axis=1)
+            l_node = np.linalg.norm(x - pos_world[b], axis=1) + d_rx             # 2R for the direct path
+            base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))
+            r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None],
+                            rmax[:, None]) + ((d_rx - d_ref) * time_per_m)[:, None]
+            amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
+            splat_table(np.repeat(keys[:, 0] * n_rx + k, n_sub), r_env.ravel() * delay_per_m, amp.ravel(), table,
+                        table_start, table_rate, out[b])
     return out
 
 
