@@ -104,7 +104,7 @@ def clean_stale(folder) -> int:
 #: project wrote (a user's document given as an output path) and is refused, never overwritten.
 MAGIC = {".npz": (b"PK",), ".png": (b"\x89PNG",), ".tif": (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"),
          ".xtf": (b"\x7b",), ".json": (b"{", b"["), ".csv": (b"time_s,", b"time,"),
-         ".obj": (b"#", b"o ", b"v ", b"g ", b"mtllib")}
+         ".obj": (b"#", b"o ", b"v ", b"g ", b"mtllib"), ".xyz": (b"# x_m y_m z_m",)}
 
 
 def check_replaceable(path: str, suffix: str) -> None:

@@ -59,8 +59,8 @@ class PointCloud:
         return Mosaic(m.intensity, m.height_m, m.count, m.x0_m, m.y0_m, m.pixel_m, m.crs, "coherence", "1")
 
     def to_xyz(self, path) -> None:
-        """Write the soundings as a text file of ``x y z`` rows, m (the XYZ that :func:`sonar_embree.seafloor.from_xyz`
-        reads); atomic."""
+        """Write the soundings as text, one ``x y z`` row (world m) per sounding under a ``# x_m y_m z_m`` header;
+        atomic (an existing file without that header is not replaced)."""
         def write(tmp):
             np.savetxt(tmp, self.xyz_m, fmt="%.4f", header="x_m y_m z_m", comments="# ")
         atomic_write(path, write, suffix=".xyz")
