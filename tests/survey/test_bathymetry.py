@@ -131,3 +131,25 @@ def test_a_record_without_elements_is_refused(tmp_path):
     with pytest.raises(ConfigError, match="not a XYZ file"):
         cloud.to_xyz(tmp_path / "mine.xyz")                                  # a user's file is not replaced
     assert (tmp_path / "mine.xyz").read_text() == "1 2 3\n"
+
+
+def test_the_labels_hold_the_true_depth_of_every_interferometric_sample():
+    """simulate(labels=True) with a receiver pair: each sample's ``height_m`` and ``ground_range_m`` are the floor
+    point's (the closed form's), and the soundings lie on them."""
+    slope = 10.0
+    sonar = se.Sonar(frequency_hz=F0, length_m=0.1, height_m=0.005, tilt_deg=30, max_range_m=40,
+                     receive_array=se.ReceiverArray.vertical(LAM))
+    traj = se.Trajectory.line(start=(-1, 0, H), end=(1, 0, H), n_pings=5)
+    rec = se.simulate(_scene(slope), traj, sonar, se.Pulse.cw(duration_s=50e-6), speckle=True, seed=1, labels=True)
+    r = rec.slant_range_m
+    far = r > 14
+    for ch, side in ((0, -1.0), (1, 1.0)):
+        s = _across(r[far], slope, side)
+        np.testing.assert_allclose(rec.labels.ground_range_m[ch][:, far], s[None].repeat(5, 0), atol=0.02)
+        np.testing.assert_allclose(rec.labels.height_m[ch][:, far], (side * math.tan(math.radians(slope)) * s)[None]
+                                   .repeat(5, 0), atol=0.02)
+    cloud = interferometric_points(rec, window=(5, 11))
+    keep = r[cloud.sample] > 14
+    truth = rec.labels.height_m[cloud.channel[keep], cloud.ping[keep], cloud.sample[keep]]
+    err = (cloud.xyz_m[keep, 2] - truth) / r[cloud.sample[keep]]
+    assert np.sqrt(np.mean(err ** 2)) < 0.01
