@@ -14,6 +14,7 @@ farther apart than D/4 for a single element (D/2 for the array's phase centres).
 from __future__ import annotations
 
 import numpy as np
+from scipy.signal import resample_poly
 
 from .. import kernels
 from ..errors import ConfigError
@@ -21,7 +22,7 @@ from ..validation import check_number
 
 
 def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, sound_speed_m_s: float, tx, rx,
-                         x_m, y_m, z_m: float = 0.0) -> np.ndarray:
+                         x_m, y_m, z_m: float = 0.0, upsample: int = 4) -> np.ndarray:
     """The backprojected image of element records on the grid ``x_m`` × ``y_m`` at height ``z_m``.
 
     Parameters
@@ -36,12 +37,24 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
         Each element's position when it receives, m.
     x_m, y_m : (nx,), (ny,) float
         The image grid's axes, m.
+    z_m : float
+        The grid's height, m.
+    upsample : int
+        The records are first interpolated to this many times their rate (a polyphase low-pass,
+        ``scipy.signal.resample_poly``), so that the kernel's linear interpolation between samples does not widen
+        the range response: at 2 samples per resolution cell (a baseband record at fs = 2B) it widens the first
+        null by about 10 %, at 8 by under 1 %.
 
     Returns
     -------
     (ny, nx) complex128
     """
+    if isinstance(upsample, bool) or not isinstance(upsample, (int, np.integer)) or not 1 <= upsample <= 64:
+        raise ConfigError(f"backprojection_image: upsample must be an integer in [1, 64], got {upsample!r}")
     d = np.ascontiguousarray(data, dtype=np.complex128)
+    if upsample > 1:
+        d = np.ascontiguousarray(resample_poly(d, int(upsample), 1, axis=-1))
+        rate_hz = rate_hz * int(upsample)
     tx, rx = np.ascontiguousarray(tx, dtype=np.float64), np.ascontiguousarray(rx, dtype=np.float64)
     if d.ndim != 3 or tx.shape != (d.shape[0], 3) or rx.shape != d.shape[:2] + (3,):
         raise ConfigError(f"backprojection_image: data (pings, elements, samples) {d.shape}, tx (pings, 3) "
