@@ -100,18 +100,28 @@ def _check_count(where: str, n, lo: int) -> None:
         raise ConfigError(f"{where}: n_elements must be an integer in [{lo}, {MAX_ELEMENTS}], got {n!r}")
 
 
+#: The layouts a table may name with ``kind``, and their constructors' keys.
+KINDS = {"vertical": ("baseline_m", "n_elements"), "along_track": ("n_elements", "spacing_m")}
+
+
 def receive_array_of(value):
-    """A ReceiverArray from itself, None or a dict (TOML ``receive_array = {…}``, a record's metadata)."""
+    """A ReceiverArray from itself, None or a dict (TOML ``receive_array = {…}``, a record's metadata): either
+    ``{positions_m = [[forward, outward, up], …]}`` or a layout, ``{kind = "vertical", baseline_m = …,
+    n_elements = 2}`` or ``{kind = "along_track", n_elements = …, spacing_m = …}``."""
     if value is None or isinstance(value, ReceiverArray):
         return value
     if not isinstance(value, dict):
         raise ConfigError(f"Sonar.receive_array must be a sonar_embree.ReceiverArray or None, got {value!r}")
-    return from_table(ReceiverArray, value, "Sonar.receive_array")
+    if "kind" not in value:
+        return from_table(ReceiverArray, value, "Sonar.receive_array")
+    kind = value["kind"]
+    if kind not in KINDS:
+        raise ConfigError(f"Sonar.receive_array: unknown kind {kind!r}; one of {', '.join(KINDS)}")
+    unknown = sorted(set(value) - {"kind", *KINDS[kind]})
+    if unknown:
+        raise ConfigError(f"Sonar.receive_array: unknown key {unknown[0]!r} for kind {kind!r}; one of "
+                          f"{', '.join(KINDS[kind])}")
+    return getattr(ReceiverArray, kind)(**{k: v for k, v in value.items() if k != "kind"})
 
 
-def element_names(channels: tuple, n_elements: int) -> tuple:
-    """The element channels' names, ``port/0``, … (channel by channel)."""
-    return tuple(f"{ch}/{k}" for ch in channels for k in range(n_elements))
-
-
-__all__ = ["MAX_ELEMENTS", "MAX_OFFSET_M", "ReceiverArray", "element_names", "receive_array_of"]
+__all__ = ["KINDS", "MAX_ELEMENTS", "MAX_OFFSET_M", "ReceiverArray", "receive_array_of"]

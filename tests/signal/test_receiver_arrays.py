@@ -8,6 +8,7 @@ import trimesh
 import xarray as xr
 
 import sonar_embree as se
+from sonar_embree.runs.cli import main
 from sonar_embree.errors import ConfigError
 from sonar_embree.propagation.clutter import clutter_field
 from sonar_embree.signal.interferometry import cross_spectrum
@@ -144,3 +145,21 @@ def test_volume_reverberation_with_an_array_is_refused():
     with pytest.raises(ConfigError, match="volume_backscatter_db"):
         se.simulate(_floor_scene(), se.Trajectory.line(start=(0, 0, 8), end=(1, 0, 8), n_pings=2), sonar,
                     speckle=True)
+
+
+def test_a_toml_receive_array_renders_element_data(tmp_path):
+    """``receive_array = {kind = …}`` in a config's [sonar]: the rendered record keeps its elements; bad tables are
+    one-line errors naming the key."""
+    cfg = tmp_path / "run.toml"
+    cfg.write_text('[sonar]\nmax_range_m = 15.0\nreceive_array = { kind = "along_track", n_elements = 3, '
+                   'spacing_m = 0.05 }\n[simulation]\nspeckle = true\n[trajectory]\nkind = "line"\n'
+                   'start = [-1.0, 0.0, 8.0]\nend = [1.0, 0.0, 8.0]\nn_pings = 3\n[[objects]]\nseafloor = "flat"\n'
+                   'size_m = [30.0, 40.0]\nlabel = "seafloor"\n[output]\nnpz = true\npng = false\n')
+    assert main(["render", str(cfg), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
+    rec = se.Record.load(tmp_path / "out" / "record.npz")
+    assert rec.element_data.shape[:3] == (3, 2, 3) and np.abs(rec.element_data).max() > 0
+    assert rec.sonar.receive_array == se.ReceiverArray.along_track(3, 0.05)
+    for table, match in (({"kind": "ring"}, "unknown kind 'ring'"),
+                         ({"kind": "vertical", "baseline_m": 0.01, "spacing_m": 1}, "unknown key 'spacing_m'")):
+        with pytest.raises(ConfigError, match=match):
+            se.Sonar(receive_array=table)
