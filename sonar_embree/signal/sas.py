@@ -15,9 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 from scipy.signal import resample_poly
+from scipy.spatial import cKDTree
 
 from .. import kernels
 from ..errors import ConfigError
+from ..raycast import RayCaster
 from ..validation import check_number
 
 
@@ -70,7 +72,7 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
 
 
 def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", positions_m=None,
-                 elements=None) -> np.ndarray:
+                 elements=None, pings=None) -> np.ndarray:
     """The backprojected image of a simulated receiver-array record (``Record.element_data``) on a world grid.
 
     Parameters
@@ -89,6 +91,8 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
         true positions); the elements follow it at their body offsets with the record's attitudes.
     elements : sequence of int, optional
         The elements used (default all).
+    pings : sequence of int or bool mask, optional
+        The pings used (default all): a sub-aperture.
 
     Returns
     -------
@@ -108,9 +112,112 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
     n_el = arr.n_elements
     rx = arr.world_positions(record.trajectory.rotations(), pos)[:, ch * n_el:(ch + 1) * n_el]
     k = np.arange(n_el) if elements is None else np.asarray(elements, dtype=np.int64)
+    p = np.arange(pos.shape[0])[slice(None) if pings is None else np.asarray(pings)]
     s = record.sonar
-    return backprojection_image(record.element_data[:, ch][:, k], 0.0, s.sample_rate_hz, s.frequency_hz,
-                                s.sound_speed_m_s, pos, rx[:, k], x_m, y_m, z_m)
+    return backprojection_image(np.asarray(record.element_data[p, ch])[:, k], 0.0, s.sample_rate_hz, s.frequency_hz,
+                                s.sound_speed_m_s, pos[p], rx[p][:, k], x_m, y_m, z_m)
 
 
-__all__ = ["backprojection_image", "record_image"]
+def image_masks(scene, record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", spacing_m=None,
+                caster=None):
+    """The scene's objects (not the seafloor) where a ground-plane SAS image of ``record`` shows them.
+
+    Every object's surface is sampled (points at most ``spacing_m`` apart, default half the grid's pixel); a point
+    on the imaged side, facing and visible (an occlusion ray) from the ping that passes closest to it, is placed
+    where the image puts its echo: at its along-track position and at the ground range on the plane z = ``z_m``
+    with its own slant range, √(ρ² − (z_sonar − z_m)²). An object above the plane is laid over towards the track,
+    as its echo is (docs/physics.md §20).
+
+    Parameters
+    ----------
+    scene : Scene
+        The simulated scene.
+    record : Record
+        Its record (the trajectory and sonar; no element data needed).
+    x_m, y_m : (nx,), (ny,) float
+        The image grid's axes (pixel centres, uniformly spaced), world m.
+    z_m : float
+        The image plane's height, m.
+    channel : str
+        The side imaged.
+    spacing_m : float, optional
+        The surface sampling, m.
+    caster : type, optional
+        The ray caster (default Embree).
+
+    Returns
+    -------
+    mask : (ny, nx) int32
+        The object index (into ``names``) at each pixel, −1 for none.
+    names : tuple of str
+        The scene's object labels.
+    """
+    if channel not in ("port", "starboard"):
+        raise ConfigError(f"image_masks: channel must be 'port' or 'starboard', got {channel!r}")
+    x_m, y_m = np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float)
+    dx, dy = _step(x_m, "x_m"), _step(y_m, "y_m")
+    compiled = scene.compiled()
+    pts, obj, normal, two_sided = _surface_points(compiled, spacing_m or 0.5 * min(abs(dx), abs(dy)))
+    pos = record.trajectory.positions_m - compiled.origin_m
+    rot = record.trajectory.rotations()
+    p = cKDTree(pos[:, :2]).query(pts[:, :2])[1]                     # the ping passing closest (a straight track)
+    d = pts - pos[p]
+    rho = np.linalg.norm(d, axis=1)
+    side = 1.0 if channel == "starboard" else -1.0
+    lit = (np.einsum("ij,ij->i", d, rot[p][:, :, 1]) * side > 0) & (two_sided | (np.einsum("ij,ij->i", normal, d) < 0))
+    seen = np.zeros(rho.size, dtype=bool)
+    u = (d[lit] / rho[lit, None]).astype(np.float32)
+    seen[lit] = ~(caster or RayCaster)(compiled).occluded(np.ascontiguousarray(pos[p[lit]], dtype=np.float32),
+                                                          np.ascontiguousarray(u),
+                                                          (rho[lit] - 2e-3).astype(np.float32))
+    fwd = _horizontal(rot[p][:, :, 0])
+    out = _horizontal(rot[p][:, :, 1]) * side
+    height = pos[p, 2] + compiled.origin_m[2] - z_m
+    with np.errstate(invalid="ignore"):
+        g = np.sqrt(rho ** 2 - height ** 2)
+    at = pos[p] + compiled.origin_m + np.einsum("ij,ij->i", d, fwd)[:, None] * fwd + g[:, None] * out
+    col, row = np.rint((at[:, 0] - x_m[0]) / dx), np.rint((at[:, 1] - y_m[0]) / dy)
+    keep = seen & np.isfinite(g) & (col >= 0) & (col < x_m.size) & (row >= 0) & (row < y_m.size)
+    mask = np.full((y_m.size, x_m.size), -1, dtype=np.int32)
+    mask[row[keep].astype(np.int64), col[keep].astype(np.int64)] = obj[keep]
+    return mask, tuple(compiled.labels)
+
+
+def _step(axis, name: str) -> float:
+    """The uniform spacing of a grid axis (refused when not uniform)."""
+    if axis.ndim != 1 or axis.size < 2 or not np.allclose(np.diff(axis), axis[1] - axis[0], rtol=1e-6, atol=1e-9):
+        raise ConfigError(f"image_masks: {name} must be uniformly spaced pixel centres (at least 2)")
+    return float(axis[1] - axis[0])
+
+
+def _horizontal(v):
+    """Rows of ``v`` (n, 3) with z dropped, unit length."""
+    h = v * [1.0, 1.0, 0.0]
+    return h / np.linalg.norm(h, axis=1, keepdims=True)
+
+
+def _surface_points(compiled, spacing: float):
+    """Points at most ``spacing`` apart on every object face (a barycentric grid per triangle, local frame): (points
+    (n, 3), their object (n,), their face's unit normal (n, 3), whether it is two-sided (n,))."""
+    faces = np.flatnonzero(~compiled.is_seafloor[compiled.face_object])
+    tri = compiled.vertices[compiled.faces[faces]]
+    edge = np.linalg.norm(tri - np.roll(tri, 1, axis=1), axis=2).max(axis=1)
+    steps = np.maximum(np.ceil(edge / spacing), 1).astype(np.int64)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
+    parts = []
+    for n in np.unique(steps):
+        a, b = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+        keep = a + b <= n
+        w = np.stack([n - a[keep] - b[keep], a[keep], b[keep]], axis=1) / n        # (m, 3) barycentric
+        sel = np.flatnonzero(steps == n)
+        pts = np.einsum("mk,fkj->fmj", w, tri[sel]).reshape(-1, 3)
+        parts.append((pts, np.repeat(sel, w.shape[0])))
+    if not parts:
+        return np.zeros((0, 3)), np.zeros(0, np.int32), np.zeros((0, 3)), np.zeros(0, bool)
+    pts, idx = (np.concatenate(c) for c in zip(*parts))
+    f = faces[idx]
+    return pts, compiled.face_object[f], normal[idx], compiled.two_sided[compiled.face_object[f]]
+
+
+__all__ = ["backprojection_image", "image_masks", "record_image"]

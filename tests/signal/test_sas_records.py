@@ -14,7 +14,7 @@ import trimesh
 
 import sonar_embree as se
 from sonar_embree.propagation.clutter import clutter_field
-from sonar_embree.signal.sas import record_image
+from sonar_embree.signal.sas import image_masks, record_image
 
 C, F0, B, D, H = 1500.0, 100e3, 20e3, 0.04, 5.0
 LAM = C / F0
@@ -32,7 +32,7 @@ def _trajectory(sway=None):
     if sway is not None:
         pos[:, 1] = sway(x.size)
     zeros = np.zeros(x.size)
-    return se.Trajectory(pos, zeros, zeros, zeros, x / 1.5)
+    return se.Trajectory(pos, np.full(x.size, 90.0), zeros, zeros, x / 1.5)     # heading east: starboard is −y
 
 
 def _points_scene(seed=7):
@@ -65,11 +65,11 @@ def _first_null(offsets, amp):
     return offsets[i] - offsets[left], offsets[right] - offsets[i]
 
 
-def _closed_form(target, pixels, true_nav, nav):
+def _closed_form(target, pixels, true_nav, nav, pings=slice(None)):
     """The image of a point at ``target`` at ``pixels`` (n, 3), formed with navigation ``nav`` from pings at
-    ``true_nav`` (pings, 3): Σ_p Σ_k w·χ(δτ)·e^(j2πf0·δτ), δτ the formed path's delay less the true one's,
-    w = b(u_tx)·b(u_k)/(R_tx·R_k) with the membrane's along-track pattern b(u) = sinc(D·u/λ)."""
-    rot = np.repeat(np.eye(3)[None], true_nav.shape[0], axis=0)
+    ``true_nav`` (pings, 3) (``pings`` of the line's): Σ_p Σ_k w·χ(δτ)·e^(j2πf0·δτ), δτ the formed path's delay
+    less the true one's, w = b(u_tx)·b(u_k)/(R_tx·R_k) with the membrane's along-track pattern b(u) = sinc(D·u/λ)."""
+    rot = _trajectory().rotations()[pings]
     rx_true, rx_nav = (ARRAY.world_positions(rot, p)[:, ARRAY.n_elements:] for p in (true_nav, nav))
     r_tx = np.linalg.norm(target - true_nav, axis=1)[:, None]
     r_rx = np.linalg.norm(target - rx_true, axis=2)
@@ -83,19 +83,38 @@ def _closed_form(target, pixels, true_nav, nav):
 
 
 def test_a_point_scatterers_image_has_the_closed_form_resolutions(point):
+    """Formed from the real aperture's footprint L = λR/D (Hayes and Gough 2009: δx = λR/(2L) = D/2): along track
+    the −3 dB width is D/2 within 10 %; across track the first null on the ground plane is c/(2B·cos ψ) within
+    10 %. Both are the textbook's rules; the image must also be the exact aperture sum's (closed form, each ping's
+    and element's bistatic delay and pattern): its first nulls and −3 dB widths within 5 %, its side lobe within
+    1 dB."""
     sc, target, rec = point
-    d = np.linspace(-0.12, 0.12, 481)
-    along = np.abs(record_image(rec, target[0] + d, [target[1]], target[2]))[0]
-    across = np.abs(record_image(rec, [target[0]], target[1] + d, target[2]))[:, 0]
-    assert abs(d[np.argmax(along)]) < 0.004 and abs(d[np.argmax(across)]) < 0.004   # focused on the point
-    np.testing.assert_allclose(_first_null(d, along), D / 2, rtol=0.1)
-    grazing = math.atan2(H - target[2], math.hypot(target[1], 0.0))
+    nav = rec.trajectory.positions_m
+    rng = np.linalg.norm(target - nav, axis=1).min()
+    sub = np.abs(nav[:, 0] - target[0]) <= 0.5 * LAM * rng / D
+    d = np.linspace(-0.12, 0.12, 961)
+    along = np.abs(record_image(rec, target[0] + d, [target[1]], target[2], pings=sub))[0]
+    across = np.abs(record_image(rec, [target[0]], target[1] + d, target[2], pings=sub))[:, 0]
+    assert abs(d[np.argmax(along)]) < 0.002 and abs(d[np.argmax(across)]) < 0.002   # focused on the point
+    assert _width_3db(d, along) == pytest.approx(D / 2, rel=0.1)
+    grazing = math.atan2(H - target[2], abs(target[1]))
     np.testing.assert_allclose(_first_null(d, across), C / (2 * B * math.cos(grazing)), rtol=0.1)
-    nav = rec.trajectory.positions_m                       # the exact aperture sum's null and side lobe
-    want = np.abs(_closed_form(target, target + d[:, None] * [0, 1, 0], nav, nav))
-    np.testing.assert_allclose(_first_null(d, across), _first_null(d, want), rtol=0.05)
+    for line, cut in ((along, [1, 0, 0]), (across, [0, 1, 0])):
+        want = np.abs(_closed_form(target, target + d[:, None] * cut, nav[sub], nav[sub], sub))
+        np.testing.assert_allclose(_first_null(d, line), _first_null(d, want), rtol=0.05)
+        assert _width_3db(d, line) == pytest.approx(_width_3db(d, want), rel=0.05)
     np.testing.assert_allclose(_side_lobe_db(across), _side_lobe_db(want), atol=1.0)
     assert _side_lobe_db(want) == pytest.approx(-13.26, abs=2.0)        # near the rect spectrum's
+
+
+def _width_3db(d, amp):
+    """The full width of |image| at 1/√2 of its peak, linearly interpolated, m."""
+    i, half = int(np.argmax(amp)), amp.max() / math.sqrt(2)
+    r = next(j for j in range(i, amp.size) if amp[j] < half)
+    left = next(j for j in range(i, -1, -1) if amp[j] < half)
+    right_x = d[r - 1] + (amp[r - 1] - half) / (amp[r - 1] - amp[r]) * (d[r] - d[r - 1])
+    left_x = d[left + 1] - (amp[left + 1] - half) / (amp[left + 1] - amp[left]) * (d[left + 1] - d[left])
+    return right_x - left_x
 
 
 def _side_lobe_db(amp):
@@ -135,3 +154,38 @@ def test_an_uncompensated_sway_defocuses_as_predicted_and_the_navigation_refocus
     predicted = abs(_closed_form(target, target, true_nav, nominal)[0])    # the path errors' closed form
     assert predicted < 0.5                                                        # a real defocus
     assert blurred / refocused == pytest.approx(predicted, rel=0.1)
+
+
+def test_object_masks_sit_where_the_sas_image_shows_the_object():
+    """A 1 m × 1 m × 0.5 m box on the floor: its mask spans the laid-over ground ranges of its near face's foot and
+    its top's far edge, √(g² + h² − 2Hh) for a point at ground range g and height h (the sonar H above the plane),
+    and along track its own extent; the image's brightest pixels fall inside the mask."""
+    sc = se.Scene()
+    sc.add(se.seafloor.flat(size_m=(30.0, 44.0)), material=se.Material(backscatter_db=-30), label="seafloor")
+    sc.add(trimesh.creation.box(extents=(1.0, 1.0, 0.5)).apply_translation((0.0, -ACROSS, 0.25)),
+           material=se.Material(backscatter_db=-10), label="box")
+    rec = _simulate(sc, _trajectory(), seed=2)
+    x, y = np.arange(-1.0, 1.0, 0.01), np.arange(-ACROSS - 1.0, -ACROSS + 1.0, 0.01)
+    mask, names = image_masks(sc, rec, x, y)
+    assert names[1] == "box" and set(np.unique(mask)) == {-1, 1}
+    rows, cols = np.nonzero(mask == 1)
+    laid = lambda g, h: math.sqrt(g * g + h * h - 2 * H * h)
+    np.testing.assert_allclose([-y[rows].max(), -y[rows].min()], [laid(ACROSS - 0.5, 0.5), laid(ACROSS + 0.5, 0.5)],
+                               atol=0.02)
+    np.testing.assert_allclose([x[cols].min(), x[cols].max()], [-0.5, 0.5], atol=0.02)
+    intensity = np.abs(record_image(rec, x, y, 0.0)) ** 2
+    bright = intensity > np.percentile(intensity, 99.5)
+    near = np.zeros_like(bright)                                       # the mask grown by a resolution cell
+    for dr in range(-4, 5):
+        for dc in range(-2, 3):
+            near |= np.roll(mask == 1, (dr, dc), axis=(0, 1))
+    assert np.mean(near[bright]) > 0.9
+
+
+def test_image_masks_refuse_a_ragged_grid():
+    sc, target = _points_scene()
+    rec = _simulate(sc, _trajectory())
+    with pytest.raises(se.ConfigError, match="uniformly spaced"):
+        image_masks(sc, rec, [0.0, 0.1, 0.3], [0.0, 0.1])
+    with pytest.raises(se.ConfigError, match="channel"):
+        image_masks(sc, rec, [0.0, 0.1], [0.0, 0.1], channel="up")
