@@ -168,7 +168,7 @@ class Sonar(Transducer):
         The device's receive chain (sensitivity, TVG or AGC, ADC; docs/physics.md §15): the
         record then also holds the integer ``samples`` a device would store. Needs a source level.
     receive_array : ReceiverArray or None
-        Receive elements per side (an interferometric or a synthetic-aperture side-scan; docs/physics.md §20):
+        Receive elements per side (an interferometric or a synthetic-aperture side-scan; docs/physics.md §18):
         each element is synthesised along its own bistatic path, kept as ``Record.element_data`` (complex), and
         element 0's intensity is the record's channel. Needs coherent speckle. None: one receiver per side, at
         the transmitter.

@@ -395,7 +395,8 @@ def progress_bar(progress: bool, n_pings: int, done: int = 0):
 
 def _process(run: _Run, keep_complex: bool):
     """The common tail: crop to the window, source level, lowpass, the receiver's samples, perfect TVG; intensity
-    (pings, channels, n_out), complex and the device's integer samples (or None)."""
+    (pings, channels, n_out), complex and the device's integer samples (or None), and a receiver array's element
+    signals (pings, channels, elements, n_out) (or None; element 0 of each channel gives its intensity)."""
     sonar, chain, n_out = run.sonar, run.chain, run.n_out
     intensity, cplx = run.back.finish()
     if run.front.beamforms:

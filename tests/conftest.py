@@ -25,6 +25,7 @@ SLOW = frozenset({
     "test_scripts.py::test_bench_swell_objects_script_reports_ms_per_ping_with_and_without_balls",
     "test_scripts.py::test_bench_chirp_script_reports_the_chirp_beside_cw",
     "test_scripts.py::test_realism_figure_shows_heavier_tails_than_todays_line",
+    "test_scripts.py::test_sas_figure_resolves_the_mine_that_the_side_scan_blurs",
     "test_replay.py::test_fit_recovers_a_hidden_clutter_density_with_the_class",
     "test_receiver_band.py::test_noise_power_per_sample_is_nl_minus_di_plus_the_receivers_band",
     "test_replay.py::test_fit_recovers_a_hidden_gain_and_sediment_class",

@@ -265,3 +265,19 @@ def test_realism_figure_shows_heavier_tails_than_todays_line(tmp_path):
     assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
     info = json.loads((tmp_path / "realism.json").read_text())
     assert info["realistic"]["scintillation_index"][-1] > 2 * info["today"]["scintillation_index"][-1]
+
+
+def test_sas_figure_resolves_the_mine_that_the_side_scan_blurs(tmp_path):
+    """Issue 39's figure (--quick: the mine only): the side-scan panel beside the SAS panel with outlines; the SAS
+    image concentrates the mine's echo: the share of its pixels within 10 dB of the brightest is under half the
+    side-scan image's."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "sas_figure.py"), "-o", str(tmp_path),
+                           "--quick"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["sas.json", "sas.png"]
+    img = iio.imread(tmp_path / "sas.png")
+    assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
+    info = json.loads((tmp_path / "sas.json").read_text())
+    mine = info["anchor mine"]
+    assert mine["elements_per_side"] == 8 and mine["pixels"] == 10_000
+    assert mine["bright_fraction"]["sas"] < 0.5 * mine["bright_fraction"]["side_scan"]

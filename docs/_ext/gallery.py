@@ -22,6 +22,7 @@ SCRIPTS = {
     "fls_figure": ("-o docs/fls", ["fls/fan.png"]),
     "device_figure": ("-o docs/device", ["device/waterfalls.png"]),
     "realism_figure": ("-o docs/realism", ["realism/waterfalls.png"]),
+    "sas_figure": ("-o docs/sas", ["sas/sas.png"]),
     "survey_from_dem": ("-o out/survey --figure docs/survey/survey.png", ["survey/survey.png"]),
     "make_detection_dataset": ("-o out/detection --example docs/detection_example.png", ["detection_example.png"]),
     "make_assets": ("", ["demo.png"]),

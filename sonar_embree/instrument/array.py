@@ -1,4 +1,4 @@
-"""Receiver arrays: a side-scan's transmitter with N receive elements per side (docs/physics.md §20).
+"""Receiver arrays: a side-scan's transmitter with N receive elements per side (docs/physics.md §18a).
 
 Every element hears the same frozen scatterers (so speckle is coherent across the elements) along its own
 bistatic path: transmitter at ping time → scatterer → element, where the element is when the echo arrives

@@ -1,5 +1,5 @@
 """Back-end kernels, synthetic aperture: time-domain backprojection of element records onto image points
-(docs/physics.md §18)."""
+(docs/physics.md §18c)."""
 from __future__ import annotations
 
 import math
@@ -17,12 +17,15 @@ def _dist(a, b, m):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels, out):
-    """Time-domain backprojection: ``out[m] = Σ_p Σ_k s_pk(τ)·e^(j2π·f0·τ)``, τ = (|x_m − tx_p| + |x_m − rx_pk|)/c.
+def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, fwd, max_u, pixels, out):
+    """Time-domain backprojection: ``out[m] = Σ_p Σ_k s_pk(τ)·e^(j2π·f0·τ)``, τ = (|x_m − tx_p| + |x_m − rx_pk|)/c,
+    over the pings and elements that see x_m within ``max_u`` of broadside.
 
     s_pk is the complex baseband record of ping p and element k, read at (τ − t0)·fs by linear interpolation
-    (zero outside the record); the phase is taken as 2π·(f0·τ mod 1). Pixels are independent, so the result
-    does not depend on the thread count.
+    (zero outside the record); the phase is taken as 2π·(f0·τ mod 1). A ping and element count only where the
+    mean of the transmit and receive direction cosines along track, u = ((x − tx)·f/|x − tx| + (x − rx)·f/|x − rx|)/2
+    with f the ping's forward unit vector, has |u| ≤ ``max_u`` (the processed band; ≥ 1: every one). Pixels are
+    independent, so the result does not depend on the thread count.
 
     Parameters
     ----------
@@ -34,6 +37,10 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels
         The transmitter's position at each ping, m.
     rx : (pings, elements, 3) float64
         Each element's position when it receives, m.
+    fwd : (pings, 3) float64
+        Each ping's forward (along-track) unit vector.
+    max_u : float
+        The largest |u| processed.
     pixels : (m, 3) float64
         Image points, m (the same frame).
     out : (m,) complex128
@@ -45,14 +52,20 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels
         x = pixels[m]
         for p in range(n_p):
             d_tx = _dist(x, tx, p)
+            u_tx = ((x[0] - tx[p, 0]) * fwd[p, 0] + (x[1] - tx[p, 1]) * fwd[p, 1] + (x[2] - tx[p, 2]) * fwd[p, 2]) / d_tx
             rx_p = rx[p]
             for k in range(n_k):
-                tau = (d_tx + _dist(x, rx_p, k)) / sound_speed_m_s
-                u = (tau - t0_s) * rate_hz
-                i = int(math.floor(u))
+                d_rx = _dist(x, rx_p, k)
+                u = 0.5 * (u_tx + ((x[0] - rx_p[k, 0]) * fwd[p, 0] + (x[1] - rx_p[k, 1]) * fwd[p, 1]
+                                   + (x[2] - rx_p[k, 2]) * fwd[p, 2]) / d_rx)
+                if abs(u) > max_u:
+                    continue
+                tau = (d_tx + d_rx) / sound_speed_m_s
+                v = (tau - t0_s) * rate_hz
+                i = int(math.floor(v))
                 if i < 0 or i >= n_s - 1:
                     continue
-                f = u - i
+                f = v - i
                 s = data[p, k, i] * (1.0 - f) + data[p, k, i + 1] * f
                 ph = 2.0 * math.pi * ((carrier_hz * tau) % 1.0)
                 acc += s * complex(math.cos(ph), math.sin(ph))

@@ -348,7 +348,7 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         velocity per ping, world m per unit of ``times`` (zeros: stop-and-hop); ``rx_ref`` (pings, 3): the
         receiver the echoes' times were made for, and ``time_per_m`` (units of ``times`` per m, 1/c; 0: none):
         each receiver's envelope is delayed by (|X − rx − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m, its own
-        bistatic path (docs/physics.md §20).
+        bistatic path (docs/physics.md §18a).
     lattice : :data:`~sonar_embree.kernels.args.Lattice`
         Speckle ``seed`` (int), lattice spacing ``cell_m`` (m), acoustic wavelength (m) and scatterers per node
         ``n_sub``.

@@ -40,9 +40,9 @@ MAX_LEG_BOXES = 16
 
 
 def mirror(pos: np.ndarray, z_s: float) -> np.ndarray:
-    """Positions (n, 3) mirrored in the plane z = z_s (same frame as ``pos``)."""
+    """Positions (..., 3) mirrored in the plane z = z_s (same frame as ``pos``)."""
     out = np.array(pos, dtype=np.float64)
-    out[:, 2] = 2.0 * z_s - out[:, 2]
+    out[..., 2] = 2.0 * z_s - out[..., 2]
     return out
 
 

@@ -1,4 +1,4 @@
-"""Interferometric side-scan: the angle of arrival from two receivers' phase difference (docs/physics.md §20).
+"""Interferometric side-scan: the angle of arrival from two receivers' phase difference (docs/physics.md §18b).
 
 Two receivers a baseline b apart in the across-track plane hear an echo from the unit direction û with path
 lengths differing by −b·û (the receiver the baseline points towards is nearer by b·û), so their complex baseband
@@ -11,8 +11,9 @@ signals (phase −2π·L/λ) differ in phase by
 reference depression (the transducer's tilt), which leaves an unambiguous sector of |Δ(cos(θ + β))| < λ/(2|b|)
 around it. The cross product z_b·z̄_0 is averaged over a small window of samples and pings first (the standard
 estimator; its phase noise falls as the coherence γ and the number of looks rise). Sources: Lurton, *An
-Introduction to Underwater Acoustics*, 2nd ed., Springer, 2010, §8.3; Jin and Tang, "Correction of sonar
-interferometric phase errors", IEEE J. Oceanic Eng. 21(3), 1996 (the phase-difference estimator and its variance).
+Introduction to Underwater Acoustics*, 2nd ed., Springer, 2010, §8.3; G. Jin and D. Tang, "Uncertainties of
+differential phase estimation associated with interferometric sonars", IEEE J. Oceanic Eng. 21(1), 53–63, 1996
+(the phase-difference estimator and its variance).
 """
 from __future__ import annotations
 

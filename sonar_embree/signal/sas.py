@@ -1,4 +1,4 @@
-"""Synthetic-aperture image formation: time-domain backprojection (docs/physics.md §18).
+"""Synthetic-aperture image formation: time-domain backprojection (docs/physics.md §18c).
 
 The reference image former of a receiver array's records: every image point x collects, over every ping p and
 element k, the record s_pk at the bistatic delay τ = (|x − tx_p| + |x − rx_pk|)/c, turned back by e^(j2π·f0·τ),
@@ -24,7 +24,8 @@ from ..validation import check_number
 
 
 def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, sound_speed_m_s: float, tx, rx,
-                         x_m, y_m, z_m: float = 0.0, upsample: int = 4) -> np.ndarray:
+                         x_m, y_m, z_m: float = 0.0, upsample: int = 4, forward=None,
+                         max_u: float | None = None) -> np.ndarray:
     """The backprojected image of element records on the grid ``x_m`` × ``y_m`` at height ``z_m``.
 
     Parameters
@@ -46,6 +47,11 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
         ``scipy.signal.resample_poly``), so that the kernel's linear interpolation between samples does not widen
         the range response: from a baseband record at fs = 2B (2 samples per c/(2B)) it moves a point's first null
         by about 5 %, upsampled twice by 1 %, four times by under 0.2 % (docs/benchmarks.md).
+    forward : (pings, 3) float, optional
+        Each ping's along-track unit vector (default +x).
+    max_u : float, optional
+        The processed band: a ping and element count for a pixel only where the mean of their along-track
+        direction cosines to it is within ``max_u`` (default: all, whatever the angle).
 
     Returns
     -------
@@ -66,13 +72,19 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
     xx, yy = np.meshgrid(np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float))
     pixels = np.ascontiguousarray(np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, float(z_m))], axis=1))
     out = np.empty(pixels.shape[0], dtype=np.complex128)
-    kernels.backproject(d, float(t0_s), float(rate_hz), float(carrier_hz), float(sound_speed_m_s), tx, rx, pixels,
-                        out)
+    fwd = np.tile([1.0, 0.0, 0.0], (d.shape[0], 1)) if forward is None else np.asarray(forward, dtype=np.float64)
+    if fwd.shape != (d.shape[0], 3):
+        raise ConfigError(f"backprojection_image: forward must be (pings, 3) = ({d.shape[0]}, 3), got {fwd.shape}")
+    band = 2.0 if max_u is None else float(max_u)
+    if not band > 0:
+        raise ConfigError(f"backprojection_image: max_u must be > 0, got {max_u!r}")
+    kernels.backproject(d, float(t0_s), float(rate_hz), float(carrier_hz), float(sound_speed_m_s), tx, rx,
+                        np.ascontiguousarray(fwd), band, pixels, out)
     return out.reshape(xx.shape)
 
 
 def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", positions_m=None,
-                 elements=None, pings=None, upsample: int = 4) -> np.ndarray:
+                 elements=None, pings=None, upsample: int = 4, max_u="auto") -> np.ndarray:
     """The backprojected image of a simulated receiver-array record (``Record.element_data``) on a world grid.
 
     Parameters
@@ -95,6 +107,12 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
         The pings used (default all): a sub-aperture.
     upsample : int
         As for :func:`backprojection_image`.
+    max_u : float, "auto" or None
+        The processed band in along-track direction cosine (:func:`backprojection_image`). "auto": the band the
+        record's along-track sampling holds without aliasing, λ/(4·d) with d the largest gap between the phase
+        centres (tx + rx)/2 of consecutive pings and elements along track (D/2 apart for an array of elements D
+        long and D apart whose pings advance N·D/2: a band of ±λ/(2D), the along-track resolution D/2); None:
+        every ping and element, ambiguities included.
 
     Returns
     -------
@@ -116,8 +134,23 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
     k = np.arange(n_el) if elements is None else np.asarray(elements, dtype=np.int64)
     p = np.arange(pos.shape[0])[slice(None) if pings is None else np.asarray(pings)]
     s = record.sonar
+    fwd = record.trajectory.rotations()[p][:, :, 0]
+    if isinstance(max_u, str):
+        if max_u != "auto":
+            raise ConfigError(f"record_image: max_u must be a number, 'auto' or None, got {max_u!r}")
+        max_u = unaliased_band(pos[p], rx[p][:, k], fwd, s.wavelength_m)
     return backprojection_image(np.asarray(record.element_data[p, ch])[:, k], 0.0, s.sample_rate_hz, s.frequency_hz,
-                                s.sound_speed_m_s, pos[p], rx[p][:, k], x_m, y_m, z_m, upsample)
+                                s.sound_speed_m_s, pos[p], rx[p][:, k], x_m, y_m, z_m, upsample, fwd, max_u)
+
+
+def unaliased_band(tx, rx, fwd, wavelength_m: float) -> float:
+    """λ/(4·d), d the largest gap between consecutive phase centres (tx + rx)/2 along track (pings (pings, 3),
+    elements (pings, elements, 3), forward unit vectors (pings, 3)): the largest |u| whose two-way phase, sampled
+    at d, does not alias (4π·d·u/λ ≤ π). A single phase centre: no limit (2)."""
+    centres = 0.5 * (tx[:, None, :] + rx)
+    along = np.sort(np.einsum("pkj,pj->pk", centres - tx[:1, None, :], fwd).ravel())
+    gaps = np.diff(along)
+    return 2.0 if gaps.size == 0 or gaps.max() <= 0 else float(wavelength_m / (4.0 * gaps.max()))
 
 
 def image_masks(scene, record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", spacing_m=None,
@@ -128,7 +161,7 @@ def image_masks(scene, record, x_m, y_m, z_m: float = 0.0, channel: str = "starb
     on the imaged side, facing and visible (an occlusion ray) from the ping that passes closest to it, is placed
     where the image puts its echo: at its along-track position and at the ground range on the plane z = ``z_m``
     with its own slant range, √(ρ² − (z_sonar − z_m)²). An object above the plane is laid over towards the track,
-    as its echo is (docs/physics.md §20).
+    as its echo is (docs/physics.md §18c).
 
     Parameters
     ----------
@@ -166,14 +199,13 @@ def image_masks(scene, record, x_m, y_m, z_m: float = 0.0, channel: str = "starb
     d = pts - pos[p]
     rho = np.linalg.norm(d, axis=1)
     side = 1.0 if channel == "starboard" else -1.0
-    lit = (np.einsum("ij,ij->i", d, rot[p][:, :, 1]) * side > 0) & (two_sided | (np.einsum("ij,ij->i", normal, d) < 0))
+    fwd, out = _horizontal(rot[:, :, 0])[p], _horizontal(rot[:, :, 1])[p] * side    # per ping, then per point
+    lit = (np.einsum("ij,ij->i", d, rot[:, :, 1][p]) * side > 0) & (two_sided | (np.einsum("ij,ij->i", normal, d) < 0))
     seen = np.zeros(rho.size, dtype=bool)
     u = (d[lit] / rho[lit, None]).astype(np.float32)
     seen[lit] = ~(caster or RayCaster)(compiled).occluded(np.ascontiguousarray(pos[p[lit]], dtype=np.float32),
                                                           np.ascontiguousarray(u),
                                                           (rho[lit] - 2e-3).astype(np.float32))
-    fwd = _horizontal(rot[p][:, :, 0])
-    out = _horizontal(rot[p][:, :, 1]) * side
     height = pos[p, 2] + compiled.origin_m[2] - z_m
     with np.errstate(invalid="ignore"):
         g = np.sqrt(rho ** 2 - height ** 2)
@@ -222,4 +254,4 @@ def _surface_points(compiled, spacing: float):
     return pts, compiled.face_object[f], normal[idx], compiled.two_sided[compiled.face_object[f]]
 
 
-__all__ = ["backprojection_image", "image_masks", "record_image"]
+__all__ = ["backprojection_image", "image_masks", "record_image", "unaliased_band"]

@@ -221,7 +221,7 @@ class _Ends:
 def _element_points(e: Echoes, row, cycles, ends: _Ends, sonar, n_out_ch: int):
     """The clutter's point echoes heard by every element: (echo index, output row, travel time (s), phase (cycles)),
     one per echo and element, each element's path |X − p_k| replacing the return leg |X − p_tx| (docs/physics.md
-    §20)."""
+    §18a)."""
     n_ch = (e.ray_start.shape[0] - 1) // ends.pos_world.shape[0]
     n_el = n_out_ch // n_ch
     ping, ch = row // n_ch, row % n_ch

@@ -1,4 +1,4 @@
-"""Bathymetry from an interferometric side-scan record: a point cloud and its grid (docs/physics.md §20).
+"""Bathymetry from an interferometric side-scan record: a point cloud and its grid (docs/physics.md §18b).
 
 Every sample of a receiver pair's record (:class:`~sonar_embree.ReceiverArray`, ``Record.element_data``) gives a
 depression θ (:mod:`sonar_embree.signal.interferometry`) and, at the sample's slant range R = c·t/2, a point

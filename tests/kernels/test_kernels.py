@@ -323,7 +323,7 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
 
 @pytest.mark.parametrize("n_tables", [1, 3])
 def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
-    """Three receivers per channel, each on its own path and delay (docs/physics.md §20), against the twin."""
+    """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin."""
     n_p, n = 3, 600
     ray_start = np.linspace(0, n, 2 * n_p + 1).astype(np.int64)
     origin = np.array([512_000.0, 5_412_000.0, -20.0])

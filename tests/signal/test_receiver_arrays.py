@@ -1,4 +1,4 @@
-"""Receiver arrays (docs/physics.md §20): every element on its own bistatic path, checked against the closed form
+"""Receiver arrays (docs/physics.md §18a): every element on its own bistatic path, checked against the closed form
 τ_k = (|X − p_tx| + |X − p_k|)/c and phase −2π·f0·τ_k for a point scatterer; speckle coherent across elements; a
 one-element array at the transmitter is the plain side-scan, bit for bit; the element dimension in the files;
 refusals in one line."""
@@ -71,10 +71,14 @@ def test_each_element_hears_a_point_on_its_own_bistatic_path():
     assert checked >= 2
 
 
-def test_a_one_element_array_at_the_transmitter_is_the_side_scan_bit_for_bit():
+@pytest.mark.parametrize("surface", [None, 15.0], ids=["open", "sea_surface"])
+def test_a_one_element_array_at_the_transmitter_is_the_side_scan_bit_for_bit(surface):
+    """Also under a sea surface, whose paths put the element (or its image) on each leg."""
     sc, traj = _floor_scene(), se.Trajectory.line(start=(-1, 0, 8), end=(1, 0, 8), n_pings=3)
-    plain = se.simulate(sc, traj, se.Sonar(max_range_m=20), speckle=True, seed=1, keep_complex=True)
-    one = se.simulate(sc, traj, se.Sonar(max_range_m=20, receive_array=se.ReceiverArray()), speckle=True, seed=1)
+    env = se.Environment(surface=None if surface is None else se.SeaSurface(z_m=surface))
+    plain = se.simulate(sc, traj, se.Sonar(max_range_m=20, environment=env), speckle=True, seed=1, keep_complex=True)
+    one = se.simulate(sc, traj, se.Sonar(max_range_m=20, environment=env, receive_array=se.ReceiverArray()),
+                      speckle=True, seed=1)
     assert np.abs(plain.data).max() > 0
     assert np.array_equal(plain.data, one.data)
     assert np.array_equal(plain.complex_data, one.element_data[:, :, 0])

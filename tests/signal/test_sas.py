@@ -1,4 +1,4 @@
-"""Synthetic-aperture backprojection (docs/physics.md §18): the kernel against its NumPy twin, and a point target's
+"""Synthetic-aperture backprojection (docs/physics.md §18c): the kernel against its NumPy twin, and a point target's
 image against the closed forms: along-track first null at D/2 (the element length's half), across-track at c/(2B),
 the across-track side lobe of a rect spectrum, −13.26 dB. The records are written here from the closed-form echo of
 a point, w(u)·sinc(B(t − τ))·e^(−j2πf0τ), with the element's two-way pattern w = sinc²(D·u/λ)."""
@@ -50,8 +50,11 @@ def test_the_kernel_matches_its_twin():
     rx = tx[:, None, :] + rng.uniform(-0.1, 0.1, (5, 3, 3))
     px = np.column_stack([rng.uniform(-2, 2, 300), rng.uniform(3, 6, 300), np.zeros(300)])
     out = np.empty(300, dtype=np.complex128)
-    kernels.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, out)
-    np.testing.assert_allclose(out, naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px), rtol=1e-9, atol=1e-9)
+    fwd = np.tile([1.0, 0.0, 0.0], (5, 1))
+    for max_u in (2.0, 0.3):                                       # every ping and element, then a band
+        kernels.backproject(data, 0.001, 50e3, F0, C, tx, rx, fwd, max_u, px, out)
+        want = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, max_u)
+        np.testing.assert_allclose(out, want, rtol=1e-9, atol=1e-9)
     assert np.count_nonzero(out) > 200
 
 

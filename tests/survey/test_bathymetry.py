@@ -1,4 +1,4 @@
-"""Interferometric side-scan (docs/physics.md §20): a vertical receiver pair over a flat floor and over a 10° slope.
+"""Interferometric side-scan (docs/physics.md §18b): a vertical receiver pair over a flat floor and over a 10° slope.
 The phase difference against the closed form Δφ = −(2π/λ)(|X − p_b| − |X − p_0|), X the floor point at the
 sample's slant range in the across-track plane (a quadratic's root, written here); the soundings' depth error
 below 1 % of the slant range where the SNR (the speckle-free record over the noise) is above 20 dB; the gridded
