@@ -167,3 +167,14 @@ def test_a_toml_receive_array_renders_element_data(tmp_path):
                          ({"kind": "vertical", "baseline_m": 0.01, "spacing_m": 1}, "unknown key 'spacing_m'")):
         with pytest.raises(ConfigError, match=match):
             se.Sonar(receive_array=table)
+
+
+def test_a_streamed_line_keeps_the_elements_bit_for_bit(tmp_path):
+    """render_line in blocks of 2 pings: the store's element data are the one-call record's, bit for bit."""
+    sc, traj = _floor_scene(), se.Trajectory.line(start=(-1, 0, 8), end=(1, 0, 8), n_pings=5)
+    sonar = se.Sonar(max_range_m=15, receive_array=se.ReceiverArray.vertical(0.004))
+    whole = se.simulate(sc, traj, sonar, speckle=True, seed=2)
+    se.stream.render_line(sc, traj, tmp_path / "line.zarr", sonar, block_pings=2, speckle=True, seed=2)
+    back = se.Record.load(tmp_path / "line.zarr")
+    assert np.array_equal(np.asarray(back.element_data), whole.element_data)
+    assert np.array_equal(np.asarray(back.data), whole.data)
