@@ -7,9 +7,9 @@ Pings: the anchor mine on a 120 m flat floor at 10 m altitude, 100 kHz, elements
 apart), a 20 kHz LFM of 1 ms, coherent baseband speckle, 20 pings 0.15 m apart; best of three runs. The
 single-channel row is the same sonar without an array (its record is the 1-element array's, bit for bit).
 Image formation: one clutter point at 14.6 m slant range seen by 8 elements over the real aperture's footprint,
-its −3 dB widths along and across track measured at 1 mm; the error is their largest deviation from the widths at
-16× upsampling (converged: the kernel then interpolates a smooth record), and likewise the first nulls'; the time is that of a 2 m × 2 m image at
-1 cm pixels, per m². No test reads this script.
+its −3 dB widths along and across track measured at 0.1 mm; the error is their largest deviation from the widths at
+16× upsampling (converged: the kernel then interpolates a smooth record), and likewise the first nulls'; the time is
+that of a 2 m × 2 m image at 1 cm pixels, per m². No test reads this script.
 """
 import math
 import os
@@ -55,7 +55,8 @@ def pings_table() -> str:
     scene.add(se.seafloor.flat((120.0, 120.0)), material=se.Material(backscatter_db=-27), label="seafloor")
     scene.add(se.assets.path("anchor_mine.obj"), material=se.Material(backscatter_db=-15))
     traj = _line(20)
-    rows = ["| elements per side | ms per ping | of which synthesis | synthesis per element (ms) |", "|---|---|---|---|"]
+    rows = ["| elements per side | ms per ping | of which synthesis | synthesis per element (ms) |",
+            "|---|---|---|---|"]
     for n in (None, 1, 2, 8, 32):
         ms, syn = _best(scene, traj, _sonar(None if n is None else se.ReceiverArray.along_track(n, D)))
         label = "1 (no array)" if n is None else str(n)

@@ -52,7 +52,8 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, fwd, m
         x = pixels[m]
         for p in range(n_p):
             d_tx = _dist(x, tx, p)
-            u_tx = ((x[0] - tx[p, 0]) * fwd[p, 0] + (x[1] - tx[p, 1]) * fwd[p, 1] + (x[2] - tx[p, 2]) * fwd[p, 2]) / d_tx
+            u_tx = ((x[0] - tx[p, 0]) * fwd[p, 0] + (x[1] - tx[p, 1]) * fwd[p, 1]
+                    + (x[2] - tx[p, 2]) * fwd[p, 2]) / d_tx
             rx_p = rx[p]
             for k in range(n_k):
                 d_rx = _dist(x, rx_p, k)

@@ -283,7 +283,8 @@ def to_zarr(record, path) -> None:
 def open_parts(path) -> dict:
     """What :meth:`Record.load` needs to open a Zarr store this package wrote (:meth:`Record.to_zarr`, a streamed
     line) as a record, lazily: the metadata (``meta``), ``data``, ``complex_data``, ``samples`` (ping, channel,
-    sample), ``element_data`` (ping, channel, element, sample) and the labels' arrays (``labels``: name → (channel, ping, sample)) as dask arrays; the axes and poses
+    sample), ``element_data`` (ping, channel, element, sample) and the labels' arrays (``labels``: name → (channel,
+    ping, sample)) as dask arrays; the axes and poses
     (``time_s``, ``altitude_m``, ``positions_m``, ``heading_deg``, ``pitch_deg``, ``roll_deg``, ``times_s``,
     ``ship_positions_m``) read in full. A store without the record's metadata is refused in one line."""
     import xarray as xr
