@@ -12,6 +12,7 @@ from typing import Callable
 
 from ..errors import ConfigError
 from ..io.files import atomic_folder
+from ..signal.interferometry import interferometric_points
 from ..sonars.forward_looking import save_fan_png
 from ..sonars.msis import save_polar_png
 
@@ -29,11 +30,14 @@ class WriteOptions:
         COCO categories (default: the record's objects).
     image_id : int
         COCO image id.
+    bathymetry_pixel_m : float
+        The soundings grid's pixel, m (the bathymetry GeoTIFF).
     """
 
     display: dict = field(default_factory=dict)
     categories: tuple | None = None
     image_id: int = 0
+    bathymetry_pixel_m: float = 0.5
 
     @property
     def max_columns(self):
@@ -79,6 +83,22 @@ def _xtf(rec, path, o):
     to_xtf(rec, path)
 
 
+def _soundings(rec):
+    """The interferometric soundings of a record's elements 0 and 1 (coherence at least 0.5), or a one-line error."""
+    if rec.element_data is None or rec.element_data.shape[2] < 2:
+        raise ConfigError("outputs 'soundings' and 'bathymetry' need a sonar with a receive_array of at least two "
+                          "elements across track (an interferometer)")
+    return interferometric_points(rec, min_coherence=0.5)
+
+
+def _xyz(rec, path, o):
+    _soundings(rec).to_xyz(path)
+
+
+def _bathymetry(rec, path, o):
+    _soundings(rec).to_geotiff(path, o.bathymetry_pixel_m)
+
+
 @dataclass(frozen=True)
 class OutputFormat:
     """One output format: its name (the key in configs), its file name and its writer."""
@@ -100,6 +120,10 @@ FORMATS = {f.name: f for f in (
     OutputFormat("labels", "labels.png", _labels, needs_labels=True, description="per-pixel class image"),
     OutputFormat("coco", "coco.json", _coco, needs_labels=True, description="COCO boxes and masks"),
     OutputFormat("npz", "record.npz", _npz, description="the whole record (Record.load)"),
+    OutputFormat("soundings", "soundings.xyz", _xyz,
+                 description="interferometric soundings, x y z (a receive_array's elements 0 and 1)"),
+    OutputFormat("bathymetry", "bathymetry.tif", _bathymetry,
+                 description="the soundings gridded: height, coherence, count (GeoTIFF)"),
 )}
 
 

@@ -61,7 +61,9 @@ dataclasses (units in the key names):
                 is_seafloor (default: label "seafloor" or "seafloor/...", for ground-truth
                 shadows) and materials = { name = { backscatter_db = -15 }, ... } per object
   [output]      formats, each true/false: png (default true), npz (true), zarr, xtf,
-                labels, coco, polar (MSIS), fan (forward-looking);
+                labels, coco, polar (MSIS), fan (forward-looking), soundings and
+                bathymetry (a receive_array's interferometric soundings, soundings.xyz, and
+                their grid, bathymetry.tif, at bathymetry_pixel_m = 0.5 m);
                 display: scale ("db"|"gamma"), dynamic_range_db (35), gamma,
                 ground_range, tvg (display only; default true), reference_percentile
                 (99.99: the level shown white), floor_headroom_db (12: white at least
@@ -390,7 +392,7 @@ def _run(args) -> list:
         rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, **kw)
     if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
-    return registry.write_set(rec, args.output, o.formats(), registry.WriteOptions(o.png_kwargs()))
+    return registry.write_set(rec, args.output, o.formats(), o.write_options())
 
 
 def _densities(text):

@@ -39,6 +39,7 @@ from ..scene import Scene, features, seafloor
 from ..sonars import MSIS, EchoSounder, ForwardLooking
 from ..trajectory import Trajectory
 from ..display.waterfall import DISPLAY_DEFAULTS, check_display
+from ..validation import check_number
 
 SEAFLOORS = {"flat": seafloor.flat, "perlin": seafloor.perlin, "ripples": seafloor.ripples}
 TRAJECTORY_KINDS = {
@@ -48,7 +49,7 @@ TRAJECTORY_KINDS = {
 }
 TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
 OUTPUT_KEYS = tuple(registry.FORMATS) + ("scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
-               "floor_headroom_db", "max_columns", "geo_origin_deg")
+               "floor_headroom_db", "max_columns", "geo_origin_deg", "bathymetry_pixel_m")
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,9 @@ class OutputOptions:
     xtf: bool = False
     labels: bool = False
     coco: bool = False
+    soundings: bool = False
+    bathymetry: bool = False
+    bathymetry_pixel_m: float = 0.5
     scale: str = DISPLAY_DEFAULTS["scale"]
     dynamic_range_db: float = DISPLAY_DEFAULTS["dynamic_range_db"]
     gamma: float = DISPLAY_DEFAULTS["gamma"]
@@ -81,6 +85,7 @@ class OutputOptions:
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
         check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns,
                       self.floor_headroom_db)
+        check_number("[output]", "bathymetry_pixel_m", self.bathymetry_pixel_m, positive=True)
         g = self.geo_origin_deg
         if g is not None and not (isinstance(g, (list, tuple)) and len(g) == 2
                                   and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in g)
@@ -96,6 +101,10 @@ class OutputOptions:
 
     def png_kwargs(self) -> dict:
         return {k: getattr(self, k) for k in DISPLAY_DEFAULTS}
+
+    def write_options(self) -> "registry.WriteOptions":
+        """What the writers need: the display keywords and the soundings grid's pixel."""
+        return registry.WriteOptions(self.png_kwargs(), bathymetry_pixel_m=self.bathymetry_pixel_m)
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,11 +18,17 @@ differential phase estimation associated with interferometric sonars", IEEE J. O
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import uniform_filter
 
 from ..errors import ConfigError
+from ..io.files import atomic_write
+from ..io.geotiff import write_grid
+
+#: Most pixels of a soundings grid (three float64 sums each).
+MAX_GRID_PIXELS = 2e8
 
 
 def cross_spectrum(z0: np.ndarray, zb: np.ndarray, window=(1, 5)):
@@ -84,4 +90,116 @@ def depression_angle(dphi, baseline_m: float, elevation_rad: float, wavelength_m
         return np.where(np.abs(c) <= 1.0, np.arccos(np.clip(c, -1.0, 1.0)) - elevation_rad, np.nan)
 
 
-__all__ = ["baseline_geometry", "cross_spectrum", "depression_angle"]
+@dataclass(frozen=True)
+class PointCloud:
+    """Interferometric soundings.
+
+    Attributes
+    ----------
+    xyz_m : (n, 3) float64
+        World positions, m.
+    channel, ping, sample : (n,) int64
+        Where each came from in the record.
+    coherence : (n,) float64
+        The pair's coherence there, in [0, 1].
+    crs : str or None
+        The record's CRS.
+    """
+
+    xyz_m: np.ndarray
+    channel: np.ndarray
+    ping: np.ndarray
+    sample: np.ndarray
+    coherence: np.ndarray
+    crs: str | None = None
+
+    def grid_arrays(self, pixel_m: float = 0.5, bounds_m=None) -> dict:
+        """The soundings gridded north-up over ``bounds_m`` (xmin, ymin, xmax, ymax; default their extent):
+        ``height_m`` and ``coherence`` (means per pixel, NaN where none), ``count`` (ny, nx), and the grid's
+        upper-left corner ``x0_m``, ``y0_m`` and ``pixel_m``."""
+        if not (isinstance(pixel_m, (int, float)) and pixel_m > 0):
+            raise ConfigError(f"soundings grid: pixel_m must be > 0, got {pixel_m!r}")
+        if self.xyz_m.shape[0] == 0:
+            raise ConfigError("soundings grid: no soundings to grid (nothing passed the coherence threshold)")
+        x, y, z = self.xyz_m.T
+        b = (x.min(), y.min(), x.max(), y.max()) if bounds_m is None else tuple(map(float, bounds_m))
+        x0, y0 = math.floor(b[0] / pixel_m) * pixel_m, math.ceil(b[3] / pixel_m) * pixel_m
+        nx, ny = max(1, math.ceil((b[2] - x0) / pixel_m)), max(1, math.ceil((y0 - b[1]) / pixel_m))
+        if nx * ny > MAX_GRID_PIXELS:
+            raise ConfigError(f"soundings grid: {nx} x {ny} pixels at pixel_m = {pixel_m:g} m are too many; use a "
+                              "larger pixel_m or smaller bounds_m")
+        col, row = np.floor((x - x0) / pixel_m).astype(np.int64), np.floor((y0 - y) / pixel_m).astype(np.int64)
+        inside = (col >= 0) & (col < nx) & (row >= 0) & (row < ny)
+        cell = row[inside] * nx + col[inside]
+        count = np.bincount(cell, minlength=nx * ny)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = [np.where(count > 0, np.bincount(cell, v[inside], nx * ny) / count, np.nan).reshape(ny, nx)
+                    for v in (z, self.coherence)]
+        return {"height_m": mean[0], "coherence": mean[1], "count": count.reshape(ny, nx), "x0_m": float(x0),
+                "y0_m": float(y0), "pixel_m": float(pixel_m)}
+
+    def to_geotiff(self, path, pixel_m: float = 0.5, bounds_m=None) -> None:
+        """Write the grid (:meth:`grid_arrays`) as a GeoTIFF with the record's CRS: bands height_m (m), coherence
+        and count; NaN where no sounding; atomic."""
+        g = self.grid_arrays(pixel_m, bounds_m)
+        write_grid(path, np.stack([g["height_m"], g["coherence"], g["count"].astype(float)]), g["x0_m"], g["y0_m"],
+                   g["pixel_m"], self.crs, names=("height_m", "coherence", "count"), units=("m", "1", "1"))
+
+    def to_xyz(self, path) -> None:
+        """Write the soundings as text, one ``x y z`` row (world m) per sounding under a ``# x_m y_m z_m`` header;
+        atomic (an existing file without that header is not replaced)."""
+        def write(tmp):
+            np.savetxt(tmp, self.xyz_m, fmt="%.4f", header="x_m y_m z_m", comments="# ")
+        atomic_write(path, write, suffix=".xyz")
+
+
+def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: float = 0.0,
+                           reference_deg: float | None = None) -> PointCloud:
+    """The soundings of a record's receiver ``pair`` (element indices of its :class:`~sonar_embree.ReceiverArray`).
+
+    Each sample's depression θ (:func:`depression_angle`) at its slant range R = c·t/2 gives the point
+    R·(cos θ outward, sin θ down) in the side's across-track plane of that ping's body frame (straight rays),
+    turned into the world by the ping's attitude.
+
+    Parameters
+    ----------
+    record : Record
+        With ``element_data`` (a side-scan with a ``receive_array``).
+    pair : (int, int)
+        The reference element and the baselined one.
+    window : (int, int)
+        Pings and samples averaged in the cross product (:func:`cross_spectrum`).
+    min_coherence : float
+        Samples whose coherence is below this are left out.
+    reference_deg : float, optional
+        The depression the phase is unwrapped about, degrees; default the sonar's tilt.
+    """
+    arr = record.sonar.receive_array
+    if record.element_data is None or arr is None:
+        raise ConfigError("interferometric soundings: the record has no element data (simulate a Sonar with a "
+                          "receive_array)")
+    i, j = (int(v) for v in pair)
+    if not (0 <= i < arr.n_elements and 0 <= j < arr.n_elements and i != j):
+        raise ConfigError(f"interferometric soundings: pair {tuple(pair)!r} must be two of the "
+                          f"{arr.n_elements} elements")
+    b, beta = baseline_geometry(arr.positions_m[i], arr.positions_m[j])
+    ref = math.radians(record.sonar.tilt_deg if reference_deg is None else float(reference_deg))
+    rot, r = record.trajectory.rotations(), record.slant_range_m
+    parts = []
+    for ch, side in enumerate((-1.0, 1.0)):
+        z = np.asarray(record.element_data[:, ch])
+        cross, coh = cross_spectrum(z[:, i], z[:, j], window)
+        theta = depression_angle(np.angle(cross), b, beta, record.sonar.wavelength_m, ref)
+        keep = np.isfinite(theta) & (coh >= min_coherence) & (r[None, :] > 0)
+        ping, sample = np.nonzero(keep)
+        th = theta[keep]
+        body = np.stack([np.zeros_like(th), side * r[sample] * np.cos(th), r[sample] * np.sin(th)], axis=1)
+        xyz = record.trajectory.positions_m[ping] + np.einsum("nij,nj->ni", rot[ping], body)
+        parts.append((xyz, np.full(ping.size, ch), ping, sample, coh[keep]))
+    cols = [np.concatenate(c) for c in zip(*parts)]
+    return PointCloud(cols[0].reshape(-1, 3), cols[1].astype(np.int64), cols[2].astype(np.int64),
+                      cols[3].astype(np.int64), cols[4], record.trajectory.crs)
+
+
+__all__ = ["MAX_GRID_PIXELS", "PointCloud", "baseline_geometry", "cross_spectrum", "depression_angle",
+           "interferometric_points"]

@@ -13,6 +13,7 @@ import trimesh
 import sonar_embree as se
 from sonar_embree.errors import ConfigError
 from sonar_embree.signal.interferometry import baseline_geometry, cross_spectrum, depression_angle
+from sonar_embree.survey import bathymetry
 from sonar_embree.survey.bathymetry import interferometric_points
 from sonar_embree.survey.mosaic import write_truth
 
@@ -92,7 +93,7 @@ def test_soundings_are_within_one_percent_of_the_slant_range(case):
 def test_the_grid_lies_on_the_truth_in_geotiffs(case, tmp_path):
     slope, rec, snr = case
     cloud = interferometric_points(rec, window=(5, 11), min_coherence=0.9)
-    grid = cloud.grid(pixel_m=1.0, bounds_m=(-2, -40, 2, 40))
+    grid = bathymetry.grid(cloud, pixel_m=1.0, bounds_m=(-2, -40, 2, 40))
     grid.to_geotiff(tmp_path / "bathy.tif")
     write_truth(tmp_path / "truth.tif", _scene(slope), grid)
     with rasterio.open(tmp_path / "bathy.tif") as a, rasterio.open(tmp_path / "truth.tif") as b:
@@ -153,3 +154,37 @@ def test_the_labels_hold_the_true_depth_of_every_interferometric_sample():
     truth = rec.labels.height_m[cloud.channel[keep], cloud.ping[keep], cloud.sample[keep]]
     err = (cloud.xyz_m[keep, 2] - truth) / r[cloud.sample[keep]]
     assert np.sqrt(np.mean(err ** 2)) < 0.01
+
+
+def test_render_writes_soundings_and_their_grid(tmp_path, capsys):
+    """``[output] soundings = true, bathymetry = true`` of a config with a vertical pair: soundings.xyz and
+    bathymetry.tif (height, coherence, count) on the flat floor within 1 % of the range beyond the nadir; a sonar
+    without an array is refused in one line."""
+    from sonar_embree.runs.cli import main
+
+    def config(array):
+        return (f'[sonar]\nfrequency_hz = {F0}\nlength_m = 0.1\nheight_m = 0.005\ntilt_deg = 30.0\n'
+                f'max_range_m = 40.0\n{array}\n[pulse]\nkind = "cw"\nduration_s = 50e-6\n[simulation]\n'
+                'speckle = true\nseed = 1\n[trajectory]\nkind = "line"\nstart = [-1.0, 0.0, 10.0]\n'
+                'end = [1.0, 0.0, 10.0]\nn_pings = 5\n[[objects]]\nseafloor = "flat"\nsize_m = [30.0, 100.0]\n'
+                'label = "seafloor"\n[output]\npng = false\nnpz = false\nsoundings = true\nbathymetry = true\n'
+                'bathymetry_pixel_m = 1.0\n')
+
+    (tmp_path / "ifsss.toml").write_text(config(f"receive_array = {{ kind = \"vertical\", baseline_m = {LAM} }}"))
+    assert main(["render", str(tmp_path / "ifsss.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["bathymetry.tif", "soundings.xyz"]
+    xyz = np.loadtxt(tmp_path / "out" / "soundings.xyz")
+    assert xyz.shape[1] == 3 and xyz.shape[0] > 5000
+    with rasterio.open(tmp_path / "out" / "bathymetry.tif") as src:
+        assert src.descriptions == ("height_m", "coherence", "count") and src.res == (1.0, 1.0)
+        height, count = src.read(1), src.read(3)
+        ys = src.xy(np.arange(src.height), np.zeros(src.height, dtype=int))[1]
+    far = (np.abs(np.asarray(ys))[:, None] > 14) & (np.abs(np.asarray(ys))[:, None] < 35) & (count > 20)
+    assert far.sum() > 50
+    np.testing.assert_array_less(np.abs(height[far]), 0.01 * 40.0)
+    (tmp_path / "plain.toml").write_text(config(""))
+    capsys.readouterr()
+    assert main(["render", str(tmp_path / "plain.toml"), "-o", str(tmp_path / "plain"), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "receive_array" in err and len(err.strip().splitlines()) == 1
+    assert not any(p.is_file() for p in (tmp_path / "plain").rglob("*"))              # nothing half-written
