@@ -76,14 +76,15 @@ def baseline_geometry(offset0, offset_b):
     return length, math.atan2(b[2], b[1])
 
 
-def depression_angle(dphi, baseline_m: float, elevation_rad: float, wavelength_m: float, reference_rad: float):
+def depression_angle(dphi, baseline_m: float, elevation_rad: float, wavelength_m: float, reference_rad):
     """θ (rad, below the side's horizontal) of phase differences ``dphi`` (rad, any shape).
 
-    Δφ is unwrapped about the phase of the ``reference_rad`` depression, then θ = arccos(Δφ·λ/(2π|b|)) − β
-    (the branch with θ + β in [0, π]); NaN where the unwrapped phase is beyond the baseline's reach.
+    Δφ is unwrapped about the phase of the ``reference_rad`` depression (a number, or an array of ``dphi``'s shape:
+    a coarser pair's angles), then θ = arccos(Δφ·λ/(2π|b|)) − β (the branch with θ + β in [0, π]); NaN where the
+    unwrapped phase is beyond the baseline's reach or the reference is NaN.
     """
     k = 2.0 * math.pi * baseline_m / wavelength_m
-    ref = k * math.cos(reference_rad + elevation_rad)
+    ref = k * np.cos(np.asarray(reference_rad, dtype=float) + elevation_rad)
     unwrapped = ref + np.angle(np.exp(1j * (np.asarray(dphi) - ref)))
     c = unwrapped / k
     with np.errstate(invalid="ignore"):
@@ -154,7 +155,7 @@ class PointCloud:
 
 
 def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: float = 0.0,
-                           reference_deg: float | None = None) -> PointCloud:
+                           reference_deg: float | None = None, coarse_pair=None) -> PointCloud:
     """The soundings of a record's receiver ``pair`` (element indices of its :class:`~sonar_embree.ReceiverArray`).
 
     Each sample's depression θ (:func:`depression_angle`) at its slant range R = c·t/2 gives the point
@@ -173,23 +174,23 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
         Samples whose coherence is below this are left out.
     reference_deg : float, optional
         The depression the phase is unwrapped about, degrees; default the sonar's tilt.
+    coarse_pair : (int, int), optional
+        A pair with a shorter baseline: its angles (unwrapped about ``reference_deg``) unwrap ``pair``'s, sample by
+        sample, so that a long baseline's precision comes without its ambiguity (a long baseline's sector is
+        λ/(2|b|) in cos(θ + β); the coarse pair's must hold the swath and be precise to within that).
     """
     arr = record.sonar.receive_array
     if record.element_data is None or arr is None:
         raise ConfigError("interferometric soundings: the record has no element data (simulate a Sonar with a "
                           "receive_array)")
-    i, j = (int(v) for v in pair)
-    if not (0 <= i < arr.n_elements and 0 <= j < arr.n_elements and i != j):
-        raise ConfigError(f"interferometric soundings: pair {tuple(pair)!r} must be two of the "
-                          f"{arr.n_elements} elements")
-    b, beta = baseline_geometry(arr.positions_m[i], arr.positions_m[j])
     ref = math.radians(record.sonar.tilt_deg if reference_deg is None else float(reference_deg))
     rot, r = record.trajectory.rotations(), record.slant_range_m
     parts = []
     for ch, side in enumerate((-1.0, 1.0)):
         z = np.asarray(record.element_data[:, ch])
-        cross, coh = cross_spectrum(z[:, i], z[:, j], window)
-        theta = depression_angle(np.angle(cross), b, beta, record.sonar.wavelength_m, ref)
+        if coarse_pair is not None:
+            ref = _angles(z, arr, coarse_pair, window, record.sonar.wavelength_m, ref)[0]
+        theta, coh = _angles(z, arr, pair, window, record.sonar.wavelength_m, ref)
         keep = np.isfinite(theta) & (coh >= min_coherence) & (r[None, :] > 0)
         ping, sample = np.nonzero(keep)
         th = theta[keep]
@@ -199,6 +200,18 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     cols = [np.concatenate(c) for c in zip(*parts)]
     return PointCloud(cols[0].reshape(-1, 3), cols[1].astype(np.int64), cols[2].astype(np.int64),
                       cols[3].astype(np.int64), cols[4], record.trajectory.crs)
+
+
+def _angles(z, arr, pair, window, wavelength_m: float, reference_rad):
+    """(θ, coherence), each (pings, samples), of one side's element signals ``z`` (pings, elements, samples) for
+    the elements ``pair`` of ``arr``, unwrapped about ``reference_rad``."""
+    i, j = (int(v) for v in pair)
+    if not (0 <= i < arr.n_elements and 0 <= j < arr.n_elements and i != j):
+        raise ConfigError(f"interferometric soundings: pair {tuple(pair)!r} must be two of the "
+                          f"{arr.n_elements} elements")
+    b, beta = baseline_geometry(arr.positions_m[i], arr.positions_m[j])
+    cross, coh = cross_spectrum(z[:, i], z[:, j], window)
+    return depression_angle(np.angle(cross), b, beta, wavelength_m, reference_rad), coh
 
 
 __all__ = ["MAX_GRID_PIXELS", "PointCloud", "baseline_geometry", "cross_spectrum", "depression_angle",
