@@ -117,7 +117,8 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
     Returns
     -------
     (ny, nx) complex128
-        Stop-and-hop: each element is taken where it is at the ping's time (motion during the ping not undone).
+        Stop-and-hop: each element is taken where it is at the ping's time. Motion during the ping (a trajectory
+        with a velocity) is not undone: its echoes reached elements that had moved on by v·τ.
     """
     arr = record.sonar.receive_array
     if record.element_data is None or arr is None:
