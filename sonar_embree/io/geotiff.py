@@ -138,3 +138,47 @@ def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None,
                 dst.update_tags(ns="rio_overview", resampling="average")
 
     atomic_write(path, write, suffix=".tif")
+
+
+#: Largest north-up grid, pixels: its three float64 sums take 24 bytes a pixel (2.4 GB here).
+MAX_GRID_PIXELS = 100_000_000
+
+
+class GridAccumulator:
+    """Sums and counts of placed samples per pixel of a north-up grid (np.bincount): the mosaic's and the
+    interferometric soundings'. ``bounds`` (xmin, ymin, xmax, ymax) m, snapped out to whole pixels of ``pixel`` m;
+    ``where`` names the caller in errors."""
+
+    def __init__(self, bounds, pixel: float, where: str = "grid"):
+        self.pixel, self.where = pixel, where
+        self.x0, self.y0 = np.floor(bounds[0] / pixel) * pixel, np.ceil(bounds[3] / pixel) * pixel
+        self.nx = max(1, int(np.ceil((bounds[2] - self.x0) / pixel)))
+        self.ny = max(1, int(np.ceil((self.y0 - bounds[1]) / pixel)))
+        self.sums = None
+
+    def check_size(self) -> None:
+        """Refuse a grid beyond :data:`MAX_GRID_PIXELS` before allocating it; then allocate the sums."""
+        n = self.nx * self.ny
+        if n > MAX_GRID_PIXELS:
+            raise ConfigError(f"{self.where}: a grid of {self.nx} x {self.ny} pixels at pixel_m = {self.pixel:g} m "
+                              f"needs {24 * n / 2**30:.1f} GiB (at most {MAX_GRID_PIXELS:.0e} pixels); use a larger "
+                              "pixel_m or smaller bounds_m")
+        self.sums = np.zeros((3, n))                                # count, value, height
+
+    def add(self, x, y, v, z) -> None:
+        """Add samples at world (x, y) with a value ``v`` and a height ``z`` (each (n,))."""
+        col = np.floor((x - self.x0) / self.pixel).astype(np.int64)
+        row = np.floor((self.y0 - y) / self.pixel).astype(np.int64)
+        inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.ny)
+        cell = row[inside] * self.nx + col[inside]
+        size = self.nx * self.ny
+        self.sums[0] += np.bincount(cell, minlength=size)
+        self.sums[1] += np.bincount(cell, np.asarray(v, dtype=np.float64)[inside], size)
+        self.sums[2] += np.bincount(cell, z[inside], size)
+
+    def means(self):
+        """(mean value, mean height, count), each (ny, nx); NaN where no sample."""
+        count = self.sums[0]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            mean = [np.where(count > 0, s / count, np.nan).reshape(self.ny, self.nx) for s in self.sums[1:]]
+        return mean[0], mean[1], count.astype(np.int64).reshape(self.ny, self.nx)

@@ -25,10 +25,7 @@ from scipy.ndimage import uniform_filter
 
 from ..errors import ConfigError
 from ..io.files import atomic_write
-from ..io.geotiff import write_grid
-
-#: Most pixels of a soundings grid (three float64 sums each).
-MAX_GRID_PIXELS = 2e8
+from ..io.geotiff import GridAccumulator, write_grid
 
 
 def cross_spectrum(z0: np.ndarray, zb: np.ndarray, window=(1, 5)):
@@ -117,27 +114,19 @@ class PointCloud:
     def grid_arrays(self, pixel_m: float = 0.5, bounds_m=None) -> dict:
         """The soundings gridded north-up over ``bounds_m`` (xmin, ymin, xmax, ymax; default their extent):
         ``height_m`` and ``coherence`` (means per pixel, NaN where none), ``count`` (ny, nx), and the grid's
-        upper-left corner ``x0_m``, ``y0_m`` and ``pixel_m``."""
-        if not (isinstance(pixel_m, (int, float)) and pixel_m > 0):
+        upper-left corner ``x0_m``, ``y0_m`` and ``pixel_m`` (:class:`~sonar_embree.io.geotiff.GridAccumulator`)."""
+        if isinstance(pixel_m, bool) or not (isinstance(pixel_m, (int, float)) and pixel_m > 0):
             raise ConfigError(f"soundings grid: pixel_m must be > 0, got {pixel_m!r}")
         if self.xyz_m.shape[0] == 0:
             raise ConfigError("soundings grid: no soundings to grid (nothing passed the coherence threshold)")
         x, y, z = self.xyz_m.T
-        b = (x.min(), y.min(), x.max(), y.max()) if bounds_m is None else tuple(map(float, bounds_m))
-        x0, y0 = math.floor(b[0] / pixel_m) * pixel_m, math.ceil(b[3] / pixel_m) * pixel_m
-        nx, ny = max(1, math.ceil((b[2] - x0) / pixel_m)), max(1, math.ceil((y0 - b[1]) / pixel_m))
-        if nx * ny > MAX_GRID_PIXELS:
-            raise ConfigError(f"soundings grid: {nx} x {ny} pixels at pixel_m = {pixel_m:g} m are too many; use a "
-                              "larger pixel_m or smaller bounds_m")
-        col, row = np.floor((x - x0) / pixel_m).astype(np.int64), np.floor((y0 - y) / pixel_m).astype(np.int64)
-        inside = (col >= 0) & (col < nx) & (row >= 0) & (row < ny)
-        cell = row[inside] * nx + col[inside]
-        count = np.bincount(cell, minlength=nx * ny)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = [np.where(count > 0, np.bincount(cell, v[inside], nx * ny) / count, np.nan).reshape(ny, nx)
-                    for v in (z, self.coherence)]
-        return {"height_m": mean[0], "coherence": mean[1], "count": count.reshape(ny, nx), "x0_m": float(x0),
-                "y0_m": float(y0), "pixel_m": float(pixel_m)}
+        acc = GridAccumulator((x.min(), y.min(), x.max(), y.max()) if bounds_m is None else tuple(map(float, bounds_m)),
+                              float(pixel_m), "soundings grid")
+        acc.check_size()
+        acc.add(x, y, self.coherence, z)
+        coherence, height, count = acc.means()
+        return {"height_m": height, "coherence": coherence, "count": count, "x0_m": float(acc.x0),
+                "y0_m": float(acc.y0), "pixel_m": acc.pixel}
 
     def to_geotiff(self, path, pixel_m: float = 0.5, bounds_m=None) -> None:
         """Write the grid (:meth:`grid_arrays`) as a GeoTIFF with the record's CRS: bands height_m (m), coherence
@@ -214,5 +203,5 @@ def _angles(z, arr, pair, window, wavelength_m: float, reference_rad):
     return depression_angle(np.angle(cross), b, beta, wavelength_m, reference_rad), coh
 
 
-__all__ = ["MAX_GRID_PIXELS", "PointCloud", "baseline_geometry", "cross_spectrum", "depression_angle",
+__all__ = ["PointCloud", "baseline_geometry", "cross_spectrum", "depression_angle",
            "interferometric_points"]

@@ -8,13 +8,13 @@ from a vertical ray cast through the scene (for a DEM: the DEM resampled onto th
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..io.files import atomic_write
+from ..io.geotiff import MAX_GRID_PIXELS, GridAccumulator
 from ..raycast import RayCaster
 from ..scene import TiledDEM
 from ..trajectory import body_to_world
@@ -237,12 +237,14 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensit
     crs = {_crs_of(r) for r in records}
     if len(crs) > 1:
         raise ConfigError(f"mosaic: the records are in different CRSs ({', '.join(sorted(map(str, crs)))})")
-    acc = _Accumulator(_bounds_of(records) if bounds_m is None else bounds_m, float(pixel_m))
+    acc = GridAccumulator(_bounds_of(records) if bounds_m is None else bounds_m, float(pixel_m), "mosaic")
     acc.check_size()
     for r in records:
         for block in _blocks(r, values):
             acc.add(*block)
-    return dataclasses.replace(acc.result(crs.pop()), values=values, units=_units(records[0], values))
+    mean, height, count = acc.means()
+    return Mosaic(mean, height, count, float(acc.x0), float(acc.y0), acc.pixel, crs.pop(), values,
+                  _units(records[0], values))
 
 
 def _bounds_of(records) -> tuple:
@@ -266,8 +268,8 @@ def _units(source, values: str) -> str:
     return "1" if level is None else "uPa^2"
 
 
-#: Largest mosaic grid, pixels: its three float64 sums take 24 bytes a pixel (2.4 GB here).
-MAX_MOSAIC_PIXELS = 100_000_000
+#: Largest mosaic grid, pixels (:data:`sonar_embree.io.geotiff.MAX_GRID_PIXELS`).
+MAX_MOSAIC_PIXELS = MAX_GRID_PIXELS
 
 
 def _record_list(records) -> list:
@@ -299,43 +301,6 @@ def _checked_bounds(bounds_m) -> tuple:
         raise ConfigError(f"mosaic: bounds_m must be four finite numbers (xmin, ymin, xmax, ymax) with min < max, "
                           f"got {bounds_m!r}")
     return b
-
-
-class _Accumulator:
-    """Sums and counts of placed samples per pixel of a north-up grid (np.bincount)."""
-
-    def __init__(self, bounds, pixel: float):
-        self.pixel = pixel
-        self.x0, self.y0 = np.floor(bounds[0] / pixel) * pixel, np.ceil(bounds[3] / pixel) * pixel
-        self.nx = max(1, int(np.ceil((bounds[2] - self.x0) / pixel)))
-        self.ny = max(1, int(np.ceil((self.y0 - bounds[1]) / pixel)))
-        self.sums = None
-
-    def check_size(self) -> None:
-        """Refuse a grid beyond :data:`MAX_MOSAIC_PIXELS` before allocating it; then allocate the sums."""
-        n = self.nx * self.ny
-        if n > MAX_MOSAIC_PIXELS:
-            raise ConfigError(f"mosaic: a grid of {self.nx} x {self.ny} pixels at pixel_m = {self.pixel:g} m needs "
-                              f"{24 * n / 2**30:.1f} GiB (at most {MAX_MOSAIC_PIXELS:.0e} pixels); use a larger "
-                              "pixel_m or smaller bounds_m")
-        self.sums = np.zeros((3, n))                                # count, value, height
-
-    def add(self, x, y, v, z) -> None:
-        col = np.floor((x - self.x0) / self.pixel).astype(np.int64)
-        row = np.floor((self.y0 - y) / self.pixel).astype(np.int64)
-        inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.ny)
-        cell = row[inside] * self.nx + col[inside]
-        size = self.nx * self.ny
-        self.sums[0] += np.bincount(cell, minlength=size)
-        self.sums[1] += np.bincount(cell, np.asarray(v, dtype=np.float64)[inside], size)
-        self.sums[2] += np.bincount(cell, z[inside], size)
-
-    def result(self, crs) -> Mosaic:
-        count = self.sums[0]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            mean = [np.where(count > 0, s / count, np.nan).reshape(self.ny, self.nx) for s in self.sums[1:]]
-        return Mosaic(mean[0], mean[1], count.astype(np.int64).reshape(self.ny, self.nx), float(self.x0),
-                      float(self.y0), self.pixel, crs)
 
 
 #: Grid rows per strip when the truth is taken from a TiledDEM (memory follows the strip's tiles).
