@@ -32,12 +32,15 @@ class WriteOptions:
         COCO image id.
     bathymetry_pixel_m : float
         The soundings grid's pixel, m (the bathymetry GeoTIFF).
+    cache : dict
+        What one record's writers share (its soundings, made once for both outputs that need them).
     """
 
     display: dict = field(default_factory=dict)
     categories: tuple | None = None
     image_id: int = 0
     bathymetry_pixel_m: float = 0.5
+    cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def max_columns(self):
@@ -83,20 +86,24 @@ def _xtf(rec, path, o):
     to_xtf(rec, path)
 
 
-def _soundings(rec):
-    """The interferometric soundings of a record's elements 0 and 1 (coherence at least 0.5), or a one-line error."""
+def _soundings(rec, o: WriteOptions):
+    """The interferometric soundings of a record's elements 0 and 1 (coherence at least 0.5), made once per record
+    for the options' writers, or a one-line error."""
     if rec.element_data is None or rec.element_data.shape[2] < 2:
         raise ConfigError("outputs 'soundings' and 'bathymetry' need a sonar with a receive_array of at least two "
                           "elements across track (an interferometer)")
-    return interferometric_points(rec, min_coherence=0.5)
+    held = o.cache.get("soundings")
+    if held is None or held[0] is not rec:
+        o.cache["soundings"] = held = (rec, interferometric_points(rec, min_coherence=0.5))
+    return held[1]
 
 
 def _xyz(rec, path, o):
-    _soundings(rec).to_xyz(path)
+    _soundings(rec, o).to_xyz(path)
 
 
 def _bathymetry(rec, path, o):
-    _soundings(rec).to_geotiff(path, o.bathymetry_pixel_m)
+    _soundings(rec, o).to_geotiff(path, o.bathymetry_pixel_m)
 
 
 @dataclass(frozen=True)
