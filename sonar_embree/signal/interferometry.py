@@ -177,9 +177,8 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     parts = []
     for ch, side in enumerate((-1.0, 1.0)):
         z = np.asarray(record.element_data[:, ch])
-        if coarse_pair is not None:
-            ref = _angles(z, arr, coarse_pair, window, record.sonar.wavelength_m, ref)[0]
-        theta, coh = _angles(z, arr, pair, window, record.sonar.wavelength_m, ref)
+        about = ref if coarse_pair is None else _angles(z, arr, coarse_pair, window, record.sonar.wavelength_m, ref)[0]
+        theta, coh = _angles(z, arr, pair, window, record.sonar.wavelength_m, about)
         keep = np.isfinite(theta) & (coh >= min_coherence) & (r[None, :] > 0)
         ping, sample = np.nonzero(keep)
         th = theta[keep]

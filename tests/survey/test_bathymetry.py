@@ -191,19 +191,21 @@ def test_render_writes_soundings_and_their_grid(tmp_path, capsys):
 
 
 def test_a_short_pair_unwraps_a_long_baseline():
-    """Three receivers at 0, λ and 4λ up: the 4λ pair alone is ambiguous over the swath (its sector about the tilt
-    is a quarter of the λ pair's) and misplaces most soundings; unwrapped sample by sample by the λ pair's angles
-    it is right everywhere, and more precise than the λ pair alone."""
+    """Three receivers at 0, λ and 4λ up, over the 10° slope (each side its own angles): the 4λ pair alone is
+    ambiguous over the swath (its sector about the tilt is a quarter of the λ pair's) and misplaces most soundings;
+    unwrapped sample by sample by the λ pair's angles it is right everywhere, and more precise than the λ pair
+    alone."""
     arr = se.ReceiverArray(((0.0, 0.0, 0.0), (0.0, 0.0, LAM), (0.0, 0.0, 4 * LAM)))
     sonar = se.Sonar(frequency_hz=F0, length_m=0.1, height_m=0.005, tilt_deg=30, max_range_m=60, receive_array=arr)
     traj = se.Trajectory.line(start=(-1, 0, H), end=(1, 0, H), n_pings=5)
-    rec = se.simulate(_scene(0.0), traj, sonar, se.Pulse.cw(duration_s=50e-6), speckle=True, seed=1)
+    rec = se.simulate(_scene(10.0), traj, sonar, se.Pulse.cw(duration_s=50e-6), speckle=True, seed=1)
 
     def rms(**kw):
         cloud = interferometric_points(rec, **kw)
         r = rec.slant_range_m[cloud.sample]
-        far = (r > 14) & (r < 50)
-        return np.sqrt(np.mean((cloud.xyz_m[far, 2] / r[far]) ** 2))
+        far = (r > 14) & (r < 45)
+        x, y, z = cloud.xyz_m[far].T
+        return np.sqrt(np.mean(((z - math.tan(math.radians(10.0)) * (-y)) / r[far]) ** 2))
 
     short, long_alone, long_unwrapped = rms(pair=(0, 1)), rms(pair=(0, 2)), rms(pair=(0, 2), coarse_pair=(0, 1))
     assert long_alone > 0.05
