@@ -14,6 +14,7 @@ import pytest
 import trimesh
 
 import sonar_embree as se
+from sonar_embree.io.owner import MANIFEST, OutputFolder
 from sonar_embree import batch
 from sonar_embree.runs import cli
 from sonar_embree.scene import write_obj
@@ -134,7 +135,7 @@ def test_back_pressure_bounds_the_tasks_in_flight(multi_sweep, tmp_path):
     os.makedirs(tmp_path / "a")
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None) as lc, \
             Client(lc) as client:
-        batch._run_jobs(client, sweep, list(sweep.jobs), str(tmp_path / "a"), False, 3, stats)
+        batch._run_jobs(client, sweep, list(sweep.jobs), OutputFolder.claim(tmp_path / "a", []), False, 3, stats)
     assert stats["peak_in_flight"] == 3
     assert len([n for n in os.listdir(tmp_path / "a") if n.isdigit()]) == 5
     for job in sweep.jobs:
@@ -200,9 +201,10 @@ def test_render_refuses_a_non_empty_folder_without_overwrite(tmp_path, capsys):
     assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress", "--seed", "3"]) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert (out / "record.npz").read_bytes() == before
-    (out / ".tmp-killed.npz").write_bytes(b"x" * 1000)  # what a SIGKILL during a write leaves
+    (out / ".tmp-notes.npz").write_bytes(b"x" * 1000)  # a user's file with a name like a temporary's: kept
     assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress", "--overwrite"]) == 0
-    assert sorted(os.listdir(out)) == ["record.npz", "waterfall.png"]
+    assert sorted(os.listdir(out)) == [MANIFEST, ".tmp-notes.npz", "record.npz", "waterfall.png"]
+    assert (out / ".tmp-notes.npz").read_bytes() == b"x" * 1000
 
 
 def test_disk_full_leaves_the_old_outputs_and_names_the_path(tmp_path):

@@ -172,7 +172,7 @@ npz = false
     assert got == {"seafloor": (2, -30.0, True), "Crate": (12, -12.0, False)}
     from sonar_embree.runs.cli import main
     assert main(["render", str(tmp_path / "run.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
-    assert sorted(os.listdir(tmp_path / "out")) == ["waterfall.png"]
+    assert sorted(os.listdir(tmp_path / "out")) == [".sonar-embree-manifest.json", "waterfall.png"]
     (tmp_path / "bad.toml").write_text((tmp_path / "run.toml").read_text().replace("Crate =", "Crates ="))
     with pytest.raises(se.SceneError, match="'Crates'") as exc:
         load_run_config(tmp_path / "bad.toml")

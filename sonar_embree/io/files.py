@@ -1,8 +1,7 @@
 """Writing files safely: every output appears whole or not at all (docs/guide/datasets.md).
 
-A writer writes into a temporary name beside its target (``.tmp-*``) and renames it
-into place; a killed writer leaves only such temporaries, which :func:`clean_stale`
-removes on the next run.
+A writer writes into a temporary name beside its target (a new name, created exclusively: never a user's file)
+and renames it into place. Folders of outputs have one owner, :mod:`sonar_embree.io.owner`.
 """
 from __future__ import annotations
 
@@ -16,12 +15,8 @@ import tempfile
 from ..errors import ConfigError
 
 
-#: Prefixes of the temporaries that atomic writers leave only when killed (SIGKILL, power loss).
-STALE_PREFIXES = (".tmp-", ".old-")
 #: The lock file a writer holds in a folder it is writing (:func:`folder_lock`); never a user's file.
 LOCK_NAME = ".sonar-embree.lock"
-#: Names in an output folder that are the project's own bookkeeping, not outputs or a user's files.
-OWN_NAMES = (LOCK_NAME,)
 
 
 @contextlib.contextmanager
@@ -85,21 +80,6 @@ def os_error_line(exc: OSError, path) -> ConfigError:
     return ConfigError(f"{os.fspath(path)}: cannot write ({what}){hint}")
 
 
-def clean_stale(folder) -> int:
-    """Remove the temporaries a killed writer left in ``folder`` (files and folders); return how many."""
-    n = 0
-    for name in os.listdir(folder):
-        if name.startswith(STALE_PREFIXES):
-            path = os.path.join(folder, name)
-            if os.path.isdir(path) and not os.path.islink(path):
-                shutil.rmtree(path, ignore_errors=True)
-            else:
-                with contextlib.suppress(FileNotFoundError):
-                    os.unlink(path)
-            n += 1
-    return n
-
-
 #: The first bytes of each format the writers replace: an existing file that does not start so is not one the
 #: project wrote (a user's document given as an output path) and is refused, never overwritten.
 MAGIC = {".npz": (b"PK",), ".png": (b"\x89PNG",), ".tif": (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+"),
@@ -146,53 +126,4 @@ def atomic_write(path, write_fn, suffix=""):
             os.unlink(tmp)
         if isinstance(exc, OSError):                        # disk full, permissions: one line naming the target
             raise os_error_line(exc, path) from None
-        raise
-
-
-
-def _replace(src: str, dst: str) -> None:
-    """Rename ``src`` onto ``dst``; a folder in the way is moved aside first, then removed."""
-    if os.path.isdir(dst) and not os.path.islink(dst):
-        old = tempfile.mkdtemp(dir=os.path.dirname(dst), prefix=".old-")
-        os.rmdir(old)
-        os.replace(dst, old)
-        os.replace(src, dst)
-        shutil.rmtree(old, ignore_errors=True)
-    else:
-        os.replace(src, dst)
-
-
-def atomic_folder(folder: str, names_and_writers) -> list:
-    """Write several files into ``folder`` so that the new set lands together.
-
-    ``names_and_writers``: (file name, ``write(path)``) pairs. Each is written into a
-    temporary folder inside ``folder``, then all are renamed into place (the old
-    files stay until then). Returns the paths written.
-    """
-    os.makedirs(folder, exist_ok=True)
-    clean_stale(folder)
-    tmp = tempfile.mkdtemp(dir=folder, prefix=".tmp-")
-    try:
-        names = []
-        for name, write in names_and_writers:
-            try:
-                write(os.path.join(tmp, name))
-            except OSError as exc:
-                raise OSError(exc.errno, exc.strerror or str(exc), os.path.join(folder, name)) from None
-            names.append(name)
-        for name in names:  # renames only
-            _replace(os.path.join(tmp, name), os.path.join(folder, name))
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return [os.path.join(folder, n) for n in names]
-
-
-def atomic_job_folder(target: str, write_into) -> None:
-    """Call ``write_into(tmp_folder)`` and rename the folder to ``target``: it appears whole or not at all."""
-    tmp = tempfile.mkdtemp(dir=os.path.dirname(os.path.abspath(target)), prefix=".tmp-")
-    try:
-        write_into(tmp)
-        os.replace(tmp, target)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -94,6 +94,19 @@ def read_window(info: RasterInfo, rows: slice, cols: slice, band: int = 1) -> np
         raise ConfigError(f"{info.path}: cannot read raster pixels, truncated or corrupt? ({why})") from None
 
 
+def sample_points(info: RasterInfo, x, y, band: int = 1) -> np.ndarray:
+    """(n,) float64 values of the raster at the points (x, y) in its CRS: NaN for nodata and off the raster."""
+    import rasterio
+
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    with rasterio.open(info.path) as src:
+        vals = np.array([v[0] for v in src.sample(zip(x, y), indexes=band, masked=True)], dtype=object)
+        b = src.bounds
+    out = np.array([np.nan if np.ma.is_masked(v) else float(v) for v in vals], dtype=np.float64)
+    out[(x < b.left) | (x > b.right) | (y < b.bottom) | (y > b.top)] = np.nan
+    return out
+
+
 def _check_transform(path: str, t) -> None:
     if t.b != 0.0 or t.d != 0.0:
         raise ConfigError(f"{path}: rotated or sheared raster (transform {tuple(t)[:6]}); warp it north-up first")

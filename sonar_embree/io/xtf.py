@@ -440,8 +440,10 @@ def _sonar_pings(path: str, what: str):
     check_packets(path)
     try:
         header, packets = pyxtf.xtf_read(path, types=[pyxtf.XTFHeaderType.sonar])
-    except (OSError, ValueError, RuntimeError) as exc:
-        raise ConfigError(f"{path}: cannot read XTF {what} ({exc})") from None
+    except (OSError, ValueError, RuntimeError, IndexError, KeyError, TypeError) as exc:
+        why = ("its header's channel count does not match its pings' channels" if isinstance(exc, IndexError)
+               else str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        raise ConfigError(f"{path}: cannot read XTF {what} ({why})") from None
     pings = [p[0] if isinstance(p, list) else p for p in packets.get(pyxtf.XTFHeaderType.sonar, [])]
     if not pings:                                               # one header per ping (pyxtf: per channel)
         raise ConfigError(f"{path}: the XTF file holds no sonar pings")
@@ -496,6 +498,12 @@ def read_sonar(path) -> dict:
         raise ConfigError(f"{path}: its pings change range, frequency or samples per channel ({len(layouts)} "
                           "layouts) or hold fewer than two channels; a replay needs one two-channel layout")
     c, info = pings[0].ping_chan_headers[0], header.ChanInfo[0]
+    if not (float(c.TimeDuration) > 0.0 and math.isfinite(float(c.TimeDuration))):
+        raise ConfigError(f"{path}: its pings' TimeDuration is {float(c.TimeDuration)!r} s; a replay needs the time "
+                          "the samples span (> 0)")
+    if not (float(pings[0].SoundVelocity) > 0.0 and float(c.SlantRange) > 0.0):
+        raise ConfigError(f"{path}: SoundVelocity {float(pings[0].SoundVelocity)!r} or SlantRange "
+                          f"{float(c.SlantRange)!r} is not positive; a replay needs both")
     data = np.stack([np.stack([np.asarray(p.data[0], dtype=np.float64)[::-1], np.asarray(p.data[1], np.float64)])
                      for p in pings])
     return dict(frequency_hz=1e3 * float(c.Frequency), slant_range_m=float(c.SlantRange),

@@ -231,7 +231,7 @@ def _label_variables(lab, data, coords, attrs, channels=SIDES, beams: bool = Fal
     attrs["labels.is_seafloor"] = [int(x) for x in lab.is_seafloor]
 
 
-def _is_own_store(path: str) -> bool:
+def is_own_store(path: str) -> bool:
     """Whether the folder ``path`` is a Zarr store this package wrote (its consolidated metadata says so)."""
     import json
 
@@ -250,7 +250,7 @@ def replace_dir(path, write_fn) -> None:
     parent = os.path.dirname(path)
     if not os.path.isdir(parent):
         raise ConfigError(f"{path}: its folder {parent} does not exist")
-    if os.path.exists(path) and not (os.path.isdir(path) and (not os.listdir(path) or _is_own_store(path))):
+    if os.path.exists(path) and not (os.path.isdir(path) and (not os.listdir(path) or is_own_store(path))):
         raise ConfigError(f"{path}: exists and is not a Zarr store written by sonar_embree; it would be replaced, so "
                           "choose another path (or remove it yourself)")
     tmp = tempfile.mkdtemp(dir=parent, prefix=".tmp-")
@@ -290,7 +290,7 @@ def open_parts(path) -> dict:
     import xarray as xr
 
 
-    if not _is_own_store(path):
+    if not is_own_store(path):
         raise ConfigError(f"{path}: not a Zarr store written by sonar_embree")
     ds = xr.open_zarr(path)
     if RECORD_ATTR not in ds.attrs:

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from ..errors import ConfigError
-from ..io.files import atomic_folder
+from ..io.owner import OutputFolder
 from ..signal.interferometry import interferometric_points
 from ..sonars.forward_looking import save_fan_png
 from ..sonars.msis import save_polar_png
@@ -163,8 +163,19 @@ def write_each(rec, folder: str, names, options: WriteOptions | None = None) -> 
     return paths
 
 
-def write_set(rec, folder: str, names, options: WriteOptions | None = None) -> list:
-    """Write the formats into ``folder`` so that the new set lands together (:func:`files.atomic_folder`)."""
+def file_names(names) -> list:
+    """The file names the formats ``names`` write (what a run claims in its folder before any work)."""
+    return [FORMATS[n].file_name for n in check(names)]
+
+
+def write_set(rec, folder, names, options: WriteOptions | None = None, *, overwrite: bool = False) -> list:
+    """Write the formats into ``folder`` so that the new set lands together (:meth:`OutputFolder.write_set`).
+
+    ``folder`` is an :class:`~sonar_embree.io.owner.OutputFolder` a run claimed before its work, or a path,
+    claimed here: new or empty, or (``overwrite``) holding earlier outputs of this project that its manifest
+    lists unchanged; a user's file in a target's place is refused, never replaced."""
     options = WriteOptions() if options is None else options
-    return atomic_folder(folder, [(f.file_name, (lambda p, f=f: f.write(rec, p, options)))
-                                  for f in _wanted(rec, names)])
+    wanted = _wanted(rec, names)
+    if not isinstance(folder, OutputFolder):
+        folder = OutputFolder.claim(folder, [f.file_name for f in wanted], overwrite=overwrite, command="write_set")
+    return folder.write_set([(f.file_name, (lambda p, f=f: f.write(rec, p, options))) for f in wanted])

@@ -30,7 +30,8 @@ import tempfile
 from ..errors import ConfigError
 from ..record import registry
 from ..record.coco import merge, write_json
-from ..io.files import LOCK_NAME, OWN_NAMES, atomic_job_folder, clean_stale, folder_lock
+from ..io.files import LOCK_NAME, folder_lock
+from ..io.owner import MANIFEST, OutputFolder
 from ..record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 from ..errors import SonarEmbreeError
@@ -68,8 +69,13 @@ def _write_outputs(rec: Record, job: Job, sweep: Sweep, folder: str) -> None:
     write_json(info, os.path.join(folder, "job.json"))
 
 
-def _write_job(rec: Record, job: Job, sweep: Sweep, out_dir: str) -> None:
-    atomic_job_folder(os.path.join(out_dir, job.id), lambda tmp: _write_outputs(rec, job, sweep, tmp))
+def _write_job(rec: Record, job: Job, sweep: Sweep, out: OutputFolder) -> None:
+    """The job's folder, written whole (a temporary folder listed in the manifest, renamed into place)."""
+    def write(tmp):
+        os.mkdir(tmp)
+        _write_outputs(rec, job, sweep, tmp)
+
+    out.write_set([(job.id, write)])
 
 
 def preflight(sweep: Sweep) -> None:
@@ -94,10 +100,10 @@ def preflight(sweep: Sweep) -> None:
         _SCENE_CACHE.clear()
 
 
-def _merged_coco(sweep: Sweep, out_dir: str) -> None:
+def _merged_coco(sweep: Sweep, out: OutputFolder) -> None:
     parts = []
     for job in sweep.jobs:
-        with open(os.path.join(out_dir, job.id, "coco.json"), encoding="utf-8") as fh:
+        with open(os.path.join(out.path, job.id, "coco.json"), encoding="utf-8") as fh:
             d = json.load(fh)
         for im in d["images"]:
             im["file_name"] = f"{job.id}/{im['file_name']}"
@@ -105,7 +111,7 @@ def _merged_coco(sweep: Sweep, out_dir: str) -> None:
     merged = merge(parts)
     for k, a in enumerate(merged["annotations"]):
         a["id"] = k + 1
-    write_json(merged, os.path.join(out_dir, "coco.json"))
+    out.write_set([("coco.json", lambda p: write_json(merged, p))])
 
 
 def _manifest_json(sweep: Sweep) -> dict:
@@ -129,23 +135,24 @@ def _check_folder(sweep: Sweep, out_dir: str, resume: bool) -> None:
             what = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
             raise ConfigError(f"{out_dir}: holds a different sweep than {sweep.source} (changed: "
                               f"{', '.join(what)}); choose another folder")
-    elif os.path.isdir(out_dir):
-        stray = [n for n in os.listdir(out_dir) if not n.startswith(".tmp-") and n not in OWN_NAMES]
-        if stray:
-            raise ConfigError(f"{out_dir}: not empty and not a batch folder (found {stray[0]!r})")
-    elif os.path.exists(out_dir):
+    elif os.path.exists(out_dir) and not os.path.isdir(out_dir):
         raise ConfigError(f"{out_dir}: exists and is not a folder")
+    OutputFolder.check(out_dir, _names(sweep), resume=resume, inputs=[sweep.source], command="batch")
+
+
+def _names(sweep: Sweep) -> list:
+    """What a batch writes into its folder: the sweep, the merged COCO and a folder per job."""
+    return ["sweep.json", "coco.json", *(j.id for j in sweep.jobs)]
 
 
 def _prepare(sweep: Sweep, out_dir: str, resume: bool) -> tuple:
-    """Write ``sweep.json`` (unless resuming) and clear what a killed run left; return (jobs to run, fresh)."""
-    os.makedirs(out_dir, exist_ok=True)
-    path = os.path.join(out_dir, "sweep.json")
-    fresh = not os.path.exists(path)
+    """Claim the folder (its manifest first: what a killed run was writing goes), write ``sweep.json`` unless
+    resuming; return (the folder, jobs to run, fresh)."""
+    out = OutputFolder.claim(out_dir, _names(sweep), resume=resume, inputs=[sweep.source], command="batch")
+    fresh = not os.path.exists(os.path.join(out_dir, "sweep.json"))
     if fresh:
-        write_json(_manifest_json(sweep), path)
-    clean_stale(out_dir)  # what a killed run was writing
-    return [j for j in sweep.jobs if not os.path.isdir(os.path.join(out_dir, j.id))], fresh
+        out.write_set([("sweep.json", lambda p: write_json(_manifest_json(sweep), p))])
+    return out, [j for j in sweep.jobs if not os.path.isdir(os.path.join(out_dir, j.id))], fresh
 
 
 def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: int | None = None,
@@ -206,12 +213,12 @@ def run(sweep, out_dir, client=None, *, scheduler: str | None = None, workers: i
 
 def _run_locked(sweep, out_dir, resume, created, client, scheduler, workers, dashboard, max_in_flight,
                 progress) -> list:
-    todo, fresh = _prepare(sweep, out_dir, resume)
+    out, todo, fresh = _prepare(sweep, out_dir, resume)
     try:
         if todo:
-            _run_on_cluster(sweep, todo, out_dir, client, scheduler, workers, dashboard, max_in_flight, progress)
+            _run_on_cluster(sweep, todo, out, client, scheduler, workers, dashboard, max_in_flight, progress)
         if "coco" in sweep.outputs:
-            _merged_coco(sweep, out_dir)
+            _merged_coco(sweep, out)
     except BaseException:
         if fresh and not any(os.path.isdir(os.path.join(out_dir, j.id)) for j in sweep.jobs):
             _remove_started(out_dir, created)  # nothing finished: leave no batch to refuse a re-run
@@ -220,7 +227,7 @@ def _run_locked(sweep, out_dir, resume, created, client, scheduler, workers, das
 
 
 def _remove_started(out_dir: str, created: bool) -> None:
-    for name in ("sweep.json", "coco.json", LOCK_NAME):
+    for name in ("sweep.json", "coco.json", LOCK_NAME, MANIFEST):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(os.path.join(out_dir, name))
     if created:
@@ -228,11 +235,11 @@ def _remove_started(out_dir: str, created: bool) -> None:
             os.rmdir(out_dir)
 
 
-def _run_on_cluster(sweep, todo, out_dir, client, scheduler, workers, dashboard, max_in_flight, progress):
+def _run_on_cluster(sweep, todo, out, client, scheduler, workers, dashboard, max_in_flight, progress):
     with client_for(client, scheduler, workers, dashboard) as c:
         if max_in_flight is None:
             max_in_flight = max(8, 4 * threads_of(c))
-        _run_jobs(c, sweep, todo, out_dir, progress, max_in_flight)
+        _run_jobs(c, sweep, todo, out, progress, max_in_flight)
 
 
 def _tasks(sweep: Sweep, todo: list):
@@ -243,7 +250,7 @@ def _tasks(sweep: Sweep, todo: list):
             yield job, a, min(a + sweep.pings_per_task, n)
 
 
-def _run_jobs(client, sweep: Sweep, todo: list, out_dir: str, progress: bool, max_in_flight: int,
+def _run_jobs(client, sweep: Sweep, todo: list, out: OutputFolder, progress: bool, max_in_flight: int,
               stats: dict | None = None) -> None:
     """Submit tasks with back-pressure (at most ``max_in_flight`` uncollected) and write jobs as they finish."""
     tag = sweep.manifest_digest()[:10]
@@ -283,7 +290,7 @@ def _run_jobs(client, sweep: Sweep, todo: list, out_dir: str, progress: bool, ma
             if len(got) == expected[job.id]:
                 rec = Record.concatenate(got[a] for a in sorted(got))
                 del parts[job.id]
-                _write_job(rec, job, sweep, out_dir)
+                _write_job(rec, job, sweep, out)
                 if bar is not None:
                     bar.update(1)
             submit_more()

@@ -13,7 +13,7 @@ import sys
 
 from ..errors import SonarEmbreeError
 from ..record import registry
-from ..io.files import STALE_PREFIXES
+from ..io.owner import OutputFolder
 from .. import assets
 from ..config import FanSettings, Material
 from ..laws import sediments
@@ -24,6 +24,8 @@ from ..simulate import simulate
 from ..survey.replay import FIT_CLASSES, replay
 from ..survey.stream import render_record
 from .runconfig import load_run_config
+
+log = logging.getLogger(__name__)
 
 EPILOG = """\
 Outputs (in OUT/): waterfall.png (port mirrored on the left, starboard on the right,
@@ -267,7 +269,8 @@ def _survey(args) -> list:
     if "navs" not in kw and "plan" not in kw:
         raise SonarEmbreeError("survey: give --nav or --plan (or a --config with nav or plan)")
     return run_survey(kw.pop("dem"), kw.pop("navs", None), args.output, kw.pop("device"), overwrite=args.overwrite,
-                      progress=not args.no_progress, workers=args.workers, scheduler=args.scheduler, **kw)
+                      progress=not args.no_progress, workers=_checked_workers(args.workers), scheduler=args.scheduler,
+                      **kw)
 
 
 def _examples(args) -> list:
@@ -279,9 +282,11 @@ def _examples(args) -> list:
     name, dest = args.copy
     src = assets.path(name)
     target = os.path.join(dest, os.path.basename(src)) if os.path.isdir(dest) else dest
-    if os.path.exists(target):
-        raise SonarEmbreeError(f"{target}: exists; choose another destination")
-    shutil.copyfile(src, target)
+    try:
+        with open(src, "rb") as fh, open(target, "xb") as out:    # "x": never over an existing file, even racing
+            shutil.copyfileobj(fh, out)
+    except FileExistsError:
+        raise SonarEmbreeError(f"{target}: exists; choose another destination") from None
     return [target]
 
 
@@ -333,18 +338,8 @@ def _fan(args, base=None):
     return base if args.quality is None else dataclasses.replace(base, quality=args.quality)
 
 
-OUTPUT_NAMES = ("record.npz", "waterfall.png")
-
-
-def _check_output_folder(out_dir: str, overwrite: bool) -> None:
-    """Refuse to overwrite a folder that holds anything but what a killed run left, unless asked to."""
-    if os.path.exists(out_dir) and not os.path.isdir(out_dir):
-        raise SonarEmbreeError(f"{out_dir}: exists and is not a folder")
-    if os.path.isdir(out_dir) and not overwrite:
-        held = sorted(n for n in os.listdir(out_dir) if not n.startswith(STALE_PREFIXES))
-        if held:
-            raise SonarEmbreeError(f"{out_dir}: not empty (holds {held[0]!r}); choose another folder or "
-                                   "add --overwrite")
+#: What ``sonar-embree demo`` writes.
+DEMO_FORMATS = ("npz", "png", "xtf")
 
 
 def _run(args) -> list:
@@ -353,7 +348,7 @@ def _run(args) -> list:
     if args.command == "batch":
         from . import batch
 
-        ids = batch.run(args.sweep, args.output, scheduler=args.scheduler, workers=args.workers,
+        ids = batch.run(args.sweep, args.output, scheduler=args.scheduler, workers=_checked_workers(args.workers),
                         resume=args.resume, progress=not args.no_progress, dashboard=args.dashboard)
         return [os.path.join(args.output, i) for i in ids]
     if args.command == "survey":
@@ -363,36 +358,62 @@ def _run(args) -> list:
         densities = _densities(args.clutter_densities)
         replay(args.xtf, args.output, sediment=args.sediment, fit_classes=classes, gain_db=args.gain_db,
                device=args.device, seed=args.seed, overwrite=args.overwrite, scene=_replay_scene(args),
-               fit_densities=densities)
+               fit_densities=densities, inputs=[args.dem, args.scene])
         return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png")
                 if os.path.exists(os.path.join(args.output, f))]
     if args.command == "demo":
-        from .demo import DEMO_ORIGIN_DEG, DEMO_PNG, anchor_mine_setup
+        return _demo(args)
+    return _render(args)
 
-        if args.pings < 1:
-            raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
-        _check_output_folder(args.output, args.overwrite)
+
+def _demo(args) -> list:
+    """``sonar-embree demo``: the anchor-mine scene into OUT (claimed before any work)."""
+    from .demo import DEMO_ORIGIN_DEG, DEMO_PNG, anchor_mine_setup
+
+    if args.pings < 1:
+        raise SonarEmbreeError(f"--pings must be >= 1, got {args.pings}")
+    with OutputFolder.claim(args.output, registry.file_names(DEMO_FORMATS), overwrite=args.overwrite,
+                            command="demo") as out:
         scene, traj, sonar, pulse = anchor_mine_setup(n_pings=args.pings)
         rec = simulate(scene, traj, sonar, pulse, chain=_chain(args), fan=_fan(args), progress=not args.no_progress,
                        start_time=args.start_time, caster=CASTERS[args.caster])
         rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(DEMO_ORIGIN_DEG)})
-        return registry.write_set(rec, args.output, ("npz", "png", "xtf"), registry.WriteOptions(DEMO_PNG))
+        return registry.write_set(rec, out, DEMO_FORMATS, registry.WriteOptions(DEMO_PNG))
 
+
+def _render(args) -> list:
+    """``sonar-embree render``: a TOML run into OUT (the folder and every option checked before any work)."""
     cfg = load_run_config(args.config)
-    _check_output_folder(args.output, args.overwrite)
     o = cfg.output
     if not o.formats():
         raise SonarEmbreeError(f"{args.config}: [output] every format is false; nothing to write")
+    workers = _checked_workers(args.workers)
     kw = dict(chain=_chain(args, cfg.chain), fan=_fan(args, cfg.fan), progress=not args.no_progress,
               start_time=args.start_time, labels=o.needs_labels(), caster=CASTERS[args.caster])
-    if (args.workers or 1) > 1 or args.scheduler is not None:   # the blocks on Dask workers, joined here
-        rec = render_record(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, workers=args.workers,
-                            scheduler=args.scheduler, **kw)
-    else:
-        rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, **kw)
-    if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
-        rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
-    return registry.write_set(rec, args.output, o.formats(), o.write_options())
+    with OutputFolder.claim(args.output, registry.file_names(o.formats()), overwrite=args.overwrite,
+                            inputs=[args.config], command="render") as out:
+        if (workers or 1) > 1 or args.scheduler is not None:   # the blocks on Dask workers, joined here
+            rec = render_record(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, workers=workers,
+                                scheduler=args.scheduler, **kw)
+        else:
+            rec = simulate(cfg.scene, cfg.trajectory, cfg.sonar, cfg.pulse, **kw)
+        if o.geo_origin_deg is not None:                      # a local scene placed on the Earth (its XTF in lat/lon)
+            rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": list(o.geo_origin_deg)})
+        return registry.write_set(rec, out, o.formats(), o.write_options())
+
+
+def _checked_workers(workers, flag: str = "--workers"):
+    """``--workers`` as given (None: the default), or a one-line error for a count below 1; a count beyond the
+    CPUs is capped to them with a warning (each worker is a process: 1000 on 2 cores would only thrash)."""
+    if workers is None:
+        return None
+    if workers < 1:
+        raise SonarEmbreeError(f"{flag} must be >= 1, got {workers}")
+    cpus = os.cpu_count() or 1
+    if workers > cpus:
+        log.warning("%s %d is more than the %d CPUs here; using %d", flag, workers, cpus, cpus)
+        return cpus
+    return workers
 
 
 def _densities(text):

@@ -11,6 +11,8 @@ bits where stated, an AGC assumed), which keeps the codes within full scale what
 from __future__ import annotations
 
 import json
+import logging
+import math
 import os
 
 import numpy as np
@@ -18,14 +20,17 @@ import numpy as np
 from ..config import Pulse, Sonar
 from ..errors import ConfigError
 from ..instrument import devices
-from ..io.files import atomic_write
+from ..io.owner import OutputFolder
 from ..io.geo import crs_name, from_lonlat
+from ..io.geotiff import sample_points
 from ..scene import Scene, TiledDEM, load_mesh
 from ..survey import mosaic, stream
 from ..survey.planning import line_trajectories, plan_lines
 from ..trajectory import Trajectory
 from ..validation import read_numeric_csv
 from .runconfig import _check_keys, _resolve, read_toml
+
+log = logging.getLogger(__name__)
 
 #: The file marking a folder as a survey's output (refused otherwise unless overwrite).
 SUMMARY = "survey.json"
@@ -73,8 +78,10 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     navs = [os.fspath(n) for n in ([navs] if isinstance(navs, (str, os.PathLike)) else (navs or []))]
     if bool(navs) == (plan is not None):
         raise ConfigError("survey: give navigation logs or a planned polygon (one of them)")
-    out = os.fspath(out)
-    _claim(out, overwrite)
+    out = os.path.abspath(os.fspath(out))
+    inputs = [os.fspath(dem), *navs, plan]
+    OutputFolder.check(out, [SUMMARY], overwrite=overwrite, resume=True, inputs=inputs, command="survey")
+    mosaic.check_pixel(pixel_m, "survey: --pixel")
     tiles = _seabed(dem, crs)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
     samples = devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
@@ -82,34 +89,52 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         sources = _planned(plan, tiles.crs, sonar.max_range_m, overlap, depth_m, speed_m_s, rate)
     else:
         sources = [(nav, _line(nav, tiles.crs, rate)) for nav in navs]
+    for nav, traj in sources:
+        _warn_holes(tiles, traj, nav)
+    names = [f"line_{k:02d}" for k in range(len(sources))]
+    with OutputFolder.claim(out, names + list(PRODUCTS) + [SUMMARY], overwrite=overwrite, resume=True,
+                            inputs=inputs, command="survey") as top:
+        return _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pixel_m, dict(
+            speckle=speckle, quality=quality, progress_bar=progress, workers=workers, scheduler=scheduler),
+            summary={"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
+                     "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits,
+                     "dem": os.path.abspath(os.fspath(dem)), "crs": tiles.crs},
+            tow=(layback_m, cable_out_m))
+
+
+def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pixel_m, kw, summary, tow) -> list:
+    """Every line, then the products and the summary (last: it marks the survey done)."""
     written, lines = [], []
-    for k, (nav, traj) in enumerate(sources):
-        if layback_m is not None or cable_out_m is not None:
-            traj = traj.with_layback(layback_m, cable_out_m=cable_out_m)
-        folder = os.path.join(out, f"line_{k:02d}")
-        os.makedirs(folder, exist_ok=True)
-        files = {ext: os.path.join(folder, f"line.{ext}") for ext in ("zarr", "xtf", "png")}
-        stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"],
-                              png_path=files["png"], xtf_samples=samples, labels=True, speckle=speckle,
-                              quality=quality, overwrite=overwrite, progress_bar=progress, workers=workers,
-                              scheduler=scheduler)
+    for name, (nav, traj) in zip(names, sources):
+        if tow[0] is not None or tow[1] is not None:
+            traj = traj.with_layback(tow[0], cable_out_m=tow[1])
+        files = _render_line(top, name, tiles, traj, sonar, pulse, samples, overwrite, kw)
         written += list(files.values())
-        lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "files": files})
-    written += _products(tiles, [line["files"]["zarr"] for line in lines], out, pixel_m)
-    summary = {"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
-               "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits, "dem": os.path.abspath(os.fspath(dem)),
-               "crs": tiles.crs, "lines": lines}
-    return written + [_write_summary(out, summary)]
+        lines.append({"nav": os.path.abspath(nav), "pings": len(traj),
+                      "files": {k: os.path.relpath(v, top.path) for k, v in files.items()}})   # relative to survey.json
+    written += _products(top, tiles, [line["files"]["zarr"] for line in lines], pixel_m)
+    summary = {**summary, "lines": lines}
+    return written + top.write_set([(SUMMARY, lambda p: _write_json(summary, p))])
 
 
-def _claim(out: str, overwrite: bool) -> None:
-    """Refuse an output folder that is neither new, empty nor an earlier survey's, unless ``overwrite``."""
-    if os.path.isfile(out):
-        raise ConfigError(f"{out}: is a file, not a folder")
-    if os.path.isdir(out) and os.listdir(out) and not os.path.exists(os.path.join(out, SUMMARY)) and not overwrite:
-        raise ConfigError(f"{out}: a non-empty folder that is not a survey's output; choose another or pass "
-                          "--overwrite")
-    os.makedirs(out, exist_ok=True)
+#: The survey's products beside its lines.
+PRODUCTS = ("mosaic.tif", "mosaic.png", "truth.tif")
+#: Line files, by kind.
+LINE_FILES = {"zarr": "line.zarr", "xtf": "line.xtf", "png": "line.png"}
+
+
+def _render_line(top, name, tiles, traj, sonar, pulse, samples, overwrite, kw) -> dict:
+    """One line streamed into its own folder (a manifest of its own, each file reserved before its first byte,
+    resumed where a killed run stopped); returns its files' paths."""
+    top.reserve(name)
+    line = OutputFolder.claim(os.path.join(top.path, name), list(LINE_FILES.values()), overwrite=overwrite,
+                              resume=True, command="survey line")   # resumes only a survey's line
+    top.record_managed(name)
+    files = {k: line.reserve(v) for k, v in LINE_FILES.items()}
+    stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"], png_path=files["png"],
+                       xtf_samples=samples, labels=True, overwrite=overwrite, **kw)
+    line.record(*LINE_FILES.values())
+    return files
 
 
 def _seabed(path, crs):
@@ -141,8 +166,41 @@ def _line(nav: str, crs, rate: float):
     ext = os.path.splitext(nav)[1].lower()
     if ext not in (".csv", ".xtf"):
         raise ConfigError(f"{nav}: a navigation log is .csv or .xtf, got {ext or 'no extension'!r}")
+    if ext == ".csv":
+        _check_csv_times(nav)
     traj = Trajectory.from_csv(nav, crs=crs) if ext == ".csv" else Trajectory.from_xtf(nav, crs=crs)
+    if len(traj) < 2:
+        raise ConfigError(f"{nav}: a navigation log needs two fixes at least, got {len(traj)}; a line runs between "
+                          "them")
+    if not float(traj.times_s[-1] - traj.times_s[0]) > 0.0:
+        raise ConfigError(f"{nav}: every fix has the same time; a line needs time between its fixes")
     return traj.resampled(rate)
+
+
+def _warn_holes(tiles, traj, nav) -> None:
+    """One line when pings of a line lie over the DEM's nodata holes or off the DEM: no seabed below them, so
+    they hear nothing there (an altitude of NaN, a blank in the mosaic)."""
+    if not isinstance(tiles, TiledDEM):
+        return
+    step = max(1, len(traj) // 2000)                            # at most some 2000 samples a line
+    xy = traj.positions_m[::step, :2]
+    z = sample_points(tiles.info, xy[:, 0], xy[:, 1], tiles.band)
+    if tiles.nodata is not None:
+        z[z == tiles.nodata] = np.nan
+    holes = float(np.mean(~np.isfinite(z)))
+    if holes > 0.0:
+        log.warning("survey: %s: %.0f %% of the line lies over nodata holes of %s or off it: no seabed below those "
+                    "pings (their altitude is NaN, the mosaic blank there)", nav, 100 * holes, tiles.path)
+
+
+def _check_csv_times(nav: str) -> None:
+    """A survey places its pings at the device's rate along the log's times: a log without a time column would be
+    taken as fixes 1 s apart, so it is refused."""
+    with open(nav, encoding="utf-8", errors="replace") as fh:
+        header = [c.strip().lower() for c in fh.readline().split(",")]
+    if "time" not in header and "time_s" not in header:
+        raise ConfigError(f"{nav}: a survey's navigation log needs a time column (time: ISO 8601, or time_s: "
+                          f"seconds); found {', '.join(header)}")
 
 
 def _planned(plan, crs, range_m: float, overlap: float, depth_m, speed_m_s: float, rate: float) -> list:
@@ -163,25 +221,16 @@ def _planned(plan, crs, range_m: float, overlap: float, depth_m, speed_m_s: floa
     return [(os.path.abspath(plan), t) for t in trajs]
 
 
-def _products(tiles, stores, out: str, pixel_m: float) -> list:
+def _products(top, tiles, stores, pixel_m: float) -> list:
     """The survey's normalised mosaic (GeoTIFF and quick look) and the DEM's truth on the same grid."""
-    grid = mosaic.mosaic(stores, pixel_m=pixel_m, values="normalised")
-    files = [os.path.join(out, name) for name in ("mosaic.tif", "mosaic.png", "truth.tif")]
-    grid.to_geotiff(files[0])
-    grid.save_png(files[1])
-    mosaic.write_truth(files[2], tiles, grid)
-    return files
+    grid = mosaic.mosaic([os.path.join(top.path, s) for s in stores], pixel_m=pixel_m, values="normalised")
+    return top.write_set([("mosaic.tif", grid.to_geotiff), ("mosaic.png", grid.save_png),
+                          ("truth.tif", lambda p: mosaic.write_truth(p, tiles, grid))])
 
 
-def _write_summary(out: str, summary: dict) -> str:
-    path = os.path.join(out, SUMMARY)
-
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as fh:
-            json.dump(summary, fh, indent=2)
-
-    atomic_write(path, write, suffix=".json")
-    return path
+def _write_json(obj, path) -> None:
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(obj, fh, indent=2)
 
 
 #: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import math
+
 import numpy as np
 
 from ..errors import ConfigError
@@ -209,6 +211,19 @@ def _crs_of(source):
     return ds["crs"].attrs.get("epsg_code") if "crs" in ds else None
 
 
+#: The largest mosaic pixel, m (a pixel wider than any swath holds nothing to look at).
+MAX_PIXEL_M = 1e4
+
+
+def check_pixel(pixel_m, what: str) -> None:
+    """A mosaic pixel: a number of metres in (0, :data:`MAX_PIXEL_M`), or a one-line error saying which bound."""
+    if isinstance(pixel_m, bool) or not isinstance(pixel_m, (int, float)) or not math.isfinite(pixel_m) \
+            or pixel_m <= 0:
+        raise ConfigError(f"{what} must be a positive number of metres, got {pixel_m!r}")
+    if pixel_m >= MAX_PIXEL_M:
+        raise ConfigError(f"{what} must be below {MAX_PIXEL_M:g} m (wider than any swath), got {pixel_m!r}")
+
+
 def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensity") -> Mosaic:
     """Average the samples of one or more side-scan lines (with labels) onto a north-up grid.
 
@@ -230,8 +245,7 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensit
     if values not in MOSAIC_VALUES:
         raise ConfigError(f"mosaic: values must be one of {', '.join(MOSAIC_VALUES)}, got {values!r}")
     records = _record_list(records)
-    if isinstance(pixel_m, bool) or not (isinstance(pixel_m, (int, float)) and 0 < pixel_m < 1e4):
-        raise ConfigError(f"mosaic: pixel_m must be a positive size in m, got {pixel_m!r}")
+    check_pixel(pixel_m, "mosaic: pixel_m")
     if bounds_m is not None:
         bounds_m = _checked_bounds(bounds_m)
     crs = {_crs_of(r) for r in records}

@@ -39,8 +39,8 @@ from ..config import Material, Pulse, Sonar
 from ..display import plotting
 from ..environment import Environment
 from ..errors import ConfigError
-from ..io.files import atomic_write
-from ..io.xtf import decimate, read_sonar, write_like
+from ..io.owner import OutputFolder
+from ..io.xtf import NAV_UNITS_LATLON, decimate, read_navigation, read_sonar, write_like
 from ..laws import sediments
 from ..laws.clutter import Clutter
 from ..scene import Scene, seafloor
@@ -69,21 +69,51 @@ class Line:
         """The line of ``path``; over a flat floor at its altitudes, or, with a ``scene``, where its navigation puts
         it (z = −SensorDepth, x and y in the scene's CRS)."""
         s = read_sonar(path)
+        keep = usable_pings(path, s["altitude_m"], need_altitude=scene is None)
+        bad = int(np.sum(~np.isfinite(s["data"][keep])))
+        if bad:
+            warn_once(f"replay: {os.fspath(path)}: {bad} samples are NaN or infinite; the measures leave them out")
+        s = {**s, "data": s["data"][keep], "altitude_m": s["altitude_m"][keep], "kept": keep}
         if scene is not None:
-            return cls(s, Trajectory.from_xtf(path, crs=scene.crs))
-        nav = Trajectory.from_xtf(path)
-        if np.any(s["altitude_m"] <= 0.0):
-            raise ConfigError(f"{os.fspath(path)}: {int(np.sum(s['altitude_m'] <= 0))} pings have no altitude "
-                              "(SensorPrimaryAltitude 0); a flat-floor replay needs each ping's altitude")
+            return cls(s, Trajectory.from_xtf(path, crs=scene.crs, keep=keep))
+        nav = Trajectory.from_xtf(path, keep=keep)
         pos = nav.positions_m.copy()
         pos[:, 2] = s["altitude_m"]
         return cls(s, dataclasses.replace(nav, positions_m=pos))
+
+    def full(self, values: np.ndarray) -> np.ndarray:
+        """(file pings, 2, samples): ``values`` of the kept pings in their places, zeros for the pings taken out."""
+        keep = self.settings["kept"]
+        out = np.zeros((keep.size,) + values.shape[1:], dtype=values.dtype)
+        out[keep] = values
+        return out
 
     @property
     def slant_range_m(self) -> np.ndarray:
         """(samples,) slant range of each stored sample, m."""
         s = self.settings
         return 0.5 * s["sound_speed_m_s"] * np.arange(s["samples_per_channel"]) / s["sample_rate_hz"]
+
+
+def usable_pings(path, altitude_m: np.ndarray, need_altitude: bool = True) -> np.ndarray:
+    """(pings,) bool: the pings of the XTF file ``path`` with a navigation fix (not latitude/longitude 0, 0, finite)
+    and, if ``need_altitude``, an altitude (SensorPrimaryAltitude > 0). Real files have pings without them (the first
+    before the GPS fix): they are taken out with a one-line warning saying how many; fewer than two left is refused."""
+    nav = read_navigation(path)
+    fix = np.isfinite(nav["x"]) & np.isfinite(nav["y"])
+    if nav["nav_units"] == NAV_UNITS_LATLON:
+        fix &= ~((nav["x"] == 0.0) & (nav["y"] == 0.0))
+    alt = (np.isfinite(altitude_m) & (altitude_m > 0.0)) if need_altitude else np.ones(fix.size, bool)
+    keep = fix & alt
+    n, what = keep.size, "a navigation fix" + (" and an altitude (SensorPrimaryAltitude > 0)" if need_altitude else "")
+    if keep.sum() < 2:
+        raise ConfigError(f"{os.fspath(path)}: {int(keep.sum())} of {n} pings have {what}; a replay needs two at "
+                          "least (no altitude: give a --dem or --scene)")
+    if not keep.all():
+        warn_once(f"replay: {os.fspath(path)}: took out {n - int(keep.sum())} of {n} pings without {what} "
+                  f"({int(np.sum(~fix))} without a fix, {int(np.sum(~alt))} without an altitude); they are written "
+                  "as zeros")
+    return keep
 
 
 def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | None = None, seed: int = 0,
@@ -122,8 +152,8 @@ def level_db(values: np.ndarray, integer: bool) -> np.ndarray:
 
 
 def _bins(x: np.ndarray, edges: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """Median of ``values`` in each bin of ``x`` (NaN where empty)."""
-    k = np.digitize(x, edges) - 1
+    """Median of the finite ``values`` in each bin of ``x`` (NaN where none)."""
+    k = np.where(np.isfinite(values), np.digitize(x, edges) - 1, -1)
     return np.array([np.median(values[k == i]) if np.any(k == i) else np.nan for i in range(edges.size - 1)])
 
 
@@ -152,10 +182,15 @@ def measures(values: np.ndarray, line: Line) -> dict:
            "level_vs_range_db": _bins(np.concatenate([rr, rr]), r_edges, both).tolist(),
            "grazing_deg": (0.5 * (g_edges[1:] + g_edges[:-1])).tolist(),
            "level_vs_grazing_db": _bins(np.concatenate([gg, gg]), g_edges, both).tolist(),
-           "noise_floor_db": float(np.median(lev[:, :, :][np.broadcast_to(water[:, None, :], lev.shape)]))
-           if water.any() else None}
+           "noise_floor_db": _finite_median(lev[np.broadcast_to(water[:, None, :], lev.shape)])}
     out.update(_patches(inten, lev, r, alt, s["slant_range_m"]))
     return out
+
+
+def _finite_median(values: np.ndarray):
+    """The median of the finite values (None: none), so that NaN samples never make a level NaN."""
+    v = values[np.isfinite(values)]
+    return float(np.median(v)) if v.size else None
 
 
 def _patches(inten, lev, r, alt, r_max) -> dict:
@@ -238,7 +273,7 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), **kw) ->
 
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
            device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
-           fit_densities=(None,)) -> dict:
+           fit_densities=(None,), inputs=()) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -254,13 +289,15 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         The gain offset added to the simulation, dB; default: the median level difference (or the fit's).
     device, seed
         A device preset for the beam and pulse; the speckle seed.
+    inputs : sequence of path, optional
+        Other input files (a DEM, a scene config): refused as outputs, like ``path``.
     scene : Scene, optional
         The seabed to replay the line over (a DEM's, a TOML's), where the file's navigation puts the sonar; its own
         materials hold (no ``sediment``, no fit). Default: a flat floor at each ping's altitude. The grazing angles
         of the report take the altitude over a level floor either way.
     """
-    if scene is not None and fit_classes:
-        raise ConfigError("replay: --fit chooses the sediment of a flat floor; a --scene or --dem keeps its own")
+    _check_options(fit_classes, fit_densities, gain_db, scene)
+    OutputFolder.check(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs])
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
     chosen = fit(line, real, fit_classes, fit_densities, device=device, seed=seed) if fit_classes else None
@@ -270,28 +307,74 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
                          clutter=None if density is None else Clutter(float(density)))
     offset = (gain_db if gain_db is not None else chosen["gain_offset_db"] if chosen
               else gain_offset_db(real, measures(base, line)))
-    values = base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0))
+    values = _clip_warned(base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0)), line.settings)
     sim = measures(values, line)
-    _check_out(out_dir, overwrite)
-    write_like(path, os.path.join(out_dir, "replay.xtf"), values, overwrite=overwrite)
+    out = OutputFolder.claim(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs], command="replay")
     report = {"source": os.path.abspath(os.fspath(path)), "sediment": name, "clutter_density_per_m2": density,
               "gain_offset_db": offset,
               "fit": chosen, "shape_error_db": shape_error_db(real, sim, 0.0),
-              "settings": {k: v for k, v in line.settings.items() if k not in ("data", "altitude_m")},
+              "pings_taken_out": int(np.sum(~line.settings["kept"])),
+              "settings": {k: v for k, v in line.settings.items() if k not in ("data", "altitude_m", "kept")},
               "recorded": real, "simulated": sim}
-    atomic_write(os.path.join(out_dir, "report.json"),
-                 lambda tmp: open(tmp, "w").write(json.dumps(report, indent=1, allow_nan=True)), suffix=".json")
-    _report_png(report, os.path.join(out_dir, "report.png"))
+    out.write_set([("replay.xtf", lambda p: write_like(path, p, line.full(values))),
+                   ("report.json", lambda p: _write_json(report, p)),
+                   ("report.png", lambda p: _report_png(report, p))])      # left out without matplotlib
     return report
 
 
-def _check_out(out_dir, overwrite: bool) -> None:
-    """Create ``out_dir``; refuse one that holds anything but a replay's own files unless ``overwrite``."""
-    os.makedirs(out_dir, exist_ok=True)
-    held = sorted(set(os.listdir(out_dir)) - ({"replay.xtf", "report.json", "report.png"} if overwrite else set()))
-    if held:
-        raise ConfigError(f"{out_dir}: not empty (holds {held[0]!r}); choose another folder"
-                          + ("" if overwrite else " or pass overwrite (--overwrite) to replace a replay's files"))
+def _check_options(fit_classes, fit_densities, gain_db, scene) -> None:
+    """The options, before any work: one line naming a value that cannot mean anything."""
+    if scene is not None and fit_classes:
+        raise ConfigError("replay: --fit chooses the sediment of a flat floor; a --scene or --dem keeps its own")
+    if fit_classes is not None and not [c for c in fit_classes if str(c).strip()]:
+        raise ConfigError(f"replay: --fit needs at least one sediment class in --classes, got {list(fit_classes)!r}")
+    if tuple(fit_densities) != (None,) and not fit_classes:
+        raise ConfigError("replay: --clutter-densities are tried by the fit only; add --fit")
+    if gain_db is not None and not (isinstance(gain_db, (int, float)) and abs(gain_db) <= MAX_GAIN_DB):
+        raise ConfigError(f"replay: --gain-db must be a finite number of dB within ±{MAX_GAIN_DB:g}, got {gain_db!r}")
+
+
+#: The largest gain offset a replay takes, dB (a file's codes span less than 100 dB; 1e308 overflows).
+MAX_GAIN_DB = 200.0
+#: The share of a file's integer samples that may clip at full scale before a replay warns.
+CLIP_WARN_FRACTION = 0.01
+
+
+def _clip_warned(values: np.ndarray, settings: dict) -> np.ndarray:
+    """``values`` as the file will store them; warns when more than :data:`CLIP_WARN_FRACTION` of integer codes
+    clip at full scale (the gain offset too high)."""
+    if settings["integer"]:
+        top = float(2 ** (8 * settings["bytes_per_sample"]) - 1)
+        share = float(np.mean(values > top)) if values.size else 0.0
+        if share > CLIP_WARN_FRACTION:
+            warn_once(f"replay: {100 * share:.0f} % of the simulated codes clip at full scale ({top:.0f}); lower "
+                      "--gain-db")
+    return values
+
+
+#: What a replay writes into its folder.
+OUTPUTS = ("replay.xtf", "report.json", "report.png")
+
+
+def _write_json(obj, path) -> None:
+    """Strict JSON (RFC 8259): a value that is not finite is written as null."""
+    with open(path, "w", encoding="utf-8") as fh:
+        json.dump(strict_json(obj), fh, indent=1, allow_nan=False)
+
+
+def strict_json(obj):
+    """``obj`` with every float that is not finite (NaN, ±inf) replaced by None, recursively."""
+    if isinstance(obj, float) or isinstance(obj, np.floating):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: strict_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [strict_json(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return strict_json(obj.tolist())
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
 
 
 def _report_png(report: dict, path: str) -> None:

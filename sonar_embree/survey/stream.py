@@ -26,10 +26,11 @@ import warnings
 import numpy as np
 
 from ..errors import ConfigError
-from ..io.files import OWN_NAMES, STALE_PREFIXES, folder_lock, fsync_path, os_error_line, write_json_durable
+from ..io.files import LOCK_NAME, check_replaceable, folder_lock, fsync_path, os_error_line, write_json_durable
 from ..validation import check_bool, iso_utc
 from ..config import Sonar
 from ..record import Record
+from ..record.dataset import is_own_store
 from ..scene import TiledDEM
 from ..simulate import progress_bar as pings_bar, simulate, tile_reach_m
 from .cluster import client_for, in_order, lazy_zeros, threads_of
@@ -76,22 +77,24 @@ def _save_progress(path: str, progress: dict) -> None:
 
 
 def _foreign(path: str) -> list:
-    """Names in the folder ``path`` that are neither the stream's own bookkeeping nor a killed writer's temporaries."""
-    own = (*OWN_NAMES, PROGRESS + ".tmp")                             # the progress's temporary, if killed writing it
-    return sorted(n for n in os.listdir(path) if n not in own and not n.startswith(STALE_PREFIXES))
+    """Names in the folder ``path`` other than the stream's own bookkeeping (its lock, its progress's temporary)."""
+    own = (LOCK_NAME, PROGRESS + ".tmp")
+    return sorted(n for n in os.listdir(path) if n not in own)
 
 
 def _claim(path: str, overwrite: bool) -> None:
-    """Make ``path`` a folder this stream may write: new, empty, a stream's own store, or (``overwrite``)
-    anything that is a folder. Refuses, before any work, what the project did not create."""
+    """Make ``path`` a folder this stream may write: new, empty, a stream's own store, or (``overwrite``) a Zarr
+    store this package wrote. Refuses, before any work, a folder the project did not create, whatever
+    ``overwrite`` says."""
     if os.path.exists(path) and not os.path.isdir(path):
         raise ConfigError(f"{path}: exists and is not a folder (a streamed line is a Zarr folder); choose another "
                           "path")
     if os.path.isdir(path):
         names = _foreign(path)
-        if names and PROGRESS not in names and not overwrite:
+        if names and PROGRESS not in names and not (overwrite and is_own_store(path)):
             raise ConfigError(f"{path}: not empty and not a streamed line (found {names[0]!r}); choose a new or "
-                              "empty folder, or pass overwrite=True to replace its contents")
+                              "empty folder" + ("" if overwrite else ", or pass overwrite=True to replace a Zarr "
+                                                "store of sonar_embree"))
     try:
         os.makedirs(path, exist_ok=True)
     except OSError as exc:
@@ -108,6 +111,8 @@ def _check_xtf_free(xtf_path, old: dict | None, overwrite: bool) -> None:
     if os.path.getsize(xtf_path) > 0 and not ours and not overwrite:
         raise ConfigError(f"{xtf_path}: exists and was not written by this stream; choose another name or pass "
                           "overwrite=True")
+    if not ours:
+        check_replaceable(xtf_path, ".xtf")                          # overwrite replaces an XTF, never another file
 
 
 def _check_outputs(path: str, progress: dict, xtf_path) -> None:
@@ -143,7 +148,7 @@ def _resumed(path: str, key: str, xtf_path, resume: bool, overwrite: bool) -> di
     """The progress to continue from, or None to start over (the folder emptied of the old store, the XTF
     checked free)."""
     old = _progress(path)
-    if old is not None and resume and old.get("pings_done", 0) > 0:
+    if old is not None and resume and old.get("pings_done", 0) > 0 and not (overwrite and old["fingerprint"] != key):
         if old["fingerprint"] != key:
             was = old.get("xtf_path")
             why = f" (its XTF was {was}, now {xtf_path})" if was != xtf_path else ""
@@ -309,7 +314,8 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         Continue a store left by a killed run with the same inputs, the same ``xtf_path`` included (default);
         False starts over. A resume first checks the store and that the XTF holds every ping counted as done.
     overwrite : bool
-        Replace a folder's or an XTF file's contents that this function did not write.
+        Replace a Zarr store of this package, or an XTF file, that this stream did not write (any other file or
+        folder is refused all the same).
     xtf_samples : int, optional
         Samples per side written to the XTF, decimated as a device does (:func:`sonar_embree.io.xtf.decimate`);
         default every sample.

@@ -34,6 +34,9 @@ CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_
 GEO_CSV_COLUMNS = ("time", "lat_deg", "lon_deg", "depth_m")
 #: Speed (m/s) above which a CSV trajectory's time stamps look like a unit slip: towfish and AUVs fly below 5 m/s.
 IMPLAUSIBLE_SPEED_M_S = 30.0
+#: Mean speed over ground (m/s) below which a moving log's time stamps look like a unit slip the other way
+#: (milliseconds typed as seconds): survey vehicles make way at 0.5–5 m/s.
+SLOW_SPEED_M_S = 0.05
 
 
 def body_to_world(heading_deg, pitch_deg, roll_deg):
@@ -409,7 +412,8 @@ class Trajectory:
         becomes ``start_time``); the velocity ``vx_m_s, vy_m_s, vz_m_s`` (all three or none). Without velocity
         columns but with times, the velocity is the positions' time derivative (second-order differences,
         ends included), so the sonar moves during each ping (docs/physics.md §16); without times it stops for
-        each ping. A speed above :data:`IMPLAUSIBLE_SPEED_M_S` is warned about (time stamps not in seconds?).
+        each ping. A speed above :data:`IMPLAUSIBLE_SPEED_M_S`, or a mean below :data:`SLOW_SPEED_M_S`, is warned
+        about (time stamps not in seconds?).
         """
         path = os.fspath(path)
         header, rows = _csv_rows(path)
@@ -429,18 +433,21 @@ class Trajectory:
             raise ConfigError(f"{path}: {exc}") from None
 
     @classmethod
-    def from_xtf(cls, path, crs=None) -> "Trajectory":
+    def from_xtf(cls, path, crs=None, keep=None) -> "Trajectory":
         """The poses of an XTF file's sonar pings (pyxtf reads it; :func:`sonar_embree.io.xtf.read_navigation`).
 
         Latitude/longitude navigation (NavUnits 3) is projected into ``crs`` (default: the UTM zone of the first
         ping); metres are taken as world x and y (in ``crs`` when given). z = −SensorDepth (depth below the sea
         surface at z = 0), attitude from the Sensor fields, ``times_s`` from the first ping's time, which becomes
-        ``start_time``. The velocity is not read (stop-and-hop unless set from the times, as for CSV).
+        ``start_time``. The velocity is not read (stop-and-hop unless set from the times, as for CSV). ``keep``
+        ((pings,) bool) takes only those pings, before the projection (pings without a fix left out).
         """
         from ..io.geo import from_lonlat, utm_crs
         from ..io.xtf import NAV_UNITS_LATLON, read_navigation
 
         nav = read_navigation(path)
+        if keep is not None:
+            nav = {k: (np.asarray(v)[keep] if k != "nav_units" else v) for k, v in nav.items()}
         x, y = nav["x"], nav["y"]
         try:
             if nav["nav_units"] == NAV_UNITS_LATLON:
@@ -563,6 +570,11 @@ def _csv_velocity(col: dict, traj: "Trajectory", path: str):
     if fastest > IMPLAUSIBLE_SPEED_M_S:
         log.warning("%s: the vehicle moves at up to %.3g m/s between its time stamps; is time_s in seconds?",
                     path, fastest)
+    way = float(np.sum(np.linalg.norm(np.diff(traj.positions_m, axis=0), axis=1)))
+    span = float(traj.times_s[-1] - traj.times_s[0])
+    if way > 0.0 and span > 0.0 and way / span < SLOW_SPEED_M_S:
+        log.warning("%s: the vehicle makes %.3g m/s on average (%.3g m in %.4g s); are the times in seconds, not "
+                    "milliseconds?", path, way / span, way, span)
     return v
 
 

@@ -13,6 +13,7 @@ import pytest
 import trimesh
 
 import sonar_embree as se
+from sonar_embree.io.owner import MANIFEST
 from sonar_embree.runs import cli
 from sonar_embree.signal.labels import OBJECT
 from sonar_embree.runs.sweep import load_sweep
@@ -92,8 +93,8 @@ def test_jobs_are_the_product_of_scenes_trajectories_vary_and_seeds(sweep_file, 
     assert len(sweep.jobs) == 6 and sweep.categories == ("crate", "drum")
     assert [(j.seed, j.fan.quality) for j in sweep.jobs] == [(0, 0.5), (1, 0.5), (2, 0.5), (0, 0.75), (1, 0.75),
                                                             (2, 0.75)]
-    assert sorted(p for p in os.listdir(reference)) == ["00000", "00001", "00002", "00003", "00004", "00005",
-                                                       "coco.json", "sweep.json"]
+    assert sorted(p for p in os.listdir(reference) if p != MANIFEST) == [
+        "00000", "00001", "00002", "00003", "00004", "00005", "coco.json", "sweep.json"]
     assert sorted(os.listdir(reference / "00000")) == ["coco.json", "job.json", "labels.png", "labels_preview.png",
                                                        "record.npz", "record.xtf", "record.zarr", "waterfall.png"]
     job = json.loads((reference / "00004" / "job.json").read_text())
@@ -197,7 +198,7 @@ def test_killed_batch_resumes_to_the_same_files(sweep_file, reference, tmp_path)
     assert cli.main(["batch", str(sweep_file), "-o", str(out), "--no-progress"]) == 2  # not without --resume
     assert cli.main(["batch", str(sweep_file), "-o", str(out), "--resume", "--workers", "1", "--no-progress"]) == 0
     _same_tree(reference, out)
-    assert not [n for n in os.listdir(out) if n.startswith(".")]
+    assert [n for n in os.listdir(out) if n.startswith(".")] == [MANIFEST]     # no temporary left
     # a second resume has nothing left to do
     assert se.batch.run(sweep_file, out, resume=True) == []
 

@@ -316,7 +316,7 @@ def test_cli_renders_the_shipped_config_shortened(tmp_path):
     cfg.write_text(text)
     out = tmp_path / "out"
     assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress"]) == 0
-    assert sorted(p.name for p in out.iterdir()) == ["fan.png", "record.npz", "record.zarr"]
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["fan.png", "record.npz", "record.zarr"]
     rec = se.Record.load(out / "record.npz")
     assert isinstance(rec.sonar, se.ForwardLooking) and rec.data.shape[:2] == (2, 33)
     img = iio.imread(out / "fan.png")

@@ -11,6 +11,7 @@ import rasterio
 import trimesh
 
 import sonar_embree as se
+from sonar_embree.io.owner import MANIFEST
 from sonar_embree.errors import ConfigError
 from sonar_embree.signal.interferometry import baseline_geometry, cross_spectrum, depression_angle
 from sonar_embree.survey import bathymetry
@@ -172,7 +173,7 @@ def test_render_writes_soundings_and_their_grid(tmp_path, capsys):
 
     (tmp_path / "ifsss.toml").write_text(config(f"receive_array = {{ kind = \"vertical\", baseline_m = {LAM} }}"))
     assert main(["render", str(tmp_path / "ifsss.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
-    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["bathymetry.tif", "soundings.xyz"]
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [MANIFEST, "bathymetry.tif", "soundings.xyz"]
     xyz = np.loadtxt(tmp_path / "out" / "soundings.xyz")
     assert xyz.shape[1] == 3 and xyz.shape[0] > 5000
     with rasterio.open(tmp_path / "out" / "bathymetry.tif") as src:

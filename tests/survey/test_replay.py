@@ -91,7 +91,7 @@ def test_a_file_without_altitude_or_an_occupied_folder_is_refused(tmp_path):
     rec = se.simulate(off_side, se.Trajectory.line((0, 0, 5), (1, 0, 5), 3), se.Sonar(max_range_m=20.0), PULSE,
                       start_time="2026-05-01T12:00:00Z")
     rec.to_xtf(tmp_path / "none.xtf")
-    with pytest.raises(ConfigError, match="no altitude"):
+    with pytest.raises(ConfigError, match="0 of 3 pings have a navigation fix and an altitude"):
         R.Line.read(tmp_path / "none.xtf")
 
 
@@ -166,3 +166,113 @@ def test_fit_recovers_a_hidden_clutter_density_with_the_class(tmp_path):
     assert report["gain_offset_db"] == pytest.approx(9.0, abs=0.5)
     assert main(["replay", str(tmp_path / "c.xtf"), "--fit", "--clutter-densities", "x", "-o",
                  str(tmp_path / "bad")]) == 2
+
+
+def _patch_ping(path, k, **fields):
+    """Set header fields of sonar ping ``k`` of the XTF file ``path`` in place (a recording's quirks)."""
+    from sonar_embree.io.xtf import _PING_HEADER
+
+    raw = bytearray(path.read_bytes())
+    pos, n = 1024, 0
+    while True:
+        head = np.frombuffer(raw, dtype=_PING_HEADER, count=1, offset=pos).copy()
+        if head["HeaderType"][0] == 0:
+            if n == k:
+                for name, v in fields.items():
+                    head[name] = v
+                raw[pos:pos + _PING_HEADER.itemsize] = head.tobytes()
+                path.write_bytes(bytes(raw))
+                return
+            n += 1
+        pos += int(head["NumBytesThisRecord"][0])
+
+
+def _geo_line(tmp_path, n=30):
+    scene = se.Scene().add(se.seafloor.flat((300, 300)), label="seafloor",
+                           material=se.Material(scattering=se.sediments.preset("apl-uw fine sand")))
+    rec = se.simulate(scene, se.Trajectory.line((-6, 0, 6.0), (6, 0, 6.0), n), se.Sonar(max_range_m=20.0), PULSE,
+                      speckle=True, seed=3, start_time="2026-05-01T12:00:00Z")
+    import dataclasses
+    rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": [54.5, 10.2]})
+    rec.to_xtf(tmp_path / "geo.xtf", scale=1.0)
+    return tmp_path / "geo.xtf"
+
+
+def test_a_first_ping_without_fix_or_altitude_is_taken_out_and_said(tmp_path, caplog):
+    """Issue 49: a real recording's first ping has no fix (lat/lon 0, 0) and altitude 0: replay takes it out, says
+    how many, writes it as zeros and goes on; --clutter-densities work on it (the floor stays the line's size)."""
+    path = _geo_line(tmp_path)
+    _patch_ping(path, 0, SensorXcoordinate=0.0, SensorYcoordinate=0.0, SensorPrimaryAltitude=0.0)
+    line = R.Line.read(path)
+    assert line.settings["kept"].tolist() == [False] + [True] * 29
+    assert "took out 1 of 30 pings" in caplog.text
+    assert np.ptp(line.trajectory.positions_m[:, 0]) < 20.0                        # no 0,0 position in the line
+    rep = R.replay(path, tmp_path / "out", fit_classes=["apl-uw fine sand"], fit_densities=(None, 10.0), seed=1)
+    assert rep["pings_taken_out"] == 1 and rep["clutter_density_per_m2"] in (None, 10.0)
+    import pyxtf
+    _, packets = pyxtf.xtf_read(str(tmp_path / "out" / "replay.xtf"))
+    pings = packets[pyxtf.XTFHeaderType.sonar]
+    assert len(pings) == 30 and not np.any(pings[0].data[1]) and np.any(pings[5].data[1])
+
+
+def test_replay_refuses_impossible_options_before_any_work(tmp_path):
+    path = _geo_line(tmp_path, n=8)
+    for kw, match in ((dict(gain_db=float("nan")), "--gain-db must be a finite"),
+                      (dict(gain_db=1e308), "--gain-db must be a finite"),
+                      (dict(fit_classes=[]), "at least one sediment class"),
+                      (dict(fit_densities=(None, 10.0)), "--clutter-densities are tried by the fit only")):
+        with pytest.raises(ConfigError, match=match):
+            R.replay(path, tmp_path / "out", **kw)
+    assert not (tmp_path / "out").exists()
+    assert main(["replay", str(path), "--fit", "--classes", ",,", "-o", str(tmp_path / "o2")]) == 2
+    assert main(["replay", str(path), "--clutter-densities", "10", "-o", str(tmp_path / "o3")]) == 2
+    assert main(["replay", str(path), "--gain-db", "inf", "-o", str(tmp_path / "o4")]) == 2
+
+
+def test_broken_headers_are_one_line_errors(tmp_path):
+    """TimeDuration 0 and a header whose channel count disagrees with its pings: one line, no traceback."""
+    path = _geo_line(tmp_path, n=6)
+    raw = bytearray(path.read_bytes())
+    zero = tmp_path / "zero.xtf"
+    zero.write_bytes(bytes(raw))
+    from sonar_embree.io.xtf import _CHAN_HEADER, _PING_HEADER
+    pos = 1024
+    while pos < len(raw):                                   # every channel's TimeDuration 0
+        head = np.frombuffer(raw, dtype=_PING_HEADER, count=1, offset=pos)
+        if head["HeaderType"][0] == 0:
+            at = pos + _PING_HEADER.itemsize
+            for _ in range(2):
+                ch = np.frombuffer(raw, dtype=_CHAN_HEADER, count=1, offset=at).copy()
+                ch["TimeDuration"] = 0.0
+                raw[at:at + _CHAN_HEADER.itemsize] = ch.tobytes()
+                at += _CHAN_HEADER.itemsize + int(ch["NumSamples"][0]) * 4
+        pos += int(head["NumBytesThisRecord"][0])
+    zero.write_bytes(bytes(raw))
+    with pytest.raises(ConfigError, match="TimeDuration is 0.0 s"):
+        R.Line.read(zero)
+    one = tmp_path / "one.xtf"
+    raw = bytearray(path.read_bytes())
+    from sonar_embree.io.xtf import _FILE_HEADER
+    at = _FILE_HEADER.fields["NumberOfSonarChannels"][1]
+    raw[at:at + 2] = (1).to_bytes(2, "little")              # the header says 1 channel; the pings hold 2
+    one.write_bytes(bytes(raw))
+    with pytest.raises(ConfigError, match="one.xtf: ") as exc:
+        R.Line.read(one)
+    assert "\n" not in str(exc.value)
+
+
+def test_nan_samples_leave_the_noise_floor_finite_and_the_report_strict_json(tmp_path):
+    path = _geo_line(tmp_path, n=10)
+    line = R.Line.read(path)
+    values = line.settings["data"].copy()
+    water = line.slant_range_m < 0.9 * line.settings["altitude_m"].min()
+    values[:, :, water] = 1e-6                              # a water column 60 dB down
+    orig = R.measures(values, line)
+    values[:, :, :5] = np.nan
+    m = R.measures(values, line)
+    assert orig["noise_floor_db"] == pytest.approx(-60.0) and m["noise_floor_db"] == pytest.approx(-60.0)
+    np.testing.assert_array_equal(np.isfinite(m["level_vs_range_db"]), np.isfinite(orig["level_vs_range_db"]))
+    text = json.dumps(R.strict_json({"a": float("nan"), "b": [float("-inf"), 1.0]}), allow_nan=False)
+    assert json.loads(text) == {"a": None, "b": [None, 1.0]}
+    R.replay(path, tmp_path / "out", seed=1)
+    json.loads((tmp_path / "out" / "report.json").read_text(), parse_constant=lambda c: pytest.fail(c))

@@ -128,8 +128,8 @@ def test_other_inputs_are_refused_unless_started_over(tmp_path):
 
 # --- issue 33: never a byte of what the stream did not write ------------------------------------------------
 def test_a_users_folder_is_refused_and_survives(tmp_path):
-    """Finding 1: a non-empty folder that is not a streamed line is refused before any work, its files intact;
-    overwrite=True replaces its contents."""
+    """Finding 1: a non-empty folder that is not a streamed line is refused before any work, its files intact, with
+    overwrite=True too (issue 49: overwrite replaces only what the project wrote)."""
     mine = tmp_path / "mydata"
     (mine / "sub").mkdir(parents=True)
     (mine / "thesis.tex").write_text("years of work")
@@ -137,8 +137,9 @@ def test_a_users_folder_is_refused_and_survives(tmp_path):
     with pytest.raises(se.ConfigError, match=r"mydata: not empty and not a streamed line \(found 'sub'\)"):
         se.stream.render_line(_scene(), LINE[:4], mine, SONAR, block_pings=4, start_time=START)
     assert (mine / "thesis.tex").read_text() == "years of work" and (mine / "sub" / "fig.pdf").exists()
-    se.stream.render_line(_scene(), LINE[:4], mine, SONAR, block_pings=4, start_time=START, overwrite=True)
-    assert not (mine / "thesis.tex").exists() and xr.open_zarr(mine)["port"].shape[0] == 4
+    with pytest.raises(se.ConfigError, match=r"mydata: not empty and not a streamed line \(found 'sub'\)"):
+        se.stream.render_line(_scene(), LINE[:4], mine, SONAR, block_pings=4, start_time=START, overwrite=True)
+    assert (mine / "thesis.tex").read_text() == "years of work" and (mine / "sub" / "fig.pdf").exists()
     killed = tmp_path / "killed.zarr"                      # killed while writing its very first progress
     killed.mkdir()
     (killed / "stream.json.tmp").write_text('{"fingerprint": "')

@@ -80,7 +80,7 @@ def test_a_survey_from_a_dem_and_a_nav_log_runs_from_the_cli(tmp_path):
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep me")
     bad = subprocess.run(cmd[:-1] + [str(tmp_path / "mine")], capture_output=True, text=True, timeout=120)
-    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "not a survey's output" in bad.stderr
+    assert bad.returncode == 2 and bad.stderr.count("\n") == 1 and "not empty (holds 'notes.txt')" in bad.stderr
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
 
 
@@ -167,4 +167,4 @@ def test_a_survey_on_two_worker_processes_writes_the_same_line(tmp_path):
     np.testing.assert_array_equal(one["port"].values, two["port"].values)
     proc = subprocess.run(base + ["--workers", "0", "-o", str(tmp_path / "bad")], capture_output=True, text=True,
                           timeout=600)
-    assert proc.returncode != 0 and "workers must be an integer >= 1, got 0" in proc.stderr
+    assert proc.returncode != 0 and "--workers must be >= 1, got 0" in proc.stderr
