@@ -1,0 +1,131 @@
+"""Issue 49: a survey's inputs checked before any line renders, its implausible set-ups warned, its summary
+portable, and a survey killed at any point resumed by the same command."""
+import datetime as dt
+import json
+import logging
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pyproj
+import pytest
+
+from sonar_embree.errors import ConfigError
+from sonar_embree.io.geotiff import write_grid
+from sonar_embree.io.owner import MANIFEST
+from sonar_embree.runs.cli import main
+from sonar_embree.runs.survey import run_survey
+
+CRS, E0, N0 = "EPSG:32631", 500_000.0, 6_000_000.0
+
+
+def _dem(path, hole=False):
+    """80 m × 60 m at 1 m, 12 m deep; with ``hole``, nodata (NaN) over a 4 m × 4 m square under the track."""
+    z = np.full((60, 80), -12.0)
+    if hole:
+        z[28:32, 38:42] = np.nan
+    write_grid(path, z, E0 - 40, N0 + 30, 1.0, CRS)
+
+
+def _nav(path, seconds=3, scale=None, times=True, rows=None):
+    """A 1 Hz log eastwards at 2 m/s, 5 m deep: ISO times (``scale``: time_s, k·scale), or none."""
+    lon, lat = pyproj.Transformer.from_crs(CRS, "EPSG:4326", always_xy=True).transform(
+        E0 - 3 + 2.0 * np.arange(seconds + 1), np.full(seconds + 1, N0))
+    t0 = dt.datetime(2026, 5, 1, 12, 0, 0, tzinfo=dt.timezone.utc)
+    out = []
+    for k, (a, o) in enumerate(zip(lat, lon)):
+        t = "" if not times else f"{k * scale!r}," if scale else f"{(t0 + dt.timedelta(seconds=k)).isoformat()},"
+        out.append(f"{t}{float(a)!r},{float(o)!r},5.0")
+    out = out[:rows] if rows else out
+    head = ("" if not times else "time_s," if scale else "time,") + "lat_deg,lon_deg,depth_m\n"
+    path.write_text(head + "\n".join(out) + "\n")
+
+
+def _survey(tmp_path, nav, out="out", **kw):
+    return run_survey(tmp_path / "dem.tif", [nav], tmp_path / out, "cmax-cm2-325", ping_rate_hz=2.0, pixel_m=1.0,
+                      progress=False, **kw)
+
+
+def test_a_one_row_log_and_a_log_without_times_are_refused_before_any_work(tmp_path):
+    _dem(tmp_path / "dem.tif")
+    _nav(tmp_path / "one.csv", rows=1)
+    with pytest.raises(ConfigError, match="one.csv: a navigation log needs two fixes at least, got 1"):
+        _survey(tmp_path, tmp_path / "one.csv")
+    _nav(tmp_path / "untimed.csv", times=False)
+    with pytest.raises(ConfigError, match="untimed.csv: a survey's navigation log needs a time column"):
+        _survey(tmp_path, tmp_path / "untimed.csv")
+    assert not (tmp_path / "out").exists()
+
+
+def test_milliseconds_typed_as_seconds_are_warned(tmp_path, caplog):
+    _dem(tmp_path / "dem.tif")
+    _nav(tmp_path / "ms.csv", seconds=2, scale=1000.0)                 # 2 m/s logged in ms: 0.002 m/s
+    from sonar_embree.trajectory import Trajectory
+    with caplog.at_level(logging.WARNING):
+        Trajectory.from_csv(tmp_path / "ms.csv", crs=CRS)
+    assert "are the times in seconds, not milliseconds?" in caplog.text
+    caplog.clear()
+    _nav(tmp_path / "s.csv", seconds=2, scale=1.0)
+    with caplog.at_level(logging.WARNING):
+        Trajectory.from_csv(tmp_path / "s.csv", crs=CRS)
+    assert "are the times in seconds" not in caplog.text
+
+
+def test_a_dem_hole_under_the_track_is_warned(tmp_path, caplog):
+    _dem(tmp_path / "dem.tif", hole=True)
+    _nav(tmp_path / "nav.csv", seconds=4)
+    with caplog.at_level(logging.WARNING):
+        _survey(tmp_path, tmp_path / "nav.csv")
+    assert "lies over nodata holes" in caplog.text
+    caplog.clear()
+    _dem(tmp_path / "dem.tif")
+    with caplog.at_level(logging.WARNING):
+        _survey(tmp_path, tmp_path / "nav.csv", out="out2")
+    assert "nodata holes" not in caplog.text
+
+
+def test_pixel_is_checked_first_and_the_summary_paths_are_relative_to_it(tmp_path, capsys):
+    _dem(tmp_path / "dem.tif")
+    _nav(tmp_path / "nav.csv")
+    base = ["survey", "--dem", str(tmp_path / "dem.tif"), "--nav", str(tmp_path / "nav.csv"), "--device",
+            "cmax-cm2-325", "--ping-rate", "2", "--no-progress"]
+    for bad, says in (("0", "positive"), ("1e5", "below 10000 m"), ("nan", "positive")):
+        assert main(base + ["--pixel", bad, "-o", str(tmp_path / "bad")]) == 2
+        assert says in capsys.readouterr().err
+    assert not (tmp_path / "bad").exists()                             # nothing rendered, nothing left
+    assert main(base + ["--pixel", "1", "-o", str(tmp_path / "out")]) == 0
+    summary = json.loads((tmp_path / "out" / "survey.json").read_text())
+    assert summary["lines"][0]["files"] == {"zarr": "line_00/line.zarr", "xtf": "line_00/line.xtf",
+                                            "png": "line_00/line.png"}
+
+
+@pytest.mark.parametrize("marker", [MANIFEST, f"line_00/{MANIFEST}", "line_00/line.zarr/stream.json", "mosaic.tif"])
+def test_a_survey_killed_at_any_point_resumes_with_the_same_command(tmp_path, marker):
+    """kill -9 once the survey has reached ``marker`` (its folder claimed, a line claimed, a block streamed, the
+    products begun); the same command then finishes it, and the line equals an uninterrupted run's."""
+    _dem(tmp_path / "dem.tif")
+    _nav(tmp_path / "nav.csv", seconds=30)
+    cmd = [sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--dem", str(tmp_path / "dem.tif"), "--nav",
+           str(tmp_path / "nav.csv"), "--device", "cmax-cm2-325", "--ping-rate", "4", "--pixel", "1",
+           "--no-progress", "-o"]
+    proc = subprocess.Popen(cmd + [str(tmp_path / "out")], start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 300
+        while not (tmp_path / "out" / marker).exists() and proc.poll() is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.002)
+        os.killpg(proc.pid, signal.SIGKILL)
+    finally:
+        proc.wait()
+    again = subprocess.run(cmd + [str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr[-2000:]
+    clean = subprocess.run(cmd + [str(tmp_path / "clean")], capture_output=True, text=True, timeout=600)
+    assert clean.returncode == 0, clean.stderr[-2000:]
+    for name in ("line_00/line.xtf", "mosaic.tif"):
+        assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "clean" / name).read_bytes(), name
+    assert not [n for n in os.listdir(tmp_path / "out") if n.startswith(".sonar-embree-") and n != MANIFEST]
+
