@@ -69,7 +69,8 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
                           f"{tx.shape} and rx (pings, elements, 3) {rx.shape} disagree")
     for name, v in (("rate_hz", rate_hz), ("carrier_hz", carrier_hz), ("sound_speed_m_s", sound_speed_m_s)):
         check_number("backprojection_image", name, v, positive=True)
-    xx, yy = np.meshgrid(np.asarray(x_m, dtype=float), np.asarray(y_m, dtype=float))
+    x_m, y_m = _checked_grid(x_m, y_m, z_m, d.shape[:2])
+    xx, yy = np.meshgrid(x_m, y_m)
     pixels = np.ascontiguousarray(np.stack([xx.ravel(), yy.ravel(), np.full(xx.size, float(z_m))], axis=1))
     out = np.empty(pixels.shape[0], dtype=np.complex128)
     fwd = np.tile([1.0, 0.0, 0.0], (d.shape[0], 1)) if forward is None else np.asarray(forward, dtype=np.float64)
@@ -81,6 +82,48 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
     kernels.backproject(d, float(t0_s), float(rate_hz), float(carrier_hz), float(sound_speed_m_s), tx, rx,
                         np.ascontiguousarray(fwd), band, pixels, out)
     return out.reshape(xx.shape)
+
+
+#: The most pixels of one backprojected image (as the mosaic's cap, :data:`sonar_embree.io.geotiff.MAX_GRID_PIXELS`:
+#: its complex128 output alone is 16 bytes a pixel).
+MAX_IMAGE_PIXELS = 100_000_000
+
+
+def _checked_grid(x_m, y_m, z_m, shape) -> tuple:
+    """The grid's axes as float arrays, after one-line errors for an empty or non-finite axis or height, a grid
+    beyond :data:`MAX_IMAGE_PIXELS`, and no ping or element to form it from."""
+    x_m, y_m = np.atleast_1d(np.asarray(x_m, dtype=float)), np.atleast_1d(np.asarray(y_m, dtype=float))
+    for name, a in (("x_m", x_m), ("y_m", y_m)):
+        if a.ndim != 1 or a.size == 0 or not np.all(np.isfinite(a)):
+            raise ConfigError(f"backprojection_image: {name} must be a non-empty 1-D axis of finite metres")
+    check_number("backprojection_image", "z_m", z_m)
+    if x_m.size * y_m.size > MAX_IMAGE_PIXELS:
+        raise ConfigError(f"backprojection_image: a grid of {y_m.size} x {x_m.size} pixels is beyond the "
+                          f"{MAX_IMAGE_PIXELS:.0e} an image may hold; image a smaller area or coarser pixels")
+    if shape[0] == 0 or shape[1] == 0:
+        raise ConfigError(f"backprojection_image: no {'ping' if shape[0] == 0 else 'element'} to form the image "
+                          "from")
+    return x_m, y_m
+
+
+def _checked_selection(values, n: int, what: str) -> np.ndarray:
+    """Indices of ``what`` (None: all ``n``; a list of indices in [0, n); a bool mask of length n), or one line."""
+    if values is None:
+        return np.arange(n)
+    v = np.asarray(values)
+    if v.dtype == bool:
+        if v.shape != (n,):
+            raise ConfigError(f"record_image: a {what} mask must have {n} entries, got shape {v.shape}")
+        v = np.flatnonzero(v)
+    elif v.size and (not np.issubdtype(v.dtype, np.integer) or v.ndim != 1):
+        raise ConfigError(f"record_image: {what} must be indices (integers) or a bool mask, got {values!r}")
+    v = v.astype(np.int64).ravel()
+    if v.size == 0:
+        raise ConfigError(f"record_image: {what} selects none of the {n}")
+    if v.min() < 0 or v.max() >= n:
+        raise ConfigError(f"record_image: {what} {int(v.min() if v.min() < 0 else v.max())} is out of range "
+                          f"(0 … {n - 1})")
+    return v
 
 
 def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", positions_m=None,
@@ -132,8 +175,10 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
                           f"got {pos.shape}")
     n_el = arr.n_elements
     rx = arr.world_positions(record.trajectory.rotations(), pos)[:, ch * n_el:(ch + 1) * n_el]
-    k = np.arange(n_el) if elements is None else np.asarray(elements, dtype=np.int64)
-    p = np.arange(pos.shape[0])[slice(None) if pings is None else np.asarray(pings)]
+    k = _checked_selection(elements, n_el, "elements")
+    p = _checked_selection(pings, pos.shape[0], "pings")
+    if not np.all(np.isfinite(pos[p])):
+        raise ConfigError("record_image: positions_m holds values that are not finite")
     s = record.sonar
     fwd = record.trajectory.rotations()[p][:, :, 0]
     if isinstance(max_u, str):

@@ -220,3 +220,20 @@ def test_a_hole_in_the_floor_is_imaged_darker_than_the_floor():
     hole = i[np.ix_(np.abs(y + ACROSS) < 0.8, np.abs(x) < 0.25)].mean()
     floor = i[np.ix_(np.abs(y + ACROSS) < 0.8, np.abs(np.abs(x) - 1.5) < 0.3)].mean()
     assert 10 * np.log10(hole / floor) < -4.0
+
+
+def test_record_image_refuses_what_cannot_form_an_image(point):
+    """Issue 49: no pings, a wrong-length mask, an element out of range, no elements, a NaN pixel or height and a
+    grid beyond the pixel cap are one-line errors naming the value, not zeros or a MemoryError."""
+    _, target, rec = point
+    x, y = [target[0]], [target[1]]
+    n = rec.n_pings
+    for kw, match in ((dict(pings=[]), "pings selects none"), (dict(pings=np.ones(n + 1, bool)), "mask must have"),
+                      (dict(elements=[0, 8]), "elements 8 is out of range"), (dict(elements=[]), "elements selects"),
+                      (dict(x_m=[np.nan]), "x_m must be a non-empty"), (dict(z_m=np.nan), "z_m must be finite"),
+                      (dict(x_m=np.zeros(100_000), y_m=np.zeros(100_000)), "beyond the")):
+        args = {"x_m": x, "y_m": y, "z_m": target[2], **kw}
+        with pytest.raises(se.ConfigError, match=match) as exc:
+            record_image(rec, args.pop("x_m"), args.pop("y_m"), **args)
+        assert "\n" not in str(exc.value)
+    assert abs(record_image(rec, x, y, target[2], pings=np.ones(n, bool))[0, 0]) > 0
