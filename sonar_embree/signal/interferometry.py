@@ -26,6 +26,7 @@ from scipy.ndimage import uniform_filter
 from ..errors import ConfigError
 from ..io.files import atomic_write
 from ..io.geotiff import GridAccumulator, write_grid
+from ..validation import check_number, warn_once
 
 
 def cross_spectrum(z0: np.ndarray, zb: np.ndarray, window=(1, 5)):
@@ -160,7 +161,9 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     window : (int, int)
         Pings and samples averaged in the cross product (:func:`cross_spectrum`).
     min_coherence : float
-        Samples whose coherence is below this are left out.
+        Samples whose coherence is below this are left out (in [0, 1]). Soundings above the sonar (a phase
+        unwrapped into the wrong sector: a pair longer than λ/2 without ``coarse_pair``) are left out with a
+        one-line warning saying how many: a side-scan's seabed lies below it.
     reference_deg : float, optional
         The depression the phase is unwrapped about, degrees; default the sonar's tilt.
     coarse_pair : (int, int), optional
@@ -172,6 +175,7 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     if record.element_data is None or arr is None:
         raise ConfigError("interferometric soundings: the record has no element data (simulate a Sonar with a "
                           "receive_array)")
+    check_number("interferometric_points", "min_coherence", min_coherence, lo=0.0, hi=1.0)
     ref = math.radians(record.sonar.tilt_deg if reference_deg is None else float(reference_deg))
     rot, r = record.trajectory.rotations(), record.slant_range_m
     parts = []
@@ -184,8 +188,14 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
         th = theta[keep]
         body = np.stack([np.zeros_like(th), side * r[sample] * np.cos(th), r[sample] * np.sin(th)], axis=1)
         xyz = record.trajectory.positions_m[ping] + np.einsum("nij,nj->ni", rot[ping], body)
-        parts.append((xyz, np.full(ping.size, ch), ping, sample, coh[keep]))
-    cols = [np.concatenate(c) for c in zip(*parts)]
+        below = xyz[:, 2] < record.trajectory.positions_m[ping, 2]        # a seabed sounding lies below the sonar
+        parts.append((xyz[below], np.full(int(below.sum()), ch), ping[below], sample[below], coh[keep][below]))
+        parts[-1] += (int(np.sum(~below)),)
+    above = sum(p[-1] for p in parts)
+    if above:
+        warn_once(f"interferometric soundings: {above} of {above + sum(p[0].shape[0] for p in parts)} lie above the "
+                  "sonar (a phase unwrapped into the wrong sector); left out")
+    cols = [np.concatenate(c) for c in zip(*(p[:-1] for p in parts))]
     return PointCloud(cols[0].reshape(-1, 3), cols[1].astype(np.int64), cols[2].astype(np.int64),
                       cols[3].astype(np.int64), cols[4], record.trajectory.crs)
 

@@ -211,3 +211,19 @@ def test_a_short_pair_unwraps_a_long_baseline():
     short, long_alone, long_unwrapped = rms(pair=(0, 1)), rms(pair=(0, 2)), rms(pair=(0, 2), coarse_pair=(0, 1))
     assert long_alone > 0.05
     assert long_unwrapped < 0.01 and long_unwrapped < 0.9 * short
+
+
+def test_soundings_above_the_sonar_are_left_out_and_said(caplog):
+    """Issue 49: a pair longer than λ/2 unwrapped about the tilt alone puts some soundings above the sonar (into
+    soundings.xyz and bathymetry.tif, before); they are left out with a one-line count, and a NaN coherence
+    threshold is refused."""
+    arr = se.ReceiverArray(((0.0, 0.0, 0.0), (0.0, 0.0, 1.0667 * LAM)))           # as 4 mm at λ = 3.75 mm
+    sonar = se.Sonar(frequency_hz=F0, length_m=0.1, height_m=0.005, tilt_deg=10, max_range_m=60, receive_array=arr)
+    traj = se.Trajectory.line(start=(-1, 0, H), end=(1, 0, H), n_pings=5)
+    rec = se.simulate(_scene(0.0), traj, sonar, se.Pulse.cw(duration_s=50e-6), speckle=True, seed=1)
+    with caplog.at_level("WARNING"):
+        cloud = interferometric_points(rec)
+    assert cloud.xyz_m.shape[0] > 1000 and np.all(cloud.xyz_m[:, 2] < H)
+    assert "lie above the sonar" in caplog.text
+    with pytest.raises(ConfigError, match="min_coherence must be finite"):
+        interferometric_points(rec, min_coherence=float("nan"))
