@@ -26,8 +26,11 @@ from ..instrument import beam
 from ..validation import warn_once
 from .echoes import Echoes
 
-#: The most scatterers one scene may hold (about 40 bytes each).
-MAX_SCATTERERS = 50_000_000
+#: The most scatterers one scene may hold, all objects together: drawing them takes about 240 bytes each at the peak
+#: (positions, normals, strengths, phases, the faces' corners they are drawn from, the k-d tree), 2.4 GB here.
+MAX_SCATTERERS = 10_000_000
+#: Peak bytes per scatterer while a field is drawn (measured order of magnitude; the message's estimate).
+BYTES_PER_SCATTERER = 240
 #: Scatterers sit this far above their face, m, so that their own face never occludes them.
 LIFT_M = 1e-4
 #: Along-track span heard, in first-null direction cosines λ/lx: the main lobe and three side lobes each way
@@ -70,16 +73,18 @@ def clutter_field(compiled, seed: int) -> ClutterField | None:
 def _draw(compiled, seed: int) -> ClutterField:
     tri = compiled.vertices[compiled.faces]
     area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-    parts = []
+    parts, total = [], 0.0
     for o, c in enumerate(compiled.clutter):
         if c is None:
             continue
         faces = np.flatnonzero(compiled.face_object == o)
         expected = c.density_per_m2 * float(area[faces].sum())
-        if expected > MAX_SCATTERERS:
-            raise ConfigError(f"Clutter on {compiled.labels[o]!r}: {expected:.3g} scatterers "
-                              f"(density_per_m2 = {c.density_per_m2:g} over {area[faces].sum():.4g} m²) exceed "
-                              f"{MAX_SCATTERERS:g}; lower the density or the object's area")
+        total += expected
+        if total > MAX_SCATTERERS:
+            raise ConfigError(f"Clutter on {compiled.labels[o]!r}: {total:.3g} scatterers in the scene "
+                              f"(density_per_m2 = {c.density_per_m2:g} over {area[faces].sum():.4g} m²; about "
+                              f"{total * BYTES_PER_SCATTERER / 1e9:.3g} GB) exceed {MAX_SCATTERERS:g}; lower the "
+                              "density or the object's area")
         rng = np.random.default_rng([seed, 0xC1077E2, o])
         f = np.repeat(faces, rng.poisson(c.density_per_m2 * area[faces]))
         s, r2 = np.sqrt(rng.random(f.size)), rng.random(f.size)

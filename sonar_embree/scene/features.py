@@ -36,7 +36,7 @@ from ..errors import ConfigError
 from ..laws import sediments
 from ..validation import check_number
 from .meshes import Scene
-from .seafloor import dress, from_heights, perlin_noise
+from .seafloor import dress, from_heights, grid_shape, perlin_noise
 
 
 def _across(x, y, heading_deg: float):
@@ -196,6 +196,9 @@ def seabed(size_m=(100.0, 100.0), resolution_m: float = 0.25, *, center_m=(0.0, 
     Scene
         Objects ``seafloor`` and ``seafloor/<class>`` (seafloor, for the ground truth's classes) and ``boulders``.
     """
+    if np.ndim(size_m) != 1 or len(size_m) != 2:
+        raise ConfigError(f"seabed size_m must be [x, y] in m, got {size_m!r}")
+    grid_shape(size_m[0], size_m[1], resolution_m, "seabed")         # one-line errors before any allocation
     sx, sy = float(size_m[0]), float(size_m[1])
     nx, ny = int(round(sx / resolution_m)) + 1, int(round(sy / resolution_m)) + 1
     x0, y0 = center_m[0] - sx / 2, center_m[1] - sy / 2

@@ -43,13 +43,21 @@ def _center(center_m):
 MAX_OCTAVES = 24
 
 
-def _grid_shape(sx, sy, resolution_m):
-    if not (resolution_m > 0 and math.isfinite(resolution_m)):
-        raise ConfigError(f"seafloor resolution_m must be > 0, got {resolution_m!r}")
+#: The most vertices a generated seafloor grid may have (some 1.5 GB once meshed and compiled).
+MAX_GRID_VERTICES = 20_000_000
+
+
+def grid_shape(sx, sy, resolution_m, what: str = "seafloor"):
+    """(nx, ny) vertices of a ``sx`` × ``sy`` m grid at ``resolution_m``; a size or resolution that is not a
+    positive finite number, or a grid beyond :data:`MAX_GRID_VERTICES`, is a one-line error naming it."""
+    for name, v in (("resolution_m", resolution_m), ("size_m", sx), ("size_m", sy)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.number)) or not (v > 0 and math.isfinite(v)):
+            raise ConfigError(f"{what} {name} must be > 0 m, got {v!r}")
     nx = max(int(math.ceil(sx / resolution_m)) + 1, 2)
     ny = max(int(math.ceil(sy / resolution_m)) + 1, 2)
-    if nx * ny > 20_000_000:
-        raise ConfigError(f"seafloor of {sx}x{sy} m at resolution_m={resolution_m} needs {nx * ny} vertices; coarsen it")
+    if nx * ny > MAX_GRID_VERTICES:
+        raise ConfigError(f"{what} of {sx}x{sy} m at resolution_m={resolution_m} needs {nx * ny:.3g} vertices "
+                          f"(at most {MAX_GRID_VERTICES:.0e}); coarsen it or make it smaller")
     return nx, ny
 
 
@@ -344,7 +352,7 @@ def perlin(size_m=(200.0, 200.0), resolution_m: float = 0.5, relief_m: float = 0
         Mean height in m.
     """
     sx, sy = _size(size_m)
-    nx, ny = _grid_shape(sx, sy, resolution_m)
+    nx, ny = grid_shape(sx, sy, resolution_m)
     if isinstance(octaves, bool) or not isinstance(octaves, (int, np.integer)) or not 1 <= octaves <= MAX_OCTAVES:
         raise ConfigError(f"perlin octaves must be an integer in 1..{MAX_OCTAVES}, got {octaves!r}")
     if not (relief_m >= 0 and feature_m > 0):
@@ -371,7 +379,7 @@ def ripples(size_m=(200.0, 200.0), resolution_m: float = 0.1, wavelength_m: floa
         raise ConfigError(f"ripples need wavelength_m > 0 and height_m >= 0, got {wavelength_m!r}, {height_m!r}")
     if resolution_m > wavelength_m / 4:
         raise ConfigError(f"ripples resolution_m={resolution_m} must be <= wavelength_m/4 = {wavelength_m / 4}")
-    nx, ny = _grid_shape(sx, sy, resolution_m)
+    nx, ny = grid_shape(sx, sy, resolution_m)
     x = np.linspace(-sx / 2, sx / 2, nx)
     y = np.linspace(-sy / 2, sy / 2, ny)
     xx, yy = np.meshgrid(x, y)

@@ -92,6 +92,15 @@ def test_bad_clutter_values_are_one_line_errors():
                     se.Pulse.cw(), start_time="2000-01-01")
 
 
+def test_a_clutter_field_beyond_memory_is_refused_at_once():
+    """Issue 49: 1e4 scatterers per m² over 70 m × 70 m (4.9e7, under the old per-object cap) drew for a minute and
+    ran out of memory; the scene's total is capped and refused before any is drawn, with the memory it would take."""
+    scene = se.Scene().add(se.seafloor.flat((70.0, 70.0)), material=se.Material(clutter=se.Clutter(1e4)))
+    with pytest.raises(ConfigError, match=r"4.9e\+07 scatterers .* GB\) exceed 1e\+07"):
+        se.simulate(scene, se.Trajectory.line((0, 0, 5.0), (1, 0, 5.0), 2), se.Sonar(max_range_m=10.0),
+                    se.Pulse.cw(), start_time="2000-01-01")
+
+
 def test_toml_material_clutter():
     from sonar_embree.runs.runconfig import parse_material
     m = parse_material({"clutter": {"density_per_m2": 20.0, "spread_db": 6.0}}, "x.toml", "[[objects]] #1")

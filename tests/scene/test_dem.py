@@ -327,7 +327,7 @@ def test_mosaic_bad_inputs_give_one_line(tmp_path):
             (str(tmp_path / "dem.tif"), None, 1.0, "dem.tif: no such Zarr store"),
             (rec, (0.0, np.nan, 1.0, 2.0), 1.0, "bounds_m must be four finite numbers"),
             (rec, (0.0, 0.0, 1e7, 1e7), 1e-3, r"a grid of 10000000000 x 10000000000 pixels .* use a larger pixel_m"),
-            (rec, None, True, "pixel_m must be a positive size")):
+            (rec, None, True, "pixel_m must be a positive number of metres")):
         with pytest.raises(se.ConfigError, match=what):
             se.mosaic.mosaic(records, pixel_m=pixel, bounds_m=bounds)
     with pytest.raises(se.ConfigError, match=r"nowhere/m.tif: its folder .*nowhere does not exist"):

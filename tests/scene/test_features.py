@@ -166,3 +166,10 @@ boulder_field = { density_per_m2 = 0.01 }
     (tmp_path / "bad.toml").write_text(run.replace("bedforms", "bedform"))
     with pytest.raises(ConfigError, match="bad.toml.*'bedform'"):
         load_run_config(str(tmp_path / "bad.toml"))
+    for old, new, says in (("resolution_m = 0.5", "resolution_m = 0", "seabed resolution_m must be > 0 m, got 0"),
+                           ("size_m = [40.0, 40.0]", "size_m = [1e6, 1e6]", "needs 4e\\+12 vertices"),
+                           ("size_m = [40.0, 40.0]", "size_m = [40.0, nan]", "size_m must be > 0 m, got nan")):
+        (tmp_path / "bad.toml").write_text(run.replace(old, new))           # issue 49: one line, at once
+        with pytest.raises(ConfigError, match=f"bad.toml.*{says}") as exc:
+            load_run_config(str(tmp_path / "bad.toml"))
+        assert "\n" not in str(exc.value)
