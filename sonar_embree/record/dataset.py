@@ -297,6 +297,7 @@ def open_parts(path) -> dict:
         raise ConfigError(f"{path}: the store has no record metadata (written by an older sonar_embree)")
     meta = json.loads(ds.attrs[RECORD_ATTR])
     channels = tuple(meta.get("channels", ("port", "starboard")))
+    _check_chunks(path, ds, [*channels, "intensity", *(f"{c}_complex" for c in channels)])
     data, cplx, ints = _lazy_arrays(ds, channels, ds.attrs.get("channels") == "intensity")
     n = ds.sizes["ping"]
     ship = (np.column_stack([ds["ship_x_m"].values, ds["ship_y_m"].values, np.zeros(n)])
@@ -310,6 +311,22 @@ def open_parts(path) -> dict:
                 altitude_m=ds["altitude_m"].values, positions_m=np.column_stack([ds[f"{a}_m"].values for a in "xyz"]),
                 heading_deg=ds["heading_deg"].values, pitch_deg=ds["pitch_deg"].values,
                 roll_deg=ds["roll_deg"].values, times_s=ds["ping_time_s"].values, ship_positions_m=ship)
+
+
+def _check_chunks(path, ds, names) -> None:
+    """Refuse a store whose data variables ``names`` (those present) miss chunk files: Zarr reads a missing chunk
+    as its fill value (NaN), so a deleted or never-written chunk would load as plausible-looking NaN pings."""
+    for name in names:
+        if name not in ds:
+            continue
+        var = ds[name]
+        chunks = var.encoding.get("chunks") or var.shape
+        want = int(np.prod([-(-n // max(c, 1)) for n, c in zip(var.shape, chunks)]))
+        folder = os.path.join(os.fspath(path), name)
+        have = sum(1 for f in os.listdir(folder) if not f.startswith(".")) if os.path.isdir(folder) else want
+        if have < want:
+            raise ConfigError(f"{path}: variable {name!r} lacks {want - have} of its {want} chunks (deleted, or a "
+                              "streamed line not finished); the store is incomplete")
 
 
 def _lazy_arrays(ds, channels, beams: bool):

@@ -73,3 +73,17 @@ def test_render_line_draws_its_waterfall_png(tmp_path):
     want = se.Record.load(tmp_path / "l.zarr").waterfall(aspect=True, max_rows=8192)
     np.testing.assert_array_equal(img, want)
     assert img.shape[0] > 24                         # pings 13 cm apart, columns 3.75 cm: rows repeated
+
+
+def test_a_store_missing_a_chunk_is_refused_not_read_as_nan(tmp_path):
+    """Issue 49: a chunk file deleted from a store loaded as NaN pings, silently; now one line names the variable."""
+    import os
+
+    scene = se.Scene().add(se.seafloor.flat((50.0, 50.0)))
+    rec = se.simulate(scene, se.Trajectory.line((-1, 0, 5), (1, 0, 5), 3), se.Sonar(max_range_m=10.0), se.Pulse.cw(),
+                      start_time="2000-01-01")
+    rec.to_zarr(tmp_path / "r.zarr")
+    assert np.array_equal(se.Record.load(tmp_path / "r.zarr").port, rec.port)
+    os.remove(tmp_path / "r.zarr" / "starboard" / "0.0")
+    with pytest.raises(se.ConfigError, match="'starboard' lacks 1 of its 1 chunks"):
+        se.Record.load(tmp_path / "r.zarr")

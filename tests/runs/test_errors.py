@@ -153,3 +153,21 @@ def test_console_script_prints_one_line_without_traceback(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "Traceback" not in proc.stderr
     assert "max_range_m" in proc.stderr and "-5" in proc.stderr
+
+
+def test_worker_counts_below_one_are_refused_and_beyond_the_cpus_capped(caplog, tmp_path, capsys):
+    """Issue 49: --workers 0 and -1 were accepted and ignored; 1000 on 2 cores started 1000 processes."""
+    import logging
+    import os
+
+    from sonar_embree.runs import cli
+
+    assert cli._checked_workers(None) is None and cli._checked_workers(1) == 1
+    cpus = os.cpu_count() or 1
+    with caplog.at_level(logging.WARNING):
+        assert cli._checked_workers(1000) == cpus
+    assert f"--workers 1000 is more than the {cpus} CPUs here; using {cpus}" in caplog.text
+    for bad in ("0", "-1"):
+        assert cli.main(["render", "asset:anchor_mine.toml", "-o", str(tmp_path / "o"), "--workers", bad]) == 2
+        assert f"--workers must be >= 1, got {bad}" in capsys.readouterr().err
+    assert not (tmp_path / "o").exists()
