@@ -15,6 +15,8 @@ import os
 
 from ..errors import ConfigError
 
+log = logging.getLogger(__name__)
+
 #: What each LocalCluster worker process is started with: one Numba thread (the worker runs one task at a time).
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
 #: Set before a LocalCluster's worker processes start, in place of Dask's default: its one-thread BLAS and OpenMP,
@@ -28,6 +30,18 @@ MALLOC_TRIM = "MALLOC_TRIM_THRESHOLD_"
 def default_workers() -> int:
     """Worker processes of a LocalCluster by default: the CPU count, at most 8."""
     return max(1, min(os.cpu_count() or 1, 8))
+
+
+def capped_workers(workers: int | None, what: str) -> int:
+    """The local cluster's worker processes: ``workers`` (default :func:`default_workers`), at most the CPU count,
+    with a one-line warning when capped (1000 processes on 2 cores only thrash, and leak semaphores when killed)."""
+    cpus = os.cpu_count() or 1
+    if workers is None:
+        return default_workers()
+    if workers > cpus:
+        log.warning("%s: workers=%d is more than the %d CPUs here; using %d", what, workers, cpus, cpus)
+        return cpus
+    return int(workers)
 
 
 @contextlib.contextmanager
@@ -55,7 +69,7 @@ def client_for(client=None, scheduler: str | None = None, workers: int | None = 
     with dask.config.set({"distributed.scheduler.http.routes": [] if not dashboard else
                           dask.config.get("distributed.scheduler.http.routes"),
                           "distributed.nanny.pre-spawn-environ": PRE_SPAWN}), _without_env(MALLOC_TRIM):
-        cluster = LocalCluster(n_workers=workers or default_workers(), threads_per_worker=1, processes=True,
+        cluster = LocalCluster(n_workers=capped_workers(workers, what), threads_per_worker=1, processes=True,
                                dashboard_address=dashboard, silence_logs=logging.ERROR, scheduler_kwargs=http,
                                env=dict(WORKER_ENV))
     with cluster, Client(cluster) as own:

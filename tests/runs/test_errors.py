@@ -171,3 +171,8 @@ def test_worker_counts_below_one_are_refused_and_beyond_the_cpus_capped(caplog, 
         assert cli.main(["render", "asset:anchor_mine.toml", "-o", str(tmp_path / "o"), "--workers", bad]) == 2
         assert f"--workers must be >= 1, got {bad}" in capsys.readouterr().err
     assert not (tmp_path / "o").exists()
+    from sonar_embree.survey.cluster import capped_workers
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        assert capped_workers(1000, "batch") == cpus and capped_workers(1, "batch") == 1
+    assert f"batch: workers=1000 is more than the {cpus} CPUs" in caplog.text      # the API's cap too
