@@ -272,7 +272,7 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
 
 
 def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_point, lit_dir, hid_range, hid_extent,
-               hid_object, hid_point, hid_dir, pos, is_seafloor, origin_z, n_s):
+               hid_object, hid_point, hid_dir, pos, outward, is_seafloor, origin_z, n_s):
     """Per sample: the best-scoring lit footprint whose range cell overlaps it, else the first hidden one."""
     rows = el_start.shape[0] - 1
     kind = np.zeros((rows, n_s), np.int8)
@@ -311,7 +311,7 @@ def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_p
                 shadow_of[r, n] = hid_object[j]
                 p = point(hid_point[j], hid_dir[j], o, n * dr, hid_extent[j], hid_range[j])
             height[r, n] = p[2] + origin_z
-            ground[r, n] = np.hypot(p[0] - o[0], p[1] - o[1])
+            ground[r, n] = np.hypot(p[0] - o[0], p[1] - o[1]) * (-1.0 if (p[:2] - o[:2]) @ outward[r] < 0 else 1.0)
     return kind, obj, shadow_of, height, ground
 
 

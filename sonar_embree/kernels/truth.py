@@ -33,16 +33,17 @@ def _along_line(px, py, pz, dx, dy, dz, ox, oy, oz, r_target, half_len):
 
 
 @njit(cache=True, nogil=True)
-def _label_ray(dr, px, py, pz, dx, dy, dz, ox, oy, oz, half_len, origin_z, height_row, ground_row, n):
+def _label_ray(dr, px, py, pz, dx, dy, dz, ox, oy, oz, sx, sy, half_len, origin_z, height_row, ground_row, n):
     t = _along_line(px, py, pz, dx, dy, dz, ox, oy, oz, n * dr, half_len)
     x = px + t * dx - ox
     y = py + t * dy - oy
     height_row[n] = pz + t * dz + origin_z
-    ground_row[n] = math.sqrt(x * x + y * y)
+    g = math.sqrt(x * x + y * y)
+    ground_row[n] = -g if x * sx + y * sy < 0.0 else g        # past nadir, on the other side: negative
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def label_rows(el_start, dr, lit, lit_score, hidden, pos, is_seafloor, origin_z, best, out):
+def label_rows(el_start, dr, lit, lit_score, hidden, pos, outward, is_seafloor, origin_z, best, out):
     """Per-sample ground truth of a block of pings from its centre-line rays.
 
     A sample n (slant range n·dr) belongs to a ray when its range cell
@@ -53,7 +54,9 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, is_seafloor, origin_z,
     does (the first seafloor surface behind a ray's first hit) become kind 3
     (shadow), with the occluding object in ``shadow_of``. The rest stay kind 0
     (water column: no surface at that range). Height and ground range are those
-    of the point at range n·dr on the footprint's line (exact on planar facets).
+    of the point at range n·dr on the footprint's line (exact on planar facets); the ground range is negative
+    where that point lies against the row's ``outward`` direction (a side-scan side hearing the seabed past
+    nadir, on the other side of the track).
 
     Parameters
     ----------
@@ -71,6 +74,9 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, is_seafloor, origin_z,
         object).
     pos : (rows, 3) float64
         Sonar position of each row's ping, local frame, m.
+    outward : (rows, 2) float64
+        Each row's horizontal side direction (a side-scan side's outward unit vector; zeros: no side, never
+        negative).
     is_seafloor : (n_objects,) bool
     origin_z : float
         World z of the local origin, m.
@@ -88,6 +94,8 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, is_seafloor, origin_z,
         ox = pos[r, 0]
         oy = pos[r, 1]
         oz = pos[r, 2]
+        sx = outward[r, 0]
+        sy = outward[r, 1]
         for n in range(n_s):
             best[r, n] = 0.0
             kind[r, n] = 0
@@ -134,5 +142,5 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, is_seafloor, origin_z,
                             continue
                         kind[r, n] = 3
                         shadow_of[r, n] = hid_object[j]
-                    _label_ray(dr, pt[0], pt[1], pt[2], dv[0], dv[1], dv[2], ox, oy, oz, half_len,
+                    _label_ray(dr, pt[0], pt[1], pt[2], dv[0], dv[1], dv[2], ox, oy, oz, sx, sy, half_len,
                                origin_z, height[r], ground[r], n)

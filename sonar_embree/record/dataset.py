@@ -220,7 +220,7 @@ def _label_variables(lab, data, coords, attrs, channels=SIDES, beams: bool = Fal
             "object_id": {"units": "1", "long_name": "index into labels.names of the echoing object, -1 none"},
             "shadow_of": {"units": "1", "long_name": "index into labels.names of the shadow's caster, -1 none"},
             "height_m": {"units": "m", "long_name": "world z of the surface point seen"},
-            "ground_range_m": {"units": "m", "long_name": "horizontal range to the surface point seen"},
+            "ground_range_m": {"units": "m", "long_name": "horizontal range to the surface point seen, negative past nadir on the other side"},
             "echo_object": {"units": "1", "long_name": "index into labels.names of the strongest object echo, -1 none"},
             "echo_intensity": {"units": "1", "long_name": "expected intensity of that object echo, unit source"}}
     dim = "side" if tuple(channels) == tuple(SIDES) else ("beam" if beams else "channel")

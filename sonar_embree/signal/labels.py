@@ -42,7 +42,9 @@ class Labels:
         World z of the surface point at the sample's slant range (for shadow: of the
         hidden seafloor), m; NaN for water.
     ground_range_m : float32
-        Horizontal distance from the sonar to that point, m; NaN for water.
+        Horizontal distance from the sonar to that point, m; NaN for water. Negative where the point lies on the
+        other side of the track (a side-scan side hearing the seabed past nadir: near a DEM's edge, say), so that
+        a sample is placed where its echo truly came from.
     echo_object : int32
         Object (not seafloor) whose expected echo, over every azimuth line of the
         fan, is the strongest at this sample; −1 where no object echoes. This is

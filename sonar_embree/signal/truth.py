@@ -127,8 +127,21 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
     flat = [a.reshape(rows, n_s) for a in out]
     kernels.label_rows(el_start, float(dr_m), Footprints(rng, ext, lit_obj, pts, lit_dir), score,
                        Footprints(hid_r, hid_ext, lit_obj, hid_pt, hid_dir), np.repeat(pos_local, n_ch, axis=0),
-                       np.ascontiguousarray(is_seafloor, dtype=np.bool_), float(origin_z_m), np.empty((rows, n_s)),
-                       LabelOut(*flat))
+                       _outward(rot, sides, lines is None), np.ascontiguousarray(is_seafloor, dtype=np.bool_),
+                       float(origin_z_m), np.empty((rows, n_s)), LabelOut(*flat))
+
+
+def _outward(rot: np.ndarray, sides, side_scan: bool) -> np.ndarray:
+    """(pings × channels, 2): each label row's horizontal outward direction (a side-scan side: the body's
+    starboard axis, negated for port), so that a point past nadir gets a negative ground range; zeros for other
+    sonars (their rows have no side)."""
+    n_p, sides = rot.shape[0], np.asarray(sides)
+    if not side_scan:
+        return np.zeros((n_p * sides.size, 2))
+    axis = rot[:, :2, 1]
+    axis = axis / np.maximum(np.linalg.norm(axis, axis=1), 1e-12)[:, None]
+    sign = np.where(sides == 1, 1.0, -1.0)
+    return np.ascontiguousarray((sign[None, :, None] * axis[:, None, :]).reshape(-1, 2))
 
 
 def _hidden_seafloor(caster: Caster, is_seafloor, origin, u, prim, tfar, max_range_m: float):

@@ -178,15 +178,17 @@ def test_label_rows_matches_its_numpy_twin(rng):
     out = (np.zeros((rows, n_s), np.int8), np.zeros((rows, n_s), np.int32), np.zeros((rows, n_s), np.int32),
            np.zeros((rows, n_s), np.float32), np.zeros((rows, n_s), np.float32))
     pos_rows = np.repeat(pos, 2, axis=0)                                # each row's ping's position
+    outward = np.tile([[0.0, -1.0], [0.0, 1.0]], (rows // 2, 1))      # port, starboard of a ping heading +x
     kernels.label_rows(el_start, dr, Footprints(lr, le, obj, lp, ld), score, Footprints(hr, he, hobj, hp, hd),
-                       pos_rows, floor, 2.5, np.empty((rows, n_s)), LabelOut(*out))
-    want = naive.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos_rows, floor, 2.5,
-                            n_s)
+                       pos_rows, outward, floor, 2.5, np.empty((rows, n_s)), LabelOut(*out))
+    want = naive.label_rows(el_start, dr, lr, le, score, obj, lp, ld, hr, he, hobj, hp, hd, pos_rows, outward, floor,
+                            2.5, n_s)
     for got, ref in zip(out[:3], want[:3]):
         np.testing.assert_array_equal(got, ref)
     for got, ref in zip(out[3:], want[3:]):
         np.testing.assert_allclose(got, ref, rtol=1e-5, atol=1e-4)
     assert np.any(out[0] == 3) and np.any(out[0] == 2) and np.any(out[0] == 1) and np.any(out[0] == 0)
+    assert np.any(out[4] < 0) and np.any(out[4] > 0)                  # points on both sides of the rows' pings
 
 
 def test_a_survey_in_pieces_equals_one_run_with_noise_speckle_and_labels():
@@ -208,3 +210,23 @@ def test_a_survey_in_pieces_equals_one_run_with_noise_speckle_and_labels():
 def test_ping_offset_must_be_a_count():
     with pytest.raises(se.ConfigError, match="ping_offset"):
         se.simulate(flat_scene(), line_along_x(1), ping_offset=-1)
+
+
+def test_an_echo_heard_past_nadir_is_labelled_on_its_true_side():
+    """Issue 49: near a DEM's edge the port channel hears the starboard seabed past nadir; its labels (and the
+    mosaic placed from them) put those echoes on starboard, at a negative ground range, not on a port side where
+    no seabed exists."""
+    from sonar_embree.survey.mosaic import sample_positions
+
+    floor = se.seafloor.flat((60.0, 30.0), center_m=(0.0, -15.5))       # y in [-30.5, -0.5]: starboard only
+    scene = se.Scene().add(floor, label="seafloor", seafloor=True)
+    sonar = se.Sonar(frequency_hz=400e3, length_m=0.19, height_m=0.0038, tilt_deg=20, max_range_m=30)
+    rec = se.simulate(scene, se.Trajectory.line((-1, 0, 10), (1, 0, 10), 3), sonar, se.Pulse.cw(duration_s=100e-6),
+                      labels=True, start_time="2000-01-01")
+    lab = rec.labels
+    port_floor, stbd_floor = lab.kind[0] == 1, lab.kind[1] == 1
+    assert port_floor.any() and rec.port.sum() > 0                       # the port channel does hear it
+    np.testing.assert_array_less(lab.ground_range_m[0][port_floor], -0.49)
+    assert np.all(lab.ground_range_m[1][stbd_floor] > 0.49)
+    x, y = sample_positions(rec)
+    assert np.all(y[0][port_floor] < -0.49) and np.all(y[1][stbd_floor] < -0.49)   # both on starboard (−y)
