@@ -17,7 +17,6 @@ import hashlib
 import json
 import os
 import shutil
-import tempfile
 import uuid
 
 from ..errors import ConfigError
@@ -27,6 +26,18 @@ from .files import LOCK_NAME
 MANIFEST = ".sonar-embree-manifest.json"
 #: The manifest's ``format`` value: a file of that name without it is not ours and is refused.
 FORMAT = "sonar_embree output manifest 1"
+#: The manifest's next version, written whole and then renamed onto :data:`MANIFEST` (a kill between leaves it).
+MANIFEST_NEW = MANIFEST + ".new"
+#: How every manifest this package writes begins (``json.dump(sort_keys=True, indent=1)``): a file named
+#: :data:`MANIFEST_NEW` that begins otherwise is a user's, and is refused, never replaced.
+_HEAD = b'{\n "command": "'
+
+
+def _is_our_new(path: str) -> bool:
+    """Whether ``path`` (a :data:`MANIFEST_NEW`) is one a killed save of ours left: empty, or begun as ours."""
+    with open(path, "rb") as fh:
+        head = fh.read(len(_HEAD))
+    return _HEAD.startswith(head)
 #: An entry written before its content is complete (a streamed line): ours, its digest not yet known.
 IN_PROGRESS = "in progress"
 #: A folder entry that keeps its own manifest (a survey's line): ours while that manifest is.
@@ -134,7 +145,11 @@ class OutputFolder:
         names = list(names)
         refuse_aliases([path] + [os.path.join(path, n) for n in names], [os.fspath(i) for i in inputs if i])
         man = read_manifest(path) if os.path.isdir(path) else None
-        skip = {MANIFEST, LOCK_NAME, *(man or {}).get("pending", ())}
+        new = os.path.join(path, MANIFEST_NEW)
+        if os.path.lexists(new) and not (os.path.isfile(new) and _is_our_new(new)):
+            raise ConfigError(f"{new}: not a sonar-embree manifest; the folder is not a sonar-embree output, so choose "
+                              "another folder")
+        skip = {MANIFEST, MANIFEST_NEW, LOCK_NAME, *(man or {}).get("pending", ())}
         held = sorted(n for n in (os.listdir(path) if os.path.isdir(path) else ()) if n not in skip)
         if held and not (overwrite or (resume and man is not None and man.get("command") == command)):
             hint = "add --overwrite to replace its earlier outputs" if man is not None else "add --overwrite"
@@ -167,20 +182,16 @@ class OutputFolder:
         return dict(self._man["entries"])
 
     def _save(self) -> None:
-        fd, tmp = tempfile.mkstemp(dir=self.path, prefix=MANIFEST + ".", suffix=".tmp")   # O_EXCL: never a user's
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as fh:
-                json.dump(self._man, fh, sort_keys=True, indent=1)
-                fh.flush()
-                umask = os.umask(0)
-                os.umask(umask)
-                os.fchmod(fh.fileno(), 0o666 & ~umask)             # mkstemp makes 0600
-                os.fsync(fh.fileno())
-            os.replace(tmp, os.path.join(self.path, MANIFEST))
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-            raise
+        """The manifest written whole to :data:`MANIFEST_NEW`, fsynced and renamed onto :data:`MANIFEST` (a kill
+        leaves the old or the new one; a left-over :data:`MANIFEST_NEW` is recognised as ours by its head)."""
+        tmp = os.path.join(self.path, MANIFEST_NEW)
+        if os.path.lexists(tmp) and not (os.path.isfile(tmp) and _is_our_new(tmp)):
+            raise ConfigError(f"{tmp}: not a sonar-embree manifest; it would be replaced, so move it away")
+        with open(tmp, "w", encoding="utf-8") as fh:
+            json.dump(self._man, fh, sort_keys=True, indent=1)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, os.path.join(self.path, MANIFEST))
         with contextlib.suppress(OSError):
             fd = os.open(self.path, os.O_RDONLY)
             os.fsync(fd)

@@ -33,13 +33,13 @@ def _along_line(px, py, pz, dx, dy, dz, ox, oy, oz, r_target, half_len):
 
 
 @njit(cache=True, nogil=True)
-def _label_ray(dr, px, py, pz, dx, dy, dz, ox, oy, oz, sx, sy, half_len, origin_z, height_row, ground_row, n):
-    t = _along_line(px, py, pz, dx, dy, dz, ox, oy, oz, n * dr, half_len)
-    x = px + t * dx - ox
-    y = py + t * dy - oy
-    height_row[n] = pz + t * dz + origin_z
+def _label_ray(dr, pt, dv, ox, oy, oz, side, half_len, origin_z, height_row, ground_row, n):
+    t = _along_line(pt[0], pt[1], pt[2], dv[0], dv[1], dv[2], ox, oy, oz, n * dr, half_len)
+    x = pt[0] + t * dv[0] - ox
+    y = pt[1] + t * dv[1] - oy
+    height_row[n] = pt[2] + t * dv[2] + origin_z
     g = math.sqrt(x * x + y * y)
-    ground_row[n] = -g if x * sx + y * sy < 0.0 else g        # past nadir, on the other side: negative
+    ground_row[n] = -g if x * side[0] + y * side[1] < 0.0 else g        # past nadir, on the other side: negative
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -94,8 +94,7 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, outward, is_seafloor, 
         ox = pos[r, 0]
         oy = pos[r, 1]
         oz = pos[r, 2]
-        sx = outward[r, 0]
-        sy = outward[r, 1]
+        side = outward[r]
         for n in range(n_s):
             best[r, n] = 0.0
             kind[r, n] = 0
@@ -142,5 +141,4 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, outward, is_seafloor, 
                             continue
                         kind[r, n] = 3
                         shadow_of[r, n] = hid_object[j]
-                    _label_ray(dr, pt[0], pt[1], pt[2], dv[0], dv[1], dv[2], ox, oy, oz, sx, sy, half_len,
-                               origin_z, height[r], ground[r], n)
+                    _label_ray(dr, pt, dv, ox, oy, oz, side, half_len, origin_z, height[r], ground[r], n)

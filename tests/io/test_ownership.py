@@ -163,3 +163,19 @@ def test_a_failed_run_leaves_no_folder_that_refuses_its_rerun(tmp_path):
         with OutputFolder.claim(tmp_path / "new", ["a.txt"]):
             raise RuntimeError("the simulation failed")
     assert not (tmp_path / "new").exists()
+
+
+def test_a_killed_manifest_save_is_ours_a_users_file_of_its_name_is_not(tmp_path):
+    """A kill between writing the manifest's next version and renaming it leaves MANIFEST.new, which the next run
+    takes as its own (it begins as every manifest does); a user's file of that name is refused, never replaced."""
+    from sonar_embree.io.owner import MANIFEST_NEW
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / MANIFEST_NEW).write_text('{\n "command": "rend')                 # a torn save of ours
+    OutputFolder.claim(tmp_path / "a", ["x.txt"]).write_set([("x.txt", _write("x"))])
+    assert sorted(os.listdir(tmp_path / "a")) == [MANIFEST, "x.txt"]
+    (tmp_path / "b").mkdir()
+    (tmp_path / "b" / MANIFEST_NEW).write_text("my notes")
+    with pytest.raises(ConfigError, match="not a sonar-embree manifest"):
+        OutputFolder.claim(tmp_path / "b", ["x.txt"], overwrite=True)
+    assert (tmp_path / "b" / MANIFEST_NEW).read_text() == "my notes"
