@@ -66,6 +66,38 @@ def to_lonlat(crs, x_m, y_m):
                                                           np.asarray(y_m, dtype=np.float64))
 
 
+#: The step along a heading used to turn it between grid and true north, m (short against the map's curvature).
+HEADING_STEP_M = 1.0
+
+
+def true_heading_deg(crs, x_m, y_m, grid_heading_deg):
+    """Grid headings (clockwise from the projected CRS's grid north, degrees) at world points (x, y) of ``crs``
+    as true headings (clockwise from true north on WGS 84, degrees, [0, 360)): the forward azimuth from each point
+    to a point :data:`HEADING_STEP_M` along it. The difference is the meridian convergence (some 1° at 54° N a
+    zone's half-width from its central meridian, 2.6° at its edge at 60° N); XTF headings are true headings."""
+    import pyproj
+
+    x, y = np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64)
+    h = np.radians(np.asarray(grid_heading_deg, dtype=np.float64))
+    lon0, lat0 = to_lonlat(crs, x, y)
+    lon1, lat1 = to_lonlat(crs, x + HEADING_STEP_M * np.sin(h), y + HEADING_STEP_M * np.cos(h))
+    az = pyproj.Geod(ellps="WGS84").inv(lon0, lat0, lon1, lat1)[0]
+    return np.mod(az, 360.0)
+
+
+def grid_heading_deg(crs, x_m, y_m, true_heading_deg_):
+    """The inverse of :func:`true_heading_deg`: true headings at world points (x, y) of ``crs`` as grid headings
+    (degrees, [0, 360)) — an XTF file's SensorHeading in the frame its positions are projected into."""
+    import pyproj
+
+    x, y = np.asarray(x_m, dtype=np.float64), np.asarray(y_m, dtype=np.float64)
+    lon0, lat0 = to_lonlat(crs, x, y)
+    az = np.broadcast_to(np.asarray(true_heading_deg_, dtype=np.float64), np.shape(lon0))
+    lon1, lat1, _ = pyproj.Geod(ellps="WGS84").fwd(lon0, lat0, az, np.full(np.shape(lon0), HEADING_STEP_M))
+    x1, y1 = from_lonlat(crs, lon1, lat1)
+    return np.mod(np.degrees(np.arctan2(np.asarray(x1) - x, np.asarray(y1) - y)), 360.0)
+
+
 def utm_crs(lon_deg: float, lat_deg: float) -> str:
     """The WGS 84 UTM zone holding a point: "EPSG:326zz" north of the equator, "EPSG:327zz" south (plain 6° zones,
     without the Norway and Svalbard exceptions)."""

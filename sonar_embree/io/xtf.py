@@ -23,9 +23,12 @@ Conventions of what is written:
   pyxtf assume, so ``hstack([port, starboard])`` is the waterfall.
 - Navigation of a trajectory with a CRS (:mod:`sonar_embree.io.geo`) in latitude and longitude (NavUnits 3):
   SensorXcoordinate = longitude, SensorYcoordinate = latitude, WGS 84 degrees as float64; the Ship fields
-  hold the ship's position of a towed sonar (:meth:`~sonar_embree.Trajectory.with_layback`, with Layback the
-  horizontal ship–sensor distance and CableOut the straight cable's length, m), else the sensor's; without a
-  CRS in metres (NavUnits 0): world x (east) and y (north). FixTime is each ping's own time (its pose is its
+  hold the ship's position of a towed sonar (:meth:`~sonar_embree.Trajectory.with_layback`; CableOut the straight
+  cable's length, m), else the sensor's. The Sensor fields hold the towfish where it is, laid back already, so
+  Layback is written 0: readers that lay the sensor back by a non-zero Layback (the X41 specification, Isis,
+  OpenSidescan) would otherwise lay it back twice. Without a CRS, in metres (NavUnits 0): world x (east) and y
+  (north). SensorHeading and ShipGyro are true headings (the grid heading turned by the meridian convergence,
+  :func:`sonar_embree.io.geo.true_heading_deg`) where the positions are latitude/longitude. FixTime is each ping's own time (its pose is its
   nav fix).
   SensorDepth = surface_z_m − z, positive down from the sea surface at world height
   ``surface_z_m`` (default: the sonar's own sea surface, ``environment.surface``); without one the depth of a
@@ -57,6 +60,7 @@ from ..instrument.beam import beamwidth_deg
 from ..errors import ConfigError
 from ..validation import check_bool
 from .files import atomic_write
+from .geo import to_lonlat, true_heading_deg
 from ..validation import iso_utc
 
 _CHAN_INFO = np.dtype([
@@ -330,20 +334,19 @@ def _navigation(h, record, surface_z_m) -> None:
     for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
         x, y = where[:, 0], where[:, 1]
         if geo is not None:
-            from .geo import to_lonlat
-
             x, y = to_lonlat(geo[0], x + geo[1][0], y + geo[1][1])
         h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
         h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
-    if t.ship_positions_m is not None:
-        h["Layback"] = np.hypot(*(ship[:, :2] - t.positions_m[:, :2]).T)
+    if t.ship_positions_m is not None:                 # the sensor is written laid back already: Layback stays 0
         h["CableOut"] = np.clip(np.round(np.linalg.norm(ship - t.positions_m, axis=1)), 0, 65535)
     if t.crs is not None:
         surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
     h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
     h["SensorPrimaryAltitude"] = np.nan_to_num(record.altitude_m, nan=0.0)
-    h["SensorHeading"], h["SensorPitch"], h["SensorRoll"] = t.heading_deg, t.pitch_deg, t.roll_deg
-    h["ShipGyro"] = t.heading_deg
+    heading = t.heading_deg if geo is None else true_heading_deg(
+        geo[0], t.positions_m[:, 0] + geo[1][0], t.positions_m[:, 1] + geo[1][1], t.heading_deg)
+    h["SensorHeading"], h["SensorPitch"], h["SensorRoll"] = heading, t.pitch_deg, t.roll_deg
+    h["ShipGyro"] = heading
 
 
 def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:

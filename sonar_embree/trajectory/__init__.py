@@ -437,24 +437,25 @@ class Trajectory:
         """The poses of an XTF file's sonar pings (pyxtf reads it; :func:`sonar_embree.io.xtf.read_navigation`).
 
         Latitude/longitude navigation (NavUnits 3) is projected into ``crs`` (default: the UTM zone of the first
-        ping); metres are taken as world x and y (in ``crs`` when given). z = −SensorDepth (depth below the sea
+        ping), its true headings turned into grid headings there (:func:`sonar_embree.io.geo.grid_heading_deg`); metres are taken as world x and y (in ``crs`` when given). z = −SensorDepth (depth below the sea
         surface at z = 0), attitude from the Sensor fields, ``times_s`` from the first ping's time, which becomes
         ``start_time``. The velocity is not read (stop-and-hop unless set from the times, as for CSV). ``keep``
         ((pings,) bool) takes only those pings, before the projection (pings without a fix left out).
         """
-        from ..io.geo import from_lonlat, utm_crs
+        from ..io.geo import from_lonlat, grid_heading_deg, utm_crs
         from ..io.xtf import NAV_UNITS_LATLON, read_navigation
 
         nav = read_navigation(path)
         if keep is not None:
             nav = {k: (np.asarray(v)[keep] if k != "nav_units" else v) for k, v in nav.items()}
-        x, y = nav["x"], nav["y"]
+        x, y, heading = nav["x"], nav["y"], nav["heading_deg"] % 360.0
         try:
             if nav["nav_units"] == NAV_UNITS_LATLON:
                 crs = crs if crs is not None else utm_crs(float(x[0]), float(y[0]))
                 x, y = from_lonlat(crs, x, y)
+                heading = grid_heading_deg(crs, x, y, heading)          # XTF headings are true headings
             t = np.array([(w - nav["times"][0]).total_seconds() for w in nav["times"]])
-            return cls(np.stack([x, y, -nav["depth_m"]], axis=1), nav["heading_deg"] % 360.0, nav["pitch_deg"],
+            return cls(np.stack([x, y, -nav["depth_m"]], axis=1), heading, nav["pitch_deg"],
                        nav["roll_deg"], t, None, crs, nav["times"][0].isoformat())
         except ConfigError as exc:
             raise ConfigError(f"{os.fspath(path)}: {exc}") from None

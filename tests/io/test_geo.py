@@ -79,7 +79,9 @@ def test_xtf_navigation_written_by_pyxtf_projects_as_pyproj_does(tmp_path):
     assert traj.crs == UTM32N and traj.start_time == "2026-05-01T12:00:00.250000+00:00"
     np.testing.assert_allclose(traj.positions_m, np.column_stack([x, y, np.full(6, -21.0)]), atol=0.01, rtol=0)
     np.testing.assert_allclose(traj.times_s, np.arange(6.0))
-    np.testing.assert_allclose([traj.heading_deg[0], traj.pitch_deg[0], traj.roll_deg[0]], [33.0, 1.5, -2.0])
+    gamma = pyproj.Proj(UTM32N).get_factors(lon[0], lat[0]).meridian_convergence   # true north to grid north
+    np.testing.assert_allclose([traj.heading_deg[0], traj.pitch_deg[0], traj.roll_deg[0]], [33.0 - gamma, 1.5, -2.0],
+                               atol=1e-4)                            # the file's true heading, in the grid
     with pytest.raises(se.ConfigError, match="no sonar pings"):
         empty = tmp_path / "empty.xtf"
         empty.write_bytes(bytes(__import__("pyxtf").XTFFileHeader()))

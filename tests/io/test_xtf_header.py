@@ -75,7 +75,7 @@ def test_ping_and_channel_headers_as_the_spec_defines_them(lines):
     _, _, pings, _ = lines["floats"]                  # "SensorDepth: towfish depth (m)" below its sea surface
     assert pings[0].SensorDepth == pytest.approx(10.0)
     rec, _, pings, _ = lines["towed"]                  # "Layback: distance from ship to sensor (m)", "CableOut (m)"
-    np.testing.assert_allclose([p.Layback for p in pings], math.sqrt(15.0 ** 2 - 12.0 ** 2), rtol=1e-6)
+    assert {p.Layback for p in pings} == {0.0}         # the Sensor fields are laid back already (issue 50)
     assert {p.CableOut for p in pings} == {15}
 
 
