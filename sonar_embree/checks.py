@@ -215,6 +215,21 @@ def check_ping_spacing(sonar, positions_m: np.ndarray) -> float | None:
     return foot
 
 
+def check_ping_interval(sonar, times_s, n_pings: int) -> None:
+    """Warn when pings come faster than the echoes of the range window return, 2·R_max/c: a real sonar's echoes
+    of one ping would arrive after the next (the demo pinged every 50 ms with 53 ms of listening at 40 m). The
+    interval judged is the median between consecutive pings; runs of fewer than :data:`MIN_IMAGE_PINGS` pings, and
+    pings at one instant (stop and hop without times), are not."""
+    if times_s is None or n_pings < MIN_IMAGE_PINGS:
+        return
+    listen = 2.0 * sonar.max_range_m / sonar.sound_speed_m_s
+    step = float(np.median(np.diff(np.asarray(times_s, dtype=np.float64))))
+    if 0.0 < step < listen * (1.0 - 1e-9):
+        log.warning("pings are %.4g s apart, less than the %.4g s the echoes of %.4g m take to return (2R/c): a "
+                    "sonar would hear one ping's echoes after the next; ping at most %.4g times a second or shorten "
+                    "the range", step, listen, sonar.max_range_m, 1.0 / listen)
+
+
 def check_side_scan_only(sonar, feature: str) -> None:
     """Refuse ``feature`` (clutter, volume reverberation, …) for a sonar type other than the side-scan ``Sonar``."""
     if type(sonar).__name__ != "Sonar":

@@ -312,6 +312,7 @@ class _Run:
         pos_local = trajectory.positions_m - compiled.origin_m
         checks.check_setup(caster, sonar, pos_local, max_r + c * pulse.duration_s / 2.0)
         checks.check_ping_spacing(sonar, pos_local)
+        checks.check_ping_interval(sonar, trajectory.times_s, len(trajectory))
         checks.check_receiver_band(sonar, pulse)
         checks.check_surface(compiled, sonar, pos_local)
         if sonar.environment.surface is not None:

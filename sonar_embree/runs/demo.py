@@ -50,9 +50,14 @@ def anchor_mine_scene(seed: int = 0) -> Scene:
     return scene
 
 
+#: The demo's speed, m/s: slow enough that its pings are 2R/c apart at least (R = 40 m).
+DEMO_SPEED_M_S = 1.5
+
+
 def anchor_mine_setup(n_pings: int = 240):
-    """Scene, straight trajectory at 10 m altitude, default sonar and 100 µs CW pulse."""
-    traj = Trajectory.line(start=(-12.0, 0.0, 10.0), end=(12.0, 0.0, 10.0), n_pings=n_pings)
+    """Scene, straight trajectory at 10 m altitude and 1.5 m/s (3 knots: 240 pings 67 ms apart, more than the
+    53 ms the echoes of 40 m take), default sonar and 100 µs CW pulse."""
+    traj = Trajectory.line(start=(-12.0, 0.0, 10.0), end=(12.0, 0.0, 10.0), n_pings=n_pings, speed_m_s=DEMO_SPEED_M_S)
     return anchor_mine_scene(), traj, Sonar(max_range_m=40.0), Pulse.cw(duration_s=100e-6, taper=0.1)
 
 

@@ -156,6 +156,11 @@ def _device(name: str, range_m, ping_rate_hz):
     rng = float(d.ranges_m[0] if range_m is None else range_m)
     sonar = Sonar.preset(name, max_range_m=rng, receiver=d.receiver())
     rate = d.ping_rate_hz(rng, sonar.sound_speed_m_s) if ping_rate_hz is None else float(ping_rate_hz)
+    limit = sonar.sound_speed_m_s / (2.0 * rng)
+    if rate > limit * (1.0 + 1e-9):
+        log.warning("survey: %.4g pings a second is faster than the %.4g at which the echoes of %.4g m return "
+                    "(c/2R); pinging at %.4g", rate, limit, rng, limit)
+        rate = limit
     return sonar, Pulse.preset(name), rate
 
 

@@ -129,3 +129,25 @@ def test_a_survey_killed_at_any_point_resumes_with_the_same_command(tmp_path, ma
         assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "clean" / name).read_bytes(), name
     assert not [n for n in os.listdir(tmp_path / "out") if n.startswith(".sonar-embree-") and n != MANIFEST]
 
+
+
+def test_a_ping_rate_beyond_the_listening_time_is_lowered_with_a_notice(caplog):
+    """Issue 50, item 7: a survey's pings never come faster than c/2R; simulate warns of a trajectory whose do,
+    and the demo's own pings are 2R/c apart at least."""
+    from sonar_embree.runs.demo import anchor_mine_setup
+    from sonar_embree.runs.survey import _device
+
+    with caplog.at_level(logging.WARNING):
+        sonar, _, rate = _device("cmax-cm2-325", 25.0, 100.0)
+    assert rate == pytest.approx(sonar.sound_speed_m_s / 50.0) and "pinging at" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING):
+        assert _device("cmax-cm2-325", 25.0, 10.0)[2] == 10.0
+    assert "pinging at" not in caplog.text
+    scene, traj, sonar, pulse = anchor_mine_setup()
+    assert np.min(np.diff(traj.times_s)) >= 2 * sonar.max_range_m / sonar.sound_speed_m_s
+    import sonar_embree as se
+    fast = se.Trajectory.line((-12.0, 0.0, 10.0), (12.0, 0.0, 10.0), 240)              # 50 ms apart at 40 m
+    with caplog.at_level(logging.WARNING):
+        se.simulate(se.Scene().add(se.seafloor.flat((60.0, 60.0))), fast[:40], sonar, pulse)
+    assert "less than the 0.05333 s the echoes of 40 m take to return" in caplog.text
