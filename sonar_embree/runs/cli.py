@@ -222,12 +222,18 @@ def _add_survey_parser(sub) -> None:
     s.add_argument("--dem", metavar="DEM.tif", help="GeoTIFF DEM, projected CRS in metres, z = 0 the sea surface; "
                                                    "or a mesh file (OBJ/PLY/STL/GLB, projected metres) with --crs")
     s.add_argument("--nav", action="append", metavar="LOG",
-                   help="navigation log of one line (.csv: time, lat_deg/lon_deg or x_m/y_m, depth_m or z_m, "
+                   help="navigation log of one line (.csv: time, lat_deg/lon_deg (or latitude/longitude, lat/lon) or "
+                        "x_m/y_m, depth_m or z_m (or --depth-m/--altitude-m), "
                         "optional heading_deg; .xtf); repeat for more lines")
     s.add_argument("--crs", metavar="EPSG", help="with a mesh --dem: its projected CRS (e.g. 32631)")
     s.add_argument("--plan", metavar="POLYGON.csv", help="instead of --nav: a polygon (x_m, y_m in the DEM's CRS, or "
                                                          "lat_deg, lon_deg) covered by planned parallel lines")
-    s.add_argument("--depth", type=float, metavar="M", help="with --plan: the sonar's depth below the surface, m")
+    height = s.add_mutually_exclusive_group()
+    height.add_argument("--depth-m", "--depth", type=float, metavar="M", dest="depth",
+                        help="the sonar's depth below the surface, m: a planned survey's, or a log's without a depth "
+                             "column (a ship's GPS log: time, lat, lon)")
+    height.add_argument("--altitude-m", type=float, metavar="M", dest="altitude",
+                        help="a log without a depth column flown this high above the DEM, m (as towfish are flown)")
     s.add_argument("--speed", type=float, metavar="M_S", help="with --plan: survey speed, m/s (default 2)")
     s.add_argument("--overlap", type=float, help="with --plan: swath overlap between lines (default 0.2)")
     s.add_argument("--device", metavar="PRESET", help="device preset, e.g. edgetech-4125-400 "
@@ -260,7 +266,8 @@ def _survey(args) -> list:
     kw = load_survey_config(args.config) if args.config else {}
     flags = dict(dem=args.dem, navs=args.nav, device=args.device, range_m=args.range_m, ping_rate_hz=args.ping_rate,
                  layback_m=args.layback, cable_out_m=args.cable_out, pixel_m=args.pixel, quality=args.quality,
-                 speckle=args.speckle, plan=args.plan, depth_m=args.depth, speed_m_s=args.speed, overlap=args.overlap,
+                 speckle=args.speckle, plan=args.plan, depth_m=args.depth, altitude_m=args.altitude,
+                 speed_m_s=args.speed, overlap=args.overlap,
                  crs=args.crs)
     kw.update({k: v for k, v in flags.items() if v is not None})
     for key, flag in (("dem", "--dem"), ("device", "--device")):

@@ -26,8 +26,8 @@ from ..io.geotiff import sample_points
 from ..scene import Scene, TiledDEM, load_mesh
 from ..survey import mosaic, stream
 from ..survey.planning import line_trajectories, plan_lines
-from ..trajectory import Trajectory
-from ..validation import read_numeric_csv
+from ..trajectory import Trajectory, csv_header
+from ..validation import check_number, read_numeric_csv
 from .runconfig import _check_keys, _resolve, read_toml
 
 log = logging.getLogger(__name__)
@@ -40,7 +40,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
                layback_m: float | None = None, cable_out_m: float | None = None, pixel_m: float = 0.5,
                quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True,
                plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2,
-               crs=None, workers: int | None = None, scheduler: str | None = None) -> list:
+               crs=None, workers: int | None = None, scheduler: str | None = None,
+               altitude_m: float | None = None) -> list:
     """Run the survey; returns the files written (the summary last).
 
     Parameters
@@ -70,6 +71,10 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         Instead of logs: a polygon CSV (columns x_m, y_m in the DEM's CRS, or lat_deg, lon_deg) covered by
         parallel lines (:func:`~sonar_embree.survey.planning.plan_lines`, ``overlap`` of the swaths) flown at
         ``speed_m_s`` with the sonar ``depth_m`` below the surface.
+    depth_m, altitude_m : float, optional
+        For logs without a height column (a ship's GPS: time, lat, lon): the sonar at a constant ``depth_m`` below
+        the surface, or flown at a constant ``altitude_m`` above the DEM (as towfish are flown; NaN holes bridged
+        along the track). ``depth_m`` is also the planned survey's depth.
     crs : int or str, optional
         The CRS of a mesh ``dem`` (an EPSG code or a CRS string); needed for latitude/longitude logs.
     workers, scheduler : optional
@@ -85,10 +90,15 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     tiles = _seabed(dem, crs)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
     samples = devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
+    if depth_m is not None and altitude_m is not None:
+        raise ConfigError("survey: give the sonar's depth (--depth-m) or its altitude (--altitude-m), not both")
+    depth = 0.0 if altitude_m is not None else depth_m                 # a placeholder, replaced by the altitude's
     if plan is not None:
-        sources = _planned(plan, tiles.crs, sonar.max_range_m, overlap, depth_m, speed_m_s, rate)
+        sources = _planned(plan, tiles.crs, sonar.max_range_m, overlap, depth, speed_m_s, rate)
     else:
-        sources = [(nav, _line(nav, tiles.crs, rate)) for nav in navs]
+        sources = [(nav, _line(nav, tiles.crs, rate, depth)) for nav in navs]
+    if altitude_m is not None:
+        sources = [(nav, at_altitude(tiles, traj, altitude_m, nav)) for nav, traj in sources]
     for nav, traj in sources:
         _warn_holes(tiles, traj, nav)
     names = [f"line_{k:02d}" for k in range(len(sources))]
@@ -99,7 +109,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
             summary={"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
                      "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits,
                      "dem": os.path.abspath(os.fspath(dem)), "crs": tiles.crs},
-            tow=(layback_m, cable_out_m))
+            tow=(layback_m, cable_out_m, altitude_m))
 
 
 def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pixel_m, kw, summary, tow) -> list:
@@ -108,6 +118,8 @@ def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pix
     for name, (nav, traj) in zip(names, sources):
         if tow[0] is not None or tow[1] is not None:
             traj = traj.with_layback(tow[0], cable_out_m=tow[1])
+            if tow[2] is not None:                                 # the fish, not the ship, flies at the altitude
+                traj = at_altitude(tiles, traj, tow[2], nav)
         files = _render_line(top, name, tiles, traj, sonar, pulse, samples, overwrite, kw)
         written += list(files.values())
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj),
@@ -164,8 +176,9 @@ def _device(name: str, range_m, ping_rate_hz):
     return sonar, Pulse.preset(name), rate
 
 
-def _line(nav: str, crs, rate: float):
-    """The line of one navigation log: in the DEM's CRS, resampled at ``rate``."""
+def _line(nav: str, crs, rate: float, depth_m=None):
+    """The line of one navigation log: in the DEM's CRS (a log without heights at ``depth_m``), resampled at
+    ``rate``."""
     if not os.path.isfile(nav):
         raise ConfigError(f"{nav}: no such navigation log")
     ext = os.path.splitext(nav)[1].lower()
@@ -173,13 +186,39 @@ def _line(nav: str, crs, rate: float):
         raise ConfigError(f"{nav}: a navigation log is .csv or .xtf, got {ext or 'no extension'!r}")
     if ext == ".csv":
         _check_csv_times(nav)
-    traj = Trajectory.from_csv(nav, crs=crs) if ext == ".csv" else Trajectory.from_xtf(nav, crs=crs)
+    if ext == ".csv":
+        traj = Trajectory.from_csv(nav, crs=crs, depth_m=depth_m)
+    elif depth_m is not None:
+        raise ConfigError(f"{nav}: an XTF log carries its own depths; give --depth-m or --altitude-m with CSV logs")
+    else:
+        traj = Trajectory.from_xtf(nav, crs=crs)
     if len(traj) < 2:
         raise ConfigError(f"{nav}: a navigation log needs two fixes at least, got {len(traj)}; a line runs between "
                           "them")
     if not float(traj.times_s[-1] - traj.times_s[0]) > 0.0:
         raise ConfigError(f"{nav}: every fix has the same time; a line needs time between its fixes")
     return traj.resampled(rate)
+
+
+def at_altitude(tiles, traj, altitude_m: float, nav) -> Trajectory:
+    """``traj`` flown ``altitude_m`` above the seabed under each ping (the DEM sampled there; pings over holes or
+    off the DEM take the heights of their neighbours along the track)."""
+    import dataclasses
+
+    check_number("survey", "altitude_m", altitude_m, positive=True, hi=1e4)
+    pos = traj.positions_m.copy()
+    if isinstance(tiles, TiledDEM):
+        z = sample_points(tiles.info, pos[:, 0], pos[:, 1], tiles.band)
+        if tiles.nodata is not None:
+            z[z == tiles.nodata] = np.nan
+    else:
+        z = mosaic.heights_at(tiles, pos[:, 0], pos[:, 1])
+    good = np.isfinite(z)
+    if not good.any():
+        raise ConfigError(f"{nav}: no ping of the line lies over the seabed, so it cannot fly at --altitude-m")
+    k = np.arange(z.size)
+    pos[:, 2] = np.interp(k, k[good], z[good]) + float(altitude_m)
+    return dataclasses.replace(traj, positions_m=pos)
 
 
 def _warn_holes(tiles, traj, nav) -> None:
@@ -201,8 +240,7 @@ def _warn_holes(tiles, traj, nav) -> None:
 def _check_csv_times(nav: str) -> None:
     """A survey places its pings at the device's rate along the log's times: a log without a time column would be
     taken as fixes 1 s apart, so it is refused."""
-    with open(nav, encoding="utf-8", errors="replace") as fh:
-        header = [c.strip().lower() for c in fh.readline().split(",")]
+    header = csv_header(nav)
     if "time" not in header and "time_s" not in header:
         raise ConfigError(f"{nav}: a survey's navigation log needs a time column (time: ISO 8601, or time_s: "
                           f"seconds); found {', '.join(header)}")
@@ -240,7 +278,7 @@ def _write_json(obj, path) -> None:
 
 #: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).
 SURVEY_KEYS = ("dem", "nav", "device", "range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality",
-               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs")
+               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs", "altitude_m")
 
 
 def load_survey_config(path) -> dict:
@@ -264,7 +302,8 @@ def load_survey_config(path) -> dict:
     for key, value in named + ([("plan", table["plan"])] if "plan" in table else []):
         if not isinstance(value, str):
             raise ConfigError(f"{source}: [survey] {key} must be a string, got {value!r}")
-    for key in ("range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality", "depth_m", "speed_m_s",
+    for key in ("range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality", "depth_m", "altitude_m",
+                "speed_m_s",
                 "overlap"):
         v = table.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):

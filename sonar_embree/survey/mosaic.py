@@ -341,13 +341,19 @@ def truth(scene, grid: Mosaic, caster=None) -> np.ndarray:
 
 def _truth_of(scene, cx, cy, caster=None) -> np.ndarray:
     xx, yy = np.meshgrid(cx, cy)
+    return heights_at(scene, xx.ravel(), yy.ravel(), caster).reshape(xx.shape)
+
+
+def heights_at(scene, x_m, y_m, caster=None) -> np.ndarray:
+    """(n,) the scene's height under the points (x, y), m (NaN where nothing is below): the first hit of a vertical
+    ray cast down from above the scene."""
     compiled = scene.compiled()
     top = float(scene.bounds[1, 2]) + 1.0
     depth = top - float(scene.bounds[0, 2]) + 1.0
-    origins = np.column_stack([xx.ravel(), yy.ravel(), np.full(xx.size, top)]) - compiled.origin_m
+    x, y = np.ravel(np.asarray(x_m, dtype=float)), np.ravel(np.asarray(y_m, dtype=float))
+    origins = np.column_stack([x, y, np.full(x.size, top)]) - compiled.origin_m
     hits = (caster or RayCaster)(compiled).cast(origins, np.broadcast_to([0.0, 0.0, -1.0], origins.shape), depth)
-    z = np.where(hits.tri >= 0, top - hits.range_m, np.nan)
-    return z.reshape(xx.shape)
+    return np.where(hits.tri >= 0, top - hits.range_m, np.nan)
 
 
 def write_truth(path, scene, grid: Mosaic) -> np.ndarray:

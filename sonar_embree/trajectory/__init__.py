@@ -32,6 +32,13 @@ VELOCITY_COLUMNS = ("vx_m_s", "vy_m_s", "vz_m_s")
 CSV_COLUMNS = ("time_s", "x_m", "y_m", "z_m", "heading_deg", "pitch_deg", "roll_deg") + VELOCITY_COLUMNS
 #: Columns of a navigation log in geographic coordinates and real time (:meth:`Trajectory.from_csv`).
 GEO_CSV_COLUMNS = ("time", "lat_deg", "lon_deg", "depth_m")
+#: Other names navigation logs give their columns (lower case, as read), and the column each stands for.
+CSV_ALIASES = {"latitude": "lat_deg", "lat": "lat_deg", "latitude_deg": "lat_deg",
+               "longitude": "lon_deg", "lon": "lon_deg", "long": "lon_deg", "lng": "lon_deg", "longitude_deg": "lon_deg",
+               "depth": "depth_m", "heading": "heading_deg", "hdg": "heading_deg", "pitch": "pitch_deg",
+               "roll": "roll_deg", "timestamp": "time", "datetime": "time", "utc": "time", "date_time": "time",
+               "easting": "x_m", "northing": "y_m", "x": "x_m", "y": "y_m", "z": "z_m", "t": "time_s",
+               "seconds": "time_s"}
 #: Speed (m/s) above which a CSV trajectory's time stamps look like a unit slip: towfish and AUVs fly below 5 m/s.
 IMPLAUSIBLE_SPEED_M_S = 30.0
 #: Mean speed over ground (m/s) below which a moving log's time stamps look like a unit slip the other way
@@ -399,7 +406,7 @@ class Trajectory:
         return np.einsum("ij,ij->i", self.velocity_m_s, rot[:, :, 0])
 
     @classmethod
-    def from_csv(cls, path, crs=None) -> "Trajectory":
+    def from_csv(cls, path, crs=None, depth_m: float | None = None) -> "Trajectory":
         """Read a trajectory from CSV with a header row.
 
         Columns (any order): the position as ``x_m, y_m`` (world metres, in ``crs`` when given) or as
@@ -409,7 +416,10 @@ class Trajectory:
         :func:`~sonar_embree.trajectory.motion.track_heading_deg`, with a one-line notice), ``pitch_deg``, ``roll_deg``
         (default 0); the ping times as
         ``time_s`` (s) or ``time`` (ISO 8601, e.g. 2026-05-01T12:00:00.25Z: ``times_s`` from the first, which
-        becomes ``start_time``); the velocity ``vx_m_s, vy_m_s, vz_m_s`` (all three or none). Without velocity
+        becomes ``start_time``); the velocity ``vx_m_s, vy_m_s, vz_m_s`` (all three or none). Common other names
+        are taken too (:data:`CSV_ALIASES`: ``latitude``, ``lon``, ``depth``, ``heading``, ``timestamp``, …, any
+        case). A log without a height column (a ship's GPS) takes ``depth_m``, a constant depth below z = 0 (m).
+        Without velocity
         columns but with times, the velocity is the positions' time derivative (second-order differences,
         ends included), so the sonar moves during each ping (docs/physics.md §16); without times it stops for
         each ping. A speed above :data:`IMPLAUSIBLE_SPEED_M_S`, or a mean below :data:`SLOW_SPEED_M_S`, is warned
@@ -417,6 +427,11 @@ class Trajectory:
         """
         path = os.fspath(path)
         header, rows = _csv_rows(path)
+        if depth_m is not None:
+            check_number("Trajectory.from_csv", "depth_m", depth_m)
+            if "z_m" in header or "depth_m" in header:
+                raise ConfigError(f"{path}: the log has a height column; give depth_m only for a log without one")
+            header, rows = header + ["depth_m"], [r + [repr(float(depth_m))] for r in rows]
         col = _csv_columns(path, header, rows)
         try:
             xyz, crs = _csv_position(col, crs)
@@ -503,7 +518,24 @@ def _csv_rows(path: str):
     rows = [r for r in rows if r and any(c.strip() for c in r)]
     if not rows:
         raise ConfigError(f"{path}: empty trajectory CSV")
-    return [c.strip() for c in rows[0]], rows[1:]
+    return _canonical_header(path, [c.strip() for c in rows[0]]), rows[1:]
+
+
+def csv_header(path) -> list:
+    """The column names of a trajectory CSV as :meth:`Trajectory.from_csv` reads them (aliases resolved)."""
+    return _csv_rows(os.fspath(path))[0]
+
+
+def _canonical_header(path: str, header: list) -> list:
+    """The header with known column names as they are and common other names (:data:`CSV_ALIASES`, any case) as
+    the columns they stand for; two columns standing for one is a one-line error."""
+    known = CSV_COLUMNS + GEO_CSV_COLUMNS
+    out = [c if c in known else CSV_ALIASES.get(c.lower(), c.lower() if c.lower() in known else c) for c in header]
+    for name in set(out):
+        if out.count(name) > 1:
+            both = [h for h, o in zip(header, out) if o == name]
+            raise ConfigError(f"{path}: columns {both[0]!r} and {both[1]!r} both give {name!r}; keep one")
+    return out
 
 
 def _csv_columns(path: str, header, rows) -> dict:
@@ -517,7 +549,9 @@ def _csv_columns(path: str, header, rows) -> dict:
             raise ConfigError(f"{path}: give {pair[0]!r} or {pair[1]!r}, not both")
     for req in (("x_m", "lat_deg"), ("y_m", "lon_deg"), ("z_m", "depth_m")):
         if not any(c in header for c in req):
-            raise ConfigError(f"{path}: trajectory CSV lacks column {req[0]!r} (or {req[1]!r})")
+            hint = ("; a ship's log without one takes a depth (survey: --depth-m D or --altitude-m H)"
+                    if req[0] == "z_m" else "")
+            raise ConfigError(f"{path}: trajectory CSV lacks column {req[0]!r} (or {req[1]!r}){hint}")
     if not rows:
         raise ConfigError(f"{path}: trajectory needs at least one pose, got 0")
     if any(len(r) != len(header) for r in rows):

@@ -151,3 +151,50 @@ def test_a_ping_rate_beyond_the_listening_time_is_lowered_with_a_notice(caplog):
     with caplog.at_level(logging.WARNING):
         se.simulate(se.Scene().add(se.seafloor.flat((60.0, 60.0))), fast[:40], sonar, pulse)
     assert "less than the 0.05333 s the echoes of 40 m take to return" in caplog.text
+
+
+def _gps_log(path, names=("time", "latitude", "longitude"), seconds=4):
+    """A ship's GPS log: time, lat, lon only (common column names), 1 Hz, east at 2 m/s."""
+    lon, lat = pyproj.Transformer.from_crs(CRS, "EPSG:4326", always_xy=True).transform(
+        E0 - 3 + 2.0 * np.arange(seconds + 1), np.full(seconds + 1, N0))
+    t0 = dt.datetime(2026, 5, 1, 12, 0, 0, tzinfo=dt.timezone.utc)
+    rows = [f"{(t0 + dt.timedelta(seconds=k)).isoformat()},{float(a)!r},{float(o)!r}" for k, (a, o) in
+            enumerate(zip(lat, lon))]
+    path.write_text(",".join(names) + "\n" + "\n".join(rows) + "\n")
+
+
+def test_a_ships_gps_log_flies_at_a_depth_or_an_altitude(tmp_path, capsys):
+    """Issue 50, item 3: a log of time, latitude, longitude (what a surveyor has) runs with --depth-m D (the sonar
+    D below the surface) or --altitude-m H (H above the DEM, 12 m deep here); without either, one line says how."""
+    import xarray as xr
+
+    _dem(tmp_path / "dem.tif")
+    _gps_log(tmp_path / "gps.csv")
+    base = ["survey", "--dem", str(tmp_path / "dem.tif"), "--nav", str(tmp_path / "gps.csv"), "--device",
+            "cmax-cm2-325", "--ping-rate", "2", "--pixel", "1", "--no-progress"]
+    assert main(base + ["-o", str(tmp_path / "none")]) == 2
+    assert "--depth-m D or --altitude-m H" in capsys.readouterr().err
+    assert main(base + ["--depth-m", "4", "-o", str(tmp_path / "deep")]) == 0
+    assert main(base + ["--altitude-m", "3", "-o", str(tmp_path / "alt")]) == 0
+    deep = xr.open_zarr(tmp_path / "deep" / "line_00" / "line.zarr")
+    alt = xr.open_zarr(tmp_path / "alt" / "line_00" / "line.zarr")
+    np.testing.assert_allclose(deep["z_m"].values, -4.0)
+    np.testing.assert_allclose(alt["z_m"].values, -12.0 + 3.0)
+    np.testing.assert_allclose(alt["altitude_m"].values, 3.0, atol=0.01)
+    with pytest.raises(SystemExit):                                    # argparse: not allowed together
+        main(base + ["--depth-m", "4", "--altitude-m", "3", "-o", str(tmp_path / "both")])
+    with pytest.raises(ConfigError, match="not both"):
+        run_survey(tmp_path / "dem.tif", [tmp_path / "gps.csv"], tmp_path / "both", "cmax-cm2-325", depth_m=4.0,
+                   altitude_m=3.0, progress=False)
+
+
+def test_common_column_names_are_taken_and_a_clash_is_named(tmp_path):
+    from sonar_embree.trajectory import Trajectory
+
+    _gps_log(tmp_path / "a.csv", names=("Timestamp", "Lat", "Lon"))
+    traj = Trajectory.from_csv(tmp_path / "a.csv", crs=CRS, depth_m=5.0)
+    assert len(traj) == 5 and np.allclose(traj.positions_m[:, 2], -5.0)
+    np.testing.assert_allclose(traj.positions_m[:, 0] - E0, -3 + 2.0 * np.arange(5), atol=0.01)
+    (tmp_path / "b.csv").write_text("time_s,lat,latitude,lon,depth_m\n0,54,54,3,5\n")
+    with pytest.raises(ConfigError, match="columns 'lat' and 'latitude' both give 'lat_deg'"):
+        Trajectory.from_csv(tmp_path / "b.csv")
