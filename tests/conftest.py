@@ -39,6 +39,7 @@ SLOW = frozenset({
     "test_survey_cli.py::test_a_survey_from_a_dem_and_a_nav_log_runs_from_the_cli",
     "test_survey_cli.py::test_a_planned_survey_covers_a_polygon",
     "test_survey_guards.py::test_a_survey_killed_at_any_point_resumes_with_the_same_command",
+    "test_device_records.py::test_every_presets_survey_has_a_dark_water_column",
     "test_hostile_folders.py::test_a_users_file_at_any_output_name_survives_overwrite",
     "test_hostile_folders.py::test_dot_prefixed_user_files_are_never_touched",
     "test_hostile_folders.py::test_the_input_as_an_output_is_refused",

@@ -22,6 +22,13 @@ from .beam import sinc_root
 from .receiver import Receiver
 
 
+#: A device's time-varied gain, assumed (no datasheet found states one): 30·log10 R + 2αR, the law that levels a
+#: pulse-limited seabed patch's echo (two-way spherical spreading, 40·log10 R, less the patch's growth along
+#: track, 10·log10 R; docs/physics.md, "A device's record"), with ``g0_db`` its gain at 1 m (dB; an operator's
+#: setting, calibrated per line by the survey command).
+DEVICE_TVG = dict(k=30, absorption=True, g0_db=20.0)
+
+
 @dataclass(frozen=True)
 class Device:
     """One side-scan sonar's datasheet values.
@@ -81,12 +88,25 @@ class Device:
     note: str = ""
     adc_bits: int = 16
 
-    def receiver(self):
+    def receiver(self, gain: str = "tvg", *, g0_db: float = DEVICE_TVG["g0_db"], start_range_m: float = 0.0,
+                 max_gain_db: float | None = None):
         """The device's receive chain (:class:`~sonar_embree.Receiver`) for a record of codes as it stores them:
         its ADC's bits (:attr:`adc_bits`), and what no datasheet found states, assumed (:data:`ASSUMED_RECEIVER`):
-        an AGC bringing the moving RMS to a quarter of full scale, a −190 dB re 1 V/µPa hydrophone, 1 V full
-        scale. ``Sonar.preset(name, receiver=device(name).receiver())``."""
-        return Receiver(adc_bits=self.adc_bits, **ASSUMED_RECEIVER)
+        a −190 dB re 1 V/µPa hydrophone and 1 V full scale.
+
+        ``gain="tvg"`` (default): what side-scan devices record, a time-varied gain G(R) = ``g0_db`` + 30·log10 R +
+        2αR (:data:`DEVICE_TVG`) from ``start_range_m`` (near the first bottom return) up to ``max_gain_db``, so
+        the water column before the first return stays dark; its level ``g0_db`` is an operator's setting (the
+        survey command sets it per line so that the median seabed sits at a quarter of full scale,
+        :func:`sonar_embree.runs.survey.line_receiver`). ``gain="agc"``: an AGC bringing the moving RMS to a
+        quarter of full scale (every part of the record at one level, the water column included).
+        ``Sonar.preset(name, receiver=device(name).receiver())``."""
+        if gain == "agc":
+            return Receiver(adc_bits=self.adc_bits, gain=dict(kind="agc", target=0.25), **ASSUMED_RECEIVER)
+        if gain != "tvg":
+            raise ConfigError(f"Device.receiver: gain must be 'tvg' or 'agc', got {gain!r}")
+        tvg = dict(DEVICE_TVG, kind="tvg", g0_db=g0_db, start_range_m=start_range_m, max_gain_db=max_gain_db)
+        return Receiver(adc_bits=self.adc_bits, gain=tvg, **ASSUMED_RECEIVER)
 
     @property
     def azimuth_one_way_deg(self) -> float:
@@ -121,9 +141,9 @@ _YF_ASSUMED = ("ranges_m", "pulse", "source_level_db", "adc_bits")
 _YF_NOTE = ("the manual gives no range settings (coverage up to 400 m in all), pulse or source level; its beamwidths "
             "are taken as one-way −3 dB widths")
 
-#: The receive chain's values no datasheet found states (:meth:`Device.receiver`): an AGC (the gain of a real
-#: device is set by its operator or its own AGC), a representative hydrophone sensitivity and a 1 V full scale.
-ASSUMED_RECEIVER = dict(sensitivity_db=-190.0, gain=dict(kind="agc", target=0.25), full_scale_v=1.0)
+#: The receive chain's values no datasheet found states (:meth:`Device.receiver`): a representative hydrophone
+#: sensitivity and a 1 V full scale.
+ASSUMED_RECEIVER = dict(sensitivity_db=-190.0, full_scale_v=1.0)
 
 DEVICES = {d.name: d for d in (
     Device("klein-3000-100", "Klein Associates, System 3000 Digital Side Scan Sonar datasheet (100 kHz channel)",

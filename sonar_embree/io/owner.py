@@ -173,6 +173,7 @@ class OutputFolder:
             raise ConfigError(f"{path}: cannot create the folder ({exc.strerror})") from None
         out = cls(path, man or {"format": FORMAT, "command": command, "entries": {}, "pending": []}, created)
         out._man["command"] = command
+        out._settle()
         out._drop_pending()
         return out
 
@@ -196,6 +197,15 @@ class OutputFolder:
             fd = os.open(self.path, os.O_RDONLY)
             os.fsync(fd)
             os.close(fd)
+
+    def _settle(self) -> None:
+        """Entries a killed run renamed into place but had not yet recorded (its digest already known as
+        ``next``) are recorded as written."""
+        for name, entry in self._man["entries"].items():
+            target = os.path.join(self.path, name)
+            if entry.get("state") == IN_PROGRESS and "next" in entry and os.path.lexists(target):
+                if digest(target) == entry["next"]:
+                    self._man["entries"][name] = entry["next"]
 
     def _drop_pending(self) -> None:
         """Remove the temporaries an earlier (killed) run listed, then save the manifest."""
@@ -257,7 +267,7 @@ class OutputFolder:
                 _check_replaceable(self.path, name, self._man)
             digests = {name: digest(os.path.join(tmp, name)) for name in made}
             for name in made:                               # ours from before the rename: a kill between is resumable
-                self._man["entries"][name] = {"state": IN_PROGRESS}
+                self._man["entries"][name] = {"state": IN_PROGRESS, "next": digests[name]}
             self._save()
             for name in made:
                 _replace(os.path.join(tmp, name), os.path.join(self.path, name), tmp)

@@ -10,6 +10,7 @@ bits where stated, an AGC assumed), which keeps the codes within full scale what
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import math
@@ -120,9 +121,12 @@ def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pix
             traj = traj.with_layback(tow[0], cable_out_m=tow[1])
             if tow[2] is not None:                                 # the fish, not the ship, flies at the altitude
                 traj = at_altitude(tiles, traj, tow[2], nav)
-        files = _render_line(top, name, tiles, traj, sonar, pulse, samples, overwrite, kw)
+        rx = line_receiver(summary["device"], sonar, pulse, tiles, traj)
+        files = _render_line(top, name, tiles, traj, dataclasses.replace(sonar, receiver=rx), pulse, samples,
+                             overwrite, kw)
         written += list(files.values())
-        lines.append({"nav": os.path.abspath(nav), "pings": len(traj),
+        lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "tvg_g0_db": rx.gain.g0_db,
+                      "tvg_start_range_m": rx.gain.start_range_m,
                       "files": {k: os.path.relpath(v, top.path) for k, v in files.items()}})   # relative to survey.json
     written += _products(top, tiles, [line["files"]["zarr"] for line in lines], pixel_m)
     summary = {**summary, "lines": lines}
@@ -133,6 +137,55 @@ def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pix
 PRODUCTS = ("mosaic.tif", "mosaic.png", "truth.tif")
 #: Line files, by kind.
 LINE_FILES = {"zarr": "line.zarr", "xtf": "line.xtf", "png": "line.png"}
+
+
+def _seabed_heights(tiles, x, y) -> np.ndarray:
+    """(n,) the seabed's height under the points (x, y), m; NaN over holes and off the seabed."""
+    if isinstance(tiles, TiledDEM):
+        z = sample_points(tiles.info, x, y, tiles.band)
+        if tiles.nodata is not None:
+            z[z == tiles.nodata] = np.nan
+        return z
+    return mosaic.heights_at(tiles, x, y)
+
+
+def _seabed_material(tiles):
+    return tiles.material if isinstance(tiles, TiledDEM) else tiles.objects[0].material
+
+
+#: Where a line's TVG starts, as a fraction of its median altitude: just before the first bottom return.
+TVG_START_FRACTION = 0.9
+#: Where a line's median seabed sits in its codes, as a fraction of full scale (an operator's usual setting).
+SEABED_FULL_SCALE = 0.25
+
+
+def line_receiver(device: str, sonar, pulse, tiles, traj):
+    """The device's receiver for one line, set as an operator sets it: its TVG (:meth:`Device.receiver`) starts
+    at :data:`TVG_START_FRACTION` of the line's median altitude, and its level puts the median seabed of a flat
+    floor of the line's seabed material at that altitude at :data:`SEABED_FULL_SCALE` of full scale (one ping
+    simulated, speckle-free, without a receiver). The water column before the first return keeps the
+    receiver's own noise at the start gain: dark, as in a device's record."""
+    from ..scene import seafloor
+    from ..simulate import simulate
+
+    alt = traj.positions_m[:, 2] - _seabed_heights(tiles, traj.positions_m[:, 0], traj.positions_m[:, 1])
+    alt = float(np.nanmedian(alt)) if np.isfinite(alt).any() else sonar.max_range_m / 4
+    alt = min(max(alt, 1.0), 0.9 * sonar.max_range_m)
+    d = devices.device(device)
+    probe = dataclasses.replace(sonar, receiver=None)
+    size = 4.0 * sonar.max_range_m
+    floor = Scene().add(seafloor.flat((size, size)), material=_seabed_material(tiles), label="seafloor")
+    rec = simulate(floor, Trajectory.line((0.0, 0.0, alt), (0.1, 0.0, alt), 1), probe, pulse, speckle=False,
+                   start_time="2000-01-01", progress=False)
+    law = d.receiver(g0_db=0.0, start_range_m=TVG_START_FRACTION * alt).gain
+    r = rec.slant_range_m
+    on_floor = (r > 1.05 * alt) & np.all(rec.data[0] > 0, axis=0)
+    if not on_floor.any():
+        return d.receiver(start_range_m=TVG_START_FRACTION * alt)
+    level = np.median(10.0 * np.log10(rec.data[0][:, on_floor]) + law.gain_db(r[on_floor], sonar.alpha_db_per_m))
+    r0 = d.receiver()
+    g0 = 20.0 * np.log10(SEABED_FULL_SCALE * r0.full_scale_v) - r0.sensitivity_db - float(level)
+    return d.receiver(g0_db=float(g0), start_range_m=TVG_START_FRACTION * alt)
 
 
 def _render_line(top, name, tiles, traj, sonar, pulse, samples, overwrite, kw) -> dict:
@@ -207,12 +260,7 @@ def at_altitude(tiles, traj, altitude_m: float, nav) -> Trajectory:
 
     check_number("survey", "altitude_m", altitude_m, positive=True, hi=1e4)
     pos = traj.positions_m.copy()
-    if isinstance(tiles, TiledDEM):
-        z = sample_points(tiles.info, pos[:, 0], pos[:, 1], tiles.band)
-        if tiles.nodata is not None:
-            z[z == tiles.nodata] = np.nan
-    else:
-        z = mosaic.heights_at(tiles, pos[:, 0], pos[:, 1])
+    z = _seabed_heights(tiles, pos[:, 0], pos[:, 1])
     good = np.isfinite(z)
     if not good.any():
         raise ConfigError(f"{nav}: no ping of the line lies over the seabed, so it cannot fly at --altitude-m")

@@ -179,3 +179,16 @@ def test_a_killed_manifest_save_is_ours_a_users_file_of_its_name_is_not(tmp_path
     with pytest.raises(ConfigError, match="not a sonar-embree manifest"):
         OutputFolder.claim(tmp_path / "b", ["x.txt"], overwrite=True)
     assert (tmp_path / "b" / MANIFEST_NEW).read_text() == "my notes"
+
+
+def test_an_entry_renamed_before_a_kill_is_recorded_on_the_next_claim(tmp_path):
+    """A kill between a write's rename and its record leaves the entry in progress with its digest to be; the
+    next claim finds the file whole and records it, so a resumed folder's manifest equals an unbroken run's."""
+    out = OutputFolder.claim(tmp_path, ["a.txt"])
+    out.write_set([("a.txt", _write("whole"))])
+    whole = json.loads((tmp_path / MANIFEST).read_text())
+    man = json.loads((tmp_path / MANIFEST).read_text())
+    man["entries"]["a.txt"] = {"state": "in progress", "next": whole["entries"]["a.txt"]}
+    (tmp_path / MANIFEST).write_text(json.dumps(man))
+    OutputFolder.claim(tmp_path, ["a.txt"], resume=True, command="sonar-embree")
+    assert json.loads((tmp_path / MANIFEST).read_text())["entries"] == whole["entries"]

@@ -1,0 +1,67 @@
+"""Issue 50, item 1: a survey's XTF as the device would write it. Every preset records through a time-varied gain
+that starts just before the first bottom return, set per line so that the median seabed sits near a quarter of
+full scale: the water column stays dark (at least 20 dB below the seabed, as a real record's 33 dB), where the AGC
+assumed before wrote both at one level."""
+import datetime as dt
+
+import numpy as np
+import pyproj
+import pytest
+import pyxtf
+
+from sonar_embree.instrument import devices
+from sonar_embree.io.geotiff import write_grid
+from sonar_embree.runs.survey import SEABED_FULL_SCALE, run_survey
+
+CRS, E0, N0 = "EPSG:32631", 500_000.0, 6_000_000.0
+
+
+@pytest.fixture(scope="module")
+def ground(tmp_path_factory):
+    """A flat DEM 20 m deep, 300 m × 200 m, and a ship's 2 s GPS log (time, latitude, longitude) across it."""
+    d = tmp_path_factory.mktemp("ground")
+    write_grid(d / "dem.tif", np.full((200, 300), -20.0), E0 - 150, N0 + 100, 1.0, CRS)
+    lon, lat = pyproj.Transformer.from_crs(CRS, "EPSG:4326", always_xy=True).transform(
+        E0 - 2 + 2.0 * np.arange(3), np.full(3, N0))
+    t0 = dt.datetime(2026, 5, 1, 12, tzinfo=dt.timezone.utc)
+    (d / "gps.csv").write_text("time,latitude,longitude\n" + "".join(
+        f"{(t0 + dt.timedelta(seconds=k)).isoformat()},{float(a)!r},{float(o)!r}\n" for k, (a, o) in
+        enumerate(zip(lat, lon))))
+    return d
+
+
+def _sides(path):
+    """(pings, 2, samples) codes nadir first, the altitude (pings,) and the range of each sample (samples,), m,
+    as a reader has them from the file alone."""
+    _, packets = pyxtf.xtf_read(str(path))
+    pings = packets[pyxtf.XTFHeaderType.sonar]
+    codes = np.stack([np.stack([p.data[0][::-1], p.data[1]]) for p in pings]).astype(float)
+    chan = pings[0].ping_chan_headers[1]
+    r = (np.arange(codes.shape[2]) + 0.5) * chan.SlantRange / codes.shape[2]
+    return codes, np.array([p.SensorPrimaryAltitude for p in pings]), r, pings
+
+
+@pytest.mark.parametrize("name", sorted(devices.DEVICES))
+def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
+    """Flown at a tenth of its first range above the floor (at least 2 m), as side-scans are: the median seabed
+    code at least 20 dB above the median water-column code before the first return, the seabed within a factor
+    2.5 of a quarter of full scale, and the TVG written in the channel headers."""
+    d = devices.device(name)
+    run_survey(ground / "dem.tif", [ground / "gps.csv"], tmp_path / "out", name, progress=False, pixel_m=2.0,
+               altitude_m=max(0.1 * d.ranges_m[0], 2.0))
+    codes, alt, r, pings = _sides(tmp_path / "out" / "line_00" / "line.xtf")
+    water = np.broadcast_to(r[None, None, :] < 0.8 * alt[:, None, None], codes.shape)
+    floor = np.broadcast_to(r[None, None, :] > 1.2 * alt[:, None, None], codes.shape)
+    top = 2 ** d.adc_bits - 1
+    seabed, column = np.median(codes[floor]), max(np.median(codes[water]), 0.5)   # 0.5: half a code step
+    assert 20 * np.log10(seabed / column) >= 20.0, (seabed, column)
+    assert SEABED_FULL_SCALE * top / 2.5 < seabed < SEABED_FULL_SCALE * top * 2.5
+    chan = pings[0].ping_chan_headers[1]
+    assert chan.ProcessingFlags == 4 and chan.GainCode == 30
+
+
+def test_the_agc_stays_available():
+    rx = devices.device("cmax-cm2-325").receiver("agc")
+    assert type(rx.gain).__name__ == "AGC" and rx.gain.target == 0.25
+    with pytest.raises(Exception, match="gain must be 'tvg' or 'agc'"):
+        devices.device("cmax-cm2-325").receiver("tvh")
