@@ -117,7 +117,9 @@ def waterfall_image(record, scale: str = "db", dynamic_range_db: float = 35.0, g
         Resample to ground range using the per-ping altitude.
     tvg : bool
         Display-only range compensation by R⁴·10^(2αR/10), for viewing far range
-        (skipped when the record has TVG already, ``attrs["tvg"]``).
+        (skipped when the record has TVG already, ``attrs["tvg"]``). A record with a device's codes
+        (``record.samples``, a :class:`~sonar_embree.Receiver`) is drawn from its codes (squared, so that dB are
+        20·log10 of the code), as a viewer of its XTF draws it, without display TVG: its own gain law is in them.
     reference_percentile : float
         Percentile of the positive intensities that maps to white ...
     floor_headroom_db : float
@@ -191,7 +193,8 @@ def _reduced(record, tvg: bool, ground_range: bool, max_columns, group: int):
     whole samples and rows over ``group`` pings; (rows, 2·n_columns) float64 and n_columns per side."""
     r = record.slant_range_m
     gain = None
-    if tvg and not record.attrs.get("tvg", False):
+    codes = getattr(record, "samples", None) is not None         # a device's codes carry its own gain law
+    if tvg and not codes and not record.attrs.get("tvg", False):
         with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
             decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0
         gain = 10.0 ** (decades - decades[np.isfinite(decades)].max(initial=0.0))
@@ -201,7 +204,8 @@ def _reduced(record, tvg: bool, ground_range: bool, max_columns, group: int):
     rows = []
     for a in range(0, record.n_pings, step):
         b = min(a + step, record.n_pings)
-        sides = [np.asarray(record.channel(ch)[a:b], dtype=np.float64) for ch in record.channels]
+        sides = ([np.asarray(record.samples[a:b, k], dtype=np.float64) ** 2 for k in range(len(record.channels))]
+                 if codes else [np.asarray(record.channel(ch)[a:b], dtype=np.float64) for ch in record.channels])
         if gain is not None:
             sides = [s * gain for s in sides]
         if ground_range:

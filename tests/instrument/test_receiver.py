@@ -173,3 +173,24 @@ def test_bool_keys_take_only_booleans(value, tmp_path):
         with pytest.raises(se.ConfigError, match=r"TVG.absorption must be True or False"):
             runconfig.load_run_config(_write(tmp_path, sonar_extra=(
                 f"source_level_db = 210.0\nreceiver = {{ gain = {{ kind = \"tvg\", absorption = \"{value}\" }} }}\n")))
+
+
+def test_a_device_record_is_drawn_from_its_codes():
+    """Issue 50: a waterfall of a record with a receiver is what a viewer draws from its stored codes (code², no
+    display TVG), not the floats: the water column before the first return is black, as in the XTF."""
+    import dataclasses
+
+    from sonar_embree.display.waterfall import waterfall_image
+
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    rx = se.devices.device("cmax-cm2-325").receiver(g0_db=-20.0, start_range_m=9.0)
+    sonar = se.Sonar.preset("cmax-cm2-325", max_range_m=25.0, receiver=rx)
+    rec = se.simulate(scene, se.Trajectory.line((-1, 0, 10), (1, 0, 10), 12), sonar, se.Pulse.preset("cmax-cm2-325"),
+                      start_time="2000-01-01")
+    assert rec.samples is not None and rec.samples.max() > 0
+    as_floats = dataclasses.replace(rec, data=rec.samples.astype(float) ** 2, samples=None)
+    img = waterfall_image(rec, max_columns=None)
+    np.testing.assert_array_equal(img, waterfall_image(as_floats, max_columns=None, tvg=False))
+    n = rec.data.shape[2]
+    water = rec.slant_range_m < 9.0                                    # before the first return at 10 m
+    assert np.all(img[:, n:][:, water] == 0) and img[:, n:][:, ~water].mean() > 50
