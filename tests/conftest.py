@@ -40,6 +40,7 @@ SLOW = frozenset({
     "test_survey_cli.py::test_a_planned_survey_covers_a_polygon",
     "test_survey_guards.py::test_a_survey_killed_at_any_point_resumes_with_the_same_command",
     "test_device_records.py::test_every_presets_survey_has_a_dark_water_column",
+    "test_scripts.py::test_survey_xtf_figure_shows_the_tvgs_dark_water_column_beside_the_agc",
     "test_hostile_folders.py::test_a_users_file_at_any_output_name_survives_overwrite",
     "test_hostile_folders.py::test_dot_prefixed_user_files_are_never_touched",
     "test_hostile_folders.py::test_the_input_as_an_output_is_refused",

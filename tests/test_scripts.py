@@ -281,3 +281,17 @@ def test_sas_figure_resolves_the_mine_that_the_side_scan_blurs(tmp_path):
     mine = info["anchor mine"]
     assert mine["elements_per_side"] == 8 and mine["pixels"] == 10_000
     assert mine["bright_fraction"]["sas"] < 0.5 * mine["bright_fraction"]["side_scan"]
+
+
+def test_survey_xtf_figure_shows_the_tvgs_dark_water_column_beside_the_agc(tmp_path):
+    """Issue 50: the survey's XTF drawn from its codes with pyxtf; the AGC writes the water column at the seabed's
+    level, the device's TVG at least 20 dB below it."""
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "survey_xtf_figure.py"), "-o", str(tmp_path),
+                           "--seconds", "3"], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert sorted(os.listdir(tmp_path)) == ["xtf.json", "xtf_waterfalls.png"]
+    img = iio.imread(tmp_path / "xtf_waterfalls.png")
+    assert img.ndim == 3 and img.shape[1] > 500 and img.std() > 10
+    info = json.loads((tmp_path / "xtf.json").read_text())
+    assert abs(info["agc"]["contrast_db"]) < 3.0 and info["tvg"]["contrast_db"] > 20.0
+    assert info["tvg"]["clipped_share"] < 0.05

@@ -21,6 +21,7 @@ SCRIPTS = {
     "msis_figure": ("-o docs/msis", ["msis/polar.png"]),
     "fls_figure": ("-o docs/fls", ["fls/fan.png"]),
     "device_figure": ("-o docs/device", ["device/waterfalls.png"]),
+    "survey_xtf_figure": ("-o docs/survey", ["survey/xtf_waterfalls.png"]),
     "realism_figure": ("-o docs/realism", ["realism/waterfalls.png"]),
     "sas_figure": ("-o docs/sas", ["sas/sas.png"]),
     "survey_from_dem": ("-o out/survey --figure docs/survey/survey.png", ["survey/survey.png"]),

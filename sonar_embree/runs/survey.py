@@ -42,7 +42,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
                quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True,
                plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2,
                crs=None, workers: int | None = None, scheduler: str | None = None,
-               altitude_m: float | None = None) -> list:
+               altitude_m: float | None = None, gain: str = "tvg") -> list:
     """Run the survey; returns the files written (the summary last).
 
     Parameters
@@ -72,6 +72,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         Instead of logs: a polygon CSV (columns x_m, y_m in the DEM's CRS, or lat_deg, lon_deg) covered by
         parallel lines (:func:`~sonar_embree.survey.planning.plan_lines`, ``overlap`` of the swaths) flown at
         ``speed_m_s`` with the sonar ``depth_m`` below the surface.
+    gain : {"tvg", "agc"}
+        The receiver's gain law: the device's TVG, set per line (:func:`line_receiver`), or an AGC.
     depth_m, altitude_m : float, optional
         For logs without a height column (a ship's GPS: time, lat, lon): the sonar at a constant ``depth_m`` below
         the surface, or flown at a constant ``altitude_m`` above the DEM (as towfish are flown; NaN holes bridged
@@ -91,6 +93,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     tiles = _seabed(dem, crs)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
     samples = devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
+    if gain not in ("tvg", "agc"):
+        raise ConfigError(f"survey: gain must be 'tvg' or 'agc', got {gain!r}")
     if depth_m is not None and altitude_m is not None:
         raise ConfigError("survey: give the sonar's depth (--depth-m) or its altitude (--altitude-m), not both")
     depth = 0.0 if altitude_m is not None else depth_m                 # a placeholder, replaced by the altitude's
@@ -107,7 +111,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
                             inputs=inputs, command="survey") as top:
         return _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pixel_m, dict(
             speckle=speckle, quality=quality, progress_bar=progress, workers=workers, scheduler=scheduler),
-            summary={"device": device, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
+            summary={"device": device, "gain": gain, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
                      "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits,
                      "dem": os.path.abspath(os.fspath(dem)), "crs": tiles.crs},
             tow=(layback_m, cable_out_m, altitude_m))
@@ -121,12 +125,12 @@ def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pix
             traj = traj.with_layback(tow[0], cable_out_m=tow[1])
             if tow[2] is not None:                                 # the fish, not the ship, flies at the altitude
                 traj = at_altitude(tiles, traj, tow[2], nav)
-        rx = line_receiver(summary["device"], sonar, pulse, tiles, traj)
+        rx = (line_receiver(summary["device"], sonar, pulse, tiles, traj) if summary["gain"] == "tvg"
+              else devices.device(summary["device"]).receiver("agc"))
         files = _render_line(top, name, tiles, traj, dataclasses.replace(sonar, receiver=rx), pulse, samples,
                              overwrite, kw)
         written += list(files.values())
-        lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "tvg_g0_db": rx.gain.g0_db,
-                      "tvg_start_range_m": rx.gain.start_range_m,
+        lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "gain": dataclasses.asdict(rx.gain),
                       "files": {k: os.path.relpath(v, top.path) for k, v in files.items()}})   # relative to survey.json
     written += _products(top, tiles, [line["files"]["zarr"] for line in lines], pixel_m)
     summary = {**summary, "lines": lines}
@@ -155,15 +159,19 @@ def _seabed_material(tiles):
 
 #: Where a line's TVG starts, as a fraction of its median altitude: just before the first bottom return.
 TVG_START_FRACTION = 0.9
-#: Where a line's median seabed sits in its codes, as a fraction of full scale (an operator's usual setting).
+#: Where a line's median seabed sits in its codes, as a fraction of full scale (an operator's usual setting) ...
 SEABED_FULL_SCALE = 0.25
+#: ... unless the seabed's bright near range would then clip: its :data:`SEABED_PEAK_PERCENTILE` th percentile is
+#: held at this fraction of full scale (an operator lowers the gain rather than saturate the picture).
+SEABED_PEAK_FULL_SCALE, SEABED_PEAK_PERCENTILE = 0.8, 95.0
 
 
 def line_receiver(device: str, sonar, pulse, tiles, traj):
     """The device's receiver for one line, set as an operator sets it: its TVG (:meth:`Device.receiver`) starts
     at :data:`TVG_START_FRACTION` of the line's median altitude, and its level puts the median seabed of a flat
-    floor of the line's seabed material at that altitude at :data:`SEABED_FULL_SCALE` of full scale (one ping
-    simulated, speckle-free, without a receiver). The water column before the first return keeps the
+    floor of the line's seabed material at that altitude at :data:`SEABED_FULL_SCALE` of full scale, or lower where
+    the bright near range would clip (:data:`SEABED_PEAK_FULL_SCALE`; one ping simulated, speckle-free, without a
+    receiver). The water column before the first return keeps the
     receiver's own noise at the start gain: dark, as in a device's record."""
     from ..scene import seafloor
     from ..simulate import simulate
@@ -182,9 +190,11 @@ def line_receiver(device: str, sonar, pulse, tiles, traj):
     on_floor = (r > 1.05 * alt) & np.all(rec.data[0] > 0, axis=0)
     if not on_floor.any():
         return d.receiver(start_range_m=TVG_START_FRACTION * alt)
-    level = np.median(10.0 * np.log10(rec.data[0][:, on_floor]) + law.gain_db(r[on_floor], sonar.alpha_db_per_m))
+    levels = 10.0 * np.log10(rec.data[0][:, on_floor]) + law.gain_db(r[on_floor], sonar.alpha_db_per_m)
     r0 = d.receiver()
-    g0 = 20.0 * np.log10(SEABED_FULL_SCALE * r0.full_scale_v) - r0.sensitivity_db - float(level)
+    fs_db = 20.0 * np.log10(r0.full_scale_v) - r0.sensitivity_db
+    g0 = min(fs_db + 20.0 * np.log10(SEABED_FULL_SCALE) - float(np.median(levels)),
+             fs_db + 20.0 * np.log10(SEABED_PEAK_FULL_SCALE) - float(np.percentile(levels, SEABED_PEAK_PERCENTILE)))
     return d.receiver(g0_db=float(g0), start_range_m=TVG_START_FRACTION * alt)
 
 
@@ -326,7 +336,7 @@ def _write_json(obj, path) -> None:
 
 #: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).
 SURVEY_KEYS = ("dem", "nav", "device", "range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality",
-               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs", "altitude_m")
+               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs", "altitude_m", "gain")
 
 
 def load_survey_config(path) -> dict:
