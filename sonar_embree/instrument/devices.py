@@ -69,6 +69,8 @@ class Device:
         How inferred fields were inferred.
     adc_bits : int
         Bits of the codes the device records (16 unless stated; ``"adc_bits"`` in ``assumed`` when not).
+    full_scale_v : float
+        The ADC's full scale, V (its XTF's VoltScale; 1 V assumed unless a record of the device shows it).
     """
 
     name: str
@@ -87,12 +89,13 @@ class Device:
     azimuth_two_way: bool = False
     note: str = ""
     adc_bits: int = 16
+    full_scale_v: float = 1.0
 
     def receiver(self, gain: str = "tvg", *, g0_db: float = DEVICE_TVG["g0_db"], start_range_m: float = 0.0,
                  max_gain_db: float | None = None):
         """The device's receive chain (:class:`~sonar_embree.Receiver`) for a record of codes as it stores them:
         its ADC's bits (:attr:`adc_bits`), and what no datasheet found states, assumed (:data:`ASSUMED_RECEIVER`):
-        a −190 dB re 1 V/µPa hydrophone and 1 V full scale.
+        a −190 dB re 1 V/µPa hydrophone; its full scale is :attr:`full_scale_v`.
 
         ``gain="tvg"`` (default): what side-scan devices record, a time-varied gain G(R) = ``g0_db`` + 30·log10 R +
         2αR (:data:`DEVICE_TVG`) from ``start_range_m`` (near the first bottom return) up to ``max_gain_db``, so
@@ -102,11 +105,12 @@ class Device:
         quarter of full scale (every part of the record at one level, the water column included).
         ``Sonar.preset(name, receiver=device(name).receiver())``."""
         if gain == "agc":
-            return Receiver(adc_bits=self.adc_bits, gain=dict(kind="agc", target=0.25), **ASSUMED_RECEIVER)
+            return Receiver(adc_bits=self.adc_bits, gain=dict(kind="agc", target=0.25), full_scale_v=self.full_scale_v,
+                            **ASSUMED_RECEIVER)
         if gain != "tvg":
             raise ConfigError(f"Device.receiver: gain must be 'tvg' or 'agc', got {gain!r}")
         tvg = dict(DEVICE_TVG, kind="tvg", g0_db=g0_db, start_range_m=start_range_m, max_gain_db=max_gain_db)
-        return Receiver(adc_bits=self.adc_bits, gain=tvg, **ASSUMED_RECEIVER)
+        return Receiver(adc_bits=self.adc_bits, gain=tvg, full_scale_v=self.full_scale_v, **ASSUMED_RECEIVER)
 
     @property
     def azimuth_one_way_deg(self) -> float:
@@ -129,7 +133,10 @@ class Device:
 
 _JSF_NOTE = ("15-bit codes: EdgeTech's JSF stores the envelope as one (signed) short per sample (MB-System's JSF "
              "reader), codes 0 … 32767")
-_MST_NOTE = "6-bit codes: Marine Sonic records 8 bits per sample with the two most significant bits zero (MB-System)"
+_MST_NOTE = ("as its XTF records it (a public Sea Scan HDS 600 kHz AUV record): 2-byte samples, codes up to 32767, 1024 "
+             "samples per side decimated by MAX, VoltScale 5 V (MillivoltScale 5000), TVG applied by the device "
+             "(ProcessingFlags 4); its native .MST format holds 6-bit codes in bytes (MB-System); the record's "
+             "frequency differs, so these are inferred for the ARC Scout")
 _CM2 = "C-MAX, CM2 Sidescan Sonar, Towfish Specification, Issue 7; CM2 user manual"
 _CM2_NOTE = ("tilt and vertical width inferred from the stated vertical coverage (−10° through −90° each side); the "
              "manual's adjustable 10°/20° depression is not used; 53 µs is the stated pulse at 50 m, used at every "
@@ -142,8 +149,8 @@ _YF_NOTE = ("the manual gives no range settings (coverage up to 400 m in all), p
             "are taken as one-way −3 dB widths")
 
 #: The receive chain's values no datasheet found states (:meth:`Device.receiver`): a representative hydrophone
-#: sensitivity and a 1 V full scale.
-ASSUMED_RECEIVER = dict(sensitivity_db=-190.0, full_scale_v=1.0)
+#: sensitivity (the full scale is the device's :attr:`Device.full_scale_v`, 1 V unless a record shows it).
+ASSUMED_RECEIVER = dict(sensitivity_db=-190.0)
 
 DEVICES = {d.name: d for d in (
     Device("klein-3000-100", "Klein Associates, System 3000 Digital Side Scan Sonar datasheet (100 kHz channel)",
@@ -162,11 +169,11 @@ DEVICES = {d.name: d for d in (
            "towfish", 450e3, 0.8, 60.0, 30.0, (50.0, 100.0), ("lfm", 1e-3, 50e3), 205.0,
            ("source_level_db", "pulse duration", "adc_bits")),
     Device("marine-sonic-arc-900", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 900 kHz",
-           "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), 205.0, ("source_level_db",), adc_bits=6,
-           note=_MST_NOTE),
+           "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), 205.0, ("source_level_db",),
+           samples_per_channel=1024, adc_bits=15, full_scale_v=5.0, note=_MST_NOTE),
     Device("marine-sonic-arc-1800", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 1.8 MHz",
-           "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), 200.0, ("source_level_db",), adc_bits=6,
-           note=_MST_NOTE),
+           "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), 200.0, ("source_level_db",),
+           samples_per_channel=1024, adc_bits=15, full_scale_v=5.0, note=_MST_NOTE),
     # C-MAX CM2: "CM2 Sidescan Sonar, Towfish Specification, Issue 7" and the CM2 user manual. Its horizontal
     # widths are two-way −3 dB. Vertical coverage "−10° through −90°": a fan 80° wide centred 50° down.
     Device("cmax-cm2-100", _CM2, "towfish", 100e3, 1.0, 80.0, 50.0, (100.0, 500.0), ("cw", 53e-6), 217.0,

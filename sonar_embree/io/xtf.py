@@ -44,7 +44,9 @@ Conventions of what is written:
   where the samples are a TVG receiver's codes. CHANINFO: CorrectionFlags 1 (slant range), UniPolar 1
   (intensities and codes are ≥ 0), HorizBeamAngle the along-track and BeamWidth the vertical one-way −3 dB
   width (the spec's "typically 1 degree" and "3dB beam width, typically 50 degrees"), TiltAngle the
-  depression, ThisFileName the file's name; BeamsPerArray 0 ("for forward look only").
+  depression, ThisFileName the file's name; BeamsPerArray 1 (one beam a side, as devices write it).
+- As devices write them: TimeDuration = SecondsPerPing = 2R/c, EventNumber 0 (no event marked), each sonar
+  packet padded with zeros to a multiple of 64 bytes (NumBytesThisRecord counts the padding).
 - Ping times: ``start`` (default: the record's ``attrs["start_time"]``, set by
   :func:`~sonar_embree.simulate`) plus the trajectory's ``times_s``.
 """
@@ -175,6 +177,7 @@ def _file_header(record, factor: float, ints, file_name: str = "", n_s: int | No
         c["Reserved"] = record.port.shape[1] if n_s is None else n_s  # legacy samples-per-channel field
         c["ChannelName"], c["VoltScale"], c["Frequency"] = name, 1.0, s.frequency_hz / 1e3
         c["HorizBeamAngle"], c["TiltAngle"], c["BeamWidth"] = along, s.tilt_deg, across
+        c["BeamsPerArray"] = 1                                           # one beam per side, as devices write
         c["SampleFormat"] = SAMPLE_FORMAT_FLOAT32 if ints is None else SAMPLE_FORMAT[ints.dtype]
         if ints is not None:
             c["VoltScale"] = record.sonar.receiver.full_scale_v
@@ -274,7 +277,6 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
         for side in ("port_head", "stbd_head"):
             packet[side]["DownsampleMethod"] = DOWNSAMPLE_METHODS[decimation]
     packet["head"]["PingNumber"] += first_ping
-    packet["head"]["EventNumber"] += first_ping
     packet["port"], packet["stbd"] = sides[0][:, ::-1], sides[1]
     return _file_header(record, factor, ints, file_name, sides[0].shape[1]).tobytes(), packet.tobytes()
 
@@ -355,15 +357,17 @@ def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
     t, s = record.trajectory, record.sonar
     n_p = record.port.shape[0]
     kind = "<f4" if ints is None else ints.dtype.newbyteorder("<")
-    packet = np.zeros(n_p, dtype=np.dtype([("head", _PING_HEADER), ("port_head", _CHAN_HEADER),
-                                           ("port", kind, (n_s,)), ("stbd_head", _CHAN_HEADER),
-                                           ("stbd", kind, (n_s,))]))
+    fields = [("head", _PING_HEADER), ("port_head", _CHAN_HEADER), ("port", kind, (n_s,)), ("stbd_head", _CHAN_HEADER),
+              ("stbd", kind, (n_s,))]
+    size = sum(np.dtype([f]).itemsize for f in fields)
+    if size % PACKET_ALIGN:                                          # zeros to a multiple of 64 bytes, as Isis pads
+        fields.append(("pad", "u1", (PACKET_ALIGN - size % PACKET_ALIGN,)))
+    packet = np.zeros(n_p, dtype=np.dtype(fields))
     h = packet["head"]
     h["MagicNumber"], h["HeaderType"], h["NumChansToFollow"] = 0xFACE, 0, 2
     h["NumBytesThisRecord"] = packet.dtype.itemsize
     _ping_times(h, when, t.times_s)
-    h["PingNumber"] = np.arange(n_p)
-    h["EventNumber"] = np.arange(n_p)
+    h["PingNumber"] = np.arange(n_p)                                # EventNumber stays 0: no event marked
     h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
     _navigation(h, record, surface_z_m)
     codes = {} if ints is None else s.receiver.header_codes()
@@ -371,8 +375,8 @@ def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
     for side, number in (("port_head", 0), ("stbd_head", 1)):
         c = packet[side]
         c["ChannelNumber"], c["SlantRange"] = number, s.max_range_m
-        c["TimeDuration"] = record.port.shape[1] / s.sample_rate_hz
         c["SecondsPerPing"] = s.max_range_m / h["SoundVelocity"]        # the spec's SlantRange/750: 2R/c
+        c["TimeDuration"] = c["SecondsPerPing"]                           # as devices write it: 2R/c
         c["ProcessingFlags"] = PROCESSING_TVG if tvg else 0
         c["Frequency"] = min(int(round(s.frequency_hz / 1e3)), 65535)
         c["NumSamples"] = n_s
@@ -380,6 +384,9 @@ def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
             c[name] = value
     return packet
 
+
+#: Sonar packets are padded with zeros to a multiple of this many bytes (Isis and the devices' own XTF do so).
+PACKET_ALIGN = 64
 
 #: XTF channel headers' DownsampleMethod by decimation (the spec's 2 = MAX; a mean has no code of its own: 0).
 DOWNSAMPLE_METHODS = {"max": 2, "mean": 0}

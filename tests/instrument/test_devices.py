@@ -90,14 +90,15 @@ def test_cm2_and_yellowfin_presets_carry_their_sourced_values():
 
 def test_a_devices_receiver_records_codes_in_its_own_range():
     """device(name).receiver(): EdgeTech's codes span 0 … 32767 (JSF: one signed short per sample), Marine Sonic's
-    0 … 63 in 8-bit words (two top bits zero), others 16 bits with adc_bits marked assumed; a flat floor recorded
-    through the Marine Sonic's receiver stays within its 6-bit range, away from its top."""
+    too, as its XTF stores them (2-byte words up to 32767 at 5 V full scale), others 16 bits with adc_bits marked
+    assumed; a flat floor recorded through the Marine Sonic's receiver stays within its 15-bit range."""
     dev = se.devices.DEVICES
-    assert dev["edgetech-4125-400"].receiver().adc_bits == 15 and dev["marine-sonic-arc-900"].receiver().adc_bits == 6
+    assert dev["edgetech-4125-400"].receiver().adc_bits == 15 and dev["marine-sonic-arc-900"].receiver().adc_bits == 15
+    assert dev["marine-sonic-arc-900"].receiver().full_scale_v == 5.0
     for d in dev.values():
         assert (d.adc_bits == 16) == ("adc_bits" in d.assumed)
-    sonar = se.Sonar.preset("marine-sonic-arc-900", receiver=dev["marine-sonic-arc-900"].receiver())
+    sonar = se.Sonar.preset("marine-sonic-arc-900", receiver=dev["marine-sonic-arc-900"].receiver(g0_db=-20.0))
     scene = se.Scene().add(se.seafloor.flat((200, 200)), label="seafloor")
     rec = se.simulate(scene, se.Trajectory.line((0, 0, 8), (1, 0, 8), 4), sonar, se.Pulse.preset("marine-sonic-arc-900"),
                       speckle=True)
-    assert rec.samples.dtype == np.uint8 and rec.samples.max() <= 63 and (rec.samples == 63).mean() < 0.01
+    assert rec.samples.dtype == np.uint16 and rec.samples.max() <= 32767 and (rec.samples == 32767).mean() < 0.01

@@ -56,7 +56,7 @@ def test_channel_info_as_the_spec_defines_it(lines):
             assert ci.HorizBeamAngle == pytest.approx(_width_deg(s.length_m, s.wavelength_m), rel=1e-5)
             assert ci.BeamWidth == pytest.approx(_width_deg(s.height_m, s.wavelength_m), rel=1e-5)
             assert ci.TiltAngle == pytest.approx(s.tilt_deg)
-            assert ci.BeamsPerArray == 0              # "BeamsPerArray: for forward look only (i.e., Sonatech DDS)"
+            assert ci.BeamsPerArray == 1              # one beam a side, as devices write it (issue 50)
         assert header.NavUnits == 3                   # "0 = meters, 3 = degrees" (a line with a CRS)
 
 
@@ -127,7 +127,7 @@ def test_an_xtf_decimated_to_the_devices_samples_per_channel(tmp_path):
     edges = [k * n // 1000 for k in range(1001)]
     want = [rec.samples[2, 1, edges[k]:edges[k + 1]].max() for k in range(1000)]
     np.testing.assert_array_equal(ping.data[1], want)
-    assert ping.ping_chan_headers[1].TimeDuration == pytest.approx(n / rec.sonar.sample_rate_hz)
+    assert ping.ping_chan_headers[1].TimeDuration == pytest.approx(2 * 30.0 / rec.sonar.sound_speed_m_s)  # 2R/c
     (tmp_path / "s").mkdir()
     se.stream.render_line(scene, traj, tmp_path / "y.zarr", sonar, se.Pulse.preset("imagenex-872-800"),
                           block_pings=4, xtf_path=tmp_path / "s" / "y.xtf", xtf_samples=1000, **kw)
@@ -180,3 +180,40 @@ def test_decimation_by_max_and_mean_against_their_twins_and_the_header(tmp_path,
                                rtol=1e-12)
     with pytest.raises(se.ConfigError, match="decimation must be one of"):
         decimate(floats, 50, "median")
+
+
+@pytest.mark.parametrize("name", sorted(se.devices.DEVICES))
+def test_each_presets_xtf_fields_as_the_device_writes_them(tmp_path, name):
+    """Issue 50, item 5, field by field against docs/guide/sonars.md's device table (the Marine Sonic's from a
+    public Sea Scan record): sample width, samples per side and their decimation (DownsampleMethod 2, MAX), volt
+    scales, TVG, one beam per array, TimeDuration = SecondsPerPing = 2R/c, EventNumber 0, packets padded to
+    64 bytes."""
+    d = se.devices.device(name)
+    rng = d.ranges_m[0]
+    sonar = se.Sonar.preset(name, max_range_m=rng, receiver=d.receiver())
+    scene = se.Scene().add(se.seafloor.flat((4 * rng, 4 * rng)), label="seafloor")
+    rec = se.simulate(scene, se.Trajectory.line((-1, 0, 0.1 * rng + 2), (1, 0, 0.1 * rng + 2), 3), sonar,
+                      se.Pulse.preset(name), start_time="2026-05-01T12:00:00Z")
+    rec.to_xtf(tmp_path / "l.xtf", samples_per_channel=d.samples_per_channel)
+    header, packets = pyxtf.xtf_read(str(tmp_path / "l.xtf"))
+    pings = packets[pyxtf.XTFHeaderType.sonar]
+    want_bytes = 1 if d.adc_bits <= 8 else 2
+    want_n = d.samples_per_channel or rec.data.shape[2]
+    for ci in header.ChanInfo[:2]:
+        assert ci.BytesPerSample == want_bytes and ci.VoltScale == pytest.approx(d.full_scale_v)
+        assert ci.BeamsPerArray == 1 and ci.SampleFormat == (8 if want_bytes == 1 else 3)
+    raw = (tmp_path / "l.xtf").read_bytes()
+    pos = 1024
+    for p in pings:
+        assert p.NumBytesThisRecord % 64 == 0 and p.EventNumber == 0
+        assert int.from_bytes(raw[pos + 10:pos + 14], "little") == p.NumBytesThisRecord
+        pos += p.NumBytesThisRecord
+        for c, data in zip(p.ping_chan_headers, p.data):
+            assert c.NumSamples == want_n == data.size and data.max() <= 2 ** d.adc_bits - 1
+            assert c.DownsampleMethod == (2 if d.samples_per_channel else 0)
+            assert c.MillivoltScale == round(1000 * d.full_scale_v) and c.ProcessingFlags == 4 and c.GainCode == 30
+            assert c.TimeDuration == pytest.approx(c.SecondsPerPing) and c.SecondsPerPing == pytest.approx(
+                2 * rng / sonar.sound_speed_m_s, rel=1e-6)
+    assert pos == len(raw)
+    if name.startswith("marine-sonic"):
+        assert (want_bytes, want_n, d.full_scale_v) == (2, 1024, 5.0)
