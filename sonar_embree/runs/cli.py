@@ -245,6 +245,11 @@ def _add_survey_parser(sub) -> None:
     tow = s.add_mutually_exclusive_group()
     tow.add_argument("--layback", type=float, metavar="M", help="towed: the sonar this far behind the navigation")
     tow.add_argument("--cable-out", type=float, metavar="M", help="towed: this much cable from the surface")
+    s.add_argument("--labels", action=argparse.BooleanOptionalAction, default=None,
+                   help="write each line's per-sample ground truth into its Zarr (default: on; off: lines a few times "
+                        "smaller, and no mosaic, which places its samples by the truth)")
+    s.add_argument("--sediment", metavar="PRESET", help="the seabed's sediment, e.g. 'apl-uw fine sand' (default: "
+                                                        "the DEM's material)")
     s.add_argument("--gain", choices=("tvg", "agc"), help="the receiver's gain: the device's TVG, set per line so "
                    "the median seabed sits at a quarter of full scale (default), or an AGC")
     s.add_argument("--pixel", type=float, metavar="M", help="mosaic pixel, m (default 0.5)")
@@ -269,6 +274,7 @@ def _survey(args) -> list:
     flags = dict(dem=args.dem, navs=args.nav, device=args.device, range_m=args.range_m, ping_rate_hz=args.ping_rate,
                  layback_m=args.layback, cable_out_m=args.cable_out, pixel_m=args.pixel, quality=args.quality,
                  speckle=args.speckle, plan=args.plan, depth_m=args.depth, altitude_m=args.altitude, gain=args.gain,
+                 labels=args.labels, sediment=args.sediment,
                  speed_m_s=args.speed, overlap=args.overlap,
                  crs=args.crs)
     kw.update({k: v for k, v in flags.items() if v is not None})

@@ -18,7 +18,8 @@ import os
 
 import numpy as np
 
-from ..config import Pulse, Sonar
+from ..config import Material, Pulse, Sonar
+from ..laws import sediments
 from ..errors import ConfigError
 from ..instrument import devices
 from ..io.owner import OutputFolder
@@ -42,7 +43,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
                quality: float = 1.0, speckle: bool = False, overwrite: bool = False, progress: bool = True,
                plan=None, depth_m: float | None = None, speed_m_s: float = 2.0, overlap: float = 0.2,
                crs=None, workers: int | None = None, scheduler: str | None = None,
-               altitude_m: float | None = None, gain: str = "tvg") -> list:
+               altitude_m: float | None = None, gain: str = "tvg", labels: bool = True,
+               sediment: str | None = None) -> list:
     """Run the survey; returns the files written (the summary last).
 
     Parameters
@@ -72,6 +74,12 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
         Instead of logs: a polygon CSV (columns x_m, y_m in the DEM's CRS, or lat_deg, lon_deg) covered by
         parallel lines (:func:`~sonar_embree.survey.planning.plan_lines`, ``overlap`` of the swaths) flown at
         ``speed_m_s`` with the sonar ``depth_m`` below the surface.
+    labels : bool
+        Write each line's per-sample ground truth into its Zarr. The mosaic places its samples by it: without
+        labels no mosaic or truth is made (said in one line).
+    sediment : str, optional
+        The seabed's sediment (a preset of :mod:`sonar_embree.laws.sediments`, e.g. "apl-uw fine sand"); default
+        the DEM's or mesh's own material.
     gain : {"tvg", "agc"}
         The receiver's gain law: the device's TVG, set per line (:func:`line_receiver`), or an AGC.
     depth_m, altitude_m : float, optional
@@ -90,7 +98,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
     inputs = [os.fspath(dem), *navs, plan]
     OutputFolder.check(out, [SUMMARY], overwrite=overwrite, resume=True, inputs=inputs, command="survey")
     mosaic.check_pixel(pixel_m, "survey: --pixel")
-    tiles = _seabed(dem, crs)
+    tiles = _seabed(dem, crs, sediment)
     sonar, pulse, rate = _device(device, range_m, ping_rate_hz)
     samples = devices.device(device).samples_per_channel       # the device's decimation (XTF), when stated
     if gain not in ("tvg", "agc"):
@@ -111,7 +119,8 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
                             inputs=inputs, command="survey") as top:
         return _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pixel_m, dict(
             speckle=speckle, quality=quality, progress_bar=progress, workers=workers, scheduler=scheduler),
-            summary={"device": device, "gain": gain, "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
+            summary={"device": device, "gain": gain, "labels": bool(labels), "sediment": sediment,
+                     "range_m": sonar.max_range_m, "ping_rate_hz": rate, "layback_m": layback_m,
                      "cable_out_m": cable_out_m, "adc_bits": sonar.receiver.adc_bits,
                      "dem": os.path.abspath(os.fspath(dem)), "crs": tiles.crs},
             tow=(layback_m, cable_out_m, altitude_m))
@@ -128,11 +137,14 @@ def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pix
         rx = (line_receiver(summary["device"], sonar, pulse, tiles, traj) if summary["gain"] == "tvg"
               else devices.device(summary["device"]).receiver("agc"))
         files = _render_line(top, name, tiles, traj, dataclasses.replace(sonar, receiver=rx), pulse, samples,
-                             overwrite, kw)
+                             overwrite, {**kw, "labels": summary["labels"]})
         written += list(files.values())
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "gain": dataclasses.asdict(rx.gain),
                       "files": {k: os.path.relpath(v, top.path) for k, v in files.items()}})   # relative to survey.json
-    written += _products(top, tiles, [line["files"]["zarr"] for line in lines], pixel_m)
+    if summary["labels"]:
+        written += _products(top, tiles, [line["files"]["zarr"] for line in lines], pixel_m)
+    else:
+        log.warning("survey: without labels no mosaic is made (it places each sample by the ground truth)")
     summary = {**summary, "lines": lines}
     return written + top.write_set([(SUMMARY, lambda p: _write_json(summary, p))])
 
@@ -207,22 +219,24 @@ def _render_line(top, name, tiles, traj, sonar, pulse, samples, overwrite, kw) -
     top.record_managed(name)
     files = {k: line.reserve(v) for k, v in LINE_FILES.items()}
     stream.render_line(tiles, traj, files["zarr"], sonar, pulse, xtf_path=files["xtf"], png_path=files["png"],
-                       xtf_samples=samples, labels=True, overwrite=overwrite, **kw)
+                       xtf_samples=samples, overwrite=overwrite, **kw)
     line.record(*LINE_FILES.values())
     return files
 
 
-def _seabed(path, crs):
-    """The survey's seabed: a GeoTIFF DEM tile by tile, or a mesh file whole (labelled seafloor) in ``crs``."""
+def _seabed(path, crs, sediment=None):
+    """The survey's seabed: a GeoTIFF DEM tile by tile, or a mesh file whole (labelled seafloor) in ``crs``; of
+    the ``sediment`` preset when given."""
     path = os.fspath(path)
+    material = None if sediment is None else Material(scattering=sediments.preset(sediment))
     if os.path.splitext(path)[1].lower() in (".tif", ".tiff"):
         if crs is not None:
             raise ConfigError(f"{path}: a GeoTIFF DEM carries its own CRS; give crs only with a mesh")
-        return TiledDEM(path)
+        return TiledDEM(path, material=material)
     mesh = load_mesh(path)
     if crs is not None:
         mesh.metadata["crs"] = crs_name(crs)
-    return Scene().add(mesh, label="seafloor")
+    return Scene().add(mesh, label="seafloor", **({} if material is None else {"material": material}))
 
 
 def _device(name: str, range_m, ping_rate_hz):
@@ -336,7 +350,7 @@ def _write_json(obj, path) -> None:
 
 #: Keys of a survey TOML's ``[survey]`` table (the keywords of :func:`run_survey`; paths relative to the file).
 SURVEY_KEYS = ("dem", "nav", "device", "range_m", "ping_rate_hz", "layback_m", "cable_out_m", "pixel_m", "quality",
-               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs", "altitude_m", "gain")
+               "speckle", "plan", "depth_m", "speed_m_s", "overlap", "crs", "altitude_m", "gain", "labels", "sediment")
 
 
 def load_survey_config(path) -> dict:
@@ -366,8 +380,12 @@ def load_survey_config(path) -> dict:
         v = table.get(key)
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float))):
             raise ConfigError(f"{source}: [survey] {key} must be a number, got {v!r}")
-    if not isinstance(table.get("speckle", False), bool):
-        raise ConfigError(f"{source}: [survey] speckle must be true or false, got {table['speckle']!r}")
+    for key in ("speckle", "labels"):
+        if not isinstance(table.get(key, False), bool):
+            raise ConfigError(f"{source}: [survey] {key} must be true or false, got {table[key]!r}")
+    for key in ("sediment", "gain"):
+        if key in table and not isinstance(table[key], str):
+            raise ConfigError(f"{source}: [survey] {key} must be a string, got {table[key]!r}")
     kw = {k: table[k] for k in SURVEY_KEYS[3:] if k in table}
     if "plan" in kw:
         kw["plan"] = _resolve(base, kw["plan"])

@@ -367,5 +367,5 @@ def write_truth(path, scene, grid: Mosaic) -> np.ndarray:
     if crs is not None and grid.crs is not None and crs != grid.crs:
         raise ConfigError(f"write_truth: the scene is in {crs}, the mosaic grid in {grid.crs}; reproject one of them")
     z = truth(scene, grid)
-    write_grid(path, z, grid.x0_m, grid.y0_m, grid.pixel_m, grid.crs, names=("height_m",))
+    write_grid(path, z, grid.x0_m, grid.y0_m, grid.pixel_m, grid.crs, names=("height_m",), units=("m",))
     return z

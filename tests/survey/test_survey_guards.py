@@ -198,3 +198,31 @@ def test_common_column_names_are_taken_and_a_clash_is_named(tmp_path):
     (tmp_path / "b.csv").write_text("time_s,lat,latitude,lon,depth_m\n0,54,54,3,5\n")
     with pytest.raises(ConfigError, match="columns 'lat' and 'latitude' both give 'lat_deg'"):
         Trajectory.from_csv(tmp_path / "b.csv")
+
+
+def test_labels_can_be_left_out_and_the_sediment_chosen(tmp_path, caplog):
+    """Issue 50, item 6: --no-labels writes lines without ground truth (and, said in one line, no mosaic);
+    --sediment sets the seabed's preset (a harder floor records brighter in floats); truth.tif's band has a
+    unit."""
+    import rasterio
+    import xarray as xr
+
+    _dem(tmp_path / "dem.tif")
+    _gps_log(tmp_path / "gps.csv")
+    base = ["survey", "--dem", str(tmp_path / "dem.tif"), "--nav", str(tmp_path / "gps.csv"), "--device",
+            "cmax-cm2-325", "--ping-rate", "2", "--pixel", "1", "--depth-m", "4", "--no-progress", "--gain", "agc"]
+    with caplog.at_level(logging.WARNING):
+        assert main(base + ["--no-labels", "-o", str(tmp_path / "bare")]) == 0
+    assert "without labels no mosaic" in caplog.text
+    bare = xr.open_zarr(tmp_path / "bare" / "line_00" / "line.zarr")
+    assert "label_kind" not in bare and not (tmp_path / "bare" / "mosaic.tif").exists()
+    levels = {}
+    for sed in ("apl-uw clay", "apl-uw coarse sand"):
+        out = tmp_path / sed.replace(" ", "_")
+        assert main(base + ["--sediment", sed, "-o", str(out)]) == 0
+        ds = xr.open_zarr(out / "line_00" / "line.zarr")
+        levels[sed] = float(np.median(ds["starboard"].values[:, -200:]))
+        assert json.loads((out / "survey.json").read_text())["sediment"] == sed
+    assert levels["apl-uw coarse sand"] > 3 * levels["apl-uw clay"]
+    with rasterio.open(tmp_path / "apl-uw_clay" / "truth.tif") as t:
+        assert t.units == ("m",) and t.descriptions == ("height_m",)
