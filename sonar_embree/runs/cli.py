@@ -357,9 +357,24 @@ def _fan(args, base=None):
 DEMO_FORMATS = ("npz", "png", "xtf")
 
 
+def kernels_compiled(roots=None) -> bool:
+    """Whether Numba's cache holds compiled kernels (index files ``*.nbi``) in ``roots`` (default: beside this
+    package's kernels, and under ``NUMBA_CACHE_DIR``): a first run compiles them, about a minute on 2 cores."""
+    import glob
+
+    if roots is None:
+        here = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "kernels")
+        roots = [os.path.join(here, "__pycache__")] + ([os.environ["NUMBA_CACHE_DIR"]] if os.environ.get(
+            "NUMBA_CACHE_DIR") else [])
+    return any(glob.glob(os.path.join(r, "**", "*.nbi"), recursive=True) for r in roots)
+
+
 def _run(args) -> list:
     if args.command == "examples":
         return _examples(args)
+    if not kernels_compiled():
+        log.warning("compiling the simulation kernels for this machine, once (about a minute; later runs start "
+                    "at once)")
     if args.command == "batch":
         from . import batch
 

@@ -176,3 +176,23 @@ def test_worker_counts_below_one_are_refused_and_beyond_the_cpus_capped(caplog, 
     with caplog.at_level(logging.WARNING):
         assert capped_workers(1000, "batch") == cpus and capped_workers(1, "batch") == 1
     assert f"batch: workers=1000 is more than the {cpus} CPUs" in caplog.text      # the API's cap too
+
+
+def test_a_first_run_says_it_compiles_the_kernels_once(tmp_path, monkeypatch, caplog):
+    """Issue 50, item 6: a first run sat at 0/240 for a minute with no message while the kernels compiled; now it
+    says so in one line, and only while Numba's cache holds no compiled kernel."""
+    import logging
+
+    from sonar_embree.runs import cli
+
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "cache" / "sonar_embree").mkdir(parents=True)
+    (tmp_path / "cache" / "sonar_embree" / "rays.fan-1.py311.nbi").write_bytes(b"x")
+    assert not cli.kernels_compiled([str(tmp_path / "empty")])
+    assert cli.kernels_compiled([str(tmp_path / "cache")])
+    for compiled, says in ((False, True), (True, False)):
+        monkeypatch.setattr(cli, "kernels_compiled", lambda c=compiled: c)
+        caplog.clear()
+        with caplog.at_level(logging.WARNING):
+            assert cli.main(["demo", "-o", str(tmp_path / f"o{compiled}"), "--pings", "2", "--no-progress"]) == 0
+        assert ("compiling the simulation kernels" in caplog.text) == says
