@@ -25,7 +25,8 @@ from ..instrument import devices
 from ..io.owner import OutputFolder
 from ..io.geo import crs_name, from_lonlat
 from ..io.geotiff import sample_points
-from ..scene import Scene, TiledDEM, load_mesh
+from ..scene import Scene, TiledDEM, load_mesh, seafloor
+from ..simulate import simulate
 from ..survey import mosaic, stream
 from ..survey.planning import line_trajectories, plan_lines
 from ..trajectory import Trajectory, csv_header
@@ -185,9 +186,6 @@ def line_receiver(device: str, sonar, pulse, tiles, traj):
     the bright near range would clip (:data:`SEABED_PEAK_FULL_SCALE`; one ping simulated, speckle-free, without a
     receiver). The water column before the first return keeps the
     receiver's own noise at the start gain: dark, as in a device's record."""
-    from ..scene import seafloor
-    from ..simulate import simulate
-
     alt = traj.positions_m[:, 2] - _seabed_heights(tiles, traj.positions_m[:, 0], traj.positions_m[:, 1])
     alt = float(np.nanmedian(alt)) if np.isfinite(alt).any() else sonar.max_range_m / 4
     alt = min(max(alt, 1.0), 0.9 * sonar.max_range_m)

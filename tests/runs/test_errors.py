@@ -160,12 +160,12 @@ def test_worker_counts_below_one_are_refused_and_beyond_the_cpus_capped(caplog, 
     import logging
     import os
 
-    from sonar_embree.runs import cli
+    from sonar_embree.runs import cli, commands
 
-    assert cli._checked_workers(None) is None and cli._checked_workers(1) == 1
+    assert commands._checked_workers(None) is None and commands._checked_workers(1) == 1
     cpus = os.cpu_count() or 1
     with caplog.at_level(logging.WARNING):
-        assert cli._checked_workers(1000) == cpus
+        assert commands._checked_workers(1000) == cpus
     assert f"--workers 1000 is more than the {cpus} CPUs here; using {cpus}" in caplog.text
     for bad in ("0", "-1"):
         assert cli.main(["render", "asset:anchor_mine.toml", "-o", str(tmp_path / "o"), "--workers", bad]) == 2
@@ -183,16 +183,30 @@ def test_a_first_run_says_it_compiles_the_kernels_once(tmp_path, monkeypatch, ca
     says so in one line, and only while Numba's cache holds no compiled kernel."""
     import logging
 
-    from sonar_embree.runs import cli
+    from sonar_embree.runs import cli, commands
 
     (tmp_path / "empty").mkdir()
     (tmp_path / "cache" / "sonar_embree").mkdir(parents=True)
     (tmp_path / "cache" / "sonar_embree" / "rays.fan-1.py311.nbi").write_bytes(b"x")
-    assert not cli.kernels_compiled([str(tmp_path / "empty")])
-    assert cli.kernels_compiled([str(tmp_path / "cache")])
+    assert not commands.kernels_compiled([str(tmp_path / "empty")])
+    assert commands.kernels_compiled([str(tmp_path / "cache")])
     for compiled, says in ((False, True), (True, False)):
-        monkeypatch.setattr(cli, "kernels_compiled", lambda c=compiled: c)
+        monkeypatch.setattr(commands, "kernels_compiled", lambda c=compiled: c)
         caplog.clear()
         with caplog.at_level(logging.WARNING):
             assert cli.main(["demo", "-o", str(tmp_path / f"o{compiled}"), "--pings", "2", "--no-progress"]) == 0
         assert ("compiling the simulation kernels" in caplog.text) == says
+
+
+def test_help_and_argument_errors_need_no_simulator_imports():
+    """Issue 50, item 6: `sonar-embree --help` took 5–25 s importing SciPy, Dask and xarray; the parser module and
+    the package now load none of them (the commands import them when they run; timed in docs/benchmarks.md)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, sonar_embree.runs.cli as c\n"
+            "try:\n    c.main(['render', '--help'])\nexcept SystemExit:\n    pass\n"
+            "heavy = sorted(m for m in ('scipy', 'numba', 'dask', 'xarray', 'trimesh', 'embreex') if m in sys.modules)\n"
+            "print('HEAVY', heavy)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120).stdout
+    assert "HEAVY []" in out, out[-500:]
