@@ -168,6 +168,7 @@ class GridAccumulator:
         self.nx = max(1, int(np.ceil((bounds[2] - self.x0) / pixel)))
         self.ny = max(1, int(np.ceil((self.y0 - bounds[1]) / pixel)))
         self.sums = None
+        self.weights = None
 
     def check_size(self) -> None:
         """Refuse a grid beyond :data:`MAX_GRID_PIXELS` before allocating it; then allocate the sums."""
@@ -178,20 +179,29 @@ class GridAccumulator:
                               "pixel_m or smaller bounds_m")
         self.sums = np.zeros((3, n))                                # count, value, height
 
-    def add(self, x, y, v, z) -> None:
-        """Add samples at world (x, y) with a value ``v`` and a height ``z`` (each (n,))."""
+    def add(self, x, y, v, z, w=None) -> None:
+        """Add samples at world (x, y) with a value ``v`` and a height ``z`` (each (n,)); with weights ``w`` (n,)
+        the means are weighted (every call then gives weights)."""
         col = np.floor((x - self.x0) / self.pixel).astype(np.int64)
         row = np.floor((self.y0 - y) / self.pixel).astype(np.int64)
         inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.ny)
         cell = row[inside] * self.nx + col[inside]
         size = self.nx * self.ny
         self.sums[0] += np.bincount(cell, minlength=size)
-        self.sums[1] += np.bincount(cell, np.asarray(v, dtype=np.float64)[inside], size)
-        self.sums[2] += np.bincount(cell, z[inside], size)
+        w = np.ones(int(inside.sum())) if w is None else np.asarray(w, dtype=np.float64)[inside]
+        if self.weights is None and not np.all(w == 1.0):
+            self.weights = self.sums[0] - np.bincount(cell, minlength=size)      # the unweighted ones so far
+        if self.weights is not None:
+            self.weights += np.bincount(cell, w, size)
+        self.sums[1] += np.bincount(cell, w * np.asarray(v, dtype=np.float64)[inside], size)
+        self.sums[2] += np.bincount(cell, w * z[inside], size)
 
     def means(self):
-        """(mean value, mean height, count), each (ny, nx); NaN where no sample."""
+        """(mean value, mean height, count), each (ny, nx); NaN where no sample (weighted means where weights
+        were given)."""
         count = self.sums[0]
+        norm = count if self.weights is None else self.weights
         with np.errstate(invalid="ignore", divide="ignore"):
-            mean = [np.where(count > 0, s / count, np.nan).reshape(self.ny, self.nx) for s in self.sums[1:]]
+            mean = [np.where((count > 0) & (norm > 0), s / norm, np.nan).reshape(self.ny, self.nx)
+                    for s in self.sums[1:]]
         return mean[0], mean[1], count.astype(np.int64).reshape(self.ny, self.nx)

@@ -69,18 +69,21 @@ class Mosaic:
         write_grid(path, np.stack([self.intensity, self.height_m]), self.x0_m, self.y0_m, self.pixel_m, self.crs,
                    names=(self.values, "height_m"), units=(self.units, "m"), overviews=True)
 
-    def save_png(self, path, dynamic_range_db: float = 40.0) -> None:
-        """A quick-look PNG of the values (grey, north-up, dB: white at the 99.5th percentile, black
-        ``dynamic_range_db`` below; transparent where no sample); atomic."""
+    def save_png(self, path, dynamic_range_db: float | None = None) -> None:
+        """A quick-look PNG of the values (grey, north-up, dB; transparent where no sample); atomic. Intensities
+        and codes: white at the 99.5th percentile, black ``dynamic_range_db`` (default 40) below. Normalised values
+        (a uniform floor at 1): the median mid-grey, ``dynamic_range_db`` (default 20) spanning black to white, as a
+        mosaic is looked at (a bright target and its shadow stand out; a uniform floor is grey, not white)."""
         import imageio.v3 as iio
 
-
+        normalised = self.values == "normalised"
+        dynamic_range_db = (20.0 if normalised else 40.0) if dynamic_range_db is None else dynamic_range_db
         v = self.intensity
         lit = np.isfinite(v) & (v > 0)
         grey = np.zeros(v.shape, dtype=np.uint8)
         if lit.any():
             db = 10.0 * np.log10(v[lit])
-            top = np.percentile(db, 99.5)
+            top = np.median(db) + dynamic_range_db / 2 if normalised else np.percentile(db, 99.5)
             grey[lit] = np.round(255 * np.clip((db - top + dynamic_range_db) / dynamic_range_db, 0, 1))
         alpha = np.where(np.isfinite(v), 255, 0).astype(np.uint8)
         img = np.stack([grey, alpha], axis=-1)
@@ -101,11 +104,11 @@ def _side_xy(t_pos, rot, ground_range):
             t_pos[None, :, 1, None] + sign * g * side[None, :, 1, None])
 
 
-def _placed(t_pos, rot, ground_range, heights, port, starboard):
-    """(x, y, value, height) of the samples of a block of pings that have a seafloor point, flat arrays."""
+def _placed(t_pos, rot, ground_range, heights, port, starboard, weight):
+    """(x, y, value, height, weight) of the samples of a block of pings that have a seafloor point, flat arrays."""
     x, y = _side_xy(t_pos, rot, ground_range)
     ok = np.isfinite(x) & np.isfinite(y)
-    return x[ok], y[ok], np.stack([port, starboard])[ok], np.asarray(heights, dtype=np.float64)[ok]
+    return x[ok], y[ok], np.stack([port, starboard])[ok], np.asarray(heights, dtype=np.float64)[ok], weight[ok]
 
 
 def sample_positions(record):
@@ -123,8 +126,8 @@ def _check(record) -> None:
         raise ConfigError(f"mosaic: side-scan records only (channels {', '.join(record.channels)})")
 
 
-#: What :func:`mosaic` can place: the record's intensity, the same divided by the line's mean at each slant range
-#: (empirical gain normalisation), or the receiver's codes.
+#: What :func:`mosaic` can place: the record's intensity, the same divided by the line's mean at each grazing
+#: angle (empirical normalisation), or the receiver's codes.
 MOSAIC_VALUES = ("intensity", "normalised", "codes")
 
 
@@ -156,29 +159,81 @@ def _raw_blocks(source, values: str, block: int = 1000):
                d[names[1]].values)
 
 
+#: Grazing-angle bins of a line's normalisation profile, degrees.
+GRAZING_BIN_DEG = 0.5
+
+
+def _grazing_bins(pos, ground, heights) -> np.ndarray:
+    """(2, pings, samples) int: each sample's grazing-angle bin (:data:`GRAZING_BIN_DEG`), from the sonar's height
+    above the sample's seafloor point and its ground range (the labels' true geometry); −1 where no point."""
+    below = np.asarray(pos, dtype=np.float64)[None, :, 2, None] - np.asarray(heights, dtype=np.float64)
+    g = np.abs(np.asarray(ground, dtype=np.float64))
+    with np.errstate(invalid="ignore"):
+        psi = np.degrees(np.arctan2(below, g))
+    ok = np.isfinite(psi) & (psi >= 0.0)
+    return np.where(ok, np.minimum(np.floor(np.where(ok, psi, 0.0) / GRAZING_BIN_DEG), N_GRAZING - 1), -1).astype(
+        np.int64)
+
+
+N_GRAZING = int(round(90.0 / GRAZING_BIN_DEG))
+
+
+def _range_compensated(source, pos, ground, heights, values) -> np.ndarray:
+    """``values`` (2, pings, samples) × R³·10^(2αR/10), R the slant range to each sample's seafloor point: the
+    spreading and absorption of a pulse-limited patch's echo taken out (the 30·log10 R + 2αR of a device's TVG),
+    so that what is left depends on the grazing angle alone over a uniform floor, at any altitude."""
+    below = np.asarray(pos, dtype=np.float64)[None, :, 2, None] - np.asarray(heights, dtype=np.float64)
+    r = np.hypot(np.asarray(ground, dtype=np.float64), below)
+    return np.asarray(values, dtype=np.float64) * r ** 3 * 10.0 ** (2.0 * _alpha(source) * r / 10.0)
+
+
+def _alpha(source) -> float:
+    """The one-way absorption of a record or a store, dB/m."""
+    if hasattr(source, "sonar"):
+        return float(source.sonar.alpha_db_per_m)
+    return float(_dataset(source).attrs.get("simulation.alpha_db_per_m", 0.0))
+
+
 def _line_profile(source) -> np.ndarray:
-    """(2, samples) the line's mean intensity at each slant range sample over its pings, per side, counting only
-    samples with a seafloor point (the empirical gain normalisation of :func:`mosaic`)."""
-    sums, counts = 0.0, 0.0
-    for _, _, ground, _, port, starboard in _raw_blocks(source, "intensity"):
-        lit = np.isfinite(np.asarray(ground, dtype=np.float64))
-        vals = np.where(lit, np.stack([port, starboard]).astype(np.float64), 0.0)
-        sums, counts = sums + vals.sum(axis=1), counts + lit.sum(axis=1)
+    """(2, grazing bins) the line's mean range-compensated intensity (:func:`_range_compensated`) at each grazing
+    angle over its pings, per side, counting only samples with a seafloor point (the empirical normalisation of
+    :func:`mosaic`: by grazing angle after the range's spreading and absorption, so that a change of altitude
+    along the line leaves no band)."""
+    sums, counts = np.zeros((2, N_GRAZING)), np.zeros((2, N_GRAZING))
+    for pos, _, ground, heights, port, starboard in _raw_blocks(source, "intensity"):
+        bins = _grazing_bins(pos, ground, heights)
+        vals = _range_compensated(source, pos, ground, heights, np.stack([port, starboard]))
+        for side in (0, 1):
+            ok = bins[side] >= 0
+            sums[side] += np.bincount(bins[side][ok], vals[side][ok], N_GRAZING)
+            counts[side] += np.bincount(bins[side][ok], minlength=N_GRAZING)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(counts > 0, sums / np.maximum(counts, 1), np.nan)
 
 
+def _feather(ground) -> np.ndarray:
+    """(2, pings, samples) weights of the samples in overlaps: the distance from the nearer end of the swath,
+    nadir or far range (a triangle over each side's ground ranges), so two lines' swaths blend smoothly."""
+    g = np.abs(np.asarray(ground, dtype=np.float64))
+    far = np.nanmax(g, axis=-1, keepdims=True, initial=0.0)
+    return np.maximum(np.minimum(g, far - g), 1e-3 * np.maximum(far, 1e-9))
+
+
 def _blocks(source, values: str = "intensity", block: int = 1000):
-    """Blocks of placed samples (x, y, value, height) of a Record or a streamed line's store, a block of pings at a
-    time; ``values`` as for :func:`mosaic`."""
+    """Blocks of placed samples (x, y, value, height, weight) of a Record or a streamed line's store, a block of
+    pings at a time; ``values`` as for :func:`mosaic` (weights: feathering for "normalised", else 1)."""
     profile = _line_profile(source) if values == "normalised" else None
     for pos, rot, ground, heights, port, starboard in _raw_blocks(source, "codes" if values == "codes" else
                                                                   "intensity", block):
+        weight = np.ones(np.shape(ground))
         if profile is not None:
+            bins = _grazing_bins(pos, ground, heights)
+            ref = np.stack([np.where(bins[k] >= 0, profile[k][np.maximum(bins[k], 0)], np.nan) for k in (0, 1)])
+            comp = _range_compensated(source, pos, ground, heights, np.stack([port, starboard]))
             with np.errstate(invalid="ignore", divide="ignore"):
-                port, starboard = (np.asarray(s, dtype=np.float64) / np.where(p > 0, p, np.nan)
-                                   for s, p in zip((port, starboard), profile))
-        yield _placed(pos, rot, ground, heights, port, starboard)
+                port, starboard = (c / np.where(p > 0, p, np.nan) for c, p in zip(comp, ref))
+            weight = _feather(ground)
+        yield _placed(pos, rot, ground, heights, port, starboard, weight)
 
 
 def _dataset(source):
@@ -238,9 +293,11 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensit
         The mosaic's extent in world metres; default: every placed sample, snapped out to whole pixels (this
         reads the lines twice).
     values : {"intensity", "normalised", "codes"}
-        What is averaged: the records' intensity; the same divided, line by line and side by side, by the line's
-        mean intensity at each slant range over its pings (an empirical gain normalisation: range and angle
-        trends out, a uniform floor uniform; dimensionless); or the receiver's codes (a sonar with a Receiver).
+        What is averaged: the records' intensity; the same with the range's spreading and absorption taken out
+        (R³·10^(2αR/10)) divided, line by line and side by side, by the line's mean at each grazing angle over its
+        pings (an empirical normalisation, a surveyor's TVG and angle-varying gain: range and angle trends out, a uniform floor uniform, no band where the altitude changes; dimensionless), overlapping lines
+        feathered by the distance from the nearer end of each swath (:func:`_feather`) and pixel-wide holes
+        filled (:func:`fill_gaps`), as surveyors' mosaics are; or the receiver's codes (a sonar with a Receiver).
     """
     if values not in MOSAIC_VALUES:
         raise ConfigError(f"mosaic: values must be one of {', '.join(MOSAIC_VALUES)}, got {values!r}")
@@ -254,18 +311,34 @@ def mosaic(records, pixel_m: float = 0.5, bounds_m=None, values: str = "intensit
     acc = GridAccumulator(_bounds_of(records) if bounds_m is None else bounds_m, float(pixel_m), "mosaic")
     acc.check_size()
     for r in records:
-        for block in _blocks(r, values):
-            acc.add(*block)
+        for x, y, v, z, w in _blocks(r, values):
+            acc.add(x, y, v, z, w if values == "normalised" else None)
     mean, height, count = acc.means()
+    if values == "normalised":
+        mean, height = fill_gaps(mean), fill_gaps(height)
     return Mosaic(mean, height, count, float(acc.x0), float(acc.y0), acc.pixel, crs.pop(), values,
                   _units(records[0], values))
+
+
+def fill_gaps(grid: np.ndarray, min_neighbours: int = 5) -> np.ndarray:
+    """``grid`` (ny, nx) with each empty (NaN) pixel that has at least ``min_neighbours`` of its 8 neighbours set
+    given their mean: the pixel-wide holes between far-range samples closed, the nadir gap and the edges left."""
+    ok = np.isfinite(grid)
+    pad_v, pad_n = np.pad(np.where(ok, grid, 0.0), 1), np.pad(ok.astype(np.float64), 1)
+    ny, nx = grid.shape
+    total = sum(pad_v[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx] for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+    count = sum(pad_n[1 + dy:1 + dy + ny, 1 + dx:1 + dx + nx] for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+    fill = ~ok & (count >= min_neighbours)
+    out = grid.copy()
+    out[fill] = total[fill] / count[fill]
+    return out
 
 
 def _bounds_of(records) -> tuple:
     """(xmin, ymin, xmax, ymax) of every placed sample of the records, m."""
     lo, hi = np.full(2, np.inf), np.full(2, -np.inf)
     for r in records:
-        for x, y, _, _ in _blocks(r):
+        for x, y, _, _, _ in _blocks(r):
             if x.size:
                 lo, hi = np.minimum(lo, [x.min(), y.min()]), np.maximum(hi, [x.max(), y.max()])
     if not np.all(np.isfinite(lo)):

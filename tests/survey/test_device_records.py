@@ -66,3 +66,34 @@ def test_the_agc_stays_available():
     assert type(rx.gain).__name__ == "AGC" and rx.gain.target == 0.25
     with pytest.raises(Exception, match="gain must be 'tvg' or 'agc'"):
         devices.device("cmax-cm2-325").receiver("tvh")
+
+
+def test_a_flat_floors_mosaic_is_uniform_across_range_and_the_overlap(ground, tmp_path):
+    """Issue 50: the survey's mosaic normalised by grazing angle, two lines' overlap feathered, pixel holes filled:
+    over a flat floor every pixel with samples lies within 2 dB of 1, at every range and where the lines overlap;
+    with one line flown lower at its end (a change of altitude), no band appears either."""
+    import rasterio
+
+    t0 = dt.datetime(2026, 5, 1, 12, tzinfo=dt.timezone.utc)
+    for k, north in enumerate((0.0, -36.0)):
+        lon, lat = pyproj.Transformer.from_crs(CRS, "EPSG:4326", always_xy=True).transform(
+            E0 - 20 + 2.0 * np.arange(21), np.full(21, N0 + north))
+        depth = np.linspace(12.0, 12.0 if k == 0 else 15.0, 21)
+        (tmp_path / f"l{k}.csv").write_text("time,latitude,longitude,depth_m\n" + "".join(
+            f"{(t0 + dt.timedelta(seconds=i)).isoformat()},{float(a)!r},{float(o)!r},{float(d)!r}\n"
+            for i, (a, o, d) in enumerate(zip(lat, lon, depth))))
+    run_survey(ground / "dem.tif", [tmp_path / "l0.csv", tmp_path / "l1.csv"], tmp_path / "out", "cmax-cm2-325",
+               progress=False, pixel_m=1.0, ping_rate_hz=4.0)
+    with rasterio.open(tmp_path / "out" / "mosaic.tif") as m:
+        v = m.read(1)
+        cols = (np.arange(m.width) + 0.5) * m.res[0] + m.bounds.left - E0
+        rows = m.bounds.top - (np.arange(m.height) + 0.5) * m.res[1] - N0
+    inner = (cols > -15) & (cols < 15)                                  # away from the lines' ends
+    db = 10 * np.log10(v[:, inner])
+    assert np.isfinite(db).sum() > 2000
+    assert np.nanmax(np.abs(db)) < 2.0
+    overlap = (rows < -8) & (rows > -28)                                # both swaths reach here
+    assert np.isfinite(db[overlap]).mean() > 0.9 and np.nanmax(np.abs(db[overlap])) < 2.0
+    png = __import__("imageio.v3", fromlist=["imread"]).imread(tmp_path / "out" / "mosaic.png")
+    seen = png[..., 1] > 0
+    assert 100 < np.median(png[..., 0][seen]) < 156                     # a uniform floor grey, not white
