@@ -76,12 +76,19 @@ def _check_memory(n_pings, n_samples, chain, labels, keep_complex, n_channels) -
 ESTIMATE_LOG_S = 30.0
 
 
-def _log_time_estimate(elapsed_s: float, done: int, total: int) -> None:
-    """After the first block (set-up included, so an upper estimate): the whole run's time, when it is long."""
-    per_ping = elapsed_s / max(done, 1)
-    if per_ping * total > ESTIMATE_LOG_S:
-        log.info("simulate: about %.0f s for %d pings (%.1f ms per ping in the first block, set-up included)",
-                 per_ping * total, total, 1e3 * per_ping)
+def time_estimate_s(elapsed_s: float, done: int, total: int, pace_s: float) -> float:
+    """The run's whole time: what has elapsed, plus the pings left at ``pace_s`` a ping."""
+    return elapsed_s + pace_s * max(total - done, 0)
+
+
+def _log_time_estimate(elapsed_s: float, done: int, total: int, pace_s: float, first: bool) -> None:
+    """The whole run's time, when it is long: after the second block, at its pace (the first block's includes the
+    set-up and a first run's kernel compilation: an estimate from it came out 20 times too long); after the first
+    block, from its pace, only when it is the last chance (the run has two blocks at most)."""
+    total_s = time_estimate_s(elapsed_s, done, total, pace_s)
+    if total_s > ESTIMATE_LOG_S:
+        log.info("simulate: about %.0f s for %d pings (%.1f ms per ping in the %s block)", total_s, total,
+                 1e3 * pace_s, "first" if first else "second")
 
 
 def tile_reach_m(sonar) -> float:
@@ -218,9 +225,15 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
+        nxt = min(max(BLOCK_RAYS // max(int(blk.n_rays.max()), 1), 1), 64)  # (np.clip of ints costs 0.1 ms)
+        now = time.perf_counter()
         if a == 0:
-            _log_time_estimate(time.perf_counter() - t_start, b, len(trajectory))
-        a, block = b, min(max(BLOCK_RAYS // max(int(blk.n_rays.max()), 1), 1), 64)  # (np.clip of ints costs 0.1 ms)
+            first_end, first_n = now, b
+            if b < len(trajectory) <= b + nxt:                 # one block left: no second pace to wait for
+                _log_time_estimate(now - t_start, b, len(trajectory), (now - t_start) / b, True)
+        elif a == first_n and b < len(trajectory):
+            _log_time_estimate(now - t_start, b, len(trajectory), (now - first_end) / (b - a), False)
+        a, block = b, nxt
     if bar is not None:
         bar.close()
     t = time.perf_counter()

@@ -32,7 +32,7 @@ from ..config import Sonar
 from ..record import Record
 from ..record.dataset import is_own_store
 from ..scene import TiledDEM
-from ..simulate import progress_bar as pings_bar, simulate, tile_reach_m
+from ..simulate import progress_bar as pings_bar, simulate, tile_reach_m, time_estimate_s
 from .cluster import client_for, in_order, lazy_zeros, threads_of
 
 log = logging.getLogger(__name__)
@@ -472,7 +472,7 @@ def _write_blocks(blocks, path, n, block, key, xtf_path, xtf_opts, progress, bar
     """Write each (first ping, record) of ``blocks`` in turn (the store started with the first), counting them."""
     first = 0 if progress is None else progress["pings_done"]
     bar = pings_bar(bar, n, first)
-    t0 = time.perf_counter()
+    t_prev = time.perf_counter()
     for a, rec in blocks:
         b = a + rec.n_pings
         if progress is None:
@@ -480,9 +480,12 @@ def _write_blocks(blocks, path, n, block, key, xtf_path, xtf_opts, progress, bar
         _write_block(path, rec, a, progress, xtf_path)
         if bar is not None:
             bar.update(b - a)
-        if a == first and b < n:                                     # the first block sets the pace
-            log.info("render_line: about %.0f s for the %d pings left (%.1f ms per ping, block written)",
-                     (time.perf_counter() - t0) / (b - a) * (n - b), n - b, 1e3 * (time.perf_counter() - t0) / (b - a))
+        now = time.perf_counter()
+        if a == first + block and b < n:           # the second block sets the pace (the first's has the set-up)
+            log.info("render_line: about %.0f s for the %d pings left (%.1f ms per ping in the second block, "
+                     "written)", time_estimate_s(0.0, b, n, (now - t_prev) / (b - a)), n - b,
+                     1e3 * (now - t_prev) / (b - a))
+        t_prev = now
     if bar is not None:
         bar.close()
 

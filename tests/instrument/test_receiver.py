@@ -125,7 +125,7 @@ def test_a_tvg_that_overflows_is_refused_before_any_ping(monkeypatch):
     numpy's warning only (the chain's tvg=True refused the same set-up); now refused, in one line, before any ray."""
     import sys
 
-    sim_module = sys.modules["sonar_embree.simulate"]
+    sim_module = __import__("importlib").import_module("sonar_embree.simulate")
 
     sonar = se.Sonar(max_range_m=45.0, source_level_db=210.0, environment=se.Environment(absorption_db_per_m=100.0),
                      receiver=se.Receiver(gain=se.TVG(k=30)))
