@@ -96,8 +96,10 @@ taken from the track when it has none, resampled at the device's ping rate, towe
 --layback or --cable-out, and streamed (resumable) into OUT/line_KK/ as line.zarr, line.xtf (lat/lon, ship and
 sensor positions) and line.png. Then OUT/mosaic.tif (normalised values and placed heights, units, overviews),
 OUT/mosaic.png (a quick look), OUT/truth.tif (the DEM on the mosaic's grid) and OUT/survey.json. The device
-records its codes at its ADC's bits where stated (EdgeTech 15, Marine Sonic 6, else 16); its gain is assumed (no
-datasheet states it): an AGC.
+records its codes at its ADC's bits where stated (EdgeTech and Marine Sonic 15, else 16) through a TVG
+(30 log R + 2 alpha R from just before the first bottom return, set per line so the median seabed sits at a
+quarter of full scale: a dark water column, as devices record; --gain agc for an AGC). A ship's GPS log (time,
+latitude, longitude) takes --depth-m or --altitude-m.
 
 example:
   sonar-embree survey --dem harbour.tif --nav line1.csv --nav line2.csv --device edgetech-4125-400 \

@@ -6,7 +6,7 @@ the DEM's CRS, its heading taken from the track where it has none, resampled at 
 range setting (its stated rate, else back to back), the sonar towed ``layback_m`` (or a ``cable_out_m`` cable)
 behind it when given, and streamed with labels into the line's folder (resumable: a rerun continues each line
 where it stopped). The preset's sonar records through the device's receiver (:meth:`Device.receiver`: its ADC's
-bits where stated, an AGC assumed), which keeps the codes within full scale whatever the scene.
+bits where stated, its TVG set per line by :func:`line_receiver`, or an AGC with ``gain="agc"``).
 """
 from __future__ import annotations
 
