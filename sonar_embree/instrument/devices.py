@@ -24,7 +24,7 @@ from .receiver import Receiver
 
 #: A device's time-varied gain, assumed (no datasheet found states one): 30·log10 R + 2αR, the law that levels a
 #: pulse-limited seabed patch's echo (two-way spherical spreading, 40·log10 R, less the patch's growth along
-#: track, 10·log10 R; docs/physics.md, "A device's record"), with ``g0_db`` its gain at 1 m (dB; an operator's
+#: track, 10·log10 R; docs/physics.md §19), with ``g0_db`` its gain at 1 m (dB; an operator's
 #: setting, calibrated per line by the survey command).
 DEVICE_TVG = dict(k=30, absorption=True, g0_db=20.0)
 
