@@ -236,7 +236,8 @@ def test_ctrl_c_prints_one_line_and_leaves_nothing(tmp_path):
     cfg = tmp_path / "run.toml"
     # long enough that no machine finishes before the signal (4000 plain pings at 14 m once took under 6 s): 4000
     # speckled pings at 40 m, about 20 s on 2 cores
-    cfg.write_text(RENDER.replace("n_pings = 4", "n_pings = 4000").replace("max_range_m = 14.0", "max_range_m = 40.0")
+    cfg.write_text(RENDER.replace("n_pings = 4", "n_pings = 4000\nspeed_m_s = 0.005")    # pings 2R/c apart at least
+                   .replace("max_range_m = 14.0", "max_range_m = 40.0")
                    .replace("[40.0, 40.0]", "[100.0, 100.0]") + "[simulation]\nspeckle = true\n")
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "sonar_embree.runs.cli", "render", str(cfg), "-o", str(out),

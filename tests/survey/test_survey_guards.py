@@ -102,15 +102,28 @@ def test_pixel_is_checked_first_and_the_summary_paths_are_relative_to_it(tmp_pat
                                             "png": "line_00/line.png"}
 
 
+def _kill_cmd(folder):
+    return [sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--dem", str(folder / "dem.tif"), "--nav",
+            str(folder / "nav.csv"), "--device", "cmax-cm2-325", "--ping-rate", "4", "--pixel", "1", "--no-progress",
+            "-o"]
+
+
+@pytest.fixture(scope="module")
+def unbroken(tmp_path_factory):
+    """The inputs of the kill tests and their survey run once without a kill."""
+    folder = tmp_path_factory.mktemp("unbroken")
+    _dem(folder / "dem.tif")
+    _nav(folder / "nav.csv", seconds=12)
+    proc = subprocess.run(_kill_cmd(folder) + [str(folder / "clean")], capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return folder
+
+
 @pytest.mark.parametrize("marker", [MANIFEST, f"line_00/{MANIFEST}", "line_00/line.zarr/stream.json", "mosaic.tif"])
-def test_a_survey_killed_at_any_point_resumes_with_the_same_command(tmp_path, marker):
+def test_a_survey_killed_at_any_point_resumes_with_the_same_command(tmp_path, unbroken, marker):
     """kill -9 once the survey has reached ``marker`` (its folder claimed, a line claimed, a block streamed, the
     products begun); the same command then finishes it, and the line equals an uninterrupted run's."""
-    _dem(tmp_path / "dem.tif")
-    _nav(tmp_path / "nav.csv", seconds=30)
-    cmd = [sys.executable, "-m", "sonar_embree.runs.cli", "survey", "--dem", str(tmp_path / "dem.tif"), "--nav",
-           str(tmp_path / "nav.csv"), "--device", "cmax-cm2-325", "--ping-rate", "4", "--pixel", "1",
-           "--no-progress", "-o"]
+    cmd = _kill_cmd(unbroken)
     proc = subprocess.Popen(cmd + [str(tmp_path / "out")], start_new_session=True, stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)
     try:
@@ -123,12 +136,9 @@ def test_a_survey_killed_at_any_point_resumes_with_the_same_command(tmp_path, ma
         proc.wait()
     again = subprocess.run(cmd + [str(tmp_path / "out")], capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr[-2000:]
-    clean = subprocess.run(cmd + [str(tmp_path / "clean")], capture_output=True, text=True, timeout=600)
-    assert clean.returncode == 0, clean.stderr[-2000:]
     for name in ("line_00/line.xtf", "mosaic.tif"):
-        assert (tmp_path / "out" / name).read_bytes() == (tmp_path / "clean" / name).read_bytes(), name
+        assert (tmp_path / "out" / name).read_bytes() == (unbroken / "clean" / name).read_bytes(), name
     assert not [n for n in os.listdir(tmp_path / "out") if n.startswith(".sonar-embree-") and n != MANIFEST]
-
 
 
 def test_a_ping_rate_beyond_the_listening_time_is_lowered_with_a_notice(caplog):
