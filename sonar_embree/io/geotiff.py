@@ -153,7 +153,7 @@ def write_grid(path, values, x0_m: float, y0_m: float, pixel_m: float, crs=None,
     atomic_write(path, write, suffix=".tif")
 
 
-#: Largest north-up grid, pixels: its three float64 sums take 24 bytes a pixel (2.4 GB here).
+#: Largest north-up grid, pixels: its four float64 sums take 32 bytes a pixel (3.2 GB here).
 MAX_GRID_PIXELS = 100_000_000
 
 
@@ -168,40 +168,35 @@ class GridAccumulator:
         self.nx = max(1, int(np.ceil((bounds[2] - self.x0) / pixel)))
         self.ny = max(1, int(np.ceil((self.y0 - bounds[1]) / pixel)))
         self.sums = None
-        self.weights = None
 
     def check_size(self) -> None:
         """Refuse a grid beyond :data:`MAX_GRID_PIXELS` before allocating it; then allocate the sums."""
         n = self.nx * self.ny
         if n > MAX_GRID_PIXELS:
             raise ConfigError(f"{self.where}: a grid of {self.nx} x {self.ny} pixels at pixel_m = {self.pixel:g} m "
-                              f"needs {24 * n / 2**30:.1f} GiB (at most {MAX_GRID_PIXELS:.0e} pixels); use a larger "
+                              f"needs {32 * n / 2**30:.1f} GiB (at most {MAX_GRID_PIXELS:.0e} pixels); use a larger "
                               "pixel_m or smaller bounds_m")
-        self.sums = np.zeros((3, n))                                # count, value, height
+        self.sums = np.zeros((4, n))                                # count, weight, value, height
 
     def add(self, x, y, v, z, w=None) -> None:
         """Add samples at world (x, y) with a value ``v`` and a height ``z`` (each (n,)); with weights ``w`` (n,)
-        the means are weighted (every call then gives weights)."""
+        the means are weighted (unit weights where none are given)."""
         col = np.floor((x - self.x0) / self.pixel).astype(np.int64)
         row = np.floor((self.y0 - y) / self.pixel).astype(np.int64)
         inside = (col >= 0) & (col < self.nx) & (row >= 0) & (row < self.ny)
         cell = row[inside] * self.nx + col[inside]
         size = self.nx * self.ny
         self.sums[0] += np.bincount(cell, minlength=size)
-        w = np.ones(int(inside.sum())) if w is None else np.asarray(w, dtype=np.float64)[inside]
-        if self.weights is None and not np.all(w == 1.0):
-            self.weights = self.sums[0] - np.bincount(cell, minlength=size)      # the unweighted ones so far
-        if self.weights is not None:
-            self.weights += np.bincount(cell, w, size)
-        self.sums[1] += np.bincount(cell, w * np.asarray(v, dtype=np.float64)[inside], size)
-        self.sums[2] += np.bincount(cell, w * z[inside], size)
+        w = np.ones(cell.size) if w is None else np.asarray(w, dtype=np.float64)[inside]
+        self.sums[1] += np.bincount(cell, w, size)
+        self.sums[2] += np.bincount(cell, w * np.asarray(v, dtype=np.float64)[inside], size)
+        self.sums[3] += np.bincount(cell, w * z[inside], size)
 
     def means(self):
         """(mean value, mean height, count), each (ny, nx); NaN where no sample (weighted means where weights
         were given)."""
-        count = self.sums[0]
-        norm = count if self.weights is None else self.weights
+        count, norm = self.sums[0], self.sums[1]
         with np.errstate(invalid="ignore", divide="ignore"):
             mean = [np.where((count > 0) & (norm > 0), s / norm, np.nan).reshape(self.ny, self.nx)
-                    for s in self.sums[1:]]
+                    for s in self.sums[2:]]
         return mean[0], mean[1], count.astype(np.int64).reshape(self.ny, self.nx)

@@ -33,15 +33,17 @@ MANIFEST_NEW = MANIFEST + ".new"
 _HEAD = b'{\n "command": "'
 
 
+#: An entry written before its content is complete (a streamed line): ours, its digest not yet known.
+IN_PROGRESS = "in progress"
+#: A folder entry that keeps its own manifest (a survey's line): ours while that manifest is.
+MANAGED = "own manifest"
+
+
 def _is_our_new(path: str) -> bool:
     """Whether ``path`` (a :data:`MANIFEST_NEW`) is one a killed save of ours left: empty, or begun as ours."""
     with open(path, "rb") as fh:
         head = fh.read(len(_HEAD))
     return _HEAD.startswith(head)
-#: An entry written before its content is complete (a streamed line): ours, its digest not yet known.
-IN_PROGRESS = "in progress"
-#: A folder entry that keeps its own manifest (a survey's line): ours while that manifest is.
-MANAGED = "own manifest"
 
 
 def digest(path: str) -> dict:
@@ -75,9 +77,9 @@ def refuse_aliases(outputs, inputs) -> None:
             continue
         real = os.path.realpath(src)
         for out in outputs:
-            if not os.path.exists(out) and not os.path.lexists(out):
+            if not os.path.exists(out):
                 continue
-            same = os.path.samefile(src, out) if os.path.exists(out) else False
+            same = os.path.samefile(src, out)
             inside = os.path.isdir(out) and real.startswith(os.path.realpath(out) + os.sep)
             if same or inside:
                 raise ConfigError(f"{out}: is the input {os.fspath(src)} (or holds it); the run would overwrite its "

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+import shutil
 
 from ..errors import SonarEmbreeError
 from ..record import registry
@@ -18,6 +19,7 @@ from ..config import SignalChain
 from ..raycast import BvhCaster, CudaCaster, EmbreeCaster
 from ..simulate import simulate
 from ..survey.replay import FIT_CLASSES, replay
+from ..survey.cluster import capped_workers
 from ..survey.stream import render_record
 from .runconfig import load_run_config
 
@@ -47,9 +49,6 @@ def _survey(args) -> list:
 
 
 def _examples(args) -> list:
-    import shutil
-
-
     if args.copy is None:
         return [f"{kind}/{name}\t{assets.path(name)}" for kind in assets.KINDS for name in assets.names(kind)]
     name, dest = args.copy
@@ -70,9 +69,6 @@ _CHAIN_FLAGS = ("speckle", "band", "detection", "matched_filter", "tvg", "noise_
 
 def _chain(args, base=None):
     """The signal chain of ``base`` (default: SignalChain()) with the command-line overrides."""
-    import dataclasses
-
-
     base = SignalChain() if base is None else base
     overrides = {k: getattr(args, k) for k in _CHAIN_FLAGS if getattr(args, k) is not None}
     if ("band" in overrides and overrides["band"] == "carrier") or "detection" in overrides:
@@ -82,9 +78,6 @@ def _chain(args, base=None):
 
 def _fan(args, base=None):
     """The fan settings of ``base`` (default: FanSettings()) with ``--quality`` applied."""
-    import dataclasses
-
-
     base = FanSettings() if base is None else base
     return base if args.quality is None else dataclasses.replace(base, quality=args.quality)
 
@@ -176,11 +169,7 @@ def _checked_workers(workers, flag: str = "--workers"):
         return None
     if workers < 1:
         raise SonarEmbreeError(f"{flag} must be >= 1, got {workers}")
-    cpus = os.cpu_count() or 1
-    if workers > cpus:
-        log.warning("%s %d is more than the %d CPUs here; using %d", flag, workers, cpus, cpus)
-        return cpus
-    return workers
+    return capped_workers(workers, f"{flag} ")
 
 
 def _densities(text):

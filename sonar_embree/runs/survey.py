@@ -298,9 +298,7 @@ def _warn_holes(tiles, traj, nav) -> None:
         return
     step = max(1, len(traj) // 2000)                            # at most some 2000 samples a line
     xy = traj.positions_m[::step, :2]
-    z = sample_points(tiles.info, xy[:, 0], xy[:, 1], tiles.band)
-    if tiles.nodata is not None:
-        z[z == tiles.nodata] = np.nan
+    z = _seabed_heights(tiles, xy[:, 0], xy[:, 1])
     holes = float(np.mean(~np.isfinite(z)))
     if holes > 0.0:
         log.warning("survey: %s: %.0f %% of the line lies over nodata holes of %s or off it: no seabed below those "

@@ -178,7 +178,7 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     check_number("interferometric_points", "min_coherence", min_coherence, lo=0.0, hi=1.0)
     ref = math.radians(record.sonar.tilt_deg if reference_deg is None else float(reference_deg))
     rot, r = record.trajectory.rotations(), record.slant_range_m
-    parts = []
+    parts, above = [], 0
     for ch, side in enumerate((-1.0, 1.0)):
         z = np.asarray(record.element_data[:, ch])
         about = ref if coarse_pair is None else _angles(z, arr, coarse_pair, window, record.sonar.wavelength_m, ref)[0]
@@ -189,13 +189,12 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
         body = np.stack([np.zeros_like(th), side * r[sample] * np.cos(th), r[sample] * np.sin(th)], axis=1)
         xyz = record.trajectory.positions_m[ping] + np.einsum("nij,nj->ni", rot[ping], body)
         below = xyz[:, 2] < record.trajectory.positions_m[ping, 2]        # a seabed sounding lies below the sonar
+        above += int(np.sum(~below))
         parts.append((xyz[below], np.full(int(below.sum()), ch), ping[below], sample[below], coh[keep][below]))
-        parts[-1] += (int(np.sum(~below)),)
-    above = sum(p[-1] for p in parts)
     if above:
         warn_once(f"interferometric soundings: {above} of {above + sum(p[0].shape[0] for p in parts)} lie above the "
                   "sonar (a phase unwrapped into the wrong sector); left out")
-    cols = [np.concatenate(c) for c in zip(*(p[:-1] for p in parts))]
+    cols = [np.concatenate(c) for c in zip(*parts)]
     return PointCloud(cols[0].reshape(-1, 3), cols[1].astype(np.int64), cols[2].astype(np.int64),
                       cols[3].astype(np.int64), cols[4], record.trajectory.crs)
 

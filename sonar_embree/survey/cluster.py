@@ -34,12 +34,15 @@ def default_workers() -> int:
 
 def capped_workers(workers: int | None, what: str) -> int:
     """The local cluster's worker processes: ``workers`` (default :func:`default_workers`), at most the CPU count,
-    with a one-line warning when capped (1000 processes on 2 cores only thrash, and leak semaphores when killed)."""
+    with a one-line warning when capped (1000 processes on 2 cores only thrash, and leak semaphores when killed).
+    ``what`` names the caller, as the warning starts it: "batch" (then "batch: workers=N") or a flag ending in a
+    space ("--workers ": then "--workers N")."""
     cpus = os.cpu_count() or 1
     if workers is None:
         return default_workers()
     if workers > cpus:
-        log.warning("%s: workers=%d is more than the %d CPUs here; using %d", what, workers, cpus, cpus)
+        name = what if what.endswith(" ") else f"{what}: workers="
+        log.warning("%s%d is more than the %d CPUs here; using %d", name, workers, cpus, cpus)
         return cpus
     return int(workers)
 

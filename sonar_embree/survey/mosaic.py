@@ -159,8 +159,9 @@ def _raw_blocks(source, values: str, block: int = 1000):
                d[names[1]].values)
 
 
-#: Grazing-angle bins of a line's normalisation profile, degrees.
+#: Grazing-angle bins of a line's normalisation profile, degrees, and how many span 0 … 90°.
 GRAZING_BIN_DEG = 0.5
+N_GRAZING = int(round(90.0 / GRAZING_BIN_DEG))
 
 
 def _grazing_bins(pos, ground, heights) -> np.ndarray:
@@ -173,9 +174,6 @@ def _grazing_bins(pos, ground, heights) -> np.ndarray:
     ok = np.isfinite(psi) & (psi >= 0.0)
     return np.where(ok, np.minimum(np.floor(np.where(ok, psi, 0.0) / GRAZING_BIN_DEG), N_GRAZING - 1), -1).astype(
         np.int64)
-
-
-N_GRAZING = int(round(90.0 / GRAZING_BIN_DEG))
 
 
 def _range_compensated(source, pos, ground, heights, values) -> np.ndarray:

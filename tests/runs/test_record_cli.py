@@ -124,7 +124,13 @@ def test_a_long_run_states_its_time_after_the_second_block(caplog, monkeypatch):
     se.simulate(scene, se.Trajectory.line((-1.0, 0.0, 10.0), (1.0, 0.0, 10.0), n), se.Sonar(max_range_m=20.0))
     lines = [r.getMessage() for r in caplog.records if "simulate: about" in r.getMessage()]
     assert len(lines) == 1 and f" s for {n} pings (" in lines[0] and "ms per ping in the second block" in lines[0]
-    assert sim.time_estimate_s(10.0, 100, 1000, 0.01) == pytest.approx(19.0)     # elapsed + pings left × pace
+
+
+def test_the_estimate_is_the_elapsed_plus_the_pings_left_at_the_pace():
+    """The estimate's arithmetic alone (no clock): 10 + (1000 − 100) × 0.5 = 460; nothing left, nothing added."""
+    sim = __import__("importlib").import_module("sonar_embree.simulate")
+    estimate = sim.time_estimate_s
+    assert estimate(10.0, 100, 1000, 0.5) == 460.0 and estimate(10.0, 1000, 1000, 0.5) == 10.0
 
 
 def test_render_help_lists_every_output_key():
