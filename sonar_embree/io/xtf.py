@@ -28,8 +28,13 @@ Conventions of what is written:
   Layback is written 0: readers that lay the sensor back by a non-zero Layback (the X41 specification, Isis,
   OpenSidescan) would otherwise lay it back twice. Without a CRS, in metres (NavUnits 0): world x (east) and y
   (north). SensorHeading and ShipGyro are true headings (the grid heading turned by the meridian convergence,
-  :func:`sonar_embree.io.geo.true_heading_deg`) where the positions are latitude/longitude. FixTime is each ping's own time (its pose is its
-  nav fix).
+  :func:`sonar_embree.io.geo.true_heading_deg`) where the positions are latitude/longitude.
+- Navigation fixes as devices log them: where the trajectory holds its log's fix times
+  (:attr:`~sonar_embree.Trajectory.fix_times_s`, a 1 Hz GPS log resampled at the ping rate), FixTime is the time of
+  each ping's last fix and the Sensor and Ship positions are where the fish and the ship were at that time, held
+  until the next fix, while depth, altitude, attitude and speed are the ping's own (the sensors devices sample
+  every ping). Without fix times every ping is its own fix. A replay rebuilds the continuous track between the
+  fixes (:func:`continuous_track`).
   SensorDepth = surface_z_m − z, positive down from the sea surface at world height
   ``surface_z_m`` (default: the sonar's own sea surface, ``environment.surface``); without one the depth of a
   georeferenced trajectory is −z (its vertical datum, z = 0, taken as the sea surface) when it lies below
@@ -195,14 +200,14 @@ def _start(record, start) -> dt.datetime:
         raise ConfigError(f"to_xtf: {exc}") from None
 
 
-def _ping_times(h, start: dt.datetime, times_s) -> None:
-    for i, ts in enumerate(times_s):
-        when = start + dt.timedelta(seconds=float(ts))
+def _ping_times(h, start: dt.datetime, times_s, fix_times_s) -> None:
+    for i, (ts, fs) in enumerate(zip(times_s, fix_times_s)):
+        when, fix = start + dt.timedelta(seconds=float(ts)), start + dt.timedelta(seconds=float(fs))
         h[i]["Year"], h[i]["Month"], h[i]["Day"] = when.year, when.month, when.day
         h[i]["Hour"], h[i]["Minute"], h[i]["Second"] = when.hour, when.minute, when.second
         h[i]["HSeconds"] = when.microsecond // 10000
-        h[i]["FixTimeHour"], h[i]["FixTimeMinute"], h[i]["FixTimeSecond"] = when.hour, when.minute, when.second
-        h[i]["FixTimeHsecond"] = when.microsecond // 10000                 # the nav fix is the ping's pose
+        h[i]["FixTimeHour"], h[i]["FixTimeMinute"], h[i]["FixTimeSecond"] = fix.hour, fix.minute, fix.second
+        h[i]["FixTimeHsecond"] = fix.microsecond // 10000                  # the last navigation fix's time
         h[i]["JulianDay"] = when.timetuple().tm_yday
         h[i]["NavFixMilliseconds"] = int(round(float(ts) * 1e3)) % 2**32
 
@@ -246,11 +251,12 @@ def to_xtf(record, path, start: dt.datetime | str | None = None, *, scale="auto"
 
 
 def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bool = True, first_ping: int = 0,
-              file_name: str = "", samples_per_channel: int | None = None, decimation: str = "max"):
+              file_name: str = "", samples_per_channel: int | None = None, decimation: str = "max", line=None):
     """(file header, sonar packets) of ``record`` as XTF bytes (see :func:`to_xtf`); the packets' ping numbers
-    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.survey.stream`); ``file_name`` goes into the
-    header's ThisFileName; ``samples_per_channel``: decimate each side to that many samples by ``decimation``
-    (:func:`decimate`)."""
+    start at ``first_ping`` (a block of a longer line, :mod:`sonar_embree.survey.stream`; ``line``, the whole
+    line's :class:`~sonar_embree.Trajectory`, gives the positions of fixes taken before the block, default the
+    record's own); ``file_name`` goes into the header's ThisFileName; ``samples_per_channel``: decimate each side to
+    that many samples by ``decimation`` (:func:`decimate`)."""
     if tuple(record.channels) != ("port", "starboard"):
         names = ", ".join(record.channels[:3]) + (f", … ({len(record.channels)} channels)"
                                                    if len(record.channels) > 3 else "")
@@ -272,7 +278,9 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
     sides = (record.port * factor, record.starboard * factor) if ints is None else (ints[:, 0], ints[:, 1])
     if samples_per_channel is not None:
         sides = tuple(decimate(s, samples_per_channel, decimation) for s in sides)
-    packet = _packets(record, when, surface_z_m, ints, sides[0].shape[1])
+    fixes = held_fixes(record.trajectory if line is None else line, first_ping if line is not None else 0,
+                       record.n_pings)
+    packet = _packets(record, when, surface_z_m, ints, sides[0].shape[1], fixes)
     if samples_per_channel is not None and sides[0].shape[1] < record.data.shape[2]:
         for side in ("port_head", "stbd_head"):
             packet[side]["DownsampleMethod"] = DOWNSAMPLE_METHODS[decimation]
@@ -327,20 +335,36 @@ def geographic(record):
     return crs, (float(e0), float(n0))
 
 
-def _navigation(h, record, surface_z_m) -> None:
-    """The ping headers' navigation: Sensor and Ship positions (lat/lon with a CRS or a geographic origin,
-    :func:`geographic`), speeds, depth, altitude, attitude, and a towed sonar's Layback (horizontal ship–sensor
-    distance, m) and CableOut (m, a taut cable)."""
+def held_fixes(trajectory, first: int = 0, n: int | None = None) -> dict:
+    """The navigation a device logs for pings ``first`` … ``first + n`` of ``trajectory``: ``times_s`` (n,) of
+    each ping's last fix (:attr:`~sonar_embree.Trajectory.fix_times_s`, else the ping's own time), and
+    ``sensor_m`` and ``ship_m`` (n, 3): where the sonar and the ship were at that time (the trajectory interpolated
+    there, :meth:`~sonar_embree.Trajectory.at_times`), held until the next fix."""
+    t = trajectory
+    span = slice(first, len(t) if n is None else first + n)
+    ship = t.positions_m if t.ship_positions_m is None else t.ship_positions_m
+    if t.fix_times_s is None:
+        return dict(times_s=t.times_s[span], sensor_m=t.positions_m[span], ship_m=ship[span])
+    fix, inverse = np.unique(t.fix_times_s[span], return_inverse=True)
+    at = t.at_times(np.clip(fix, t.times_s[0], t.times_s[-1]))
+    at_ship = at.positions_m if at.ship_positions_m is None else at.ship_positions_m
+    return dict(times_s=t.fix_times_s[span], sensor_m=at.positions_m[inverse], ship_m=at_ship[inverse])
+
+
+def _navigation(h, record, surface_z_m, fixes: dict) -> None:
+    """The ping headers' navigation: Sensor and Ship positions of each ping's last fix (``fixes``,
+    :func:`held_fixes`; lat/lon with a CRS or a geographic origin, :func:`geographic`), speeds, depth, altitude,
+    attitude, and a towed sonar's CableOut (m, a taut cable)."""
     t, geo = record.trajectory, geographic(record)
-    ship = t.positions_m if t.ship_positions_m is None else t.ship_positions_m   # towed: the ship ahead
-    for prefix, where in (("Sensor", t.positions_m), ("Ship", ship)):
+    ship = fixes["ship_m"]                                                   # towed: the ship ahead
+    for prefix, where in (("Sensor", fixes["sensor_m"]), ("Ship", ship)):
         x, y = where[:, 0], where[:, 1]
         if geo is not None:
             x, y = to_lonlat(geo[0], x + geo[1][0], y + geo[1][1])
         h[f"{prefix}Xcoordinate"], h[f"{prefix}Ycoordinate"] = x, y
         h[f"{prefix}Speed"] = speed_m_s(t) / KNOT_M_S
     if t.ship_positions_m is not None:                 # the sensor is written laid back already: Layback stays 0
-        h["CableOut"] = np.clip(np.round(np.linalg.norm(ship - t.positions_m, axis=1)), 0, 65535)
+        h["CableOut"] = np.clip(np.round(np.linalg.norm(ship - fixes["sensor_m"], axis=1)), 0, 65535)
     if t.crs is not None:
         surface_z_m = 0.0 if surface_z_m is None and np.all(t.positions_m[:, 2] <= 0.0) else surface_z_m
     h["SensorDepth"] = 0.0 if surface_z_m is None else surface_z_m - t.positions_m[:, 2]
@@ -351,9 +375,10 @@ def _navigation(h, record, surface_z_m) -> None:
     h["ShipGyro"] = heading
 
 
-def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
-    """One sonar packet per ping of ``n_s`` samples per side with its headers filled in; the samples left to the
-    caller (the record's time span in TimeDuration whatever ``n_s``)."""
+def _packets(record, when, surface_z_m, ints, n_s: int, fixes: dict) -> np.ndarray:
+    """One sonar packet per ping of ``n_s`` samples per side with its headers filled in, the navigation of
+    ``fixes`` (:func:`held_fixes`); the samples left to the caller (the record's time span in TimeDuration
+    whatever ``n_s``)."""
     t, s = record.trajectory, record.sonar
     n_p = record.port.shape[0]
     kind = "<f4" if ints is None else ints.dtype.newbyteorder("<")
@@ -366,10 +391,10 @@ def _packets(record, when, surface_z_m, ints, n_s: int) -> np.ndarray:
     h = packet["head"]
     h["MagicNumber"], h["HeaderType"], h["NumChansToFollow"] = 0xFACE, 0, 2
     h["NumBytesThisRecord"] = packet.dtype.itemsize
-    _ping_times(h, when, t.times_s)
+    _ping_times(h, when, t.times_s, fixes["times_s"])
     h["PingNumber"] = np.arange(n_p)                                # EventNumber stays 0: no event marked
     h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
-    _navigation(h, record, surface_z_m)
+    _navigation(h, record, surface_z_m, fixes)
     codes = {} if ints is None else s.receiver.header_codes()
     tvg = ints is not None and codes.get("GainCode", 0) > 0             # the codes carry the receiver's TVG
     for side, number in (("port_head", 0), ("stbd_head", 1)):
@@ -440,6 +465,60 @@ def _times(pings) -> list:
     return coarse
 
 
+def _fix_times(pings, times: list) -> list | None:
+    """UTC datetimes of each ping's navigation fix from its FixTime (hour, minute, second, hundredths) on the
+    ping's date (the day before where the fix would come over 12 h after its ping: a fix before midnight), or None
+    where every FixTime is blank (zero) or impossible."""
+    if all(p.FixTimeHour == p.FixTimeMinute == p.FixTimeSecond == p.FixTimeHsecond == 0 for p in pings):
+        return None
+    out = []
+    for p, when in zip(pings, times):
+        try:
+            fix = when.replace(hour=p.FixTimeHour, minute=p.FixTimeMinute, second=p.FixTimeSecond,
+                               microsecond=10000 * p.FixTimeHsecond)
+        except ValueError:
+            return None
+        out.append(fix - dt.timedelta(days=1) if (fix - when).total_seconds() > 43200 else fix)
+    return out
+
+
+def continuous_track(times_s, x, y, fix_s=None):
+    """(x, y) (n,) at each ping's time, rebuilt from navigation held between fixes as devices log it (the same
+    position repeated until the next fix), as processing packages rebuild it.
+
+    The fixes are the pings where the logged position (or the FixTime) changes; each is placed at its fix time
+    (``fix_s``, s on the pings' clock; where missing or not increasing, the time of its first ping) and the positions
+    are interpolated linearly between fixes, extrapolated along the first and last legs. Navigation where every
+    ping is its own fix comes back as it is.
+
+    Parameters
+    ----------
+    times_s : (n,) float
+        Ping times, s.
+    x, y : (n,) float
+        Logged positions (projected, m).
+    fix_s : (n,) float, optional
+        Each ping's fix time, s, on the clock of ``times_s``.
+    """
+    times_s, x, y = (np.asarray(a, dtype=np.float64) for a in (times_s, x, y))
+    new = np.ones(x.size, bool)
+    new[1:] = (x[1:] != x[:-1]) | (y[1:] != y[:-1])
+    if fix_s is not None:
+        new[1:] |= np.asarray(fix_s)[1:] != np.asarray(fix_s)[:-1]
+    if new.all() or new.sum() < 2:
+        return x, y
+    at = times_s[new] if fix_s is None else np.asarray(fix_s, dtype=np.float64)[new]
+    if np.any(np.diff(at) <= 0.0):
+        at = times_s[new]
+    out = []
+    for v in (x[new], y[new]):
+        lo, hi = (v[1] - v[0]) / (at[1] - at[0]), (v[-1] - v[-2]) / (at[-1] - at[-2])
+        inside = np.interp(times_s, at, v)
+        out.append(np.where(times_s < at[0], v[0] + lo * (times_s - at[0]),
+                            np.where(times_s > at[-1], v[-1] + hi * (times_s - at[-1]), inside)))
+    return out[0], out[1]
+
+
 def _sonar_pings(path: str, what: str):
     """(file header, sonar pings, one header per ping) of the XTF file ``path`` read by pyxtf, after checking its
     packets; a missing, truncated or unreadable file, or one without sonar pings, is a one-line error."""
@@ -470,8 +549,9 @@ def read_navigation(path) -> dict:
         (longitude and latitude in degrees for NavUnits 3, else easting and northing in m), ``depth_m``,
         ``heading_deg``, ``pitch_deg``, ``roll_deg`` and ``speed_m_s`` (n,) from the ping headers' Sensor
         fields, and ``times`` (n,) UTC datetimes from their date and time (hundredths of seconds; refined by
-        NavFixMilliseconds where pings come faster than 100 per second). A truncated or corrupt file (a packet
-        running past its end) is refused, never read in part.
+        NavFixMilliseconds where pings come faster than 100 per second), and ``fix_times`` (n,) UTC datetimes of
+        each ping's navigation fix (FixTime; None where the file leaves it blank). A truncated or corrupt file (a
+        packet running past its end) is refused, never read in part.
     """
     path = str(path)
     header, pings = _sonar_pings(path, "navigation")
@@ -481,11 +561,13 @@ def read_navigation(path) -> dict:
 
     try:
         times = _times(pings)
+        fixes = _fix_times(pings, times)
     except ValueError as exc:
         raise ConfigError(f"{path}: a ping has an invalid date or time ({exc})") from None
     return dict(nav_units=int(header.NavUnits), x=field("SensorXcoordinate"), y=field("SensorYcoordinate"),
                 depth_m=field("SensorDepth"), heading_deg=field("SensorHeading"), pitch_deg=field("SensorPitch"),
-                roll_deg=field("SensorRoll"), speed_m_s=field("SensorSpeed") * KNOT_M_S, times=times)
+                roll_deg=field("SensorRoll"), speed_m_s=field("SensorSpeed") * KNOT_M_S, times=times,
+                fix_times=fixes)
 
 
 def read_sonar(path) -> dict:

@@ -142,8 +142,7 @@ class Record:
         meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
                 "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),
                 "attrs": self.attrs}
-        if type(self.sonar).__name__ != "Sonar" or self.channels != ("port", "starboard"):
-            meta["sonar_type"], meta["channels"] = type(self.sonar).__name__, list(self.channels)
+        meta["sonar_type"], meta["channels"] = type(self.sonar).__name__, list(self.channels)
         meta["trajectory"] = {"crs": self.trajectory.crs, "start_time": self.trajectory.start_time}
         if self.labels is not None:
             meta["labels"] = {"names": list(self.labels.names), "is_seafloor": list(self.labels.is_seafloor)}
@@ -166,6 +165,8 @@ class Record:
             extra["velocity_m_s"] = t.velocity_m_s
         if t.ship_positions_m is not None:
             extra["ship_positions_m"] = t.ship_positions_m
+        if t.fix_times_s is not None:
+            extra["fix_times_s"] = t.fix_times_s
         series = {ch: self.channel(ch) for ch in self.channels}
 
         def write(tmp):
@@ -213,10 +214,11 @@ class Record:
     def _assemble(cls, meta: dict, p: dict) -> "Record":
         """A record from its :meth:`metadata` and its arrays ``p``: data, complex_data and samples (or None),
         labels (name → array, or None), time_s, altitude_m and the trajectory's positions_m, heading_deg,
-        pitch_deg, roll_deg, times_s (velocity_m_s and ship_positions_m when present)."""
+        pitch_deg, roll_deg, times_s (velocity_m_s, ship_positions_m and fix_times_s when present)."""
         geo = meta.get("trajectory", {})
         traj = Trajectory(p["positions_m"], p["heading_deg"], p["pitch_deg"], p["roll_deg"], p["times_s"],
-                          p.get("velocity_m_s"), geo.get("crs"), geo.get("start_time"), p.get("ship_positions_m"))
+                          p.get("velocity_m_s"), geo.get("crs"), geo.get("start_time"), p.get("ship_positions_m"),
+                          p.get("fix_times_s"))
         labels = None
         if p.get("labels") is not None:
             labels = Labels(**p["labels"], names=tuple(meta["labels"]["names"]),

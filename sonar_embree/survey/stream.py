@@ -44,14 +44,15 @@ PROGRESS = "stream.json"
 def _fingerprint(scene, trajectory, sonar, pulse, kwargs) -> str:
     """A digest of everything that decides the output's bytes."""
     h = hashlib.sha256()
-    if hasattr(scene, "fingerprint"):                               # a TiledDEM: its file and tiling
+    if isinstance(scene, TiledDEM):                                 # its file and tiling
         h.update(scene.fingerprint().encode())
-    for obj in getattr(scene, "objects", ()):
+    for obj in () if isinstance(scene, TiledDEM) else scene.objects:
         h.update(obj.label.encode())
         h.update(np.ascontiguousarray(obj.vertices).tobytes())
         h.update(np.ascontiguousarray(obj.faces).tobytes())
         h.update(repr(obj.material).encode())
-    for name in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s", "ship_positions_m"):
+    for name in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s", "ship_positions_m",
+                 "fix_times_s"):
         a = getattr(trajectory, name)
         h.update(b"none" if a is None else np.ascontiguousarray(a).tobytes())
     h.update(repr((trajectory.crs, trajectory.start_time, sonar, pulse, sorted(kwargs.items()))).encode())
@@ -245,8 +246,9 @@ def _fsync_block(path: str, ds, k: int) -> None:
     fsync_path(path)
 
 
-def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
-    """The block's pings into their Zarr region and onto the XTF, flushed to disk; then counted as done."""
+def _write_block(path, rec, a: int, progress: dict, xtf_path, line) -> None:
+    """The block's pings (from ping ``a`` of the trajectory ``line``) into their Zarr region and onto the XTF,
+    flushed to disk; then counted as done."""
     from ..record.dataset import to_xarray
     from ..io.xtf import xtf_bytes
 
@@ -257,7 +259,7 @@ def _write_block(path, rec, a: int, progress: dict, xtf_path) -> None:
         ds.to_zarr(path, region={"ping": slice(a, a + rec.n_pings)}, zarr_format=2)
     if xtf_path is not None:
         _, packets = xtf_bytes(rec, scale=progress["xtf"]["scale"], first_ping=a,
-                               samples_per_channel=progress["xtf"].get("samples"))
+                               samples_per_channel=progress["xtf"].get("samples"), line=line)
         per_ping = progress["xtf"].setdefault("ping_bytes", len(packets) // rec.n_pings)
         try:
             with open(xtf_path, "r+b") as fh:
@@ -456,7 +458,7 @@ def _run_blocks_on_cluster(scene, trajectory, path, sonar, pulse, block, key, xt
         shared = c.scatter(scene, broadcast=True)
         calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs)) for a in starts)
         records = in_order(c, render_block, calls, 2 * threads_of(c) + 1, f"sonar-embree-line-{key[:10]}")
-        _write_blocks(zip(starts, records), path, n, block, key, xtf_path, xtf_opts, progress, bar)
+        _write_blocks(zip(starts, records), path, trajectory, block, key, xtf_path, xtf_opts, progress, bar)
 
 
 def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
@@ -465,11 +467,13 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
     n = len(trajectory)
     starts = range(0 if progress is None else progress["pings_done"], n, block)
     records = (render_block(scene, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs) for a in starts)
-    _write_blocks(zip(starts, records), path, n, block, key, xtf_path, xtf_opts, progress, bar)
+    _write_blocks(zip(starts, records), path, trajectory, block, key, xtf_path, xtf_opts, progress, bar)
 
 
-def _write_blocks(blocks, path, n, block, key, xtf_path, xtf_opts, progress, bar) -> None:
-    """Write each (first ping, record) of ``blocks`` in turn (the store started with the first), counting them."""
+def _write_blocks(blocks, path, line, block, key, xtf_path, xtf_opts, progress, bar) -> None:
+    """Write each (first ping, record) of ``blocks`` of the trajectory ``line`` in turn (the store started with the
+    first), counting them."""
+    n = len(line)
     first = 0 if progress is None else progress["pings_done"]
     bar = pings_bar(bar, n, first)
     t_prev = time.perf_counter()
@@ -477,7 +481,7 @@ def _write_blocks(blocks, path, n, block, key, xtf_path, xtf_opts, progress, bar
         b = a + rec.n_pings
         if progress is None:
             progress = _start(path, rec, n, block, key, xtf_path, xtf_opts)
-        _write_block(path, rec, a, progress, xtf_path)
+        _write_block(path, rec, a, progress, xtf_path, line)
         if bar is not None:
             bar.update(b - a)
         now = time.perf_counter()

@@ -76,6 +76,14 @@ def body_to_world(heading_deg, pitch_deg, roll_deg):
     return np.einsum("ij,njk->nik", _ENU_FROM_NED, m)
 
 
+def _fix_times(value, times_s: np.ndarray) -> np.ndarray:
+    """``fix_times_s`` checked against the ping times: one per ping, none after its ping, never decreasing."""
+    fix = _as_float_array("fix_times_s", value, times_s.size)
+    if np.any(fix > times_s + 1e-9) or np.any(np.diff(fix) < 0.0):
+        raise ConfigError("Trajectory.fix_times_s must not decrease and no fix may come after its ping")
+    return fix
+
+
 def _check_n_pings(where: str, n_pings) -> None:
     if isinstance(n_pings, bool) or not isinstance(n_pings, (int, np.integer)) or n_pings < 1:
         raise ConfigError(f"Trajectory.{where} n_pings must be an integer >= 1, got {n_pings!r}")
@@ -125,6 +133,11 @@ class Trajectory:
         Where the ship (its GPS antenna) is at each ping when the sonar is towed behind it (:meth:`with_layback`),
         world m; ``None``: the sonar is where the navigation is (hull mount, AUV). XTF writes it as the Ship
         coordinates.
+    fix_times_s : (n,) float or None
+        The time (s, this trajectory's clock) of the navigation fix each ping's logged position comes from: the
+        last fix of the log at or before the ping (:meth:`resampled` sets it from a log's own times). A device
+        logs that fix's time and position until the next fix comes (XTF FixTime; :mod:`sonar_embree.io.xtf`),
+        while the sonar itself moves on. ``None``: every ping is its own fix.
     """
 
     positions_m: np.ndarray
@@ -136,6 +149,7 @@ class Trajectory:
     crs: str | None = None
     start_time: str | None = None
     ship_positions_m: np.ndarray | None = None
+    fix_times_s: np.ndarray | None = None
 
     def __post_init__(self):
         pos = _as_float_array("positions_m", self.positions_m)
@@ -165,6 +179,8 @@ class Trajectory:
             if ship.shape != (n, 3):
                 raise ConfigError(f"Trajectory.ship_positions_m must have shape ({n}, 3), got {ship.shape}")
             object.__setattr__(self, "ship_positions_m", ship)
+        if self.fix_times_s is not None:
+            object.__setattr__(self, "fix_times_s", _fix_times(self.fix_times_s, t))
         if self.crs is not None:
             from ..io.geo import crs_name
 
@@ -183,6 +199,7 @@ class Trajectory:
         extra += [f"start_time={self.start_time}"] if self.start_time else []
         extra += ["moving during the ping"] if self.velocity_m_s is not None else []
         extra += ["towed (ship positions)"] if self.ship_positions_m is not None else []
+        extra += ["navigation fixes held between pings"] if self.fix_times_s is not None else []
         t = self.times_s
         return (f"Trajectory({len(self)} pings, x/y/z {span} m, t {t[0]:.6g}…{t[-1]:.6g} s"
                 + "".join(", " + e for e in extra) + ")")
@@ -197,7 +214,8 @@ class Trajectory:
         return Trajectory(self.positions_m[idx], self.heading_deg[idx], self.pitch_deg[idx], self.roll_deg[idx],
                           self.times_s[idx], None if self.velocity_m_s is None else self.velocity_m_s[idx],
                           self.crs, self.start_time,
-                          None if self.ship_positions_m is None else self.ship_positions_m[idx])
+                          None if self.ship_positions_m is None else self.ship_positions_m[idx],
+                          None if self.fix_times_s is None else self.fix_times_s[idx])
 
     @classmethod
     def concatenate(cls, parts) -> "Trajectory":
@@ -211,7 +229,7 @@ class Trajectory:
 
         return cls(*(joined(k) for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s",
                                          "velocity_m_s")), parts[0].crs, parts[0].start_time,
-                   joined("ship_positions_m"))
+                   joined("ship_positions_m"), joined("fix_times_s"))
 
     def __eq__(self, other) -> bool:
         if not isinstance(other, Trajectory):
@@ -219,7 +237,7 @@ class Trajectory:
         return (self.crs, self.start_time) == (other.crs, other.start_time) and all(
             np.array_equal(getattr(self, k), getattr(other, k))
             for k in ("positions_m", "heading_deg", "pitch_deg", "roll_deg", "times_s", "velocity_m_s",
-                      "ship_positions_m"))
+                      "ship_positions_m", "fix_times_s"))
 
     @property
     def n_pings(self) -> int:
@@ -353,13 +371,18 @@ class Trajectory:
 
     def resampled(self, ping_rate_hz: float) -> "Trajectory":
         """The poses at a ping rate (Hz) from the first time to the last: pings at t₀ + k/rate, interpolated as
-        :meth:`at_times` does. A navigation log's fixes (often 1 Hz) become the device's pings."""
+        :meth:`at_times` does. A navigation log's fixes (often 1 Hz) become the device's pings; each ping's
+        :attr:`fix_times_s` is the time of the last fix at or before it (a log whose fixes come no slower than the
+        pings: each ping its own fix)."""
         check_number("Trajectory.resampled", "ping_rate_hz", ping_rate_hz, positive=True, hi=1e4)
         span = float(self.times_s[-1] - self.times_s[0])
         n = int(math.floor(span * ping_rate_hz * (1 + 1e-12))) + 1
         if n > 50_000_000:
             raise ConfigError(f"Trajectory.resampled: {n} pings; lower the ping rate or split the log")
-        return self.at_times(self.times_s[0] + np.arange(n) / float(ping_rate_hz))
+        pings = self.at_times(self.times_s[0] + np.arange(n) / float(ping_rate_hz))
+        last = self.times_s[np.searchsorted(self.times_s, pings.times_s + 1e-9, side="right") - 1]
+        held = pings.times_s if np.median(np.diff(self.times_s)) <= 1.0 / float(ping_rate_hz) else last
+        return dataclasses.replace(pings, fix_times_s=held)
 
     def with_layback(self, layback_m: float | None = None, *, cable_out_m: float | None = None,
                      tow_point_z_m: float = 0.0) -> "Trajectory":
@@ -452,17 +475,21 @@ class Trajectory:
         """The poses of an XTF file's sonar pings (pyxtf reads it; :func:`sonar_embree.io.xtf.read_navigation`).
 
         Latitude/longitude navigation (NavUnits 3) is projected into ``crs`` (default: the UTM zone of the first
-        ping), its true headings turned into grid headings there (:func:`sonar_embree.io.geo.grid_heading_deg`); metres are taken as world x and y (in ``crs`` when given). z = −SensorDepth (depth below the sea
+        ping), its true headings turned into grid headings there (:func:`sonar_embree.io.geo.grid_heading_deg`);
+        metres are taken as world x and y (in ``crs`` when given). Positions held between navigation fixes (as
+        devices log them) are rebuilt into the continuous track (:func:`sonar_embree.io.xtf.continuous_track`), each
+        ping's fix time kept as :attr:`fix_times_s`. z = −SensorDepth (depth below the sea
         surface at z = 0), attitude from the Sensor fields, ``times_s`` from the first ping's time, which becomes
         ``start_time``. The velocity is not read (stop-and-hop unless set from the times, as for CSV). ``keep``
         ((pings,) bool) takes only those pings, before the projection (pings without a fix left out).
         """
         from ..io.geo import from_lonlat, grid_heading_deg, utm_crs
-        from ..io.xtf import NAV_UNITS_LATLON, read_navigation
+        from ..io.xtf import NAV_UNITS_LATLON, continuous_track, read_navigation
 
         nav = read_navigation(path)
         if keep is not None:
-            nav = {k: (np.asarray(v)[keep] if k != "nav_units" else v) for k, v in nav.items()}
+            nav = {k: (np.asarray(v)[keep] if k not in ("nav_units", "fix_times") else v) for k, v in nav.items()}
+            nav["fix_times"] = None if nav["fix_times"] is None else list(np.asarray(nav["fix_times"])[keep])
         x, y, heading = nav["x"], nav["y"], nav["heading_deg"] % 360.0
         try:
             if nav["nav_units"] == NAV_UNITS_LATLON:
@@ -470,8 +497,12 @@ class Trajectory:
                 x, y = from_lonlat(crs, x, y)
                 heading = grid_heading_deg(crs, x, y, heading)          # XTF headings are true headings
             t = np.array([(w - nav["times"][0]).total_seconds() for w in nav["times"]])
+            fix = (None if nav["fix_times"] is None
+                   else np.array([(w - nav["times"][0]).total_seconds() for w in nav["fix_times"]]))
+            x, y = continuous_track(t, x, y, fix)
+            fix = None if fix is None or np.any(fix > t + 1e-9) or np.any(np.diff(fix) < 0) else fix
             return cls(np.stack([x, y, -nav["depth_m"]], axis=1), heading, nav["pitch_deg"],
-                       nav["roll_deg"], t, None, crs, nav["times"][0].isoformat())
+                       nav["roll_deg"], t, None, crs, nav["times"][0].isoformat(), fix_times_s=fix)
         except ConfigError as exc:
             raise ConfigError(f"{os.fspath(path)}: {exc}") from None
 

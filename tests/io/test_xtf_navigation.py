@@ -77,3 +77,75 @@ def test_headings_are_true_headings(tmp_path, origin, heading):
     assert abs(grid_gap) > (0.8 if origin[0] < 55 else 2.0)                 # the convergence is really there
     back = se.Trajectory.from_xtf(tmp_path / "line.xtf")
     np.testing.assert_allclose((back.heading_deg - heading + 180.0) % 360.0 - 180.0, 0.0, atol=0.05)
+
+
+def _logged_line(tmp_path, towed=False):
+    """A 1 Hz GPS log of a turning track (time, lat, lon) resampled at 8 pings a second, as a survey makes its
+    pings, and its record written as XTF."""
+    crs = utm_crs(10.2, 54.5)
+    e0, n0 = pyproj.Transformer.from_crs("EPSG:4326", crs, always_xy=True).transform(10.2, 54.5)
+    t = np.arange(11.0)
+    xy = np.stack([e0 + 30 * np.sin(t / 10), n0 + 1.6 * t ** 1.2, np.full(t.size, 10.0)], axis=1)
+    log = se.Trajectory(xy, 0.0, 0.0, 0.0, t, crs=crs, start_time="2026-05-01T12:00:00Z")
+    traj = log.resampled(8.0)
+    if towed:
+        traj = traj.with_layback(cable_out_m=25.0, tow_point_z_m=20.0)
+    scene = se.Scene().add(se.seafloor.flat((200.0, 200.0), center_m=(e0, n0 + 10)), label="seafloor")
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=15.0), se.Pulse.cw())
+    path = tmp_path / "logged.xtf"
+    rec.to_xtf(path)
+    return log, rec, path
+
+
+@pytest.mark.parametrize("towed", [False, True], ids=["hull", "towed"])
+def test_fixes_are_held_between_pings_as_devices_log_them(tmp_path, towed):
+    """A 1 Hz log and 8 pings a second: FixTime is the last fix's time (whole seconds here), the position is
+    where the fish was then (within 1 cm, computed here from the pose at that time), repeated until the next fix;
+    the ping times, depth and heading are each ping's own."""
+    log, rec, path = _logged_line(tmp_path, towed)
+    pings = pyxtf.xtf_read(str(path))[1][pyxtf.XTFHeaderType.sonar]
+    ping_s = np.array([p.Second + p.HSeconds / 100 for p in pings])
+    fix_s = np.array([p.FixTimeSecond + p.FixTimeHsecond / 100 for p in pings])
+    np.testing.assert_array_equal(fix_s, np.floor(ping_s + 1e-9))           # the whole second before each ping
+    assert len(set(ping_s)) == len(pings) == 81
+    lon = np.array([p.SensorXcoordinate for p in pings])
+    same = lon[1:] == lon[:-1]
+    assert same.mean() == pytest.approx(70 / 80)                             # 7 of every 8 pings repeat the fix
+    crs = rec.trajectory.crs
+    whole, which = np.unique(fix_s - fix_s[0], return_inverse=True)
+    fish = rec.trajectory.at_times(whole).positions_m[which]                 # where the fish was at each fix
+    want = to_lonlat(crs, fish[:, 0], fish[:, 1])
+    assert np.max(GEOD.inv(lon, [p.SensorYcoordinate for p in pings], *want)[2]) < 0.01
+    assert np.ptp([p.SensorDepth for p in pings]) == 0 and len({p.SensorHeading for p in pings}) > 40
+
+
+@pytest.mark.parametrize("towed", [False, True], ids=["hull", "towed"])
+def test_a_replay_rebuilds_the_continuous_track_between_fixes(tmp_path, towed):
+    """Read back, the held positions become a continuous track: every ping within 0.15 m of where it was
+    simulated (the log's curvature over a second), no two pings at the same place, fix times kept."""
+    log, rec, path = _logged_line(tmp_path, towed)
+    back = se.Trajectory.from_xtf(path, crs=rec.trajectory.crs)
+    miss = np.hypot(*(back.positions_m[:, :2] - rec.trajectory.positions_m[:, :2]).T)
+    assert miss.max() < 0.15
+    assert np.all(np.hypot(*np.diff(back.positions_m[:, :2], axis=0).T) > 0.05)
+    np.testing.assert_allclose(back.fix_times_s, np.floor(back.times_s + 1e-9), atol=1e-9)
+    held = np.hypot(*(np.repeat(back.positions_m[::8, :2], 8, axis=0)[:81] - rec.trajectory.positions_m[:, :2]).T)
+    assert held.max() > 1.0                                                  # taken as logged, it would be wrong
+
+
+def test_the_held_track_against_a_naive_rebuild():
+    """continuous_track against a loop written here: fixes where the position changes, linear between them."""
+    from sonar_embree.io.xtf import continuous_track
+
+    rng = np.random.default_rng(3)
+    t = np.arange(40) * 0.25
+    fx, fy = rng.normal(size=11).cumsum(), rng.normal(size=11).cumsum()
+    k = np.floor(t).astype(int)
+    x, y = continuous_track(t, fx[k], fy[k], np.floor(t))
+    for i, ti in enumerate(t):
+        j = min(int(ti), 8)                                                   # the leg it lies on (last: 8→9)
+        w = ti - j
+        assert x[i] == pytest.approx(fx[j] + w * (fx[j + 1] - fx[j]))
+        assert y[i] == pytest.approx(fy[j] + w * (fy[j + 1] - fy[j]))
+    same = continuous_track(t, np.arange(40.0), np.zeros(40))               # every ping its own fix: as it is
+    np.testing.assert_array_equal(same[0], np.arange(40.0))

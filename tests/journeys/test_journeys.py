@@ -105,9 +105,9 @@ def _dem_and_log(folder, seconds=8):
 
 @pytest.mark.parametrize("device", ["cmax-cm2-325", "imagenex-872-330"])   # every sample; decimated to 1000
 def test_survey_journey(tmp_path, device):
-    """A ship's GPS log over a DEM with --altitude-m, a towed fish (--cable-out): the XTF as a viewer reads it
-    (water column at least 20 dB below the seabed, the fish where the reader puts it, true headings, 2R/c between
-    pings), line.png drawn from the codes (dark water column), the mosaic and truth with their CRS and units, and
+    """A ship's GPS log over a DEM with --altitude-m: the XTF as a viewer reads it (water column at least 20 dB
+    below the seabed, the fish where the reader puts it, true headings, 2R/c between pings, the log's 1 Hz fixes
+    held in FixTime and the positions), line.png drawn from the codes (dark water column), the mosaic and truth with their CRS and units, and
     the line's XTF replayed."""
     _dem_and_log(tmp_path)
     out = _users_folder(tmp_path / "survey")
@@ -128,6 +128,9 @@ def test_survey_journey(tmp_path, device):
     assert 20 * np.log10(np.median(codes[floor]) / max(np.median(codes[water]), 0.5)) >= 20.0
     assert all(p.Layback == 0.0 for p in pings)
     _check_timing_and_headings(pings)
+    fix = np.array([60 * p.FixTimeMinute + p.FixTimeSecond + p.FixTimeHsecond / 100 for p in pings])
+    np.testing.assert_array_equal(np.unique(fix), np.arange(9.0))          # the log's 1 Hz fixes, held
+    assert np.all(fix <= np.mod(_ping_seconds(pings), 3600.0) + 1e-6)
     png = __import__("imageio.v3", fromlist=["imread"]).imread(out / "line_00" / "line.png")
     middle = png[:, png.shape[1] // 2 - 2:png.shape[1] // 2 + 2]
     assert middle.mean() < 10 and png.mean() > 40                        # a dark water column at nadir
