@@ -95,7 +95,9 @@ class Device:
                  max_gain_db: float | None = None):
         """The device's receive chain (:class:`~sonar_embree.Receiver`) for a record of codes as it stores them:
         its ADC's bits (:attr:`adc_bits`), and what no datasheet found states, assumed (:data:`ASSUMED_RECEIVER`):
-        a −190 dB re 1 V/µPa hydrophone; its full scale is :attr:`full_scale_v`.
+        a −190 dB re 1 V/µPa hydrophone; its full scale is :attr:`full_scale_v`; a band-pass as wide as its pulse's
+        band (:attr:`band_hz`, assumed: a receiver matched to its pulse, so the noise it lets through is the pulse
+        band's, not the whole sample band's; Lurton 2010, §3.4).
 
         ``gain="tvg"`` (default): what side-scan devices record, a time-varied gain G(R) = ``g0_db`` + 30·log10 R +
         2αR (:data:`DEVICE_TVG`) from ``start_range_m`` (near the first bottom return) up to ``max_gain_db``, so
@@ -104,13 +106,20 @@ class Device:
         :func:`sonar_embree.runs.survey.line_receiver`). ``gain="agc"``: an AGC bringing the moving RMS to a
         quarter of full scale (every part of the record at one level, the water column included).
         ``Sonar.preset(name, receiver=device(name).receiver())``."""
+        chain = dict(adc_bits=self.adc_bits, full_scale_v=self.full_scale_v, bandwidth_hz=self.band_hz,
+                     **ASSUMED_RECEIVER)
         if gain == "agc":
-            return Receiver(adc_bits=self.adc_bits, gain=dict(kind="agc", target=0.25), full_scale_v=self.full_scale_v,
-                            **ASSUMED_RECEIVER)
+            return Receiver(gain=dict(kind="agc", target=0.25), **chain)
         if gain != "tvg":
             raise ConfigError(f"Device.receiver: gain must be 'tvg' or 'agc', got {gain!r}")
-        tvg = dict(DEVICE_TVG, kind="tvg", g0_db=g0_db, start_range_m=start_range_m, max_gain_db=max_gain_db)
-        return Receiver(adc_bits=self.adc_bits, gain=tvg, full_scale_v=self.full_scale_v, **ASSUMED_RECEIVER)
+        return Receiver(gain=dict(DEVICE_TVG, kind="tvg", g0_db=g0_db, start_range_m=start_range_m,
+                                  max_gain_db=max_gain_db), **chain)
+
+    @property
+    def band_hz(self) -> float:
+        """The pulse's band, Hz: an LFM's sweep, a CW pulse's 1/τ (the wider of the two)."""
+        sweep = self.pulse[2] if self.pulse[0] == "lfm" else 0.0
+        return max(float(sweep), 1.0 / float(self.pulse[1]))
 
     @property
     def azimuth_one_way_deg(self) -> float:
@@ -144,6 +153,14 @@ _CM2_NOTE = ("tilt and vertical width inferred from the stated vertical coverage
              "the widths at 325 and 780 kHz give membranes of the stated 0.37 and 0.21 m, the 1.0° at 100 kHz one of "
              "0.55 m against the stated 0.37 m (the preset keeps the stated width)")
 _YF = "Imagenex Technology, YellowFin 872 side scan sonar manual (rev. Feb 2011)"
+#: The source levels assumed for the presets at 900 kHz and at 1.8 MHz, dB re 1 µPa at 1 m, within the 210–230 dB
+#: that general references give for high-frequency sonars (no datasheet found states one). An inference from the
+#: level budget (docs/physics.md §19): at these frequencies the thermal noise rules (−15 + 20·log10 f(kHz) dB re
+#: 1 µPa²/Hz, 50 dB at 1.8 MHz) and absorption reaches 1 dB/m; with the 200–210 dB assumed before, a flat seabed
+#: flown at a tenth of the first range sank into the noise halfway across that range, which a device sold with
+#: that setting does not do. The lowest level of the range that keeps it heard there is taken.
+HF_SOURCE_LEVEL_DB, VHF_SOURCE_LEVEL_DB = 220.0, 230.0
+
 _YF_ASSUMED = ("ranges_m", "pulse", "source_level_db", "adc_bits")
 _YF_NOTE = ("the manual gives no range settings (coverage up to 400 m in all), pulse or source level; its beamwidths "
             "are taken as one-way −3 dB widths")
@@ -163,16 +180,16 @@ DEVICES = {d.name: d for d in (
            "towfish", 400e3, 0.46, 50.0, 20.0, (75.0, 150.0), ("lfm", 2e-3, 32e3), 210.0,
            ("source_level_db", "pulse duration"), adc_bits=15, note=_JSF_NOTE),
     Device("edgetech-4125-900", "EdgeTech 4125 Side Scan Sonar System datasheet (900 kHz, Full Spectrum CHIRP)",
-           "towfish", 900e3, 0.28, 50.0, 20.0, (50.0, 75.0), ("lfm", 1e-3, 50e3), 210.0,
+           "towfish", 900e3, 0.28, 50.0, 20.0, (50.0, 75.0), ("lfm", 1e-3, 50e3), HF_SOURCE_LEVEL_DB,
            ("source_level_db", "pulse duration"), adc_bits=15, note=_JSF_NOTE),
     Device("starfish-450f", "Tritech StarFish 450F Side Scan Sonar datasheet (450 kHz CHIRP)",
-           "towfish", 450e3, 0.8, 60.0, 30.0, (50.0, 100.0), ("lfm", 1e-3, 50e3), 205.0,
+           "towfish", 450e3, 0.8, 60.0, 30.0, (50.0, 100.0), ("lfm", 1e-3, 50e3), 210.0,
            ("source_level_db", "pulse duration", "adc_bits")),
     Device("marine-sonic-arc-900", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 900 kHz",
-           "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), 205.0, ("source_level_db",),
+           "AUV", 900e3, 0.2, 50.0, 10.0, (30.0, 60.0), ("cw", 20e-6), HF_SOURCE_LEVEL_DB, ("source_level_db",),
            samples_per_channel=1024, adc_bits=15, full_scale_v=5.0, note=_MST_NOTE),
     Device("marine-sonic-arc-1800", "Marine Sonic Technology, Sea Scan ARC Scout (AUV) side-scan datasheet, 1.8 MHz",
-           "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), 200.0, ("source_level_db",),
+           "AUV", 1.8e6, 0.1, 50.0, 10.0, (15.0, 30.0), ("cw", 10e-6), VHF_SOURCE_LEVEL_DB, ("source_level_db",),
            samples_per_channel=1024, adc_bits=15, full_scale_v=5.0, note=_MST_NOTE),
     # C-MAX CM2: "CM2 Sidescan Sonar, Towfish Specification, Issue 7" and the CM2 user manual. Its horizontal
     # widths are two-way −3 dB. Vertical coverage "−10° through −90°": a fan 80° wide centred 50° down.

@@ -11,7 +11,6 @@ import numpy as np
 
 from ..signal.labels import KIND_NAMES, SIDES, Labels
 from ..errors import ConfigError
-from ..sonars import MSIS, ForwardLooking
 
 #: Pings per Zarr chunk (each chunk holds whole pings).
 PING_CHUNK = 256
@@ -83,6 +82,9 @@ def _ping_coords(record) -> dict:
         coords[name] = (("ping",), getattr(t, name), {"units": "degree", "standard_name": std,
                                                       "long_name": f"{name[:-4]}, {what}"})
     coords["ping_time_s"] = (("ping",), t.times_s, {"units": "s", "long_name": "ping time from start_time"})
+    if t.fix_times_s is not None:
+        coords["fix_time_s"] = (("ping",), t.fix_times_s, {"units": "s", "long_name": "time of the ping's last "
+                                                           "navigation fix from start_time"})
     start = record.attrs.get("start_time")
     if start is not None:
         stamp = start.replace("+00:00", "")
@@ -138,7 +140,7 @@ def to_xarray(record):
         return {"units": "uPa2", "long_name": f"{side} mean-square pressure at the receiver, source level {sl:g} dB "
                                               "re 1 uPa at 1 m"}
 
-    beams = isinstance(record.sonar, ForwardLooking)                 # a multibeam: one (ping, beam, sample) array
+    beams = record.sonar.forms_beams                                 # a multibeam: one (ping, beam, sample) array
     data = _beam_variables(record, intensity) if beams else _channel_variables(record, intensity)
     data |= {"altitude_m": (("ping",), record.altitude_m, {"units": "m", "standard_name": "height_above_sea_floor",
                                                           "long_name": "range to the first surface below the sonar"})}
@@ -146,20 +148,13 @@ def to_xarray(record):
                          {"units": "s", "long_name": "time from the start of transmission"}),
               "slant_range_m": (("sample",), record.slant_range_m, {"units": "m", "long_name": "slant range c t / 2"}),
               **_ping_coords(record)}
-    if isinstance(record.sonar, MSIS):                                 # an MSIS head's bearing per ping
-        first = int(record.attrs.get("first_ping", 0))
-        coords["bearing_deg"] = (("ping",), record.sonar.bearings_deg(first + np.arange(record.n_pings)),
-                                 {"units": "degree", "long_name": "head bearing, clockwise from the vehicle's forward "
-                                                                  "axis"})
+    coords |= record.sonar.dataset_coords(int(record.attrs.get("first_ping", 0)), record.n_pings)
     if record.element_data is not None:
         offsets = np.asarray(record.sonar.receive_array.positions_m)
         for i, (axis, text) in enumerate((("forward", "along the vehicle's forward axis"),
                                           ("outward", "towards the side's look direction"), ("up", "upwards"))):
             coords[f"element_{axis}_m"] = (("element",), offsets[:, i], {
                 "units": "m", "long_name": f"receive element's offset from the transmitter, {text}"})
-    if beams:
-        coords["beam_angle_deg"] = (("beam",), record.sonar.beam_angles_deg(),
-                                    {"units": "degree", "long_name": "steering angle of the beam, to starboard"})
     attrs = _flat_attrs(record)
     attrs["channels"] = "intensity" if beams else " ".join(record.channels)
     attrs[RECORD_ATTR] = json.dumps(record.metadata())   # what Record.load needs to open the store as a record
@@ -310,7 +305,8 @@ def open_parts(path) -> dict:
                 time_s=ds["time_s"].values,
                 altitude_m=ds["altitude_m"].values, positions_m=np.column_stack([ds[f"{a}_m"].values for a in "xyz"]),
                 heading_deg=ds["heading_deg"].values, pitch_deg=ds["pitch_deg"].values,
-                roll_deg=ds["roll_deg"].values, times_s=ds["ping_time_s"].values, ship_positions_m=ship)
+                roll_deg=ds["roll_deg"].values, times_s=ds["ping_time_s"].values, ship_positions_m=ship,
+                fix_times_s=ds["fix_time_s"].values if "fix_time_s" in ds.coords else None)
 
 
 def _check_chunks(path, ds, names) -> None:

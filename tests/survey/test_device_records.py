@@ -8,6 +8,7 @@ import numpy as np
 import pyproj
 import pytest
 import pyxtf
+import xarray as xr
 
 from sonar_embree.instrument import devices
 from sonar_embree.io.geotiff import write_grid
@@ -46,7 +47,9 @@ def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
     """Flown at a tenth of its first range above the floor (at least 2 m), as side-scans are: the median seabed
     code at least 20 dB above the median water-column code before the first return, the median seabed between a
     sixteenth and a quarter of full scale (lower than a quarter where the bright near range would clip), at most
-    5 % of the codes clipped, and the TVG written in the channel headers."""
+    5 % of the codes clipped, and the TVG written in the channel headers. The level budget (source level, noise
+    in the receiver's band, directivity) puts the median seabed at least 20 dB above the water column's noise in
+    the float record too: the contrast is the echoes', not the gain law's."""
     d = devices.device(name)
     run_survey(ground / "dem.tif", [ground / "gps.csv"], tmp_path / "out", name, progress=False, pixel_m=2.0,
                altitude_m=max(0.1 * d.ranges_m[0], 2.0))
@@ -59,6 +62,12 @@ def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
     assert top / 16 <= seabed <= SEABED_FULL_SCALE * top * 1.1 and np.mean(codes >= top) < 0.05
     chan = pings[0].ping_chan_headers[1]
     assert chan.ProcessingFlags == 4 and chan.GainCode == 30
+    floats = xr.open_zarr(tmp_path / "out" / "line_00" / "line.zarr")["starboard"].values    # before the receiver
+    r = (np.arange(floats.shape[1]) + 0.5) * chan.SlantRange / floats.shape[1]
+    water, floor = r[None, :] < 0.8 * alt[:, None], r[None, :] > 1.2 * alt[:, None]
+    margin = 10 * np.log10(np.median(floats[np.broadcast_to(floor, floats.shape)])
+                           / np.median(floats[np.broadcast_to(water, floats.shape)]))
+    assert margin >= 20.0, margin                # the level budget: the seabed well above the receiver's noise
 
 
 def test_the_agc_stays_available():
@@ -97,3 +106,22 @@ def test_a_flat_floors_mosaic_is_uniform_across_range_and_the_overlap(ground, tm
     png = __import__("imageio.v3", fromlist=["imread"]).imread(tmp_path / "out" / "mosaic.png")
     seen = png[..., 1] > 0
     assert 100 < np.median(png[..., 0][seen]) < 156                     # a uniform floor grey, not white
+
+
+@pytest.mark.parametrize("name", sorted(devices.DEVICES))
+def test_a_presets_receiver_passes_its_pulses_band(name):
+    """The band-pass of a preset's receiver is its pulse's band (a chirp's sweep, a CW pulse's 1/τ), computed here
+    from the preset's pulse, so the noise per sample is N·B, not N over the whole sample band."""
+    import sonar_embree as se
+
+    pulse = se.Pulse.preset(name)
+    lo, hi = pulse.frequency_span_hz(devices.device(name).frequency_hz)
+    want = max(hi - lo, 1.0 / pulse.duration_s)
+    for gain in ("tvg", "agc"):
+        assert devices.device(name).receiver(gain).bandwidth_hz == pytest.approx(want, rel=1e-12)
+
+
+def test_assumed_source_levels_lie_within_the_general_references():
+    """Every preset's source level is in 210–230 dB re 1 µPa at 1 m (the general references' range) or sourced."""
+    for d in devices.DEVICES.values():
+        assert "source_level_db" not in d.assumed or 210.0 <= d.source_level_db <= 230.0, d.name
