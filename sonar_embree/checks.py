@@ -15,8 +15,6 @@ import os
 
 import numpy as np
 
-from .instrument.beam import beamwidth_deg
-from .config import Sonar
 from .errors import ConfigError
 from .validation import _warned, warn_once  # noqa: F401 (one set of warned messages per process)
 
@@ -203,10 +201,9 @@ def check_ping_spacing(sonar, positions_m: np.ndarray) -> float | None:
     and tests, not images) are not judged. Returns the footprint (m), or None for sonars without an along-track
     membrane (MSIS, forward-looking, echo sounder) or runs not judged.
     """
-    if not isinstance(sonar, Sonar) or positions_m.shape[0] < MIN_IMAGE_PINGS:
+    foot = sonar.along_track_footprint_m()
+    if foot is None or positions_m.shape[0] < MIN_IMAGE_PINGS:
         return None
-    foot = sonar.max_range_m * 2.0 * np.tan(np.radians(0.5 * beamwidth_deg(sonar.length_m, sonar.wavelength_m,
-                                                                           -3.0, two_way=True)))
     step = float(np.median(np.hypot(*np.diff(positions_m[:, :2], axis=0).T)))
     if step > foot:
         log.warning("pings are %.3g m apart along track, wider than the beam's %.3g m footprint (two-way -3 dB) at "
@@ -231,8 +228,9 @@ def check_ping_interval(sonar, times_s, n_pings: int) -> None:
 
 
 def check_side_scan_only(sonar, feature: str) -> None:
-    """Refuse ``feature`` (clutter, volume reverberation, …) for a sonar type other than the side-scan ``Sonar``."""
-    if type(sonar).__name__ != "Sonar":
+    """Refuse ``feature`` (clutter, volume reverberation) for a sonar type whose front end does not declare them
+    (``models_clutter_and_volume``: the side-scan ``Sonar`` alone)."""
+    if not sonar.models_clutter_and_volume:
         raise ConfigError(f"{feature} is simulated for the side-scan Sonar, not {type(sonar).__name__}")
 
 

@@ -21,7 +21,7 @@ from .laws import Lambert, Summable
 from .laws.clutter import Clutter
 from .laws.texture import KTexture
 from .validation import check_number as _check_number, field_names  # noqa: F401 (field_names re-exported)
-from .instrument.beam import membrane_size_for_beamwidth
+from .instrument.beam import beamwidth_deg, membrane_size_for_beamwidth
 
 
 class Transducer:
@@ -39,6 +39,21 @@ class Transducer:
     #: Whether its front end models the sea surface's paths (docs/physics.md §13) and curved rays (§12).
     models_surface = True
     models_refraction = True
+    #: Whether its front end takes seabed clutter (point scatterers on the floor) and volume reverberation (the
+    #: side-scan's alone: docs/physics.md §11, §18).
+    models_clutter_and_volume = False
+    #: Whether its record is one (ping, beam, sample) array of formed beams (a multibeam's) rather than one array a
+    #: channel.
+    forms_beams = False
+
+    def dataset_coords(self, first_ping: int, n_pings: int) -> dict:
+        """Coordinates the type adds to its record's dataset (name → (dims, values, CF attributes)): none here."""
+        return {}
+
+    def along_track_footprint_m(self) -> float | None:
+        """The two-way −3 dB along-track footprint at the window's far end, m, of a type with an along-track
+        membrane (the side-scan's); None for the others (MSIS, forward-looking, echo sounder)."""
+        return None
 
     #: Receive elements per side (:class:`~sonar_embree.ReceiverArray`); a side-scan's field, None for the others.
     receive_array = None
@@ -174,6 +189,9 @@ class Sonar(Transducer):
         the transmitter.
     """
 
+    #: Its front end takes seabed clutter and volume reverberation (:class:`Transducer`).
+    models_clutter_and_volume = True
+
     frequency_hz: float = 400e3
     length_m: float = 0.19
     height_m: float = 0.0038
@@ -205,6 +223,12 @@ class Sonar(Transducer):
     def default_speckle_cell_m(self) -> float:
         """Speckle lattice spacing by default, lx/2: the along-track resolution (docs/physics.md §4)."""
         return 0.5 * self.length_m
+
+    def along_track_footprint_m(self) -> float:
+        """2·R_max·tan(θ₃/2), θ₃ the full two-way −3 dB along-track width (sinc⁴ = ½,
+        :func:`sonar_embree.instrument.beam.beamwidth_deg`), m."""
+        return self.max_range_m * 2.0 * math.tan(math.radians(0.5 * beamwidth_deg(self.length_m, self.wavelength_m,
+                                                                                   -3.0, two_way=True)))
 
     @property
     def directivity_index_db(self) -> float:

@@ -16,20 +16,41 @@ from sonar_embree.sonars.base import FrontEnd
 
 PACKAGE = os.path.join(os.path.dirname(__file__), os.pardir, "sonar_embree")
 #: Where a ``hasattr`` would be dispatch on a collaborator's type (the stages of a ping).
-NO_PROBING = ("simulate.py", "checks.py", "config.py", "sonars", "propagation", "signal", "laws", "record")
+#: Every module of the package: none may dispatch on a collaborator's type by probing its attributes.
+SOURCES = sorted(os.path.join(d, f) for d, _, fs in os.walk(PACKAGE) for f in fs if f.endswith(".py"))
 
 
-def test_no_stage_dispatches_on_hasattr():
+def _trees():
+    for p in SOURCES:
+        yield os.path.relpath(p, PACKAGE), ast.parse(open(p, encoding="utf-8").read())
+
+
+def test_no_module_dispatches_on_hasattr():
+    """No ``hasattr(x, name)`` or ``getattr(x, name, default)`` anywhere in the package (survey/ and runs/ too)."""
+    found = [f"{name}:{n.lineno}" for name, tree in _trees() for n in ast.walk(tree)
+             if isinstance(n, ast.Call) and (getattr(n.func, "id", None) == "hasattr"
+                                             or getattr(n.func, "id", None) == "getattr" and len(n.args) == 3)]
+    assert found == []
+
+
+def test_no_module_dispatches_on_a_class_name_or_a_sonar_type():
+    """No comparison with ``type(x).__name__`` and no ``isinstance(x, <sonar type>)`` outside the sonar types' own
+    registry: a sonar type says what it models through its declared flags and methods."""
+    names = {c.__name__ for c in sonars.SONAR_TYPES}
     found = []
-    for top in NO_PROBING:
-        base = os.path.join(PACKAGE, top)
-        paths = [base] if base.endswith(".py") else [os.path.join(d, f) for d, _, fs in os.walk(base)
-                                                     for f in fs if f.endswith(".py")]
-        for p in paths:
-            tree = ast.parse(open(p, encoding="utf-8").read())
-            found += [f"{os.path.relpath(p, PACKAGE)}:{n.lineno}" for n in ast.walk(tree)
-                      if isinstance(n, ast.Call) and (getattr(n.func, "id", None) == "hasattr"
-                                                      or getattr(n.func, "id", None) == "getattr" and len(n.args) == 3)]
+    for name, tree in _trees():
+        if name.startswith("sonars" + os.sep):
+            continue
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Compare) and any(
+                    isinstance(side, ast.Attribute) and side.attr == "__name__"
+                    and isinstance(side.value, ast.Call) and getattr(side.value.func, "id", None) == "type"
+                    for side in [n.left, *n.comparators]):
+                found.append(f"{name}:{n.lineno} compares a class name")
+            if isinstance(n, ast.Call) and getattr(n.func, "id", None) == "isinstance" and len(n.args) == 2:
+                kinds = n.args[1].elts if isinstance(n.args[1], ast.Tuple) else [n.args[1]]
+                if any(getattr(k, "id", getattr(k, "attr", None)) in names for k in kinds):
+                    found.append(f"{name}:{n.lineno} isinstance of a sonar type")
     assert found == []
 
 
@@ -65,7 +86,7 @@ def test_the_protocol_defaults():
 @pytest.mark.parametrize("sonar_cls", sonars.SONAR_TYPES)
 def test_every_sonar_type_declares_what_its_front_end_models(sonar_cls):
     assert issubclass(sonar_cls, Transducer)
-    for flag in ("tilted", "models_surface", "models_refraction"):
+    for flag in ("tilted", "models_surface", "models_refraction", "models_clutter_and_volume", "forms_beams"):
         assert isinstance(getattr(sonar_cls, flag), bool), flag
     assert sonar_cls.tilted == ("tilt_deg" in {f.name for f in dataclasses.fields(sonar_cls)})
 

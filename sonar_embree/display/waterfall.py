@@ -193,7 +193,7 @@ def _reduced(record, tvg: bool, ground_range: bool, max_columns, group: int):
     whole samples and rows over ``group`` pings; (rows, 2·n_columns) float64 and n_columns per side."""
     r = record.slant_range_m
     gain = None
-    codes = getattr(record, "samples", None) is not None         # a device's codes carry its own gain law
+    codes = record.samples is not None         # a device's codes carry its own gain law
     if tvg and not codes and not record.attrs.get("tvg", False):
         with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
             decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0

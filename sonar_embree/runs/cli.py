@@ -307,7 +307,7 @@ def main(argv=None) -> int:
         print(f"sonar-embree: error: {str(exc).splitlines()[0]}", file=sys.stderr)
         return 2
     except OSError as exc:
-        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        where = f"{exc.filename}: " if exc.filename else ""
         print(f"sonar-embree: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return 2
     for path in written:

@@ -412,7 +412,8 @@ def _object_map(bmap, mesh, kept: np.ndarray, source: str):
         raise SceneError(f"{source}: a per-vertex map needs {len(mesh.vertices)} values, got {bmap.values_db.shape[0]}")
     if bmap.kind != "image":
         return bmap, None
-    uv = bmap.uv if bmap.uv is not None else getattr(mesh.visual, "uv", None)
+    uv = bmap.uv if bmap.uv is not None else (mesh.visual.uv if isinstance(mesh.visual, trimesh.visual.TextureVisuals)
+                                               else None)
     if uv is None or len(uv) != len(mesh.vertices):
         raise SceneError(f"{source}: an image map needs UV coordinates per vertex (export the mesh with UVs, "
                          "or give BackscatterMap.image(..., uv=...))")
@@ -535,7 +536,7 @@ class Scene:
         :func:`~sonar_embree.seafloor.from_dem` sets it) must agree with the scene's."""
         crs = self._crs
         for _, mesh, source in items:
-            own = getattr(mesh, "metadata", {}).get("crs")
+            own = mesh.metadata.get("crs")
             if own is not None and crs is not None and own != crs:
                 raise SceneError(f"{source}: its CRS {own} differs from the scene's {crs}")
             crs = own if own is not None else crs

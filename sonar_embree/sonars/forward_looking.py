@@ -69,6 +69,9 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         As for :class:`~sonar_embree.Sonar`.
     """
 
+    #: Its record is one (ping, beam, sample) array of formed beams (:class:`~sonar_embree.config.Transducer`).
+    forms_beams = True
+
     frequency_hz: float = 900e3
     n_beams: int = 256
     field_of_view_deg: float = 130.0
@@ -115,6 +118,11 @@ class ForwardLooking(SideScanEquivalent, Transducer):
     def channels(self) -> tuple:
         """The record's channels: one per beam, ``beam000`` … (port to starboard)."""
         return tuple(f"beam{k:03d}" for k in range(self.n_beams))
+
+    def dataset_coords(self, first_ping: int, n_pings: int) -> dict:
+        """Each beam's steering angle."""
+        return {"beam_angle_deg": (("beam",), self.beam_angles_deg(),
+                                   {"units": "degree", "long_name": "steering angle of the beam, to starboard"})}
 
     def beam_angles_deg(self) -> np.ndarray:
         """(n_beams,) steering angle θ_k of each beam, degrees to starboard of the vehicle's forward axis."""

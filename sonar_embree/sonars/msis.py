@@ -125,6 +125,12 @@ class MSIS(SideScanEquivalent, Transducer):
                      environment=self.environment, source_level_db=self.source_level_db,
                      self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver)
 
+    def dataset_coords(self, first_ping: int, n_pings: int) -> dict:
+        """The head's bearing at each ping of a record that starts at survey ping ``first_ping``."""
+        return {"bearing_deg": (("ping",), self.bearings_deg(first_ping + np.arange(n_pings)),
+                                {"units": "degree", "long_name": "head bearing, clockwise from the vehicle's forward "
+                                                                 "axis"})}
+
     def bearings_deg(self, pings) -> np.ndarray:
         """The head's bearing at each ping index (degrees in [0, 360), clockwise from the vehicle's forward axis)."""
         k = np.asarray(pings, dtype=np.float64)

@@ -18,6 +18,7 @@ from ..errors import ConfigError
 from ..io.files import atomic_write
 from ..io.geotiff import MAX_GRID_PIXELS, GridAccumulator
 from ..raycast import RayCaster
+from ..record import Record
 from ..scene import TiledDEM
 from ..trajectory import body_to_world
 
@@ -135,7 +136,7 @@ def _raw_blocks(source, values: str, block: int = 1000):
     """(positions, rotations, ground range, heights, port, starboard) of a Record or a streamed line's store (a
     path or an xarray Dataset with labels), a block of pings at a time; port/starboard the record's intensities,
     or its receiver's codes (``values="codes"``)."""
-    if hasattr(source, "trajectory"):
+    if isinstance(source, Record):
         _check(source)
         t, lab = source.trajectory, source.labels
         if values == "codes":
@@ -187,7 +188,7 @@ def _range_compensated(source, pos, ground, heights, values) -> np.ndarray:
 
 def _alpha(source) -> float:
     """The one-way absorption of a record or a store, dB/m."""
-    if hasattr(source, "sonar"):
+    if isinstance(source, Record):
         return float(source.sonar.alpha_db_per_m)
     return float(_dataset(source).attrs.get("simulation.alpha_db_per_m", 0.0))
 
@@ -258,7 +259,7 @@ def _dataset(source):
 
 
 def _crs_of(source):
-    if hasattr(source, "trajectory"):
+    if isinstance(source, Record):
         return source.trajectory.crs
     ds = _dataset(source)
     return ds["crs"].attrs.get("epsg_code") if "crs" in ds else None
@@ -348,7 +349,7 @@ def _units(source, values: str) -> str:
     """The unit of the mosaic's values: uPa^2 for intensities with a source level, else 1."""
     if values != "intensity":
         return "1"
-    level = (source.sonar.source_level_db if hasattr(source, "sonar")
+    level = (source.sonar.source_level_db if isinstance(source, Record)
              else _dataset(source).attrs.get("sonar.source_level_db"))
     return "1" if level is None else "uPa^2"
 
@@ -358,14 +359,16 @@ MAX_MOSAIC_PIXELS = MAX_GRID_PIXELS
 
 
 def _record_list(records) -> list:
-    """The lines to mosaic as a list: one record, store or dataset, or any iterable of them (a generator too)."""
+    """The lines to mosaic as a list of Records and xarray Datasets (a store's path opened): one record, store or
+    dataset, or any iterable of them (a generator too)."""
     import os
+
+    import xarray as xr
 
     if records is None:
         raise ConfigError("mosaic: no records (got None)")
-    one = hasattr(records, "trajectory") or isinstance(records, (str, os.PathLike)) or hasattr(records, "data_vars")
-    if one:
-        return [records]
+    if isinstance(records, (Record, str, os.PathLike, xr.Dataset)):
+        records = [records]
     try:
         records = list(records)
     except TypeError:
@@ -373,7 +376,7 @@ def _record_list(records) -> list:
                           f"got {type(records).__name__}") from None
     if not records:
         raise ConfigError("mosaic: no records")
-    return records
+    return [r if isinstance(r, Record) else _dataset(r) for r in records]
 
 
 def _checked_bounds(bounds_m) -> tuple:
@@ -434,7 +437,7 @@ def write_truth(path, scene, grid: Mosaic) -> np.ndarray:
     different CRSs are refused: the truth would be labelled with the wrong one)."""
     from ..io.geotiff import write_grid
 
-    crs = getattr(scene, "crs", None)
+    crs = scene.crs
     if crs is not None and grid.crs is not None and crs != grid.crs:
         raise ConfigError(f"write_truth: the scene is in {crs}, the mosaic grid in {grid.crs}; reproject one of them")
     z = truth(scene, grid)
