@@ -147,10 +147,31 @@ def test_what_runs_keep_with_a_scene_is_declared_per_copy_and_not_pickled():
     c = scene.compiled(np.zeros(3))
     caster = NumpyCaster.for_scene(c)
     assert NumpyCaster.for_scene(c) is caster and c.prepared.casters == {NumpyCaster: caster}
-    copy = dataclasses.replace(c, faces=c.faces[:1])
+    copy = dataclasses.replace(c, faces=c.faces[:1], face_normals=c.face_normals[:1], face_object=c.face_object[:1])
     assert copy.prepared is not c.prepared and NumpyCaster.for_scene(copy) is not caster
     back = pickle.loads(pickle.dumps(c))
     assert back.prepared.casters == {} and np.array_equal(back.faces, c.faces)
     release(c)
     assert c.prepared.casters == {} and NumpyCaster.for_scene(c) is not caster
     assert [k for k in vars(c) if k.startswith("_")] == []
+
+
+def test_no_lazy_caches_of_run_state():
+    """No ``cached_property`` anywhere in the package (derived values are made when their owner is built), and an
+    ``lru_cache`` only on a pure function of numbers and strings (every parameter annotated int, float or str): no
+    cache keyed on a plan, a scene or a sonar that outlives its run."""
+    plain = {"int", "float", "str"}
+    found = []
+    for name, tree in _trees():
+        for n in ast.walk(tree):
+            if isinstance(n, (ast.Name, ast.Attribute)) and getattr(n, "id", getattr(n, "attr", None)) == \
+                    "cached_property":
+                found.append(f"{name}:{n.lineno} cached_property")
+            if not isinstance(n, ast.FunctionDef):
+                continue
+            cached = any("lru_cache" in ast.unparse(d) or ast.unparse(d).endswith(".cache") for d in n.decorator_list)
+            args = n.args.args + n.args.kwonlyargs
+            if cached and not all(a.annotation is not None and
+                                  set(ast.unparse(a.annotation).replace(" ", "").split("|")) <= plain for a in args):
+                found.append(f"{name}:{n.lineno} lru_cache on {n.name}({', '.join(a.arg for a in args)})")
+    assert found == []

@@ -19,7 +19,7 @@ LONLAT = "EPSG:4326"
 
 
 @functools.lru_cache(maxsize=64)
-def _crs(value):
+def _crs(value: int | str):
     import pyproj
 
     try:

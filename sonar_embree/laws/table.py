@@ -1,8 +1,7 @@
 """Per-object laws flattened into the arrays the kernels read, and the surface pass of each block."""
 from __future__ import annotations
 
-from dataclasses import dataclass
-from functools import cached_property
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -33,11 +32,11 @@ class LawTable:
     term_law: np.ndarray
     term_params: np.ndarray
     data: np.ndarray
+    kind_of: np.ndarray = field(init=False, repr=False, compare=False)
 
-    @cached_property
-    def kind_of(self) -> np.ndarray:
-        """(n_kinds,) int64: the driver's id of each of ``kinds`` (:data:`sonar_embree.laws.driver.KINDS`)."""
-        return np.array([KINDS.index(k) for k in self.kinds], dtype=np.int64)
+    def __post_init__(self):
+        """``kind_of`` (n_kinds,) int64: the driver's id of each of ``kinds`` (:data:`sonar_embree.laws.driver.KINDS`)."""
+        object.__setattr__(self, "kind_of", np.array([KINDS.index(k) for k in self.kinds], dtype=np.int64))
 
 
 def law_table(laws, frequency_hz: float | None = None) -> LawTable:

@@ -11,7 +11,6 @@ rays or samples.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import time
 from dataclasses import dataclass
@@ -113,10 +112,9 @@ def moving_lines(plan: FanPlan, rx_shift: np.ndarray):
     return moved, np.stack([(i0 - lo - 0.5) * plan.ds, (i1 + hi + 0.5) * plan.ds], axis=1)
 
 
-@functools.lru_cache(maxsize=16)
 def _moved(plan: FanPlan, n_lo: int, n_hi: int):
     """The plan with ``n_lo`` lattice lines added below its span and ``n_hi`` above (:func:`moving_lines`), and the
-    span's end indices i0, i1; kept, as a line's blocks mostly move alike (plans hash by identity)."""
+    span's end indices i0, i1 (a few array operations on the plan's lines, made again for each block)."""
     i0, i1 = round(plan.s[0] / plan.ds), round(plan.s[-1] / plan.ds)
     null = beam.on_null(plan.beam[0] * plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null
     i0, i1 = i0 - int(null[0]), i1 + int(null[1])

@@ -32,6 +32,7 @@ from .fan import BlockEchoes, cast_block
 from ..config import Material
 from ..raycast import RayCaster
 from ..scene import Scene
+from ..scene.meshes import heightfield_objects, object_slopes
 
 #: Visibility rays start this far along their leg (m), off the surface they leave.
 LEG_EPSILON_M = 1e-3
@@ -102,8 +103,9 @@ def leg_boxes(compiled, with_heightfields: bool):
         if b.shape[0] > MAX_LEG_BOXES:
             b, obj, slope = compiled.bounds_local[None], np.full(1, -1, np.int32), np.full(1, np.inf)
         elif with_heightfields:
-            obj = np.where(compiled.heightfield, obj, -1).astype(np.int32)
-            slope = np.where(compiled.heightfield, compiled.object_slope, np.inf)
+            fields = heightfield_objects(compiled)
+            obj = np.where(fields, obj, -1).astype(np.int32)
+            slope = np.where(fields, object_slopes(compiled), np.inf)
         else:
             obj = np.full(b.shape[0], -1, np.int32)
         cache[with_heightfields] = (np.ascontiguousarray(b[:, 0] - LEG_EPSILON_M),

@@ -12,7 +12,6 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 import trimesh
@@ -154,51 +153,48 @@ class CompiledScene:
     textures: object = None
     clutter: tuple = ()
     prepared: Prepared = field(default_factory=Prepared, init=False, repr=False, compare=False)  # own per copy
+    face_two_sided: np.ndarray = field(init=False, repr=False, compare=False)
+    bounds_local: np.ndarray = field(init=False, repr=False, compare=False)
+    object_bounds: np.ndarray = field(init=False, repr=False, compare=False)
+    horizontal_area_share: float = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self):
+        """The derived geometry every run reads, made once with the scene (no lazy caches): ``face_two_sided`` (f,)
+        bool, triangles of two-sided objects; ``bounds_local`` (2, 3) the vertices' min and max corner, m;
+        ``object_bounds`` (n_objects, 2, 3) each object's; ``horizontal_area_share`` the share of the surface area
+        whose faces look up or down (|n_z| > 0.7; :func:`sonar_embree.checks.check_scene`)."""
+        tri = self.vertices[self.faces]
+        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+        derived = dict(face_two_sided=self.two_sided[self.face_object],
+                       bounds_local=np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)]),
+                       object_bounds=object_bounds(self.vertices, self.faces, self.face_object, len(self.labels)),
+                       horizontal_area_share=float(area[np.abs(self.face_normals[:, 2]) > 0.7].sum()
+                                                   / max(area.sum(), 1e-300)))
+        for name, value in derived.items():
+            object.__setattr__(self, name, value)
 
     @property
     def needs_points(self) -> bool:
         """Whether the surface pass needs the hit points (maps or texture)."""
         return self.maps is not None or self.textures is not None
 
-    @cached_property
-    def face_two_sided(self) -> np.ndarray:
-        """(f,) bool: triangles of two-sided objects (made once per compiled scene)."""
-        return self.two_sided[self.face_object]
 
-    @cached_property
-    def bounds_local(self) -> np.ndarray:
-        """(2, 3) min and max corner of the vertices in the local frame, m."""
-        return np.array([self.vertices.min(axis=0), self.vertices.max(axis=0)])
+def heightfield_objects(compiled: CompiledScene) -> np.ndarray:
+    """(n_objects,) bool: which objects of ``compiled`` are height fields over their xy rectangle
+    (:func:`~sonar_embree.scene.heightfield.is_heightfield`)."""
+    return np.array([is_heightfield(compiled.vertices, compiled.faces[compiled.face_object == o])
+                     for o in range(len(compiled.labels))], dtype=bool)
 
-    @cached_property
-    def object_bounds(self) -> np.ndarray:
-        """(n_objects, 2, 3) min and max corner of each object in the local frame, m."""
-        return object_bounds(self.vertices, self.faces, self.face_object, len(self.labels))
 
-    @cached_property
-    def heightfield(self) -> np.ndarray:
-        """(n_objects,) bool: which objects are height fields over their xy rectangle
-        (:func:`~sonar_embree.scene.heightfield.is_heightfield`; made on first use)."""
-        return np.array([is_heightfield(self.vertices, self.faces[self.face_object == o])
-                         for o in range(len(self.labels))], dtype=bool)
-
-    @cached_property
-    def object_slope(self) -> np.ndarray:
-        """(n_objects,) the steepest face of each object: max √(n_x² + n_y²)/n_z (tan of its slope; inf where a face
-        is vertical or looks down)."""
-        n = self.face_normals
-        with np.errstate(divide="ignore", invalid="ignore"):
-            tan = np.where(n[:, 2] > 0.0, np.hypot(n[:, 0], n[:, 1]) / n[:, 2], np.inf)
-        out = np.zeros(len(self.labels))
-        np.maximum.at(out, self.face_object, tan)
-        return out
-
-    @cached_property
-    def horizontal_area_share(self) -> float:
-        """Share of the surface area whose faces look up or down (|n_z| > 0.7)."""
-        tri = self.vertices[self.faces]
-        area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
-        return float(area[np.abs(self.face_normals[:, 2]) > 0.7].sum() / max(area.sum(), 1e-300))
+def object_slopes(compiled: CompiledScene) -> np.ndarray:
+    """(n_objects,) the steepest face of each object: max √(n_x² + n_y²)/n_z (tan of its slope; inf where a face
+    is vertical or looks down)."""
+    n = compiled.face_normals
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tan = np.where(n[:, 2] > 0.0, np.hypot(n[:, 0], n[:, 1]) / n[:, 2], np.inf)
+    out = np.zeros(len(compiled.labels))
+    np.maximum.at(out, compiled.face_object, tan)
+    return out
 
 
 def release(compiled: CompiledScene) -> None:

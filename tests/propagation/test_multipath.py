@@ -19,6 +19,7 @@ import pytest
 
 import analytic
 import sonar_embree as se
+from sonar_embree.scene.meshes import heightfield_objects
 
 H, D, TILT, LY, TAU, MU_DB = 10.0, 4.0, 0.0, 0.0015, 50e-6, -20.0
 FS = 100e3
@@ -240,7 +241,7 @@ def test_legs_cast_through_boxes_only_change_nothing(monkeypatch, surface):
         return se.simulate(s, line, _sonar(sea), se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
 
     s = scene()
-    assert s.compiled(np.zeros(3)).heightfield.tolist() == [True, False, True]
+    assert heightfield_objects(s.compiled(np.zeros(3))).tolist() == [True, False, True]
     boxed, clear = run(s), run(scene(objects=False))
     monkeypatch.setattr(multipath, "MAX_LEG_BOXES", 0)          # one box for all: every leg cast, none passed over
     whole = run(scene())

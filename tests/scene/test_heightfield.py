@@ -6,6 +6,7 @@ import trimesh
 
 import sonar_embree as se
 from sonar_embree.scene.heightfield import is_heightfield, object_bounds
+from sonar_embree.scene.meshes import heightfield_objects
 
 
 def _check(mesh) -> bool:
@@ -51,7 +52,7 @@ def test_compiled_scene_knows_its_height_fields_and_boxes():
     scene = se.Scene().add(se.seafloor.perlin((20.0, 20.0), resolution_m=1.0, relief_m=0.5), label="seafloor")
     scene.add(plate, label="box")
     c = scene.compiled(np.zeros(3))
-    assert c.heightfield.tolist() == [True, False]
+    assert heightfield_objects(c).tolist() == [True, False]
     np.testing.assert_allclose(c.object_bounds[1], [[-1.0, 4.0, 2.5], [1.0, 6.0, 3.5]])
     lo, hi = c.object_bounds[0]
     assert lo[0] == -10.0 and hi[1] == 10.0 and hi[2] - lo[2] <= 1.0

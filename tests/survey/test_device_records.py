@@ -44,7 +44,8 @@ def _sides(path):
 
 @pytest.mark.parametrize("name", sorted(devices.DEVICES))
 def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
-    """Flown at a tenth of its first range above the floor (at least 2 m), as side-scans are: the median seabed
+    """A ship's time/lat/lon log with --depth-m, the fish a tenth of its first range above the flat floor 20 m deep
+    (at least 2 m), as side-scans are flown: the median seabed
     code at least 20 dB above the median water-column code before the first return, the median seabed between a
     sixteenth and a quarter of full scale (lower than a quarter where the bright near range would clip), at most
     5 % of the codes clipped, and the TVG written in the channel headers. The level budget (source level, noise
@@ -52,7 +53,7 @@ def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
     the float record too: the contrast is the echoes', not the gain law's."""
     d = devices.device(name)
     run_survey(ground / "dem.tif", [ground / "gps.csv"], tmp_path / "out", name, progress=False, pixel_m=2.0,
-               altitude_m=max(0.1 * d.ranges_m[0], 2.0))
+               depth_m=20.0 - max(0.1 * d.ranges_m[0], 2.0))
     codes, alt, r, pings = _sides(tmp_path / "out" / "line_00" / "line.xtf")
     water = np.broadcast_to(r[None, None, :] < 0.8 * alt[:, None, None], codes.shape)
     floor = np.broadcast_to(r[None, None, :] > 1.2 * alt[:, None, None], codes.shape)
