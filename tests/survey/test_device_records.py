@@ -13,6 +13,7 @@ import xarray as xr
 from sonar_embree.instrument import devices
 from sonar_embree.io.geotiff import write_grid
 from sonar_embree.runs.survey import SEABED_FULL_SCALE, run_survey
+from sonar_embree.survey.replay import replay
 
 CRS, E0, N0 = "EPSG:32631", 500_000.0, 6_000_000.0
 
@@ -50,7 +51,8 @@ def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
     sixteenth and a quarter of full scale (lower than a quarter where the bright near range would clip), at most
     5 % of the codes clipped, and the TVG written in the channel headers. The level budget (source level, noise
     in the receiver's band, directivity) puts the median seabed at least 20 dB above the water column's noise in
-    the float record too: the contrast is the echoes', not the gain law's."""
+    the float record too: the contrast is the echoes', not the gain law's. The line's XTF replays with the device
+    named, in its own layout (every preset's samples per side and decimation)."""
     d = devices.device(name)
     run_survey(ground / "dem.tif", [ground / "gps.csv"], tmp_path / "out", name, progress=False, pixel_m=2.0,
                depth_m=20.0 - max(0.1 * d.ranges_m[0], 2.0))
@@ -69,6 +71,10 @@ def test_every_presets_survey_has_a_dark_water_column(ground, tmp_path, name):
     margin = 10 * np.log10(np.median(floats[np.broadcast_to(floor, floats.shape)])
                            / np.median(floats[np.broadcast_to(water, floats.shape)]))
     assert margin >= 20.0, margin                # the level budget: the seabed well above the receiver's noise
+    report = replay(tmp_path / "out" / "line_00" / "line.xtf", tmp_path / "replay", device=name)   # as a user would
+    back = pyxtf.xtf_read(str(tmp_path / "replay" / "replay.xtf"))[1][pyxtf.XTFHeaderType.sonar]
+    assert len(back) == len(pings) and len(back[0].data[1]) == len(pings[0].data[1])
+    assert np.isfinite(report["gain_offset_db"])
 
 
 def test_the_agc_stays_available():
