@@ -7,17 +7,17 @@ keeps the block's fan (:class:`~sonar_embree.propagation.fan.BlockEchoes`).
 """
 from __future__ import annotations
 
-import dataclasses
 import time
 
 import numpy as np
 
-from ..propagation import curved_surface, multipath, refraction, swell
+from ..propagation import multipath, paths
 from ..propagation.aim import AimPlan
 from ..propagation.buffers import Buffers
 from ..config import FanSettings, Sonar
 from ..propagation.echoes import Echoes
-from ..propagation.fan import BlockEchoes, FanPlan, cast_block
+from ..propagation.fan import FanPlan
+from ..propagation.paths import echoes_of
 from ..signal.processing import absorption_np_per_m
 from .base import FrontEnd
 
@@ -36,6 +36,7 @@ class SideScanFrontEnd(FrontEnd):
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         env = sonar.environment
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
+        self.direct_path, self.surface_paths = paths.path_models(env)     # the paths this medium makes, once
         self.quality, self.aims = fan.quality, self.aims and fan.aim_objects
         self._aim = (None, None)  # (compiled scene, its AimPlan)
         self.array = sonar.receive_array
@@ -83,19 +84,11 @@ class SideScanFrontEnd(FrontEnd):
             Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.propagation.fan.cast_block`) on every
             path.
         """
-        surface = self.sonar.environment.surface
         aim = self.aim_plan(caster.compiled)
-        if self.sonar.environment.refracts:  # curved rays (under a flat surface: curved_surface)
-            blk = refraction.cast_refracted(caster, self.plan, rot, pos_local, self.sonar.environment,
-                                            self.two_way_np_per_m, max_range_m, self.sonar,
-                                            want_points or surface is not None, clock, self.buffers, rx_shift, aim,
-                                            keep_arrival=surface is not None)
-        else:
-            blk = cast_block(caster, self.plan, rot, pos_local, self.two_way_np_per_m, max_range_m,
-                             2.0 / self.sonar.sound_speed_m_s, want_points=want_points or surface is not None,
-                             timings=clock, frequency_hz=self.sonar.frequency_hz, rx_shift=rx_shift, aim=aim)
+        blk = self.direct_path.cast(self, caster, rot, pos_local, max_range_m, want_points, clock, rx_shift, aim,
+                                    bool(self.surface_paths))
         ids = caster.compiled.face_object if want_ids else None
-        if surface is None:
+        if not self.surface_paths:
             direct = self._rows(echoes_of(blk, ids), blk.el_start)
             if blk.aimed is None:
                 return direct, blk
@@ -104,47 +97,23 @@ class SideScanFrontEnd(FrontEnd):
 
     def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift=None) -> multipath.PathEchoes:
-        """Direct, one-bounce and two-bounce echoes of the block (and the surface line), kept as paths in the same
-        rows (docs/physics.md §13)."""
+        """The direct echoes of the block and those of each surface path model (:mod:`~sonar_embree.propagation.paths`),
+        kept as paths in the same rows (docs/physics.md §13); then the rays aimed at objects, path by path."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
         direct = echoes_of(blk, ids)
-        aimed = []                           # the rays aimed at objects, path by path: (echoes, their rays, path)
-        if self.sonar.environment.refracts:  # a flat surface over a profile: the unfolded profile's rays
-            z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
-            image, iblk = curved_surface.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
-            mixed = curved_surface.mixed_echoes(self, caster, blk, rot, pos_local, z_s, rx_shift)
-            layouts = [blk.el_start, blk.el_start, iblk.el_start]
-        elif not self.sonar.environment.surface.is_flat:  # a swell: one Embree reflection per ray
-            mixed, image, glints = swell.swell_echoes(self, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
-            layouts = [blk.el_start, None, None]                      # the swell's paths: its own fan's up rays
-            aimed += [(e, None, path) for e, path in glints]          # rays aimed at objects through the swell
-        else:
-            z_s = self.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
-            image, iblk = multipath.image_echoes(self, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift,
-                                                 aim=self.aim_plan(caster.compiled))
-            mixed = multipath.mixed_echoes(self, caster, blk, rot, pos_local, z_s, rx_shift)
-            if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
-                mixed = dataclasses.replace(mixed, object_id=direct.object_id)
-                image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
-            layouts = [blk.el_start, blk.el_start, iblk.el_start]
-            if blk.aimed is not None:
-                aimed.append((multipath.mixed_aimed_echoes(self, caster, blk.aimed, rot, pos_local, z_s, rx_shift),
-                              blk.aimed, 1))
-            if iblk.aimed is not None:
-                aimed.append((multipath.image_aimed_echoes(self, caster, iblk, rot, pos_local, z_s), iblk.aimed, 2))
-        parts, paths = [direct, mixed, image], None
-        if self.sonar.environment.surface.backscatter is not None:  # the surface line: a direct path
-            line, lblk = multipath.surface_line(self, caster, rot, pos_local, max_range_m, want_points,
-                                                ids is not None, clock, rx_shift)
-            parts, layouts, paths = parts + [line], layouts + [lblk.el_start], (0, 1, 2, 0)
-        parts = [self._rows(e, el) for e, el in zip(parts, layouts)]
+        parts, aimed = [paths.Contribution(direct, blk.el_start, 0)], []
+        for model in self.surface_paths:
+            more, more_aimed = model.contributions(self, caster, blk, direct, rot, pos_local, max_range_m, ids,
+                                                   want_points, clock, rx_shift)
+            parts, aimed = parts + more, aimed + more_aimed
         if blk.aimed is not None:                     # the rays aimed at objects: their direct echoes too
-            aimed.insert(0, (blk.aimed.echoes, blk.aimed, 0))
-        for e, rays, path in aimed:
-            parts, paths = parts + [self._aimed_rows(rays, e)], (paths or (0, 1, 2)) + (path,)
+            aimed.insert(0, paths.AimedContribution(blk.aimed.echoes, blk.aimed, 0))
+        rows = [self._rows(p.echoes, p.layout) for p in parts]
+        rows += [self._aimed_rows(a.rays, a.echoes) for a in aimed]
+        tags = paths.tags(parts + aimed)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
         clock["multipath"] = clock.get("multipath", 0.0) + time.perf_counter() - t0 - cast
-        return multipath.PathEchoes(parts, want_points, self.buffers, paths)
+        return multipath.PathEchoes(rows, want_points, self.buffers, tags)
 
     def _aimed_rows(self, aimed, echoes: Echoes | None = None) -> Echoes:
         """The echoes of the rays aimed at objects (:class:`~sonar_embree.propagation.aim.AimedEchoes`; ``echoes``:
@@ -155,11 +124,3 @@ class SideScanFrontEnd(FrontEnd):
         """A path's echoes in this type's rows (the side-scan's: two per ping, as cast); ``el_start`` the layout
         of the fan they are aligned with (None: not aligned with one)."""
         return e
-
-
-def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes:
-    """The echo contract of a side-scan block (travel times 2R/c of straight rays, made by the fan's kernel)."""
-    ids = np.zeros(0, dtype=np.int32)
-    if face_object is not None:
-        ids = np.where((blk.prim >= 0) & (blk.weight > 0), face_object[np.maximum(blk.prim, 0)], -1).astype(np.int32)
-    return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, blk.echo_weight, blk.point_m, ids)
