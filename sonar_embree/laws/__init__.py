@@ -27,13 +27,15 @@ from .clutter import Clutter
 from .composite import Composite, Summable
 from .kirchhoff import Kirchhoff
 from .lambert import Lambert
+from .small_slope import SmallSlope
 from .table import MAX_PARAMS, LawTable, apply_laws, law_table
 from .tabulated import Tabulated
 from .texture import KTexture
 
 #: The laws by the name a TOML ``scattering = { kind = "…", … }`` table gives.
 LAWS = {"lambert": Lambert, "kirchhoff": Kirchhoff, "tabulated": Tabulated, "chapman-harris": ChapmanHarris,
-        "apl-uw": AplUw}
+        "apl-uw": AplUw, "small-slope": SmallSlope}
 
-__all__ = ["AplUw", "ChapmanHarris", "Clutter", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "Summable", "Tabulated",
+__all__ = ["AplUw", "ChapmanHarris", "Clutter", "Composite", "KTexture", "Kirchhoff", "LAWS", "Lambert", "LawTable", "MAX_PARAMS", "SmallSlope", "Summable",
+           "Tabulated",
            "apply_laws", "law_table"]

@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import ConfigError
 from . import Composite, Kirchhoff, Lambert
 from .apl_uw import apl_class, apl_density_ratio, apl_sound_speed_ratio
+from .small_slope import small_slope_sediment
 from .composite import Summable
 
 
@@ -117,10 +118,13 @@ PRESETS = {s.name: s for s in (MUD, SANDY_MUD, FINE_SAND, COARSE_SAND, GRAVEL, R
 
 def preset(name: str):
     """The preset called ``name`` (spaces or underscores), a one-line error naming the choices otherwise;
-    ``"apl-uw <class>"`` is the APL-UW model's class (:func:`sonar_embree.laws.apl_uw.apl_class`)."""
+    ``"apl-uw <class>"`` is the APL-UW model's class (:func:`sonar_embree.laws.apl_uw.apl_class`),
+    ``"small-slope <sediment>"`` the small-slope model's (:func:`sonar_embree.laws.small_slope.small_slope_sediment`)."""
     key = str(name).replace("_", " ").strip().lower()
     if key.startswith("apl-uw "):
         return apl_class(key[len("apl-uw "):])
+    if key.startswith("small-slope "):
+        return small_slope_sediment(key[len("small-slope "):])
     if key not in PRESETS:
         raise ConfigError(f"unknown sediment {name!r}; one of {sorted(PRESETS)}")
     return PRESETS[key]

@@ -33,6 +33,7 @@ from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..record import registry
 from ..laws import sediments
 from ..laws import LAWS, AplUw, Clutter, Composite, KTexture, Tabulated
+from ..laws.small_slope import small_slope_sediment
 from ..laws.apl_uw import apl_class
 from ..laws.maps import BackscatterMap
 from ..scene import Scene, features, seafloor
@@ -301,6 +302,9 @@ def parse_law(law, source: str, where: str, base: str = ""):
                       {"terms": [parse_law(t, source, f"{where} term #{i + 1}", base) for i, t in enumerate(terms)]})
     if kind == "apl-uw" and ("sediment" in law or "mean_grain_size_phi" in law):
         return _apl_uw(law, source, where)
+    if kind == "small-slope" and "sediment" in law:
+        _check_keys(where, law, ("sediment",), source)
+        return _build(source, where, small_slope_sediment, {"name": law["sediment"]})
     if kind == "tabulated" and "csv" in law:
         _check_keys(where, law, ("csv",), source)
         return _build(source, where, Tabulated.from_csv, {"path": _resolve(base, law["csv"])})
