@@ -198,6 +198,7 @@ def _add_replay_parser(sub) -> None:
     p.add_argument("--device", metavar="PRESET", help="a device preset for the beam and pulse")
     p.add_argument("--seed", type=int, default=0, help="speckle seed (default 0)")
     p.add_argument("--overwrite", action="store_true", help="replace an earlier replay's files in OUT")
+    p.add_argument("--no-progress", action="store_true", help="hide the fit's progress bar")
 
 
 def _add_survey_parser(sub) -> None:

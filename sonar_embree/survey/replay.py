@@ -54,6 +54,24 @@ N_BANDS, N_RANGE_BINS, GRAZING_BIN_DEG = 4, 32, 2.0
 FIT_CLASSES = ("apl-uw coarse sand", "apl-uw fine sand", "apl-uw coarse silt", "apl-uw clay")
 #: Grazing angles the class fit compares, degrees (the near-nadir lobe and the shadows left out).
 FIT_GRAZING_DEG = (4.0, 60.0)
+#: A fit of a longer line simulates only :data:`FIT_RUNS` runs of :data:`FIT_RUN_PINGS` consecutive pings, centred at
+#: evenly spaced quantiles of the line's altitudes (its geometries, not its length, decide the fit); the replay
+#: that follows simulates every ping once.
+FIT_RUNS, FIT_RUN_PINGS = 6, 16
+
+
+def fit_pings(line: Line, runs: int = FIT_RUNS, run_pings: int = FIT_RUN_PINGS) -> np.ndarray:
+    """(n,) increasing indices of the pings a fit simulates: every ping of a line of up to ``runs·run_pings`` pings,
+    else ``runs`` runs of ``run_pings`` consecutive pings centred at the pings whose altitudes are the line's
+    evenly spaced altitude quantiles (lowest and highest included)."""
+    n = line.settings["data"].shape[0]
+    if n <= runs * run_pings:
+        return np.arange(n)
+    alt = line.settings["altitude_m"]
+    order = np.argsort(alt, kind="stable")
+    centres = order[np.round(np.linspace(0, n - 1, runs)).astype(int)]
+    starts = np.clip(centres - run_pings // 2, 0, n - run_pings)
+    return np.unique((starts[:, None] + np.arange(run_pings)[None, :]).ravel())
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,6 +98,15 @@ class Line:
         pos = nav.positions_m.copy()
         pos[:, 2] = s["altitude_m"]
         return cls(s, dataclasses.replace(nav, positions_m=pos))
+
+    def subset(self, pings: np.ndarray) -> "Line":
+        """The line's pings ``pings`` ((n,) increasing indices of its kept pings) alone, as a line."""
+        t, s = self.trajectory, self.settings
+        fix = None if t.fix_times_s is None else t.fix_times_s[pings]
+        traj = Trajectory(t.positions_m[pings], t.heading_deg[pings], t.pitch_deg[pings], t.roll_deg[pings],
+                          t.times_s[pings], None if t.velocity_m_s is None else t.velocity_m_s[pings], t.crs,
+                          t.start_time, None if t.ship_positions_m is None else t.ship_positions_m[pings], fix)
+        return Line({**s, "data": s["data"][pings], "altitude_m": s["altitude_m"][pings]}, traj)
 
     def full(self, values: np.ndarray) -> np.ndarray:
         """(file pings, 2, samples): ``values`` of the kept pings in their places, zeros for the pings taken out."""
@@ -243,7 +270,7 @@ def scintillation_error_db(real: dict, sim: dict) -> float:
     return float(np.sqrt(np.mean(d ** 2))) if d.size else math.inf
 
 
-def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), **kw) -> dict:
+def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress: bool = False, **kw) -> dict:
     """The class of ``classes``, the clutter density of ``densities`` (per m², None: no clutter; the clutter's
     strength law :class:`~sonar_embree.laws.clutter.Clutter`'s defaults) and the gain offset (dB) that bring the
     simulation closest to ``real`` (:func:`measures` of the recorded values). The error of a candidate is the RMS
@@ -254,9 +281,10 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), **kw) ->
     -------
     dict
         ``sediment``, ``clutter_density_per_m2``, ``gain_offset_db`` and ``errors_db`` {"class" or
-        "class @ density": error, dB}.
+        "class @ density": error, dB}. ``progress``: a bar over the candidates.
     """
     errors, offsets = {}, {}
+    bar = candidates_bar(progress, len(classes) * len(densities))
     for name in classes:
         for n in densities:
             clutter = None if n is None else Clutter(float(n))
@@ -265,15 +293,28 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), **kw) ->
             offsets[key] = gain_offset_db(real, sim)
             errors[key] = shape_error_db(real, sim, offsets[key]) + (
                 scintillation_error_db(real, sim) if len(densities) > 1 else 0.0)
+            if bar is not None:
+                bar.update(1)
+    if bar is not None:
+        bar.close()
     best = min(errors, key=errors.get)
     label = lambda k: k[0] if len(densities) == 1 else f"{k[0]} @ {k[1]}"  # noqa: E731
     return {"sediment": best[0], "clutter_density_per_m2": best[1], "gain_offset_db": offsets[best],
             "errors_db": {label(k): v for k, v in errors.items()}}
 
 
+def candidates_bar(progress: bool, n: int):
+    """A tqdm bar over a fit's candidates (on stderr) when ``progress``, else None."""
+    if not progress:
+        return None
+    from tqdm.auto import tqdm
+
+    return tqdm(total=n, desc="fit candidates", unit="candidate")
+
+
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
            device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
-           fit_densities=(None,), inputs=()) -> dict:
+           fit_densities=(None,), inputs=(), progress: bool = False) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -282,15 +323,18 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     sediment : str
         The seafloor's sediment (a preset name of :mod:`sonar_embree.laws.sediments`, e.g. "apl-uw fine sand").
     fit_classes : sequence of str, optional
-        Fit the sediment among these classes and the gain offset (:func:`fit`); ``sediment`` is then ignored.
+        Fit the sediment among these classes and the gain offset (:func:`fit`) on the pings of :func:`fit_pings`
+        (runs across the line's altitudes); ``sediment`` is then ignored, and the chosen class replays every ping.
     fit_densities : sequence of float or None
         With ``fit_classes``: the clutter densities (per m²; None: none) the fit tries too.
     gain_db : float, optional
-        The gain offset added to the simulation, dB; default: the median level difference (or the fit's).
+        The gain offset added to the simulation, dB; default: the median level difference over the whole line.
     device, seed
         A device preset for the beam and pulse; the speckle seed.
     inputs : sequence of path, optional
         Other input files (a DEM, a scene config): refused as outputs, like ``path``.
+    progress : bool
+        A bar over the fit's candidates (on stderr).
     scene : Scene, optional
         The seabed to replay the line over (a DEM's, a TOML's), where the file's navigation puts the sonar; its own
         materials hold (no ``sediment``, no fit). Default: a flat floor at each ping's altitude. The grazing angles
@@ -300,13 +344,17 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     OutputFolder.check(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs])
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
-    chosen = fit(line, real, fit_classes, fit_densities, device=device, seed=seed) if fit_classes else None
+    chosen = None
+    if fit_classes:
+        sub = line.subset(fit_pings(line))
+        chosen = fit(sub, measures(sub.settings["data"], sub), fit_classes, fit_densities, device=device, seed=seed,
+                     progress=progress)
+        chosen["pings_simulated"] = int(sub.settings["data"].shape[0])
     name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
     density = chosen["clutter_density_per_m2"] if chosen else None
     base = simulate_line(line, name, device=device, seed=seed, scene=scene,
                          clutter=None if density is None else Clutter(float(density)))
-    offset = (gain_db if gain_db is not None else chosen["gain_offset_db"] if chosen
-              else gain_offset_db(real, measures(base, line)))
+    offset = gain_db if gain_db is not None else gain_offset_db(real, measures(base, line))   # over the whole line
     values = _clip_warned(base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0)), line.settings)
     sim = measures(values, line)
     out = OutputFolder.claim(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs], command="replay")

@@ -289,3 +289,44 @@ def test_a_gain_that_clips_the_codes_is_warned(caplog):
         R._clip_warned(np.array([1.0, 60000.0]), settings)
         R._clip_warned(np.array([1e9, 1e9]), {"integer": False, "bytes_per_sample": 4})
     assert "clip" not in caplog.text
+
+
+def _long_line(tmp_path, sediment, gain_db, n=200):
+    """A 200-ping speckled line whose altitude climbs 5 → 11 m and back, its intensities times 10^(gain/10)."""
+    law = se.sediments.preset(sediment)
+    scene = se.Scene().add(se.seafloor.flat((400, 400)), material=se.Material(scattering=law), label="seafloor")
+    k = np.arange(n)
+    pos = np.stack([-40 + 0.4 * k, np.zeros(n), 8.0 - 3.0 * np.cos(2 * np.pi * k / n)], axis=1)
+    traj = se.Trajectory(pos, 90.0, 0.0, 0.0, 0.2 * k)
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=30.0), PULSE, speckle=True, seed=4,
+                      start_time="2026-05-01T12:00:00Z")
+    se.Record(rec.data * 10 ** (gain_db / 10), rec.time_s, rec.trajectory, rec.sonar, rec.pulse, rec.altitude_m,
+              rec.attrs).to_xtf(tmp_path / "long.xtf", scale=1.0)
+    return rec
+
+
+def test_a_long_lines_fit_simulates_runs_across_its_altitudes_and_recovers_the_class_and_gain(tmp_path):
+    """200 pings: the fit simulates 6 runs of 16 consecutive pings, centred from the lowest to the highest
+    altitude (both ends of the 5–11 m span reached), recovers the hidden class and gain, and replays every ping."""
+    _long_line(tmp_path, "apl-uw coarse sand", 9.0)
+    line = R.Line.read(tmp_path / "long.xtf")
+    pings = R.fit_pings(line)
+    alt = line.settings["altitude_m"][pings]
+    assert pings.size == R.FIT_RUNS * R.FIT_RUN_PINGS and np.all(np.diff(pings) > 0)
+    assert alt.min() < 5.2 and alt.max() > 10.8
+    runs = np.split(pings, np.flatnonzero(np.diff(pings) > 1) + 1)
+    assert all(r.size >= R.FIT_RUN_PINGS for r in runs)                       # runs of consecutive pings
+    sub = line.subset(pings)
+    np.testing.assert_array_equal(sub.settings["data"], line.settings["data"][pings])
+    np.testing.assert_array_equal(sub.trajectory.positions_m, line.trajectory.positions_m[pings])
+    report = R.replay(tmp_path / "long.xtf", tmp_path / "out", fit_classes=R.FIT_CLASSES, seed=3)
+    assert report["fit"]["sediment"] == "apl-uw coarse sand", report["fit"]["errors_db"]
+    assert report["fit"]["pings_simulated"] == pings.size
+    assert report["gain_offset_db"] == pytest.approx(9.0, abs=0.5)
+    back = pyxtf.xtf_read(str(tmp_path / "out" / "replay.xtf"))[1][pyxtf.XTFHeaderType.sonar]
+    assert len(back) == 200 and all(np.any(p.data[1] > 0) for p in back)
+
+
+def test_a_short_line_is_fitted_whole():
+    line = R.Line({"data": np.zeros((40, 2, 8)), "altitude_m": np.linspace(5, 9, 40)}, None)
+    np.testing.assert_array_equal(R.fit_pings(line), np.arange(40))
