@@ -192,6 +192,8 @@ def _add_replay_parser(sub) -> None:
                                                       "(among --classes)")
     p.add_argument("--classes", help="comma-separated sediment presets --fit tries (default: APL-UW coarse sand, fine "
                                      "sand, coarse silt and clay)")
+    p.add_argument("--fit-beam", action="store_true", help="with --fit and no --device: fit the record's elevation "
+                                                           "pattern too (tilt, vertical width); best with one class")
     p.add_argument("--clutter-densities", metavar="N,N,…", help="with --fit: clutter densities per m² to try too "
                                                               "(0: none), e.g. 0,10,40,160")
     p.add_argument("--gain-db", type=float, help="the gain offset, dB (default: the median level difference)")

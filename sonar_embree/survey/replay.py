@@ -39,6 +39,7 @@ from ..config import Material, Pulse, Sonar
 from ..display import plotting
 from ..environment import Environment
 from ..errors import ConfigError
+from ..instrument.beam import membrane_size_for_beamwidth
 from ..io.owner import OutputFolder
 from ..io.xtf import NAV_UNITS_LATLON, decimate, read_navigation, read_sonar, write_like
 from ..laws import sediments
@@ -54,6 +55,58 @@ N_BANDS, N_RANGE_BINS, GRAZING_BIN_DEG = 4, 32, 2.0
 FIT_CLASSES = ("apl-uw coarse sand", "apl-uw fine sand", "apl-uw coarse silt", "apl-uw clay")
 #: Grazing angles the class fit compares, degrees (the near-nadir lobe and the shadows left out).
 FIT_GRAZING_DEG = (4.0, 60.0)
+#: The elevation pattern a fit without a device preset simulates its candidates with (tilt, degrees; membrane height
+#: in wavelengths): nearly flat over the floor's angles (a quarter-wavelength membrane at 45°: its one-way pattern
+#: stays within 1 dB from 0° to 90° of depression), so that :func:`elevation_fit` can put any other in its place.
+CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS = 45.0, 0.25
+#: The elevation patterns :func:`elevation_fit` tries: tilts (degrees) and one-way −3 dB vertical widths (degrees).
+FIT_TILTS_DEG, FIT_WIDTHS_DEG = np.arange(0.0, 50.5, 0.5), np.arange(10.0, 101.0, 1.0)
+#: Grazing angles the elevation fit compares, degrees.
+FIT_ELEVATION_GRAZING_DEG = (4.0, 80.0)
+
+
+def _elevation_db(grazing_deg: np.ndarray, tilt_deg, height_wavelengths) -> np.ndarray:
+    """Two-way elevation gain of a membrane ``height_wavelengths`` high tilted ``tilt_deg`` down, at depressions equal
+    to the flat floor's grazing angles: 40·log10|sinc(k·ly/2·sin(β − δ))|, dB (broadcast over the arguments)."""
+    x = np.asarray(height_wavelengths) * np.sin(np.radians(np.asarray(grazing_deg) - np.asarray(tilt_deg)))
+    with np.errstate(divide="ignore"):
+        return 40.0 * np.log10(np.abs(np.sinc(x)))
+
+
+def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
+    """The tilt and vertical width whose two-way elevation pattern, put in place of the calibration beam's
+    (:data:`CALIBRATION_TILT_DEG`), brings the simulated level against grazing angle closest to the recorded one.
+
+    Over a flat floor an echo at grazing angle θ left and came back at depression θ, so the level curves differ by
+    the two patterns' ratio at θ alone: level(θ) = level_cal(θ) + G(θ; δ, ly) − G_cal(θ), G = 40·log10|sinc|. Every
+    candidate of :data:`FIT_TILTS_DEG` × :data:`FIT_WIDTHS_DEG` is scored by the RMS of the recorded minus the
+    candidate's levels within :data:`FIT_ELEVATION_GRAZING_DEG` after their median difference (the gain).
+
+    Returns
+    -------
+    dict
+        ``tilt_deg``, ``vertical_beamwidth_deg`` (one-way −3 dB), ``height_m`` (the membrane's), ``error_db`` and
+        ``gain_offset_db``.
+    """
+    g = np.array(real["grazing_deg"])
+    keep = (g >= FIT_ELEVATION_GRAZING_DEG[0]) & (g <= FIT_ELEVATION_GRAZING_DEG[1])
+    d = np.array(real["level_vs_grazing_db"], float)[keep] - np.array(sim["level_vs_grazing_db"], float)[keep]
+    d += _elevation_db(g[keep], CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS)
+    ok = np.isfinite(d)
+    if ok.sum() < 4:
+        raise ConfigError("replay: fewer than four grazing-angle bins hold both files' floor; no beam to fit")
+    heights = np.array([membrane_size_for_beamwidth(math.radians(w), 1.0) for w in FIT_WIDTHS_DEG])
+    model = _elevation_db(g[keep][ok][None, None, :], FIT_TILTS_DEG[:, None, None], heights[None, :, None])
+    resid = d[ok][None, None, :] - model
+    resid = np.where(np.isfinite(resid), resid, 1e3)                  # a null where the record has floor: no fit
+    offset = np.median(resid, axis=2)
+    err = np.sqrt(np.mean((resid - offset[..., None]) ** 2, axis=2))
+    i, j = np.unravel_index(int(np.argmin(err)), err.shape)
+    return {"tilt_deg": float(FIT_TILTS_DEG[i]), "vertical_beamwidth_deg": float(FIT_WIDTHS_DEG[j]),
+            "height_m": float(heights[j] * wavelength_m), "error_db": float(err[i, j]),
+            "gain_offset_db": float(offset[i, j])}
+
+
 #: A fit of a longer line simulates only :data:`FIT_RUNS` runs of :data:`FIT_RUN_PINGS` consecutive pings, centred at
 #: evenly spaced quantiles of the line's altitudes (its geometries, not its length, decide the fit); the replay
 #: that follows simulates every ping once.
@@ -144,15 +197,19 @@ def usable_pings(path, altitude_m: np.ndarray, need_altitude: bool = True) -> np
 
 
 def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | None = None, seed: int = 0,
-                  gain_db: float = 0.0, clutter=None, scene: Scene | None = None) -> np.ndarray:
+                  gain_db: float = 0.0, clutter=None, scene: Scene | None = None,
+                  elevation: tuple | None = None) -> np.ndarray:
     """The line simulated over a flat floor of ``law`` (a sediment name or law), or over ``scene`` as it is, in the
     file's layout: (pings, 2, samples) values as the file stores them (intensity, or amplitude for integer formats),
-    ``gain_db`` added."""
+    ``gain_db`` added. Without a ``device``, ``elevation`` = (tilt, degrees; membrane height, m) sets the beam's
+    elevation pattern (default the :class:`~sonar_embree.Sonar`'s)."""
     s, traj = line.settings, line.trajectory
     pulse = pulse or (Pulse.preset(device) if device else Pulse.cw(duration_s=100e-6))
     factor = max(1, math.ceil(4.0 / pulse.duration_s / s["sample_rate_hz"]))
     kw = dict(max_range_m=s["slant_range_m"], sample_rate_hz=factor * s["sample_rate_hz"],
               environment=Environment(sound_speed_m_s=s["sound_speed_m_s"]))
+    if elevation is not None and not device:
+        kw.update(tilt_deg=float(elevation[0]), height_m=float(elevation[1]))
     sonar = (Sonar.preset(device, frequency_hz=s["frequency_hz"], **kw) if device
              else Sonar(frequency_hz=s["frequency_hz"], **kw))
     if scene is None:
@@ -270,7 +327,8 @@ def scintillation_error_db(real: dict, sim: dict) -> float:
     return float(np.sqrt(np.mean(d ** 2))) if d.size else math.inf
 
 
-def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress: bool = False, **kw) -> dict:
+def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress: bool = False,
+        fit_beam: bool = False, **kw) -> dict:
     """The class of ``classes``, the clutter density of ``densities`` (per m², None: no clutter; the clutter's
     strength law :class:`~sonar_embree.laws.clutter.Clutter`'s defaults) and the gain offset (dB) that bring the
     simulation closest to ``real`` (:func:`measures` of the recorded values). The error of a candidate is the RMS
@@ -281,26 +339,41 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
     -------
     dict
         ``sediment``, ``clutter_density_per_m2``, ``gain_offset_db`` and ``errors_db`` {"class" or
-        "class @ density": error, dB}. ``progress``: a bar over the candidates.
+        "class @ density": error, dB}; with ``fit_beam`` also ``elevation`` (:func:`elevation_fit`'s tilt, width and
+        membrane height). ``progress``: a bar over the candidates.
+
+    ``fit_beam`` (no device preset): each candidate is simulated with the calibration beam and the record's elevation
+    pattern is fitted as well (:func:`elevation_fit`). The pattern's tilt trades off against the shape of σ(θ), so
+    with the beam free the class is poorly determined; fit the beam with the class known, or name a device.
     """
-    errors, offsets = {}, {}
+    errors, offsets, beams = {}, {}, {}
+    s = line.settings
+    wavelength = s["sound_speed_m_s"] / s["frequency_hz"]
+    cal = (CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * wavelength) if fit_beam else None
     bar = candidates_bar(progress, len(classes) * len(densities))
     for name in classes:
         for n in densities:
             clutter = None if n is None else Clutter(float(n))
-            sim = measures(simulate_line(line, name, clutter=clutter, **kw), line)
+            sim = measures(simulate_line(line, name, clutter=clutter, elevation=cal, **kw), line)
             key = (name, n)
-            offsets[key] = gain_offset_db(real, sim)
-            errors[key] = shape_error_db(real, sim, offsets[key]) + (
-                scintillation_error_db(real, sim) if len(densities) > 1 else 0.0)
+            if cal is None:                                       # a device's beam: only the gain and the class
+                offsets[key] = gain_offset_db(real, sim)
+                errors[key] = shape_error_db(real, sim, offsets[key])
+            else:                                                 # no device: the record's elevation pattern too
+                beams[key] = elevation_fit(real, sim, wavelength)
+                offsets[key], errors[key] = beams[key]["gain_offset_db"], beams[key]["error_db"]
+            errors[key] += scintillation_error_db(real, sim) if len(densities) > 1 else 0.0
             if bar is not None:
                 bar.update(1)
     if bar is not None:
         bar.close()
     best = min(errors, key=errors.get)
     label = lambda k: k[0] if len(densities) == 1 else f"{k[0]} @ {k[1]}"  # noqa: E731
-    return {"sediment": best[0], "clutter_density_per_m2": best[1], "gain_offset_db": offsets[best],
-            "errors_db": {label(k): v for k, v in errors.items()}}
+    out = {"sediment": best[0], "clutter_density_per_m2": best[1], "gain_offset_db": offsets[best],
+           "errors_db": {label(k): v for k, v in errors.items()}}
+    if best in beams:
+        out["elevation"] = {k: beams[best][k] for k in ("tilt_deg", "vertical_beamwidth_deg", "height_m")}
+    return out
 
 
 def candidates_bar(progress: bool, n: int):
@@ -314,7 +387,7 @@ def candidates_bar(progress: bool, n: int):
 
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
            device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
-           fit_densities=(None,), inputs=(), progress: bool = False) -> dict:
+           fit_densities=(None,), inputs=(), progress: bool = False, fit_beam: bool = False) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -335,12 +408,15 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         Other input files (a DEM, a scene config): refused as outputs, like ``path``.
     progress : bool
         A bar over the fit's candidates (on stderr).
+    fit_beam : bool
+        With ``fit_classes`` and no ``device``: fit the record's elevation pattern too (tilt and vertical width,
+        :func:`elevation_fit`), and replay with it.
     scene : Scene, optional
         The seabed to replay the line over (a DEM's, a TOML's), where the file's navigation puts the sonar; its own
         materials hold (no ``sediment``, no fit). Default: a flat floor at each ping's altitude. The grazing angles
         of the report take the altitude over a level floor either way.
     """
-    _check_options(fit_classes, fit_densities, gain_db, scene)
+    _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam, device)
     OutputFolder.check(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs])
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
@@ -348,12 +424,14 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     if fit_classes:
         sub = line.subset(fit_pings(line))
         chosen = fit(sub, measures(sub.settings["data"], sub), fit_classes, fit_densities, device=device, seed=seed,
-                     progress=progress)
+                     progress=progress, fit_beam=fit_beam)
         chosen["pings_simulated"] = int(sub.settings["data"].shape[0])
     name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
     density = chosen["clutter_density_per_m2"] if chosen else None
+    beam = chosen.get("elevation") if chosen else None
     base = simulate_line(line, name, device=device, seed=seed, scene=scene,
-                         clutter=None if density is None else Clutter(float(density)))
+                         clutter=None if density is None else Clutter(float(density)),
+                         elevation=None if beam is None else (beam["tilt_deg"], beam["height_m"]))
     offset = gain_db if gain_db is not None else gain_offset_db(real, measures(base, line))   # over the whole line
     values = _clip_warned(base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0)), line.settings)
     sim = measures(values, line)
@@ -370,8 +448,11 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     return report
 
 
-def _check_options(fit_classes, fit_densities, gain_db, scene) -> None:
+def _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam=False, device=None) -> None:
     """The options, before any work: one line naming a value that cannot mean anything."""
+    if fit_beam and (not fit_classes or device):
+        raise ConfigError("replay: --fit-beam fits the elevation pattern with --fit and without --device (a device "
+                          "preset brings its own beam)")
     if scene is not None and fit_classes:
         raise ConfigError("replay: --fit chooses the sediment of a flat floor; a --scene or --dem keeps its own")
     if fit_classes is not None and not [c for c in fit_classes if str(c).strip()]:
