@@ -486,10 +486,11 @@ def continuous_track(times_s, x, y, fix_s=None):
     """(x, y) (n,) at each ping's time, rebuilt from navigation held between fixes as devices log it (the same
     position repeated until the next fix), as processing packages rebuild it.
 
-    The fixes are the pings where the logged position (or the FixTime) changes; each is placed at its fix time
-    (``fix_s``, s on the pings' clock; where missing or not increasing, the time of its first ping) and the positions
-    are interpolated linearly between fixes, extrapolated along the first and last legs. Navigation where every
-    ping is its own fix comes back as it is.
+    The fixes are the pings where the logged position changes (a device that stamps every ping with its own
+    FixTime but repeats the position still holds it); each is placed at its fix time (``fix_s``, s on the pings'
+    clock; where missing or not increasing over the fixes, the time of its first ping) and the positions are
+    interpolated linearly between fixes, extrapolated along the first and last legs. Navigation where every ping is
+    its own fix comes back as it is.
 
     Parameters
     ----------
@@ -503,8 +504,6 @@ def continuous_track(times_s, x, y, fix_s=None):
     times_s, x, y = (np.asarray(a, dtype=np.float64) for a in (times_s, x, y))
     new = np.ones(x.size, bool)
     new[1:] = (x[1:] != x[:-1]) | (y[1:] != y[:-1])
-    if fix_s is not None:
-        new[1:] |= np.asarray(fix_s)[1:] != np.asarray(fix_s)[:-1]
     if new.all() or new.sum() < 2:
         return x, y
     at = times_s[new] if fix_s is None else np.asarray(fix_s, dtype=np.float64)[new]

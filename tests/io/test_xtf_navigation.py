@@ -149,3 +149,14 @@ def test_the_held_track_against_a_naive_rebuild():
         assert y[i] == pytest.approx(fy[j] + w * (fy[j + 1] - fy[j]))
     same = continuous_track(t, np.arange(40.0), np.zeros(40))               # every ping its own fix: as it is
     np.testing.assert_array_equal(same[0], np.arange(40.0))
+
+
+def test_a_held_position_under_per_ping_fix_times_is_still_rebuilt():
+    """Some devices stamp every ping with its own FixTime yet repeat the position until the GPS updates: the fixes
+    are where the position changes, placed at the first ping that carries each."""
+    from sonar_embree.io.xtf import continuous_track
+
+    t = np.arange(12) * 0.25
+    held = np.floor(t)                                                        # 1 Hz positions, x = the fix's second
+    x, y = continuous_track(t, held, np.zeros(12), fix_s=t)
+    np.testing.assert_allclose(x, t)                                         # the straight track between the fixes
