@@ -170,12 +170,12 @@ class SmallSlope(Summable):
         r = f["r"]
         return d1 * (1 + r) ** 2 + 2.0 * d23 * (1 - r) * (1 + r) + d4 * (1 - r) ** 2
 
-    def roughness(self, grazing_rad: float, frequency_hz: float) -> tuple:
+    def roughness(self, grazing_rad: float, frequency_hz: float, interface: dict | None = None) -> tuple:
         """(σ_r, R) at one grazing angle (rad) and frequency (Hz): the small-slope cross-section and the flat
-        interface's reflection coefficient."""
+        interface's reflection coefficient (``interface``: :meth:`_interface` at that angle, when already made)."""
         k = 2.0 * math.pi * frequency_hz / self.water_sound_speed_m_s
         c, s = math.cos(grazing_rad), math.sin(grazing_rad)
-        f = self._interface(c, s)
+        f = self._interface(c, s) if interface is None else interface
         q, q3 = k * math.sqrt(4.0 * c * c + 1e-6), 2.0 * k * s
         alpha = 0.5 * self.roughness_exponent - 1.0
         ch2 = (2.0 * math.pi * self.roughness_strength * gamma(2.0 - alpha) * 2.0 ** (-2.0 * alpha)
@@ -184,12 +184,13 @@ class SmallSlope(Summable):
         amp = 0.5 * k * k * self._amplitude(c, s, f)
         return abs(amp) ** 2 / (2.0 * math.pi * q * q * q3 * q3) * _bessel_integral(alpha, p), complex(f["r"])
 
-    def volume(self, grazing_rad: float, frequency_hz: float) -> float:
-        """σ_v at one grazing angle (rad) and frequency (Hz), before the cap (first-order volume perturbation)."""
+    def volume(self, grazing_rad: float, frequency_hz: float, interface: dict | None = None) -> float:
+        """σ_v at one grazing angle (rad) and frequency (Hz), before the cap (first-order volume perturbation;
+        ``interface`` as for :meth:`roughness`)."""
         k = 2.0 * math.pi * frequency_hz / self.water_sound_speed_m_s
         a_p, a_t = self._ratios()
         c, s = math.cos(grazing_rad), math.sin(grazing_rad)
-        f = self._interface(c, s)
+        f = self._interface(c, s) if interface is None else interface
         p1, p2, r = f["p_p"], f["p_t"], f["r"]
         t = (f["cos2"] * s / p1 * (1 - r), f["sin2"] * s / p2 * (1 - r))      # into the sediment: p and t waves
         down = np.array([[c, c, p2], [0, 0, 0], [-p1, -p2, c]], dtype=complex)     # columns: p, t, t's polarisation
@@ -218,9 +219,10 @@ class SmallSlope(Summable):
         g = np.radians(np.atleast_1d(np.asarray(grazing_deg, dtype=float)))
         rough, refl, vol = (np.empty(g.size) for _ in range(3))
         for i, gi in enumerate(g):
-            rough[i], r = self.roughness(gi, frequency_hz)
+            face = self._interface(math.cos(gi), math.sin(gi))           # shared by both terms
+            rough[i], r = self.roughness(gi, frequency_hz, face)
             refl[i] = -20.0 * math.log10(abs(r))
-            vol[i] = 1.0 / (1.0 / SIGMA_0 + 1.0 / self.volume(gi, frequency_hz))
+            vol[i] = 1.0 / (1.0 / SIGMA_0 + 1.0 / self.volume(gi, frequency_hz, face))
         return {"roughness": rough, "volume": vol, "total": rough + vol, "reflection_loss_db": refl}
 
     def backscatter_strength_db(self, grazing_deg, frequency_hz: float):

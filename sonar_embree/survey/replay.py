@@ -39,7 +39,7 @@ from ..config import Material, Pulse, Sonar
 from ..display import plotting
 from ..environment import Environment
 from ..errors import ConfigError
-from ..instrument.beam import membrane_size_for_beamwidth
+from ..instrument.beam import membrane_size_for_beamwidth, sinc as beam_sinc
 from ..io.owner import OutputFolder
 from ..io.xtf import NAV_UNITS_LATLON, decimate, read_navigation, read_sonar, write_like
 from ..laws import sediments
@@ -68,9 +68,9 @@ FIT_ELEVATION_GRAZING_DEG = (4.0, 80.0)
 def _elevation_db(grazing_deg: np.ndarray, tilt_deg, height_wavelengths) -> np.ndarray:
     """Two-way elevation gain of a membrane ``height_wavelengths`` high tilted ``tilt_deg`` down, at depressions equal
     to the flat floor's grazing angles: 40·log10|sinc(k·ly/2·sin(β − δ))|, dB (broadcast over the arguments)."""
-    x = np.asarray(height_wavelengths) * np.sin(np.radians(np.asarray(grazing_deg) - np.asarray(tilt_deg)))
+    x = np.pi * np.asarray(height_wavelengths) * np.sin(np.radians(np.asarray(grazing_deg) - np.asarray(tilt_deg)))
     with np.errstate(divide="ignore"):
-        return 40.0 * np.log10(np.abs(np.sinc(x)))
+        return 40.0 * np.log10(np.abs(beam_sinc(x)))
 
 
 def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
