@@ -83,7 +83,7 @@ def ship_scene(resolution_m):
     scene = shipwreck.shipwreck_scene(resolution_m=resolution_m)
     c = scene.compiled()
     t1 = time.perf_counter()
-    RayCaster.for_scene(c)
+    RayCaster(c)
     return scene, len(c.faces), t1 - t0, time.perf_counter() - t1
 
 
@@ -105,7 +105,7 @@ def ship_sweep(scene, n_pings, qualities, reference_quality=4.0):
 def embree_throughput(scene, n_rays=100_000, repeat=5):
     """ms to cast ``n_rays`` rays of a real default fan (one ping's rays, tiled) on ``scene``."""
     c = scene.compiled()
-    caster = RayCaster.for_scene(c)
+    caster = RayCaster(c)
     traj = shipwreck.straight_pass(1) if "wreck" in c.labels else se.Trajectory.line((0, 0, 10.0), (1, 0, 10.0), 1)
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
     plan = FanPlan.build(sonar, se.FanSettings())

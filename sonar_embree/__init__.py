@@ -38,7 +38,7 @@ _LAZY = {
     "sweep": (".runs.sweep", None),  # not cli: python -m sonar_embree.runs.cli runs it
     "Scene": (".scene", "Scene"), "TiledDEM": (".scene", "TiledDEM"), "features": (".scene.features", None),
     "seafloor": (".scene.seafloor", None), "shipwreck": (".scene.shipwreck", None),
-    "simulate": (".simulate", "simulate"),
+    "simulate": (".simulate", "simulate"), "RunCache": (".propagation.prepared", "RunCache"),
     "MSIS": (".sonars", "MSIS"), "EchoSounder": (".sonars", "EchoSounder"),
     "ForwardLooking": (".sonars", "ForwardLooking"), "Trajectory": (".trajectory", "Trajectory"),
 }

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import checks, sonars
-from .propagation import multipath
-from .propagation.clutter import ClutterField, check_clutter, clutter_echoes, clutter_field
+from .propagation.clutter import check_clutter, clutter_echoes
+from .propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
 from .propagation.volume import VolumeBeam, volume_density
 from .signal import processing, pulses
 from .config import FanSettings, Pulse, SignalChain, Sonar
@@ -116,7 +116,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
              fan: FanSettings | None = None, chain: SignalChain | None = None, quality: float | None = None,
              labels: bool = False, keep_complex: bool = False, ping_offset: int = 0, progress: bool = False,
              timings: dict | None = None, start_time=None, environment: Environment | None = None,
-             caster: type | None = None) -> Record:
+             caster: type | None = None, cache: RunCache | None = None) -> Record:
     """Simulate a side-scan survey of ``scene`` along ``trajectory``.
 
     Parameters
@@ -160,6 +160,10 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         The ray caster, a subclass of :class:`sonar_embree.raycast.Caster`; default
         :class:`~sonar_embree.raycast.EmbreeCaster` (``NumpyCaster``: the brute-force
         reference, for small scenes and tests).
+    cache : RunCache, optional
+        What runs over the same scene may share (its BVH, law tables, clutter, surface meshes): hand the same
+        :class:`~sonar_embree.RunCache` to each run of a loop over one scene. Without one (default) the run
+        builds what it needs and frees it when it ends.
     progress : bool
         Show a progress bar over pings (tqdm, on stderr).
     start_time : datetime or str, optional
@@ -193,7 +197,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     t_start = time.perf_counter()
     for name, flag in (("labels", labels), ("keep_complex", keep_complex), ("progress", progress)):
         check_bool("simulate", name, flag)
-    sonar, pulse, fan, chain = _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset,
+    sonar, pulse, fan, chain = _resolve(sonar, pulse, fan, quality, chain, environment, caster, cache, ping_offset,
                                         dict(speckle=speckle, band=band, detection=detection,
                                              matched_filter=matched_filter, tvg=tvg, noise_db_per_hz=noise_db_per_hz,
                                              lowpass_hz=lowpass_hz, speckle_cell_m=speckle_cell_m, seed=seed))
@@ -202,24 +206,24 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     _check_inputs(scene, trajectory, sonar, pulse, fan)
     if trajectory.crs is None and scene.crs is not None:  # its metres are the scene's (a DEM's)
         trajectory = dataclasses.replace(trajectory, crs=scene.crs)
-    run = _Run.setup(scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster, ping_offset)
+    run = _Run.setup(scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster, ping_offset, cache)
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
     bar = progress_bar(progress, len(trajectory))
     a, block = 0, FIRST_BLOCK_PINGS if run.front.synth_channels <= 2 else 1  # wide fans: a ping
     while a < len(trajectory):
         b = min(a + block, len(trajectory))
-        e, blk = run.front.cast(run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r, chain.speckle,
+        e, blk = run.front.cast(run.prepared, run.rots[a:b], run.pos_local[a:b], run.max_r, chain.speckle,
                                 labels, clock, rx_shift=run.rx_shift[a:b])
         run.altitude[a:b], run.n_rays[a:b] = blk.altitude_m, blk.n_rays
         if run.truth is not None:
             t = time.perf_counter()
-            run.truth.add_block(run.front, run.caster, blk, e, a, run.rots[a:b], run.pos_local[a:b], run.max_r)
+            run.truth.add_block(run.front, run.prepared, blk, e, a, run.rots[a:b], run.pos_local[a:b], run.max_r)
             clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         vel = None if trajectory.velocity_m_s is None else trajectory.velocity_m_s[a:b]
         run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel,
-                           points=None if run.clutter is None else _clutter_block(run, a, b),
+                           points=None if run.prepared.clutter is None else _clutter_block(run, a, b),
                            volume=None if run.volume is None else _volume_block(run, trajectory, a, b),
                            receivers=run.front.receivers(run.rots[a:b], trajectory.positions_m[a:b]))
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
@@ -246,7 +250,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
                    iso_utc(start_time if start_time is not None else trajectory.start_time), elements)
 
 
-def _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset, chain_kwargs):
+def _resolve(sonar, pulse, fan, quality, chain, environment, caster, cache, ping_offset, chain_kwargs):
     """Defaults and validation of :func:`simulate`'s settings: (sonar for the pulse, pulse, fan, resolved chain)."""
     sonar = Sonar() if sonar is None else sonar
     pulse = Pulse.cw() if pulse is None else pulse
@@ -261,6 +265,8 @@ def _resolve(sonar, pulse, fan, quality, chain, environment, caster, ping_offset
         sonar = dataclasses.replace(sonar, environment=environment)
     if caster is not None and not (isinstance(caster, type) and issubclass(caster, Caster)):
         raise ConfigError(f"simulate: caster must be a subclass of sonar_embree.raycast.Caster, got {caster!r}")
+    if cache is not None and not isinstance(cache, RunCache):
+        raise ConfigError(f"simulate: cache must be a sonar_embree.RunCache, got {cache!r}")
     if isinstance(ping_offset, bool) or not isinstance(ping_offset, (int, np.integer)) or ping_offset < 0:
         raise ConfigError(f"simulate: ping_offset must be an integer >= 0, got {ping_offset!r}")
 
@@ -283,7 +289,7 @@ class _Run:
     pulse: Pulse
     chain: SignalChain
     compiled: object
-    caster: Caster
+    prepared: PreparedRun  # what the run builds before its first block: caster, law table, aim plan, …
     front: object
     back: object
     truth: GroundTruth | None
@@ -296,12 +302,11 @@ class _Run:
     n0: float | None = None  # receiver noise density, unit-source intensity per Hz
     rx_shift: np.ndarray | None = None  # motion during the ping: δ = 2·v_fwd/c per ping
     first_ping: int = 0  # the trajectory's first ping within a longer survey (ping_offset)
-    clutter: ClutterField | None = None  # the scene's frozen clutter scatterers, if it has any
     volume: VolumeBeam | None = None  # the water column's reverberation beam, if it has any
 
     @classmethod
     def setup(cls, scene, trajectory, sonar, pulse, fan, chain, labels, keep_complex, caster,
-              ping_offset: int = 0) -> "_Run":
+              ping_offset: int = 0, cache: RunCache | None = None) -> "_Run":
         front = sonars.front_end(sonar, fan)
         # channels synthesised: the record's, or a beamformer's inputs (forward-looking: one per azimuth line)
         n_p, n_ch, n_out = len(trajectory), front.synth_channels, sonar.n_samples
@@ -319,7 +324,7 @@ class _Run:
             raise ConfigError(f"simulate: labels are made for side-scan, MSIS and forward-looking sonars, not "
                               f"{type(sonar).__name__}")
         compiled = scene.compiled(survey_origin(trajectory.positions_m))  # the frame where the rays are
-        caster = (RayCaster if caster is None else caster).for_scene(compiled)  # built once per scene
+        caster = scene_caster(compiled, RayCaster if caster is None else caster, cache)
         c, fs = sonar.sound_speed_m_s, sonar.sample_rate_hz
         max_r = max(sonar.max_range_m, (n_s - 1) * c / (2.0 * fs))
         pos_local = trajectory.positions_m - compiled.origin_m
@@ -328,10 +333,9 @@ class _Run:
         checks.check_ping_interval(sonar, trajectory.times_s, len(trajectory))
         checks.check_receiver_band(sonar, pulse)
         checks.check_surface(compiled, sonar, pos_local)
-        if sonar.environment.surface is not None:
-            multipath.leg_boxes(compiled, True)  # the objects' boxes and height fields: once per scene, at set-up
         checks.check_profile(compiled, sonar, pos_local, labels)
         check_clutter(compiled, sonar)
+        prepared = prepare(caster, front, sonar.frequency_hz, max_r, chain.seed, labels, cache)
         n0 = _noise_density(sonar, chain)
         # expected intensity of a unit echo: the speckle-free record and the labels' object echoes share it
         kernel = (pulses.expected_kernel(pulse, sonar.frequency_hz, fs, chain.matched_filter)
@@ -341,10 +345,9 @@ class _Run:
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0, kernel))
         truth = GroundTruth((n_p, len(front.channels), n_out), compiled, kernel) if labels else None
         rots = _mounted(front, trajectory, ping_offset)
-        return cls(sonar, pulse, chain, compiled, caster, front, back, truth, rots, pos_local, max_r, n_out,
+        return cls(sonar, pulse, chain, compiled, prepared, front, back, truth, rots, pos_local, max_r, n_out,
                    np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,
-                   ping_offset,
-                   clutter_field(compiled, chain.seed), _volume_beam(sonar))
+                   ping_offset, _volume_beam(sonar))
 
 
 def _check_array(sonar, chain: SignalChain) -> None:
@@ -363,7 +366,8 @@ def _check_array(sonar, chain: SignalChain) -> None:
 
 def _clutter_block(run: _Run, a: int, b: int):
     """The clutter echoes of pings a … b − 1 (:func:`sonar_embree.propagation.clutter.clutter_echoes`)."""
-    return clutter_echoes(run.clutter, run.sonar, run.caster, run.rots[a:b], run.pos_local[a:b], run.max_r,
+    return clutter_echoes(run.prepared.clutter, run.sonar, run.prepared.caster, run.rots[a:b], run.pos_local[a:b],
+                          run.max_r,
                           processing.absorption_np_per_m(run.sonar.alpha_db_per_m))
 
 

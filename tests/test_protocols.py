@@ -6,6 +6,7 @@ import os
 
 import numpy as np
 import pytest
+import trimesh
 
 import sonar_embree as se
 from sonar_embree import sonars
@@ -134,26 +135,37 @@ def test_merged_echoes_are_themselves():
     assert e.merged() is e and merged(e) is e and e.parts == (e,)
 
 
-def test_what_runs_keep_with_a_scene_is_declared_per_copy_and_not_pickled():
-    """Casters, law tables, boxes and surfaces live in ``CompiledScene.prepared`` (not stuffed into ``__dict__``):
-    a copy made with dataclasses.replace (the seafloor alone) has its own, a pickled scene arrives without them,
-    release() empties them."""
+def test_a_run_prepares_its_state_by_name_and_shares_it_only_on_request():
+    """Issue 51, item 4: a compiled scene keeps nothing of the runs over it (no caster, table or cache field); a
+    run's caster, law table, aim plan, boxes and surfaces are the named fields of its PreparedRun; a RunCache
+    handed from run to run shares them (the same objects), runs without one build their own, and a RunCache sent to
+    another process arrives empty."""
     import pickle
 
+    from sonar_embree.propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
     from sonar_embree.raycast import NumpyCaster
-    from sonar_embree.scene.meshes import release
 
     scene = se.Scene().add(se.seafloor.flat(size_m=(20, 20)), label="seafloor")
+    scene.add(trimesh.creation.box((1.0, 1.0, 1.0)), label="box")
     c = scene.compiled(np.zeros(3))
-    caster = NumpyCaster.for_scene(c)
-    assert NumpyCaster.for_scene(c) is caster and c.prepared.casters == {NumpyCaster: caster}
-    copy = dataclasses.replace(c, faces=c.faces[:1], face_normals=c.face_normals[:1], face_object=c.face_object[:1])
-    assert copy.prepared is not c.prepared and NumpyCaster.for_scene(copy) is not caster
-    back = pickle.loads(pickle.dumps(c))
-    assert back.prepared.casters == {} and np.array_equal(back.faces, c.faces)
-    release(c)
-    assert c.prepared.casters == {} and NumpyCaster.for_scene(c) is not caster
-    assert [k for k in vars(c) if k.startswith("_")] == []
+    fields = {f.name for f in dataclasses.fields(c)}
+    assert not fields & {"prepared", "casters", "cache"} and [k for k in vars(c) if k.startswith("_")] == []
+    sonar = se.Sonar(environment=se.Environment(surface=se.SeaSurface(z_m=10.0, swell_height_m=0.4)))
+    front = sonars.front_end(sonar.for_pulse(se.Pulse.cw()), se.FanSettings())
+    cache = RunCache()
+    runs = [prepare(scene_caster(c, NumpyCaster, cache), front, sonar.frequency_hz, 30.0, 1, True, cache)
+            for _ in range(2)]
+    alone = prepare(scene_caster(c, NumpyCaster), front, sonar.frequency_hz, 30.0, 1, True)
+    for name in ("caster", "law_table", "leg_boxes", "surface_caster", "surface_strips", "seafloor"):
+        assert getattr(runs[0], name) is getattr(runs[1], name) is not None, name
+        assert getattr(alone, name) is not getattr(runs[0], name), name
+    assert isinstance(alone, PreparedRun) and alone.aim is not None and alone.aim.objects.tolist() == [1]
+    back = pickle.loads(pickle.dumps(cache))
+    assert isinstance(back, RunCache) and back.scenes == cache.scenes and not back._kept
+    with pytest.raises(ValueError, match="scenes"):
+        RunCache(scenes=0)
+    with pytest.raises(se.ConfigError, match="cache must be a sonar_embree.RunCache"):
+        se.simulate(scene, se.Trajectory.line((0, 0, 5), (1, 0, 5), 2), cache={})
 
 
 def test_no_lazy_caches_of_run_state():

@@ -69,16 +69,7 @@ def law_table(laws, frequency_hz: float | None = None) -> LawTable:
     return LawTable(tuple(kinds), term_law, params, np.asarray(data, dtype=np.float64))
 
 
-def scene_law_table(compiled, frequency_hz: float) -> LawTable:
-    """:func:`law_table` of a compiled scene at ``frequency_hz``, made once and kept with it."""
-    cache = compiled.prepared.law_tables
-    key = float(frequency_hz)
-    if key not in cache:
-        cache[key] = law_table(compiled.laws, key)
-    return cache[key]
-
-
-def apply_laws(compiled, frequency_hz: float, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray,
+def apply_laws(table: LawTable, compiled, prim: np.ndarray, cos_i: np.ndarray, weight: np.ndarray,
                points_local: np.ndarray | None = None) -> None:
     """Multiply each echo weight by its surface's σ(θi)/cos θi, map and texture.
 
@@ -88,9 +79,9 @@ def apply_laws(compiled, frequency_hz: float, prim: np.ndarray, cos_i: np.ndarra
 
     Parameters
     ----------
+    table : LawTable
+        The scene's laws at the carrier (:func:`law_table`, made once per run).
     compiled : CompiledScene
-    frequency_hz : float
-        The carrier (tables with a frequency axis are taken there).
     prim : (n,) int32
         Triangle hit by each ray, −1 for none.
     cos_i : (n,) float64
@@ -100,7 +91,7 @@ def apply_laws(compiled, frequency_hz: float, prim: np.ndarray, cos_i: np.ndarra
     points_local : (n, 3) float64, optional
         Hit points in the scene's local frame, m (maps and texture).
     """
-    t = scene_law_table(compiled, frequency_hz)
+    t = table
     fo = compiled.face_object
     if t.term_law.shape[0] == 1:
         law_weights(prim, cos_i, fo, t.term_law[0], t.kind_of, t.term_params[0], t.data, weight, weight, False)

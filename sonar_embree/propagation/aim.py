@@ -77,17 +77,14 @@ class AimPlan:
 
 def bounding_spheres(compiled):
     """((n_objects, 3) centres, (n_objects,) radii) of the objects' bounding spheres: the centre of each object's
-    box and the farthest of its vertices from it (m, local frame; made once per compiled scene)."""
-    kept = compiled.prepared
-    if kept.bounding_spheres is None:
-        box = compiled.object_bounds
-        centre = 0.5 * (box[:, 0] + box[:, 1])
-        obj = np.repeat(compiled.face_object, 3)
-        v = compiled.vertices[compiled.faces.ravel()]
-        r2 = np.zeros(len(compiled.labels))
-        np.maximum.at(r2, obj, ((v - centre[obj]) ** 2).sum(axis=1))
-        kept.bounding_spheres = (centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6)
-    return kept.bounding_spheres
+    box and the farthest of its vertices from it (m, local frame)."""
+    box = compiled.object_bounds
+    centre = 0.5 * (box[:, 0] + box[:, 1])
+    obj = np.repeat(compiled.face_object, 3)
+    v = compiled.vertices[compiled.faces.ravel()]
+    r2 = np.zeros(len(compiled.labels))
+    np.maximum.at(r2, obj, ((v - centre[obj]) ** 2).sum(axis=1))
+    return centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6
 
 
 @dataclass(frozen=True, eq=False)
@@ -104,7 +101,7 @@ class AimedEchoes:
 
 
 def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, two_way_np_per_m: float, max_range_m: float,
-              time_per_m: float, want_points: bool, frequency_hz: float) -> AimedEchoes:
+              time_per_m: float, want_points: bool, laws) -> AimedEchoes:
     """Lattices, casts and echoes of every object aimed at in a block of pings: the fan's own kernel
     (:func:`kernels.fan_echoes`) with each ray's own layout, then only hits on the aimed object kept.
 
@@ -118,8 +115,8 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, two_way_np_p
         As for :func:`sonar_embree.propagation.fan.cast_block` (``max_range_m`` the range searched).
     want_points : bool
         Keep the hit points (speckle, maps, textures).
-    frequency_hz : float
-        The carrier, for the laws.
+    laws : LawTable
+        The scene's laws at the carrier.
     """
     n_p, k = rot.shape[0], aim.objects.size
     table, start, counts, dirs, org, layout = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
@@ -135,7 +132,7 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, two_way_np_p
                                                   plan.slope_cap_m_rad, time_per_m),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
     ids = keep_own(c, aim, counts, prim, w, t_s, cos_i)
-    apply_laws(c, frequency_hz, prim, cos_i, w, pts)
+    apply_laws(laws, c, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
     echoes = Echoes(2, ray_start, t_s, ext, w, pts, ids)

@@ -2,10 +2,10 @@
 
 Each object with a :class:`~sonar_embree.laws.clutter.Clutter` gets a Poisson number of points per triangle
 (density × area), uniform on the triangle (barycentric √u₁ sampling), each with its cross-section σ_k and a
-frozen phase φ_k, drawn once per compiled scene and seed from a stream keyed by (seed, object): the same points in
-every block, worker and run. A ping hears each point in its beam (the main lobe and three side lobes along
-track, :data:`AZIMUTH_NULLS`) that it sees (one occlusion ray each, from the
-front of its face unless the object is two-sided) as a point target,
+frozen phase φ_k, drawn once per run (or once per scene and seed with a RunCache) from a stream keyed by (seed,
+object): the same points in every block, worker and run. A ping hears each point in its beam (the main lobe and
+three side lobes along track, :data:`AZIMUTH_NULLS`) that it sees (one occlusion ray each, from the front of its face
+unless the object is two-sided) as a point target,
 
     w_k = σ_k·Γ⁴(u_k)·e^(−2α'R_k)/R_k⁴,   t_k = 2R_k/c,   a_k = √w_k·e^(j2π(φ_k − 2R_k/λ)),
 
@@ -61,13 +61,11 @@ class PointEchoes:
 
 
 def clutter_field(compiled, seed: int) -> ClutterField | None:
-    """The scene's scatterers for ``seed`` (None without clutter), drawn once and kept with the compiled scene."""
+    """The scene's scatterers for ``seed`` (None without clutter), drawn once per run
+    (:class:`~sonar_embree.propagation.prepared.PreparedRun`)."""
     if not compiled.clutter:
         return None
-    cache = compiled.prepared.clutter_fields
-    if seed not in cache:
-        cache[seed] = _draw(compiled, int(seed))
-    return cache[seed]
+    return _draw(compiled, int(seed))
 
 
 def _draw(compiled, seed: int) -> ClutterField:

@@ -107,13 +107,13 @@ def _reflection(front, sin_top: np.ndarray, bounces: int) -> np.ndarray:
     return np.exp(-4.0 * bounces * kh * kh * sin_top ** 2)
 
 
-def image_echoes(front, caster, rot, pos_local, z_s_local: float, max_range_m: float, clock, rx_shift=None):
+def image_echoes(front, run, rot, pos_local, z_s_local: float, max_range_m: float, clock, rx_shift=None):
     """S → surface → P → surface → S: the fan cast from the image transducer through the unfolded profile, each
     echo × |R_s|⁴ (the grazing angle at the surface from ξ) and its real upward leg S → surface checked along its
     chord. Returns (Echoes aligned with the image fan's rays, its block)."""
     env = front.sonar.environment
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
-    blk = cast_refracted(caster, front.plan, rot_i, pos_i, _environment_unfolded(env), front.two_way_np_per_m,
+    blk = cast_refracted(run, front.plan, rot_i, pos_i, _environment_unfolded(env), front.two_way_np_per_m,
                          max_range_m, front.sonar, True, clock, Buffers(), rx_shift)
     w = blk.echo_weight.copy()
     lit = np.flatnonzero(w > 0)
@@ -126,11 +126,11 @@ def image_echoes(front, caster, rot, pos_local, z_s_local: float, max_range_m: f
     xi = horiz / prof.speed_at(d_s)
     w[lit] *= _reflection(front, np.sqrt(1.0 - (xi * prof.speed_at(0.0)) ** 2), 2)
     h = u[:, :2] / np.maximum(horiz, 1e-300)[:, None]
-    _block_upward(caster, blk.ray_start, ping, lit, h, surface_reach(prof, xi, d_s), pos_local, z_s_local, w)
+    _block_upward(run, blk.ray_start, ping, lit, h, surface_reach(prof, xi, d_s), pos_local, z_s_local, w)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
 
 
-def _block_upward(caster, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w, points=None, prim=None):
+def _block_upward(run, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w, points=None, prim=None):
     """Zero ``w`` (n,) where the chord from the sonar up to the surface point (x_up from it along the horizontal
     unit vectors h, (k, 2), of the lit echoes ``lit``) is blocked, and with ``points`` (n, 3) the chord from each
     point up to it (its own height field passed over, as for straight legs: ``prim``)."""
@@ -138,24 +138,24 @@ def _block_upward(caster, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w
     n = w.shape[0]
     starts = [(pos_local[ping], True)] + ([(points[lit], False)] if points is not None else [])
     for start, from_sonar in starts:
-        if not can_block(caster, from_sonar, pos_local):        # nothing reaches into any such leg
+        if not can_block(run.caster, from_sonar, pos_local):        # nothing reaches into any such leg
             continue
         leg = top - start
         dist = np.linalg.norm(leg, axis=1)
         dirs, lengths, x = np.zeros((n, 3)), np.zeros(n), np.zeros((n, 3))
         dirs[lit], lengths[lit] = leg / np.maximum(dist, 1e-300)[:, None], dist
         x[lit] = start
-        block_legs(caster, Buffers(), ray_start, x, pos_local, from_sonar, dirs, lengths, w,
+        block_legs(run, Buffers(), ray_start, x, pos_local, from_sonar, dirs, lengths, w,
                    None if from_sonar else prim, not from_sonar)
 
 
-def mixed_echoes(front, caster, blk: BlockEchoes, rot, pos_local, z_s_local: float, rx_shift=None) -> Echoes:
+def mixed_echoes(front, run, blk: BlockEchoes, rot, pos_local, z_s_local: float, rx_shift=None) -> Echoes:
     """S → P → surface → S and back the other way, for every direct echo of the curved fan ``blk`` (cast with
     ``keep_arrival``), aligned with its rays: the surface eigenray from S to each hit point P, the membrane's gains
     at both launch directions (:func:`kernels.curved_mixed`), σ(θi, θs, φ), both upward chords checked
     (docs/physics.md §12b). Every hit of the fan counts, those on objects its rows aim rays at too (the aimed rays
     give their direct echoes only)."""
-    c, sonar = caster.compiled, front.sonar
+    c, sonar = run.compiled, front.sonar
     n = blk.weight.shape[0]
     body, row, dbeta = ray_cells(blk.plan.s, blk.el_start, blk.beta, blk.dbeta)
     shift = np.zeros(rot.shape[0]) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
@@ -169,13 +169,13 @@ def mixed_echoes(front, caster, blk: BlockEchoes, rot, pos_local, z_s_local: flo
                          MixedWeighting(front.plan.beam, front.two_way_np_per_m, float(blk.plan.ds),
                                         front.plan.min_range_m, kh, want_phi), out)
     w = np.ascontiguousarray(out[:, kernels.M_W])
-    apply_bistatic(c, sonar.frequency_hz, blk.prim, blk.point_m, w, np.ascontiguousarray(out[:, kernels.M_COS_I]),
+    apply_bistatic(c, run.laws, blk.prim, blk.point_m, w, np.ascontiguousarray(out[:, kernels.M_COS_I]),
                    np.ascontiguousarray(out[:, kernels.M_COS_S]), out[:, kernels.M_PHI] if want_phi else None)
     lit = np.flatnonzero(w > 0)
     ping = row[lit] // 2
     rel = blk.point_m[lit, :2] - pos_local[ping, :2]
     h = rel / np.maximum(np.hypot(rel[:, 0], rel[:, 1]), 1e-300)[:, None]
-    _block_upward(caster, blk.ray_start, ping, lit, h, out[lit, kernels.M_XUP], pos_local, z_s_local, w, blk.point_m,
+    _block_upward(run, blk.ray_start, ping, lit, h, out[lit, kernels.M_XUP], pos_local, z_s_local, w, blk.point_m,
                   blk.prim)
     t = np.where(w > 0, out[:, kernels.M_T], np.inf)
     return Echoes(2, blk.ray_start, t, np.ascontiguousarray(out[:, kernels.M_EXT]), w, blk.point_m,

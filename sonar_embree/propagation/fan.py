@@ -278,7 +278,7 @@ def nadir_altitude(caster: Caster, pos_local: np.ndarray, max_range_m: float):
 
 def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.ndarray,
                two_way_np_per_m: float, max_range_m: float, time_per_m: float, want_points: bool = False,
-               timings: dict | None = None, frequency_hz: float = 0.0, rx_shift: np.ndarray | None = None,
+               timings: dict | None = None, laws=None, rx_shift: np.ndarray | None = None,
                aim=None) -> BlockEchoes:
     """Probe, place and cast the fans of a block of pings and weight every echo.
 
@@ -301,8 +301,8 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     timings : dict, optional
         Seconds spent are added under ``"embree"`` (ray casting) and ``"rays"``
         (placing rays and weighting echoes).
-    frequency_hz : float
-        The carrier, for scattering laws tabulated against frequency.
+    laws : LawTable
+        The scene's scattering laws at the carrier (:attr:`~sonar_embree.propagation.prepared.PreparedRun.law_table`).
     rx_shift : (pings,) float64, optional
         Motion during the ping: the receive beam's along-track direction-cosine offset δ = 2·v_fwd/c
         per ping (default: zeros, stop-and-hop; see :func:`kernels.fan_echoes`).
@@ -340,14 +340,14 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
                        scene_arrays(c), Weighting(plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
                                                   plan.slope_cap_m_rad, time_per_m),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
-    apply_laws(c, frequency_hz, prim, cos_i, w, pts)
+    apply_laws(laws, c, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = rays_per_ping(plan, keep, el_start)
     aimed, kept = None, None
     if aim is not None:
         aimed = aim_block(caster, aim, plan, rot, pos_local, rx_shift, two_way_np_per_m, max_range_m, time_per_m,
-                          want_points, frequency_hz)
+                          want_points, laws)
         t_embree += aimed.seconds_cast
         if aimed.aimed.any():
             kept = drop_aimed(caster, aim, n_az * el_start, prim, w, aimed.aimed)

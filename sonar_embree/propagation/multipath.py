@@ -66,7 +66,7 @@ def can_block(caster, from_sonar: bool, pos_local) -> bool:
     return _below_top(caster, float(pos_local[:, 2].min())) if from_sonar else bool(hi > lo)
 
 
-def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w, prim=None,
+def block_legs(run, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dist, w, prim=None,
                free_own: bool = False) -> None:
     """Zero the weights ``w`` (n,) of a block's echoes whose upward leg is blocked (see kernels.visibility_legs).
 
@@ -77,74 +77,52 @@ def block_legs(caster, buf, ray_start, x, pos_local, from_sonar: bool, dirs, dis
     block: for a leg from x steeper than its steepest face, and, with ``free_own`` (the one-bounce legs of the
     direct fan), for the legs of an echo seen from above.
     """
-    if not can_block(caster, from_sonar, pos_local):
+    if not can_block(run.caster, from_sonar, pos_local):
         return
-    n, c = w.shape[0], caster.compiled
+    n, c = w.shape[0], run.compiled
     idx, org, dr, ln = (buf.take("leg_idx", n, np.int64), buf.take("leg_org", (n, 3), np.float32),
                         buf.take("leg_dir", (n, 3), np.float32), buf.take("leg_len", n, np.float32))
-    lo, hi, obj, slope = leg_boxes(c, prim is not None)
+    lo, hi, obj, slope = run.leg_boxes[prim is not None]
     legs = Legs(x, pos_local, from_sonar, dirs, dist, w, np.zeros(0, np.int32) if prim is None else prim, free_own,
                 LEG_EPSILON_M)
     k = kernels.visibility_legs(ray_start, legs, Boxes(lo, hi, obj, slope), c.face_object, c.face_normals,
                                 LegOut(buf.take("leg_t0", n), buf.take("leg_t1", n), idx, org, dr, ln))
     if k:
-        w[idx[:k][caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
+        w[idx[:k][run.caster.occluded(org[:k], dr[:k], ln[:k])]] = 0.0
 
 
 def leg_boxes(compiled, with_heightfields: bool):
     """(lo (k, 3), hi (k, 3), obj (k,) int32, slope (k,)) boxes that hold the scene, for :func:`block_legs`: one
     per object (up to :data:`MAX_LEG_BOXES` objects, else one for all), widened by :data:`LEG_EPSILON_M`; ``obj``
     the object of a height field (−1 for other boxes, and for all without ``with_heightfields``) and ``slope`` its
-    steepest face's tan. Kept with the scene."""
-    cache = compiled.prepared.leg_boxes
-    if with_heightfields not in cache:
-        b = compiled.object_bounds
-        obj, slope = np.arange(b.shape[0], dtype=np.int32), np.full(b.shape[0], np.inf)
-        if b.shape[0] > MAX_LEG_BOXES:
-            b, obj, slope = compiled.bounds_local[None], np.full(1, -1, np.int32), np.full(1, np.inf)
-        elif with_heightfields:
-            fields = heightfield_objects(compiled)
-            obj = np.where(fields, obj, -1).astype(np.int32)
-            slope = np.where(fields, object_slopes(compiled), np.inf)
-        else:
-            obj = np.full(b.shape[0], -1, np.int32)
-        cache[with_heightfields] = (np.ascontiguousarray(b[:, 0] - LEG_EPSILON_M),
-                                    np.ascontiguousarray(b[:, 1] + LEG_EPSILON_M), obj, slope)
-    return cache[with_heightfields]
+    steepest face's tan. Made once per run (:class:`~sonar_embree.propagation.prepared.PreparedRun`)."""
+    b = compiled.object_bounds
+    obj, slope = np.arange(b.shape[0], dtype=np.int32), np.full(b.shape[0], np.inf)
+    if b.shape[0] > MAX_LEG_BOXES:
+        b, obj, slope = compiled.bounds_local[None], np.full(1, -1, np.int32), np.full(1, np.inf)
+    elif with_heightfields:
+        fields = heightfield_objects(compiled)
+        obj = np.where(fields, obj, -1).astype(np.int32)
+        slope = np.where(fields, object_slopes(compiled), np.inf)
+    else:
+        obj = np.full(b.shape[0], -1, np.int32)
+    return (np.ascontiguousarray(b[:, 0] - LEG_EPSILON_M), np.ascontiguousarray(b[:, 1] + LEG_EPSILON_M), obj, slope)
 
 
-def surface_caster(caster, surface, max_range_m: float):
-    """An Embree caster of the sea surface (a swell's mesh, or two triangles for a flat one) over the scene's
-    extent ± the range, in the scene's local frame, two-sided, with the surface line's law (Lambert −27 dB
-    where it has none: never read then).
-
-    Kept with the scene's compiled arrays (built once per scene, surface and range).
-    """
-    c = caster.compiled
-
-    def make():
-        law = surface.backscatter_law
-        material = Material(two_sided=True) if law is None else Material(two_sided=True, scattering=law)
-        mesh = surface.mesh(*surface_extent(c, max_range_m))
-        return RayCaster(Scene().add(mesh, material=material, label="sea surface").compiled(c.origin_m))
-    return _per_surface(c, "_swell_casters", surface, max_range_m, make)
+def surface_mesh(compiled, surface, max_range_m: float):
+    """An Embree caster of the sea surface (a swell's mesh, or two triangles for a flat one) over the extent of
+    ``compiled`` ± the range, in its local frame, two-sided, with the surface line's law (Lambert −27 dB where it
+    has none: never read then). Made once per run (:class:`~sonar_embree.propagation.prepared.PreparedRun`)."""
+    law = surface.backscatter_law
+    material = Material(two_sided=True) if law is None else Material(two_sided=True, scattering=law)
+    mesh = surface.mesh(*surface_extent(compiled, max_range_m))
+    return RayCaster(Scene().add(mesh, material=material, label="sea surface").compiled(compiled.origin_m))
 
 
-def surface_strips(caster, surface, max_range_m: float):
-    """The swell's mesh grid (:meth:`SeaSurface.strips`) over the extent :func:`surface_caster` meshes for the same
-    range; kept with the scene's compiled arrays."""
-    c = caster.compiled
-    return _per_surface(c, "_swell_strips", surface, max_range_m,
-                        lambda: surface.strips(*surface_extent(c, max_range_m)))
-
-
-def _per_surface(compiled, name: str, surface, max_range_m: float, make):
-    """``make()`` once per sea surface and range, kept with the scene's compiled arrays under ``name``."""
-    cache = compiled.prepared.surfaces.setdefault(name, {})
-    key = (surface, round(max_range_m, 6))
-    if key not in cache:
-        cache[key] = make()
-    return cache[key]
+def surface_strips(compiled, surface, max_range_m: float):
+    """The swell's mesh grid (:meth:`SeaSurface.strips`) over the extent :func:`surface_mesh` meshes for the same
+    range."""
+    return surface.strips(*surface_extent(compiled, max_range_m))
 
 
 def surface_extent(compiled, max_range_m: float):
@@ -155,27 +133,27 @@ def surface_extent(compiled, max_range_m: float):
     return (lo[0] - max_range_m, hi[0] + max_range_m), (lo[1] - max_range_m, hi[1] + max_range_m)
 
 
-def surface_line(front, caster, rot, pos_local, max_range_m, want_points, want_ids, clock,
+def surface_line(front, run, rot, pos_local, max_range_m, want_points, want_ids, clock,
                  rx_shift=None) -> tuple[Echoes, BlockEchoes]:
     """The sea surface's own backscatter S→P→S (the surface line): the fan cast at the surface with its law, each
     echo's leg S→P checked against the scene; object id −1 (water, not a scene object). Also the fan's block."""
     s = front.sonar
-    surf = surface_caster(caster, s.environment.surface, max_range_m)
+    surf = run.surface_caster
     blk = cast_block(surf, front.plan, rot, pos_local, front.two_way_np_per_m, max_range_m, 2.0 / s.sound_speed_m_s,
-                     want_points=True, timings=clock, frequency_hz=s.frequency_hz, rx_shift=rx_shift)
+                     want_points=True, timings=clock, laws=run.surface_law_table, rx_shift=rx_shift)
     w = blk.weight
-    if _below_top(caster, float(pos_local[:, 2].min())):                # something of the scene above the sonar
+    if _below_top(run.caster, float(pos_local[:, 2].min())):                # something of the scene above the sonar
         lit = np.flatnonzero(w > 0)
         pos = np.repeat(pos_local, np.diff(blk.ray_start[::2]), axis=0)
         dirs = np.zeros((w.shape[0], 3))
         dirs[lit] = (blk.point_m[lit] - pos[lit]) / blk.range_m[lit, None]
-        block_legs(caster, front.buffers, blk.ray_start, blk.point_m, pos_local, True, dirs, blk.range_m, w)
+        block_legs(run, front.buffers, blk.ray_start, blk.point_m, pos_local, True, dirs, blk.range_m, w)
     ids = np.full(w.shape[0] if want_ids else 0, -1, dtype=np.int32)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m if want_points else np.zeros((0, 3)),
                   ids), blk
 
 
-def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
+def image_echoes(front, run, rot, pos_local, z_s_local, max_range_m, clock,
                  rx_shift=None, aim=None) -> tuple[Echoes, BlockEchoes]:
     """S'→X→S': the fan cast from the image transducer, each echo × |R_s|⁴ and its real upward leg checked.
 
@@ -184,18 +162,18 @@ def image_echoes(front, caster, rot, pos_local, z_s_local, max_range_m, clock,
     ``aimed``; :func:`image_aimed_echoes`) and its fan's hits on them count nothing."""
     s = front.sonar
     rot_i, pos_i = mirror_pose(rot, pos_local, z_s_local)
-    blk = cast_block(caster, front.plan, rot_i, pos_i, front.two_way_np_per_m, max_range_m,
-                     2.0 / s.sound_speed_m_s, want_points=True, timings=clock, frequency_hz=s.frequency_hz,
+    blk = cast_block(run.caster, front.plan, rot_i, pos_i, front.two_way_np_per_m, max_range_m,
+                     2.0 / s.sound_speed_m_s, want_points=True, timings=clock, laws=run.law_table,
                      rx_shift=rx_shift, aim=aim)
     n, buf = blk.weight.shape[0], front.buffers
     w, up, leg = buf.take("image_w", n), buf.take("image_up", (n, 3)), buf.take("image_leg", n)
     w[:] = blk.echo_weight
     kernels.two_bounce(blk.ray_start, blk.point_m, pos_i, z_s_local, wave_kh(s), w, up, leg)
-    block_legs(caster, buf, blk.ray_start, blk.point_m, pos_local, True, up, leg, w)
+    block_legs(run, buf, blk.ray_start, blk.point_m, pos_local, True, up, leg, w)
     return Echoes(2, blk.ray_start, blk.time_s, blk.extent_s, w, blk.point_m, np.zeros(0, np.int32)), blk
 
 
-def image_aimed_echoes(front, caster, iblk, rot, pos_local, z_s_local) -> Echoes:
+def image_aimed_echoes(front, run, iblk, rot, pos_local, z_s_local) -> Echoes:
     """The two-bounce echoes of the rays the image transducer aimed at objects (``iblk.aimed``, from
     :func:`image_echoes`): × |R_s|⁴, their upward legs checked; object ids kept."""
     e = iblk.aimed.echoes
@@ -203,7 +181,7 @@ def image_aimed_echoes(front, caster, iblk, rot, pos_local, z_s_local) -> Echoes
     n, buf = e.weight.shape[0], Buffers()
     w, up, leg = e.weight.copy(), np.empty((n, 3)), np.empty(n)
     kernels.two_bounce(e.ray_start, e.point_m, pos_i, z_s_local, wave_kh(front.sonar), w, up, leg)
-    block_legs(caster, buf, e.ray_start, e.point_m, pos_local, True, up, leg, w)
+    block_legs(run, buf, e.ray_start, e.point_m, pos_local, True, up, leg, w)
     return Echoes(2, e.ray_start, e.travel_time_s, e.extent_s, w, e.point_m, e.object_id)
 
 
@@ -212,19 +190,19 @@ def wave_kh(sonar) -> float:
     return sonar.wavenumber_rad_m * sonar.environment.surface.wave_height_m
 
 
-def bistatic_sigma(compiled, frequency_hz, prim, cos_i, cos_s, phi):
-    """σ(θi, θs, φ) of each echo's object law (maps and texture are applied separately); ``prim`` (the echoes'
-    triangles) may be None when every object has the same law."""
+def bistatic_sigma(compiled, laws, prim, cos_i, cos_s, phi):
+    """σ(θi, θs, φ) of each echo's object law (``laws``: each object's at the carrier; maps and texture are applied
+    separately); ``prim`` (the echoes' triangles) may be None when every object has the same law."""
     if prim is None:
-        return _law_at(compiled, 0, frequency_hz).sigma(cos_i, cos_s, phi)
+        return laws[0].sigma(cos_i, cos_s, phi)
     obj = compiled.face_object[prim]
     present = np.flatnonzero(np.bincount(obj, minlength=len(compiled.laws)))
     if present.shape[0] == 1:                                   # one law: no masks
-        return _law_at(compiled, present[0], frequency_hz).sigma(cos_i, cos_s, phi)
+        return laws[present[0]].sigma(cos_i, cos_s, phi)
     out = np.zeros(prim.shape[0])
     for o in present:
         k = obj == o
-        out[k] = _law_at(compiled, o, frequency_hz).sigma(cos_i[k], cos_s[k], phi[k] if np.ndim(phi) else phi)
+        out[k] = laws[o].sigma(cos_i[k], cos_s[k], phi[k] if np.ndim(phi) else phi)
     return out
 
 
@@ -240,61 +218,56 @@ def wants_azimuth(compiled) -> bool:
     return any(law.uses_azimuth for law in compiled.laws)
 
 
-def apply_bistatic(compiled, frequency_hz, prim, points, w, cos_i, cos_s, phi=None) -> None:
+def apply_bistatic(compiled, laws, prim, points, w, cos_i, cos_s, phi=None) -> None:
     """Multiply the lit weights ``w`` (n,) of bistatic echoes by σ(θi, θs, φ), the maps and the texture, in place;
-    ``prim`` (n,) their triangles, ``points`` (n, 3) their scattering points, ``phi`` None when no law reads it.
-    Only lit echoes are gathered; with one law and no maps, not even their triangles."""
+    ``laws`` each object's law at the carrier, ``prim`` (n,) their triangles, ``points`` (n, 3) their scattering
+    points, ``phi`` None when no law reads it. Only lit echoes are gathered; with one law and no maps, not even their
+    triangles."""
     c = compiled
     lit = np.flatnonzero(w > 0)
     detail = [d for d in (c.maps, c.textures) if d is not None]
     at = prim[lit] if detail or any(law != c.laws[0] for law in c.laws) else None   # one law: no gathers
-    w_lit = w[lit] * bistatic_sigma(c, frequency_hz, at, cos_i[lit], cos_s[lit], 0.0 if phi is None else phi[lit])
+    w_lit = w[lit] * bistatic_sigma(c, laws, at, cos_i[lit], cos_s[lit], 0.0 if phi is None else phi[lit])
     for d in detail:
         d.apply(c, at, points[lit], w_lit)
     w[lit] = w_lit
 
 
-def _law_at(compiled, o: int, frequency_hz: float):
-    """Object o's scattering law at the carrier."""
-    law = compiled.laws[o]
-    return law.at_frequency(frequency_hz)
-
-
-def mixed_echoes(front, caster, blk, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
+def mixed_echoes(front, run, blk, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
     """S→X→S' and S'→X→S (one echo: twice the weight when stop-and-hop) of every direct echo of ``blk``, aligned
     with its rays; ``rx_shift`` (pings,) δ = 2·v_fwd/c turns each path's receive beam (docs/physics.md §16). The
     fan's hits on objects its rows aim rays at count nothing here (their aimed rays' own one-bounce echoes,
     :func:`mixed_aimed_echoes`, stand for them)."""
     plan = blk.plan
-    w, t, ext = _mixed(front, caster, front.buffers, blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta),
+    w, t, ext = _mixed(front, run, front.buffers, blk.ray_start, blk.el_start, plan.s, np.cos(blk.beta),
                        np.sin(blk.beta), blk.dbeta, plan.ds, blk.range_m, blk.point_m, blk.prim, rot, pos_local,
                        z_s_local, rx_shift, kernels.NO_LAYOUT)
     if blk.aimed is not None and blk.aimed.aimed.any():
-        aim = front.aim_plan(caster.compiled)
-        aim_kernels.drop_aimed(blk.ray_start, blk.prim, caster.compiled.face_object, aim.cand_of_object,
+        aim = run.aim
+        aim_kernels.drop_aimed(blk.ray_start, blk.prim, run.compiled.face_object, aim.cand_of_object,
                            blk.aimed.aimed, w)
     return Echoes(2, blk.ray_start, t, ext, w, blk.point_m, np.zeros(0, np.int32))
 
 
-def mixed_aimed_echoes(front, caster, aimed, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
+def mixed_aimed_echoes(front, run, aimed, rot, pos_local, z_s_local, rx_shift=None) -> Echoes:
     """The one-bounce echoes (:func:`mixed_echoes`) of the rays aimed at objects (``aimed``:
     :class:`~sonar_embree.propagation.aim.AimedEchoes`, with points), each with its own cell (layout); object ids
     kept."""
     e = aimed.echoes
     r = np.where(np.isfinite(e.travel_time_s), 0.5 * front.sonar.sound_speed_m_s * e.travel_time_s, np.inf)
-    w, t, ext = _mixed(front, caster, Buffers(), e.ray_start, e.ray_start, front.plan.s, np.zeros(0), np.zeros(0),
+    w, t, ext = _mixed(front, run, Buffers(), e.ray_start, e.ray_start, front.plan.s, np.zeros(0), np.zeros(0),
                        np.zeros(0), front.plan.ds, r, e.point_m, aimed.prim, rot, pos_local, z_s_local, rx_shift,
                        aimed.layout)
     return Echoes(2, e.ray_start, t, ext, w, e.point_m, e.object_id)
 
 
-def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, ds, r, x, prim, rot, pos_local,
+def _mixed(front, run, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, ds, r, x, prim, rot, pos_local,
            z_s_local, rx_shift, layout):
     """(w, t, ext) (n,) of the one-bounce paths of direct hits (ranges ``r``, points ``x``, triangles ``prim``) in
     ``buf``: the kernel (:func:`kernels.mixed_legs`, the fan's layout or each ray's own ``layout``), the bistatic
     law and the visibility of both legs."""
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
-    s, plan, c = front.sonar, front.plan, caster.compiled
+    s, plan, c = front.sonar, front.plan, run.compiled
     n = r.shape[0]
     t, ext, w, cos_i, cos_s, phi, leg1, leg2 = (buf.take(k, n) for k in ("t", "ext", "w", "cos_i", "cos_s", "phi",
                                                                           "leg1", "leg2"))
@@ -302,7 +275,7 @@ def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, d
     mu = lambert_mu(c)                                                       # σ in the kernel
     lambert = mu.shape[0] > 0
     want_phi = wants_azimuth(c) and not lambert
-    legs = (can_block(caster, False, pos_local), can_block(caster, True, pos_local))
+    legs = (can_block(run.caster, False, pos_local), can_block(run.caster, True, pos_local))
     kernels.mixed_legs(ray_start, Fan(s_az, ds, cos_b, sin_b, dbeta, el_start), Hits(r, x, prim),
                        Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift), c.face_normals,
                        Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, np.inf, plan.slope_cap_m_rad,
@@ -310,11 +283,11 @@ def _mixed(front, caster, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, d
                        Bistatic(z_s_local, wave_kh(s), mu, c.face_object, want_phi, any(legs)),
                        MixedOut(t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2), layout)
     if not lambert:
-        apply_bistatic(c, s.frequency_hz, prim, x, w, cos_i, cos_s, phi if want_phi else None)
+        apply_bistatic(c, run.laws, prim, x, w, cos_i, cos_s, phi if want_phi else None)
     if legs[0]:
-        block_legs(caster, buf, ray_start, x, pos_local, False, v, leg1, w, prim, True)
+        block_legs(run, buf, ray_start, x, pos_local, False, v, leg1, w, prim, True)
     if legs[1]:
-        block_legs(caster, buf, ray_start, x, pos_local, True, u2, leg2, w, prim, True)
+        block_legs(run, buf, ray_start, x, pos_local, True, u2, leg2, w, prim, True)
     return w, t, ext
 
 

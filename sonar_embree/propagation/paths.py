@@ -52,13 +52,13 @@ def echoes_of(blk: BlockEchoes, face_object: np.ndarray | None = None) -> Echoes
 class Direct:
     """Straight rays from the sonar (:func:`~sonar_embree.propagation.fan.cast_block`)."""
 
-    def cast(self, front, caster, rot, pos_local, max_range_m, want_points, clock, rx_shift, aim,
+    def cast(self, front, run, rot, pos_local, max_range_m, want_points, clock, rx_shift,
              surface: bool) -> BlockEchoes:
         """The block's fan (its points kept when ``want_points`` or a ``surface`` needs them)."""
         s = front.sonar
-        return cast_block(caster, front.plan, rot, pos_local, front.two_way_np_per_m, max_range_m,
+        return cast_block(run.caster, front.plan, rot, pos_local, front.two_way_np_per_m, max_range_m,
                           2.0 / s.sound_speed_m_s, want_points=want_points or surface, timings=clock,
-                          frequency_hz=s.frequency_hz, rx_shift=rx_shift, aim=aim)
+                          laws=run.law_table, rx_shift=rx_shift, aim=run.aim)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,16 +66,16 @@ class Refracted:
     """Curved rays through the medium's sound-speed profile (:func:`~sonar_embree.propagation.refraction.cast_refracted`;
     under a surface their arrival directions are kept for its paths)."""
 
-    def cast(self, front, caster, rot, pos_local, max_range_m, want_points, clock, rx_shift, aim,
+    def cast(self, front, run, rot, pos_local, max_range_m, want_points, clock, rx_shift,
              surface: bool) -> BlockEchoes:
         s = front.sonar
-        return refraction.cast_refracted(caster, front.plan, rot, pos_local, s.environment, front.two_way_np_per_m,
-                                         max_range_m, s, want_points or surface, clock, front.buffers, rx_shift, aim,
-                                         keep_arrival=surface)
+        return refraction.cast_refracted(run, front.plan, rot, pos_local, s.environment, front.two_way_np_per_m,
+                                         max_range_m, s, want_points or surface, clock, front.buffers, rx_shift,
+                                         run.aim, keep_arrival=surface)
 
 
-def _surface_z_local(front, caster) -> float:
-    return front.sonar.environment.surface.z_m - float(caster.compiled.origin_m[2])
+def _surface_z_local(front, run) -> float:
+    return front.sonar.environment.surface.z_m - float(run.compiled.origin_m[2])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,21 +83,21 @@ class FlatSurface:
     """A flat sea surface by the image method: the one-bounce (mixed) and two-bounce (image) paths, and the rays
     aimed at objects along both (docs/physics.md §13)."""
 
-    def contributions(self, front, caster, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
+    def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        z_s = _surface_z_local(front, caster)
-        image, iblk = multipath.image_echoes(front, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift,
-                                             aim=front.aim_plan(caster.compiled))
-        mixed = multipath.mixed_echoes(front, caster, blk, rot, pos_local, z_s, rx_shift)
+        z_s = _surface_z_local(front, run)
+        image, iblk = multipath.image_echoes(front, run, rot, pos_local, z_s, max_range_m, clock, rx_shift,
+                                             aim=run.aim)
+        mixed = multipath.mixed_echoes(front, run, blk, rot, pos_local, z_s, rx_shift)
         if ids is not None:  # a one-bounce echo stands for its direct echo's point, a two-bounce one for its hit
             mixed = dataclasses.replace(mixed, object_id=direct.object_id)
             image = dataclasses.replace(image, object_id=echoes_of(iblk, ids).object_id)
         aimed = []
         if blk.aimed is not None:
             aimed.append(AimedContribution(
-                multipath.mixed_aimed_echoes(front, caster, blk.aimed, rot, pos_local, z_s, rx_shift), blk.aimed, 1))
+                multipath.mixed_aimed_echoes(front, run, blk.aimed, rot, pos_local, z_s, rx_shift), blk.aimed, 1))
         if iblk.aimed is not None:
-            aimed.append(AimedContribution(multipath.image_aimed_echoes(front, caster, iblk, rot, pos_local, z_s),
+            aimed.append(AimedContribution(multipath.image_aimed_echoes(front, run, iblk, rot, pos_local, z_s),
                                            iblk.aimed, 2))
         return [Contribution(mixed, blk.el_start, 1), Contribution(image, iblk.el_start, 2)], aimed
 
@@ -106,11 +106,11 @@ class FlatSurface:
 class RefractedFlatSurface:
     """A flat surface over a sound-speed profile: the unfolded profile's image rays (docs/physics.md §12b)."""
 
-    def contributions(self, front, caster, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
+    def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        z_s = _surface_z_local(front, caster)
-        image, iblk = curved_surface.image_echoes(front, caster, rot, pos_local, z_s, max_range_m, clock, rx_shift)
-        mixed = curved_surface.mixed_echoes(front, caster, blk, rot, pos_local, z_s, rx_shift)
+        z_s = _surface_z_local(front, run)
+        image, iblk = curved_surface.image_echoes(front, run, rot, pos_local, z_s, max_range_m, clock, rx_shift)
+        mixed = curved_surface.mixed_echoes(front, run, blk, rot, pos_local, z_s, rx_shift)
         return [Contribution(mixed, blk.el_start, 1), Contribution(image, iblk.el_start, 2)], []
 
 
@@ -119,9 +119,9 @@ class Swell:
     """A swell's meshed surface: one Embree reflection per ray, the rays aimed at objects through it (its glints)
     on their own paths (docs/physics.md §13b)."""
 
-    def contributions(self, front, caster, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
+    def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        mixed, image, glints = swell.swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift)
+        mixed, image, glints = swell.swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift)
         return ([Contribution(mixed, None, 1), Contribution(image, None, 2)],  # the swell's paths: its own up rays
                 [AimedContribution(e, None, path) for e, path in glints])
 
@@ -130,9 +130,9 @@ class Swell:
 class SurfaceLine:
     """The sea surface's own backscatter, a direct path (:func:`~sonar_embree.propagation.multipath.surface_line`)."""
 
-    def contributions(self, front, caster, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
+    def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        line, lblk = multipath.surface_line(front, caster, rot, pos_local, max_range_m, want_points, ids is not None,
+        line, lblk = multipath.surface_line(front, run, rot, pos_local, max_range_m, want_points, ids is not None,
                                             clock, rx_shift)
         return [Contribution(line, lblk.el_start, 0)], []
 

@@ -129,14 +129,16 @@ def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffe
     return out.reshape(rows, -1)
 
 
-def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
+def cast_refracted(run, plan: FanPlan, rot, pos_local, environment, two_way_np_per_m: float, max_range_m: float,
                    sonar, want_points: bool, clock: dict, buffers: Buffers | None = None,
                    rx_shift: np.ndarray | None = None, aim=None, keep_arrival: bool = False) -> BlockEchoes:
     """:func:`~sonar_embree.propagation.fan.cast_block` for curved rays in ``environment.sound_speed``.
 
     Parameters
     ----------
-    caster, plan, rot, pos_local, two_way_np_per_m, max_range_m
+    run : PreparedRun
+        The run's caster and laws (:class:`~sonar_embree.propagation.prepared.PreparedRun`).
+    plan, rot, pos_local, two_way_np_per_m, max_range_m
         As for :func:`~sonar_embree.propagation.fan.cast_block`.
     environment : Environment
         With a non-uniform profile.
@@ -161,7 +163,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     plan, keep = moving_lines(plan, rx_shift)
     t0, before = time.perf_counter(), clock.get("embree", 0.0)
-    c_nom = sonar.sound_speed_m_s
+    c_nom, caster = sonar.sound_speed_m_s, run.caster
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
     rot = np.ascontiguousarray(rot, dtype=np.float64)
@@ -185,13 +187,13 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
                        hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
                                                                plan.slope_cap_m_rad, c_nom),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
-    apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
+    apply_laws(run.law_table, c, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
     n_rays = rays_per_ping(plan, keep, el_start)
     aimed, kept = None, None
     if aim is not None:
-        aimed = _aimed(caster, aim, plan, rot, pos_local, rx_shift, m, two_way_np_per_m, max_range_m, sonar,
+        aimed = _aimed(run, aim, plan, rot, pos_local, rx_shift, m, two_way_np_per_m, max_range_m, sonar,
                        want_points, clock, buffers)
         if aimed.aimed.any():
             kept = drop_aimed(caster, aim, n_az * el_start, hit_prim, w, aimed.aimed)
@@ -203,7 +205,7 @@ def cast_refracted(caster, plan: FanPlan, rot, pos_local, environment, two_way_n
                        aimed, kept, plan, arrival)
 
 
-def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, max_range_m, sonar,
+def _aimed(run, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, max_range_m, sonar,
            want_points, clock, buffers) -> AimedEchoes:
     """The curved rays aimed at objects (docs/physics.md §7b, §12): each lattice's rays launched and marched as the
     fan's, weighted by :func:`kernels.arc_echoes` with each ray's own cell; only hits on the aimed object count."""
@@ -211,15 +213,15 @@ def _aimed(caster, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_
     table, start, counts, _, _, layout = lattice_rays(aim, rot, pos_local, rx_shift, max_range_m)
     ray_start = np.ascontiguousarray(start[::k])
     before = clock.get("embree", 0.0)
-    t_s, ext, w, pts, hit_prim, cos_i = layout_echoes(caster, layout, ray_start, plan, rot, pos_local, rx_shift, m,
+    t_s, ext, w, pts, hit_prim, cos_i = layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m,
                                                       two_way_np_per_m, sonar, want_points, clock, buffers)
-    obj = keep_own(caster.compiled, aim, counts, hit_prim, w, t_s, cos_i)
+    obj = keep_own(run.compiled, aim, counts, hit_prim, w, t_s, cos_i)
     echoes = Echoes(2, ray_start, t_s, ext, w, pts, obj)
     return AimedEchoes(echoes, layout, hit_prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1),
                        clock.get("embree", 0.0) - before)
 
 
-def layout_echoes(caster, layout, ray_start, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, sonar,
+def layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per_m, sonar,
                   want_points, clock, buffers):
     """Curved rays with each ray's own cell, launched, marched and weighted as the fan's (the laws applied).
 
@@ -229,6 +231,8 @@ def layout_echoes(caster, layout, ray_start, plan, rot, pos_local, rx_shift, m: 
         Each ray's s, cos β, sin β, dβ and ds (its direction (s, ±√(1 − s²)·cos β, √(1 − s²)·sin β) in the body
         frame of its row's ping, its solid angle ds·dβ); row r (2·ping + side) owns ``ray_start[r] …
         ray_start[r + 1] − 1``.
+    run : PreparedRun
+        The run's caster and laws.
     plan : FanPlan
         Its beam, near-field bound, slope cap and footprint setting.
     rot, pos_local, rx_shift, m, two_way_np_per_m, sonar, want_points, clock, buffers
@@ -244,15 +248,15 @@ def layout_echoes(caster, layout, ray_start, plan, rot, pos_local, rx_shift, m: 
     none = np.zeros(0)
     kernels.arc_start(plan.s, none, none, ray_start, rot, pos_local, m.layers, m.z0, m.box_z, m.l_max, state, lay,
                       ray, layout)
-    hit_prim, hit, _ = march(caster, m, state, lay, ray, clock, buffers)
-    c = caster.compiled
+    hit_prim, hit, _ = march(run.caster, m, state, lay, ray, clock, buffers)
+    c = run.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.arc_echoes(Fan(plan.s, plan.ds, none, none, none, ray_start), Poses(rot, pos_local, rx_shift), hit_prim,
                        hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
                                                                plan.slope_cap_m_rad, sonar.sound_speed_m_s),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
-    apply_laws(c, sonar.frequency_hz, hit_prim, cos_i, w, pts)
+    apply_laws(run.law_table, c, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
     return t_s, ext, w, pts, hit_prim, cos_i

@@ -30,7 +30,7 @@ from ..kernels import aim as K
 from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
 from ..laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
-                        surface_caster, surface_strips, wants_azimuth)
+                        wants_azimuth)
 
 
 def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
@@ -75,7 +75,7 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shi
 
 def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     """(facet, distance) of each ray's first hit on the swell's mesh of grid ``g``, in closed form
-    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.propagation.multipath.surface_caster` meshes, not
+    (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.propagation.multipath.surface_mesh` meshes, not
     cast)."""
     n = dirs.shape[0]
     prim, t = buf.take("swell_hit_prim", n, np.int32), buf.take("swell_hit_t", n, np.float32)
@@ -84,7 +84,7 @@ def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     return prim, t
 
 
-def _bounce(front, caster, swell, fan, pos_local, buf):
+def _bounce(front, run, swell, fan, pos_local, buf):
     """The rays that reached the swell, mirrored on their facets and cast through the scene (the leg S → P
     checked too): a dict of per-entry arrays, aligned with ``fan["up"]`` (working arrays from ``buf``)."""
     m = fan["up"].shape[0]
@@ -94,16 +94,16 @@ def _bounce(front, caster, swell, fan, pos_local, buf):
                          swell.compiled.face_normals, LEG_EPSILON_M, u, p, ur, org, dr)
     seen = buf.take("swell_seen", m)
     seen[:] = 1.0
-    if m and _below_top(caster, float(pos_local[:, 2].min())):      # S → P through the scene
-        block_legs(caster, buf, fan["up_start"], p, pos_local, True, u, fan["t1"][fan["up"]].astype(np.float64),
+    if m and _below_top(run.caster, float(pos_local[:, 2].min())):      # S → P through the scene
+        block_legs(run, buf, fan["up_start"], p, pos_local, True, u, fan["t1"][fan["up"]].astype(np.float64),
                    seen)
-    prim, t2 = caster.cast_raw(org, dr, fan["max_range_m"])
+    prim, t2 = run.caster.cast_raw(org, dr, fan["max_range_m"])
     return dict(u=u, p=p, ur=ur, prim=prim, t2=t2, seen=seen)
 
 
-def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift, buf):
+def _paths(front, run, swell, fan, b, rot, pos_local, rx_shift, buf):
     """kernels.swell_paths over the bounced rays: a dict of its outputs (the one bounce without σ and legs)."""
-    s, plan, c = front.sonar, front.plan, caster.compiled
+    s, plan, c = front.sonar, front.plan, run.compiled
     m = fan["up"].shape[0]
     o = {k: buf.take("swell_" + k, m) for k in ("w1", "t1", "e1", "w2", "t2", "e2", "cos_i", "cos_s", "phi", "r")}
     o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
@@ -121,16 +121,16 @@ def _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift, buf):
     return o
 
 
-def _bounced_paths(front, caster, swell, fan, rot, pos_local, rx_shift, buf):
+def _bounced_paths(front, run, swell, fan, rot, pos_local, rx_shift, buf):
     """The bounced rays' one- and two-bounce weights with their laws and legs: (bounce dict, paths dict)."""
-    b = _bounce(front, caster, swell, fan, pos_local, buf)
-    o = _paths(front, caster, swell, fan, b, rot, pos_local, rx_shift, buf)
+    b = _bounce(front, run, swell, fan, pos_local, buf)
+    o = _paths(front, run, swell, fan, b, rot, pos_local, rx_shift, buf)
     if o["mu"].shape[0] == 0:
-        apply_bistatic(caster.compiled, front.sonar.frequency_hz, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
+        apply_bistatic(run.compiled, run.laws, b["prim"], o["x"], o["w1"], o["cos_i"], o["cos_s"],
                        o["phi"] if o["want_phi"] else None)
-    block_legs(caster, buf, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"],  # X → S
+    block_legs(run, buf, fan["up_start"], o["x"], pos_local, False, o["leg"], o["r"], o["w1"],  # X → S
                b["prim"])
-    apply_laws(caster.compiled, front.sonar.frequency_hz, b["prim"], o["cos_i"], o["w2"], o["x"])
+    apply_laws(run.law_table, run.compiled, b["prim"], o["cos_i"], o["w2"], o["x"])
     return b, o
 
 
@@ -144,21 +144,21 @@ def _echo_pair(fan, b, o, ids):
     return out[0], out[1]
 
 
-def swell_echoes(front, caster, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
+def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
     """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan, and those of the rays
     aimed at objects through the swell (a list of (Echoes, path): 1 one bounce, 2 two bounces; empty without any);
     ``rx_shift`` (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     surface = front.sonar.environment.surface
-    swell, strips = surface_caster(caster, surface, max_range_m), surface_strips(caster, surface, max_range_m)
-    fan = _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shift)
-    b, o = _bounced_paths(front, caster, swell, fan, rot, pos_local, rx_shift, front.buffers)
-    aim, aimed = front.aim_plan(caster.compiled), []
+    swell, strips = run.surface_caster, run.surface_strips
+    fan = _image_fan(front, strips, run.caster, rot, pos_local, max_range_m, clock, rx_shift)
+    b, o = _bounced_paths(front, run, swell, fan, rot, pos_local, rx_shift, front.buffers)
+    aim, aimed = run.aim, []
     if aim is not None:
-        glints = _aimed(front, caster, swell, strips, aim, rot, pos_local, rx_shift, fan["max_range_m"], ids)
+        glints = _aimed(front, run, swell, strips, aim, rot, pos_local, rx_shift, fan["max_range_m"], ids)
         if glints is not None:                       # the fan's hits on those objects count nothing in those rows
             for w in (o["w1"], o["w2"]):
-                K.drop_aimed(fan["up_start"], b["prim"], caster.compiled.face_object, aim.cand_of_object, glints[2],
+                K.drop_aimed(fan["up_start"], b["prim"], run.compiled.face_object, aim.cand_of_object, glints[2],
                              w)
             aimed = [(glints[0], 1), (glints[1], 2)]
     return (*_echo_pair(fan, b, o, ids), aimed)
@@ -206,13 +206,13 @@ def _glint_rays(aim, g, rot, pos_local, rx_shift, glints, ping, cand, refused):
     return ray_start, glint[order], dirs[order], org[order], layout[order], aimed
 
 
-def _aimed(front, caster, swell, g, aim, rot, pos_local, rx_shift, reach_m, ids):
+def _aimed(front, run, swell, g, aim, rot, pos_local, rx_shift, reach_m, ids):
     """The rays aimed at objects through the swell (docs/physics.md §7b): per ping and object, each strip that can
     mirror it to the sonar (a glint) gets a lattice aimed at the object's image in the strip's plane, clipped to the
     directions that meet the strip; a ray counts only where its first hit on the swell is on that strip and its
     bounced ray first hits that object. (one-bounce Echoes, two-bounce Echoes, (rows, k) aimed) or None when no row
     aims at anything."""
-    c = caster.compiled
+    c = run.compiled
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     glints, ping, cand, refused = _glints(aim, front.sonar.environment.surface, g, c.origin_m, pos_local, reach_m)
     ray_start, glint, dirs, org, layout, aimed = _glint_rays(aim, g, rot, pos_local, rx_shift, glints, ping, cand,
@@ -228,7 +228,7 @@ def _aimed(front, caster, swell, g, aim, rot, pos_local, rx_shift, reach_m, ids)
     fan = dict(el_start=ray_start, ray_start=ray_start, beta=np.zeros(0), dbeta=np.zeros(0), dirs=dirs,
                prim_s=prim_s, t1=t1, up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64),
                max_range_m=reach_m, s=np.zeros(1), layout=layout)
-    b, o = _bounced_paths(front, caster, swell, fan, rot, pos_local, rx_shift, buf)
+    b, o = _bounced_paths(front, run, swell, fan, rot, pos_local, rx_shift, buf)
     mine = c.face_object[np.maximum(b["prim"], 0)] == aim.objects[cand[glint[up]]]
     for w in (o["w1"], o["w2"]):                          # only hits on the aimed object count
         w[~mine | (b["prim"] < 0)] = 0.0

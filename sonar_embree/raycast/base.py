@@ -55,14 +55,6 @@ class Caster:
 
     compiled: CompiledScene
 
-    @classmethod
-    def for_scene(cls, compiled: CompiledScene) -> "Caster":
-        """The caster of this class for ``compiled``, built on first use and kept with it (freed with it)."""
-        cache = compiled.prepared.casters
-        if cls not in cache:
-            cache[cls] = cls(compiled)
-        return cache[cls]
-
     def cast_raw(self, origins_f32, directions_f32, max_range_m: float):
         """First hits, unrefined: the hot path of :mod:`sonar_embree.propagation.fan`.
 

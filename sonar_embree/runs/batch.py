@@ -35,6 +35,7 @@ from ..io.owner import MANIFEST, OutputFolder
 from ..record import Record
 from .sweep import Job, SceneSpec, Sweep, load_sweep
 from ..errors import SonarEmbreeError
+from ..propagation.prepared import RunCache
 from ..simulate import simulate
 from ..survey.cluster import as_completed, client_for, threads_of
 
@@ -44,18 +45,21 @@ _SCENE_CACHE: dict = {}
 
 
 def _scene(spec: SceneSpec, seed: int):
+    """(scene, its RunCache) of a worker: one scene at a time (memory stays bounded), its BVH and tables shared by
+    the tasks that render it."""
     key = (spec.source, spec.index, int(seed))
     if key not in _SCENE_CACHE:
-        _SCENE_CACHE.clear()  # one scene per worker at a time: memory stays bounded
-        _SCENE_CACHE[key] = spec.build(seed)
+        _SCENE_CACHE.clear()
+        _SCENE_CACHE[key] = (spec.build(seed), RunCache(scenes=1))
     return _SCENE_CACHE[key]
 
 
 def render_part(spec: SceneSpec, job: Job, start: int, stop: int) -> Record:
     """Simulate pings ``start … stop − 1`` of a job (a Dask task)."""
-    return simulate(_scene(spec, job.seed), job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan,
-                    chain=job.chain, labels=job.labels, keep_complex=job.keep_complex, ping_offset=start,
-                    start_time=job.start_time)
+    scene, cache = _scene(spec, job.seed)
+    return simulate(scene, job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan, chain=job.chain,
+                    labels=job.labels, keep_complex=job.keep_complex, ping_offset=start, start_time=job.start_time,
+                    cache=cache)
 
 
 def _write_outputs(rec: Record, job: Job, sweep: Sweep, folder: str) -> None:

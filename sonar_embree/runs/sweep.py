@@ -123,7 +123,7 @@ class SceneSpec:
                 runconfig.add_object(scene, obj, self.source, self.base, where)
         caster = None
         if placed and scene.objects:  # instances rest on what lies below them (floors and fixed meshes)
-            caster = RayCaster.for_scene(scene.compiled())
+            caster = RayCaster(scene.compiled())
         support = scene.compiled() if caster is not None else None
         top = scene.bounds[1, 2] + 1.0 if caster is not None else 0.0
         for i, obj, where in placed:

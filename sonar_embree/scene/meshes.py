@@ -64,45 +64,6 @@ def _clutter_of(objects) -> tuple:
     return c if any(x is not None for x in c) else ()
 
 
-class Prepared:
-    """What runs build once per compiled scene and keep with it, each under its own name (not run state: a
-    compiled scene stays immutable; a copy sent to another process arrives without them and rebuilds them).
-
-    Attributes
-    ----------
-    casters : dict
-        Ray casters by class (:meth:`sonar_embree.raycast.Caster.for_scene`), with their BVHs.
-    law_tables : dict
-        Law tables by carrier frequency, Hz (:func:`sonar_embree.laws.table.scene_law_table`).
-    leg_boxes : dict
-        Multipath's visibility boxes, with and without height fields
-        (:func:`sonar_embree.propagation.multipath.leg_boxes`).
-    surfaces : dict
-        Per kind (the swell's casters and strips), by (sea surface, range) (:mod:`sonar_embree.propagation.multipath`).
-    bounding_spheres : tuple or None
-        The objects' bounding spheres (:func:`sonar_embree.propagation.aim.bounding_spheres`).
-    seafloor_scenes : dict
-        The seafloor alone, by which objects are seafloor (:func:`sonar_embree.signal.truth.seafloor_caster`).
-    clutter_fields : dict
-        The clutter's frozen scatterers, by seed (:mod:`sonar_embree.propagation.clutter`).
-    """
-
-    __slots__ = ("casters", "law_tables", "leg_boxes", "surfaces", "bounding_spheres", "seafloor_scenes",
-                 "clutter_fields")
-
-    def __init__(self):
-        self.clear()
-
-    def clear(self) -> None:
-        """Drop everything kept (rebuilt on next use)."""
-        self.casters, self.law_tables, self.leg_boxes, self.surfaces, self.seafloor_scenes = {}, {}, {}, {}, {}
-        self.clutter_fields = {}
-        self.bounding_spheres = None
-
-    def __reduce__(self):
-        return Prepared, ()               # BVHs are not sent between processes: each rebuilds its own
-
-
 @dataclass(frozen=True, eq=False)
 class CompiledScene:
     """Flat arrays of a whole scene in the local frame, as ray casting and echo terms need them.
@@ -131,8 +92,6 @@ class CompiledScene:
         The materials' K textures (:mod:`sonar_embree.laws.texture`), None without any.
     clutter : tuple
         Each object's :class:`~sonar_embree.laws.clutter.Clutter` or None (empty: none anywhere).
-    prepared : Prepared
-        What runs build once for this scene and keep with it (casters, law tables, …).
     is_seafloor : (n_objects,) bool
         Which objects are seafloor (ground truth: their hidden parts are shadow).
     two_sided : (n_objects,) bool
@@ -152,7 +111,6 @@ class CompiledScene:
     maps: object = None
     textures: object = None
     clutter: tuple = ()
-    prepared: Prepared = field(default_factory=Prepared, init=False, repr=False, compare=False)  # own per copy
     face_two_sided: np.ndarray = field(init=False, repr=False, compare=False)
     bounds_local: np.ndarray = field(init=False, repr=False, compare=False)
     object_bounds: np.ndarray = field(init=False, repr=False, compare=False)
@@ -195,17 +153,6 @@ def object_slopes(compiled: CompiledScene) -> np.ndarray:
     out = np.zeros(len(compiled.labels))
     np.maximum.at(out, compiled.face_object, tan)
     return out
-
-
-def release(compiled: CompiledScene) -> None:
-    """Drop the caches kept on a compiled scene (its casters with their BVHs, law tables, leg boxes, …).
-
-    A caster refers to its compiled scene and the scene's cache refers to the caster: a reference cycle that only
-    the garbage collector frees, at a pace set by counts of Python objects, not by the hundreds of MB a BVH holds.
-    A streamed line over a tiled DEM compiles scene after scene; releasing each one it drops frees them at once
-    (resident memory otherwise climbed by ~0.5 GB over 100 000 pings). A released scene rebuilds its caches on use.
-    """
-    compiled.prepared.clear()
 
 
 def _outlier(v: np.ndarray, f: np.ndarray, source: str) -> None:
@@ -613,14 +560,13 @@ class Scene:
         key = tuple(float(x) for x in origin)
         if key not in self._compiled:
             while len(self._compiled) >= COMPILED_CACHE:
-                release(self._compiled.pop(next(iter(self._compiled))))
+                self._compiled.pop(next(iter(self._compiled)))
             self._compiled[key] = self._compile(origin)
         return self._compiled[key]
 
     def release(self) -> None:
-        """Drop the compiled scenes and what is cached on them (their BVHs): memory back at once."""
-        for c in self._compiled.values():
-            release(c)
+        """Drop the compiled scenes (their arrays; nothing else is kept with a scene: casters live in a run's
+        :class:`~sonar_embree.propagation.prepared.PreparedRun` or a caller's ``RunCache``)."""
         self._compiled = {}
 
     def _compile(self, origin: np.ndarray) -> CompiledScene:

@@ -17,7 +17,6 @@ from .. import kernels
 from ..kernels.args import Footprints, LabelOut
 from ..propagation.echoes import Echoes, merged
 from ..propagation.fan import BlockEchoes, FanPlan
-from ..raycast import Caster
 from .labels import Labels
 from .processing import convolve_time
 
@@ -42,7 +41,7 @@ def _footprint_lines(u, f, normals, range_m, dbeta, slope_cap):
     return np.nan_to_num(d), extent
 
 
-def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
+def label_block(run, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, pos_local: np.ndarray,
                 is_seafloor: np.ndarray, max_range_m: float, dr_m: float, origin_z_m: float, out,
                 lines=None) -> None:
     """Ground truth of a block of pings along each ping's label lines (side-scan: its centre lines, along-track
@@ -56,6 +55,9 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
 
     Parameters
     ----------
+    run : PreparedRun
+        The run's scene and its seafloor's own caster (``run.seafloor``,
+        :class:`~sonar_embree.propagation.prepared.SeafloorCaster`).
     e : BlockEchoes
         The block's echoes (its elevation rows are reused).
     is_seafloor : (n_objects,) bool
@@ -71,7 +73,7 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
         Each channel's fan side (0 port, 1 starboard) and azimuth line (default :func:`centre_lines`).
     """
     max_range_m = max_range_m * (1.0 + 1e-3) + 0.05
-    c = caster.compiled
+    c = run.compiled
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     pos_local = np.ascontiguousarray(pos_local, dtype=np.float64)
     # each label line's rays: its fan row's rays of one azimuth line (cast already)
@@ -106,7 +108,7 @@ def label_block(caster: Caster, plan: FanPlan, e: BlockEchoes, rot: np.ndarray, 
                                                   plan.slope_cap_m_rad)
     score = np.where(lit, w / np.maximum(ext, dr_m), 0.0)
 
-    hid_r, hid_prim = _hidden_seafloor(caster, is_seafloor, origin, u, prim, tfar, max_range_m)
+    hid_r, hid_prim = _hidden_seafloor(c, run.seafloor, origin, u, prim, tfar, max_range_m)
     hid = np.nonzero(hid_prim >= 0)[0]
     hid_pt = np.zeros((n, 3))
     hid_dir = np.zeros((n, 3))
@@ -144,18 +146,18 @@ def _outward(rot: np.ndarray, sides, side_scan: bool) -> np.ndarray:
     return np.ascontiguousarray((sign[None, :, None] * axis[:, None, :]).reshape(-1, 2))
 
 
-def _hidden_seafloor(caster: Caster, is_seafloor, origin, u, prim, tfar, max_range_m: float):
+def _hidden_seafloor(compiled, seafloor, origin, u, prim, tfar, max_range_m: float):
     """(range (n,), NaN for none; triangle (n,) int64, −1 for none) of the first seafloor face that faces the sonar
     behind each ray's first hit (triangle ``prim``, −1: none, at ``tfar``), along u from ``origin``, within the
     range: the ray goes on through the seafloor's back faces, and through everything else, which is not cast at
-    all (:func:`seafloor_caster`: an object resting on the floor has faces in the floor's plane, and which of two
-    coplanar faces a caster reports is its own choice)."""
+    all (``seafloor``, :func:`~sonar_embree.propagation.prepared.seafloor_caster`: an object resting on the floor has
+    faces in the floor's plane, and which of two coplanar faces a caster reports is its own choice)."""
     n = u.shape[0]
     hid_r, hid_prim = np.full(n, np.nan), np.full(n, -1, dtype=np.int64)
-    sea, faces = seafloor_caster(caster, is_seafloor)
+    sea, faces = seafloor.caster, seafloor.faces
     if sea is None:
         return hid_r, hid_prim
-    normals = caster.compiled.face_normals
+    normals = compiled.face_normals
     active = np.nonzero(prim >= 0)[0]
     t_cur = tfar[active].astype(np.float64)
     for _ in range(MAX_HIDDEN_LAYERS):
@@ -172,25 +174,6 @@ def _hidden_seafloor(caster: Caster, is_seafloor, origin, u, prim, tfar, max_ran
         keep = ok & ~found
         active, t_cur = active[keep], total[keep]
     return hid_r, hid_prim
-
-
-def seafloor_caster(caster: Caster, is_seafloor):
-    """(caster, faces): a caster of the same class over the scene's seafloor objects only and the scene's triangle
-    of each of its triangles ((f',) int64); ``caster`` itself and None (the same triangles) when every object is
-    seafloor, (None, None) without a seafloor (every object has faces: the scene refuses empty meshes). Built on
-    first use and kept with the scene (a second BVH of the floor: labels of scenes with objects only)."""
-    c, sea = caster.compiled, np.asarray(is_seafloor, dtype=bool)
-    if not sea.any():
-        return None, None
-    if sea.all():
-        return caster, None
-    cache = c.prepared.seafloor_scenes
-    if sea.tobytes() not in cache:
-        faces = np.flatnonzero(sea[c.face_object])
-        cache[sea.tobytes()] = (dataclasses.replace(c, faces=c.faces[faces], face_normals=c.face_normals[faces],
-                                                    face_object=c.face_object[faces]), faces)
-    sub, faces = cache[sea.tobytes()]
-    return type(caster).for_scene(sub), faces
 
 
 def centre_lines(plan: FanPlan):
@@ -265,11 +248,11 @@ class GroundTruth:
         self.compiled = compiled
         self.kernel, self.lead = echo_kernel
 
-    def add_block(self, front, caster, blk, e: Echoes, a: int, rot, pos_local, max_range_m: float) -> None:
+    def add_block(self, front, run, blk, e: Echoes, a: int, rot, pos_local, max_range_m: float) -> None:
         """Labels of pings a … a + e.n_pings − 1 from the side-scan block ``blk`` and its echoes ``e``."""
         e = merged(e)
         b, c, s = a + e.n_pings, self.compiled, front.sonar
-        label_block(caster, blk.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
+        label_block(run, blk.plan, blk, rot, pos_local, c.is_seafloor, max_range_m,
                     s.sound_speed_m_s / (2.0 * s.sample_rate_hz), float(c.origin_m[2]),
                     tuple(x[a:b] for x in self.arrays[:5]), front.label_lines(blk.plan))
         object_echo_block(e, c.is_seafloor, s.sample_rate_hz, self.kernel, self.lead, self.arrays[5][a:b],

@@ -34,10 +34,16 @@ class FrontEnd:
     n_synth_channels: int | None = None
     beam_power: np.ndarray | None = None
 
-    def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
+    def cast(self, run, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
              want_ids: bool, clock: dict, rx_shift: np.ndarray | None = None):
-        """(Echoes of a block of pings, the block's fan or None); see :meth:`SideScanFrontEnd.cast`."""
+        """(Echoes of a block of pings, the block's fan or None) of the run ``run``
+        (:class:`~sonar_embree.propagation.prepared.PreparedRun`); see :meth:`SideScanFrontEnd.cast`."""
         raise NotImplementedError(f"{type(self).__name__}.cast")
+
+    def aim_plan(self, compiled):
+        """The objects of ``compiled`` to aim rays at (an :class:`~sonar_embree.propagation.aim.AimPlan`), made
+        once per run; None (default): the type aims at none."""
+        return None
 
     @property
     def synth_channels(self) -> int:

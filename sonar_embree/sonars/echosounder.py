@@ -152,20 +152,17 @@ class EchoSounderFrontEnd(FrontEnd):
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         self.span_rad, self.quality, self.aims = span, fan.quality, fan.aim_objects
-        self._aim = (None, None)  # (compiled scene, its AimPlan)
 
     def aim_plan(self, compiled) -> AimPlan | None:
         """The objects of ``compiled`` to aim rays at (docs/physics.md §7b), in the side-scan's coordinates about
         the forward axis: s = u_fwd, β the depression in each side's half (β = 90° straight down), over the cone's
-        span; None for none."""
+        span; None for none. Made once per run (:func:`~sonar_embree.propagation.prepared.prepare`)."""
         if not self.aims:
             return None
-        if self._aim[0] is not compiled:
-            sp = self.span_rad
-            span = (-math.sin(sp), math.sin(sp), 0.5 * math.pi - sp, 0.5 * math.pi, self.d_theta, self.d_theta)
-            dr = self.sonar.sound_speed_m_s / (2.0 * self.sonar.sample_rate_hz) / self.quality
-            self._aim = (compiled, AimPlan.of(compiled, span, (True, True), self.quality, dr))
-        return self._aim[1]
+        sp = self.span_rad
+        span = (-math.sin(sp), math.sin(sp), 0.5 * math.pi - sp, 0.5 * math.pi, self.d_theta, self.d_theta)
+        dr = self.sonar.sound_speed_m_s / (2.0 * self.sonar.sample_rate_hz) / self.quality
+        return AimPlan.of(compiled, span, (True, True), self.quality, dr)
 
     def _gain_of(self, body: np.ndarray, rx_shift: np.ndarray | None) -> np.ndarray:
         """b²(u)·b²(u_rx) of body-frame unit directions (n, 3), the receive beam's along-track cosine shifted by
@@ -184,7 +181,7 @@ class EchoSounderFrontEnd(FrontEnd):
         b_rx = self.beam.one_way(fwd, self.body[None, :, 1], self.body[None, :, 2])      # (n_p, n): the ring's b once
         return ((self.b * self.b)[None, :] * b_rx ** 2 * self.d_omega[None, :]).reshape(-1)
 
-    def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
+    def cast(self, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """Echoes of a block of pings (one channel each); arguments as for the side-scan front end, ``rx_shift``
         the receiver's motion during the ping (see :meth:`_gain`). With objects to aim at, their aimed rays'
         echoes join the rings' (whose hits on those objects then count nothing; docs/physics.md §7b). In a
@@ -192,22 +189,22 @@ class EchoSounderFrontEnd(FrontEnd):
         by it leaves or reaches the sonar upwards, where the baffled piston has no gain (:meth:`check_tilt`)."""
         self.check_tilt(rot)
         if self.sonar.environment.refracts:
-            return self._curved(caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
-        n_p, n = rot.shape[0], self.body.shape[0]
+            return self._curved(run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
+        n_p, n, caster = rot.shape[0], self.body.shape[0], run.caster
         u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
         f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)
         hits = caster.cast(np.repeat(pos_local, n, axis=0), u, max_range_m)
-        w, ext, pts = self._weights(caster, hits, u, f, np.repeat(pos_local, n, axis=0),
+        w, ext, pts = self._weights(run, hits, u, f, np.repeat(pos_local, n, axis=0),
                                     self._gain(rx_shift, n_p), np.tile(self.ray_d_theta, n_p), want_points)
         ids = np.where((w > 0), hits.object_id, -1).astype(np.int32) if want_ids else np.zeros(0, np.int32)
         nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
         per_m = 2.0 / self.sonar.sound_speed_m_s
         r = np.where(w > 0, hits.range_m, np.inf)
         rings = Echoes(1, np.arange(n_p + 1, dtype=np.int64) * n, r * per_m, ext * per_m, w, pts, ids)
-        aim = self.aim_plan(caster.compiled)
+        aim = run.aim
         if aim is None:
             return rings, _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
-        aimed, mask, n_aimed = self._aimed(caster, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids)
+        aimed, mask, n_aimed = self._aimed(run, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids)
         if not mask.any():                                                 # nothing in reach to aim at
             return rings, _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n + 1))
         side = (self.body[:, 1] > 0).astype(np.int64)                      # the lattices' half each ring ray is in
@@ -229,7 +226,7 @@ class EchoSounderFrontEnd(FrontEnd):
                               f"degrees, so the beam's {math.degrees(self.span_rad):.1f} degree cone reaches above "
                               "the horizontal, where the surface's paths are not modelled for it")
 
-    def _curved(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift):
+    def _curved(self, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift):
         """The rings as curved rays in the profile (docs/physics.md §11, §12): each ring azimuth φ is the starboard
         half-plane of a virtual side-scan ping turned by φ − 90° about the body's down axis, so its rays' cells
         (s = 0, β = 90° − θ, dβ = dθ, ds = sin θ·dφ: dΩ = sin θ dθ dφ) and footprints (∂u/∂β = −∂u/∂θ) are the
@@ -245,16 +242,17 @@ class EchoSounderFrontEnd(FrontEnd):
         layout = np.ascontiguousarray(np.tile(ring, (n_v, 1)))
         s, env = self.sonar, self.sonar.environment
         reach = max_range_m * (1.0 + 1e-3) + 0.05
-        m = refraction.Marching.of(caster, env, refraction.SAGITTA_FRACTION * s.range_bin_m, reach / s.sound_speed_m_s)
+        m = refraction.Marching.of(run.caster, env, refraction.SAGITTA_FRACTION * s.range_bin_m,
+                                   reach / s.sound_speed_m_s)
         t_s, ext, w, pts, prim, _ = refraction.layout_echoes(
-            caster, layout, ray_start, _Cone.of(s), rot_v, pos_v, np.zeros(n_v), m, self.two_way_np_per_m, s,
+            run, layout, ray_start, _Cone.of(s), rot_v, pos_v, np.zeros(n_v), m, self.two_way_np_per_m, s,
             want_points, clock, Buffers())
         body = np.einsum("kij,nj->kni", self._turns(), np.stack([np.zeros(n_t), st, ct], axis=1)).reshape(-1, 3)
         shift = np.zeros(n_p) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
         w *= self._gain_of(np.tile(body, (n_p, 1)), np.repeat(shift, n_phi * n_t))
-        ids = np.where(w > 0, caster.compiled.face_object[np.maximum(prim, 0)], -1).astype(np.int32) if want_ids \
+        ids = np.where(w > 0, run.compiled.face_object[np.maximum(prim, 0)], -1).astype(np.int32) if want_ids \
             else np.zeros(0, np.int32)
-        nadir = caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
+        nadir = run.caster.cast(pos_local, np.broadcast_to([0.0, 0.0, -1.0], (n_p, 3)), max_range_m)
         e = Echoes(1, np.ascontiguousarray(ray_start[::2 * n_phi]), t_s, ext, w, pts, ids)
         return e, _Block(np.where(nadir.tri >= 0, nadir.range_m, np.nan), np.full(n_p, n_phi * n_t + 1))
 
@@ -266,7 +264,7 @@ class EchoSounderFrontEnd(FrontEnd):
             np.cos(a), 1.0
         return out
 
-    def _weights(self, caster, hits, u, f, origin, gain_domega, d_beta, want_points):
+    def _weights(self, run, hits, u, f, origin, gain_domega, d_beta, want_points):
         """(w, extent (m), points) of hits along world directions u (n, 3) with ∂u/∂θ ``f`` from ``origin``:
         w = gain·dΩ·e^(−2α'R)/max(R, λ)² × σ/cos θi (eq. 1), extent = min(R·|n̂·f|/cos θi, cap)·dθ."""
         ok = hits.echo
@@ -276,13 +274,13 @@ class EchoSounderFrontEnd(FrontEnd):
             w = np.where(ok, gain_domega * np.exp(-self.two_way_np_per_m * r)
                          / np.maximum(r, self.sonar.wavelength_m) ** 2, 0.0)
             slope = np.abs(np.einsum("ij,ij->i", hits.normal, f)) * r / cos_i
-        c = caster.compiled
+        c = run.compiled
         pts = (origin + np.where(ok, r, 0.0)[:, None] * u) if want_points or c.needs_points else np.zeros((0, 3))
-        apply_laws(c, self.sonar.frequency_hz, hits.tri.astype(np.int32), cos_i, w, pts)
+        apply_laws(run.law_table, c, hits.tri.astype(np.int32), cos_i, w, pts)
         ext = np.where(ok, np.minimum(slope, 10.0 * self.sonar.max_range_m) * d_beta, 0.0)
         return w, ext, np.ascontiguousarray(pts)
 
-    def _aimed(self, caster, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids):
+    def _aimed(self, run, aim, rot, pos_local, max_range_m, rx_shift, want_points, want_ids):
         """(Echoes of the rays aimed at objects, one row per ping; which candidates each (ping, side) aims at;
         aimed rays per ping): only hits on the aimed object count, and only inside the rings' cone."""
         n_p = rot.shape[0]
@@ -298,8 +296,8 @@ class EchoSounderFrontEnd(FrontEnd):
         hb, hs = layout[:, 3], layout[:, 4]
         inside = body[:, 2] >= math.cos(self.span_rad)
         gain = np.where(inside, self._gain_of(body, shift[ping]), 0.0) * hs * hb
-        hits = caster.cast(pos_local[ping], u, max_range_m)
-        w, ext, pts = self._weights(caster, hits, u, f, pos_local[ping], gain, hb, want_points)
+        hits = run.caster.cast(pos_local[ping], u, max_range_m)
+        w, ext, pts = self._weights(run, hits, u, f, pos_local[ping], gain, hb, want_points)
         w[hits.object_id != obj] = 0.0
         per_m = 2.0 / self.sonar.sound_speed_m_s
         r = np.where(w > 0, hits.range_m, np.inf)

@@ -169,9 +169,9 @@ class MSISFrontEnd(SideScanFrontEnd):
         """Ground truth along the beam's centre line: the starboard boresight line of the block's fan ``plan``."""
         return (1,), (int(np.flatnonzero(plan.s == 0.0)[0]),)
 
-    def cast(self, caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
+    def cast(self, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift=None):
         """The side-scan block's echoes with its (empty) port rows dropped: one channel per ping."""
-        e, blk = super().cast(caster, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
+        e, blk = super().cast(run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
         e = merged(e)
         start = np.concatenate([e.ray_start[1::2], e.ray_start[-1:]])
         return Echoes(1, start, e.travel_time_s, e.extent_s, e.weight, e.point_m, e.object_id, e.path), blk

@@ -38,7 +38,6 @@ class SideScanFrontEnd(FrontEnd):
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
         self.direct_path, self.surface_paths = paths.path_models(env)     # the paths this medium makes, once
         self.quality, self.aims = fan.quality, self.aims and fan.aim_objects
-        self._aim = (None, None)  # (compiled scene, its AimPlan)
         self.array = sonar.receive_array
         if self.array is not None:  # each side's elements are synthesised as channels of their own
             self.n_synth_channels = len(self.channels) * self.array.n_elements
@@ -48,12 +47,11 @@ class SideScanFrontEnd(FrontEnd):
         return None if self.array is None else self.array.world_positions(rot, pos_world)
 
     def aim_plan(self, compiled) -> AimPlan | None:
-        """The objects of ``compiled`` to aim rays at (built once per compiled scene); None for none."""
+        """The objects of ``compiled`` to aim rays at, None for none (made once per run:
+        :func:`~sonar_embree.propagation.prepared.prepare`)."""
         if not self.aims:
             return None
-        if self._aim[0] is not compiled:
-            self._aim = (compiled, AimPlan.build(compiled, self.plan, self.quality, self._curvature()))
-        return self._aim[1]
+        return AimPlan.build(compiled, self.plan, self.quality, self._curvature())
 
     def _curvature(self) -> float:
         """The largest curvature of a ray in the medium, 1/m: max |dc/dz| / min c of its profile (0: straight)."""
@@ -63,13 +61,14 @@ class SideScanFrontEnd(FrontEnd):
         layers = env.sound_speed.layers()
         return float(np.abs(layers[:, 2]).max() / min(env.sound_speed.speed_m_s))
 
-    def cast(self, caster, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
+    def cast(self, run, rot: np.ndarray, pos_local: np.ndarray, max_range_m: float, want_points: bool,
              want_ids: bool, clock: dict, rx_shift: np.ndarray | None = None):
         """Echoes of a block of pings, and the block's fan (for ground truth).
 
         Parameters
         ----------
-        caster : Caster
+        run : PreparedRun
+            The run's caster, laws and aim plan (:class:`~sonar_embree.propagation.prepared.PreparedRun`).
         rot : (pings, 3, 3) float64
             Body-to-world rotations.
         pos_local : (pings, 3) float64
@@ -84,18 +83,17 @@ class SideScanFrontEnd(FrontEnd):
             Motion during the ping (δ = 2·v_fwd/c per ping, :func:`~sonar_embree.propagation.fan.cast_block`) on every
             path.
         """
-        aim = self.aim_plan(caster.compiled)
-        blk = self.direct_path.cast(self, caster, rot, pos_local, max_range_m, want_points, clock, rx_shift, aim,
+        blk = self.direct_path.cast(self, run, rot, pos_local, max_range_m, want_points, clock, rx_shift,
                                     bool(self.surface_paths))
-        ids = caster.compiled.face_object if want_ids else None
+        ids = run.compiled.face_object if want_ids else None
         if not self.surface_paths:
             direct = self._rows(echoes_of(blk, ids), blk.el_start)
             if blk.aimed is None:
                 return direct, blk
             return multipath.PathEchoes([direct, self._aimed_rows(blk.aimed)], want_points, None, (0, 0)), blk
-        return self._with_surface(caster, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
+        return self._with_surface(run, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
 
-    def _with_surface(self, caster, blk, rot, pos_local, max_range_m, ids, want_points, clock,
+    def _with_surface(self, run, blk, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift=None) -> multipath.PathEchoes:
         """The direct echoes of the block and those of each surface path model (:mod:`~sonar_embree.propagation.paths`),
         kept as paths in the same rows (docs/physics.md §13); then the rays aimed at objects, path by path."""
@@ -103,7 +101,7 @@ class SideScanFrontEnd(FrontEnd):
         direct = echoes_of(blk, ids)
         parts, aimed = [paths.Contribution(direct, blk.el_start, 0)], []
         for model in self.surface_paths:
-            more, more_aimed = model.contributions(self, caster, blk, direct, rot, pos_local, max_range_m, ids,
+            more, more_aimed = model.contributions(self, run, blk, direct, rot, pos_local, max_range_m, ids,
                                                    want_points, clock, rx_shift)
             parts, aimed = parts + more, aimed + more_aimed
         if blk.aimed is not None:                     # the rays aimed at objects: their direct echoes too

@@ -31,6 +31,7 @@ from ..validation import check_bool, iso_utc
 from ..config import Sonar
 from ..record import Record
 from ..record.dataset import is_own_store
+from ..propagation.prepared import RunCache
 from ..scene import TiledDEM
 from ..simulate import progress_bar as pings_bar, simulate, tile_reach_m, time_estimate_s
 from .cluster import client_for, in_order, lazy_zeros, threads_of
@@ -399,10 +400,12 @@ def _on_cluster(n: int, block: int, progress, workers, scheduler, client) -> boo
     return (os.cpu_count() or 1) >= AUTO_MIN_CPUS and left >= AUTO_MIN_PINGS and -(-left // block) >= AUTO_MIN_BLOCKS
 
 
-def render_block(scene, trajectory, sonar, pulse, first: int, simulate_kwargs: dict) -> Record:
-    """One block of a line (pings ``first`` … of the whole line): what a worker runs."""
+def render_block(scene, trajectory, sonar, pulse, first: int, simulate_kwargs: dict,
+                 cache: RunCache | None = None) -> Record:
+    """One block of a line (pings ``first`` … of the whole line): what a worker runs; the blocks of a line share
+    ``cache`` (the scene's BVH is built once per process)."""
     return simulate(_block_scene(scene, trajectory, sonar), trajectory, sonar, pulse, ping_offset=first,
-                    **simulate_kwargs)
+                    cache=cache, **simulate_kwargs)
 
 
 def render_record(scene, trajectory, sonar=None, pulse=None, *, block_pings: int = 512, workers: int | None = None,
@@ -435,8 +438,8 @@ def render_record(scene, trajectory, sonar=None, pulse=None, *, block_pings: int
     n, block, parts = len(trajectory), int(block_pings), []
     try:
         with client_for(client, scheduler, workers, what="render_record") as c:
-            shared = c.scatter(scene, broadcast=True)
-            calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs))
+            shared, cache = c.scatter(scene, broadcast=True), c.scatter(RunCache(), broadcast=True)
+            calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs, cache))
                      for a in range(0, n, block))
             for rec in in_order(c, render_block, calls, 2 * threads_of(c) + 1, "sonar-embree-render"):
                 parts.append(rec)
@@ -455,8 +458,9 @@ def _run_blocks_on_cluster(scene, trajectory, path, sonar, pulse, block, key, xt
     starts = range(0 if progress is None else progress["pings_done"], n, block)
     workers, scheduler, client = cluster
     with client_for(client, scheduler, workers, what="render_line") as c:
-        shared = c.scatter(scene, broadcast=True)
-        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs)) for a in starts)
+        shared, cache = c.scatter(scene, broadcast=True), c.scatter(RunCache(), broadcast=True)
+        calls = ((a, (shared, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs, cache))
+                 for a in starts)
         records = in_order(c, render_block, calls, 2 * threads_of(c) + 1, f"sonar-embree-line-{key[:10]}")
         _write_blocks(zip(starts, records), path, trajectory, block, key, xtf_path, xtf_opts, progress, bar)
 
@@ -466,7 +470,9 @@ def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf
     """The blocks in this process, one after the other."""
     n = len(trajectory)
     starts = range(0 if progress is None else progress["pings_done"], n, block)
-    records = (render_block(scene, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs) for a in starts)
+    cache = RunCache()
+    records = (render_block(scene, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs, cache)
+               for a in starts)
     _write_blocks(zip(starts, records), path, trajectory, block, key, xtf_path, xtf_opts, progress, bar)
 
 

@@ -217,7 +217,7 @@ def test_fan_rays_match_naive(rng):
 def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight.
     Inverted: the same mesh with its faces turned away, in a two-sided material, gives the same echoes."""
-    from sonar_embree.laws import apply_laws
+    from sonar_embree.laws import apply_laws, law_table
     from sonar_embree.raycast import RayCaster
 
     heights = rng.uniform(-0.3, 0.3, (21, 21)) + np.linspace(0, 4, 21)[None, :]
@@ -247,7 +247,7 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
                        A.EchoOut(rng_k, t_k, ext_k, w_k, cos_k, pts), kernels.NO_LAYOUT)
     ext_k = ext_k / per_m
     np.testing.assert_array_equal(t_k, rng_k * per_m)
-    apply_laws(c, 100e3, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
+    apply_laws(law_table(c.laws, 100e3), c, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
     rng_n, ext_n, w_n = naive.fan_echoes(s, 0.01, beta, dbeta, el_start, rot, pos, prim, c.vertices, c.faces,
                                          mu_face, k, lx, ly, tilt, 0.02, 0.004, 60.0, 500.0, two_sided, shift)
     hit = w_n > 0
@@ -387,7 +387,7 @@ def test_aim_kernels_match_naive(rng):
     from sonar_embree.propagation.aim import AimPlan, keep_own
     from sonar_embree.propagation.fan import FanPlan
     from sonar_embree.kernels import aim as K
-    from sonar_embree.laws import apply_laws
+    from sonar_embree.laws import apply_laws, law_table
     from sonar_embree.raycast import RayCaster
 
     scene = _aim_scene(rng)
@@ -443,7 +443,7 @@ def test_aim_kernels_match_naive(rng):
                        A.Weighting(plan.beam, 0.02, plan.min_range_m, 50.0, plan.slope_cap_m_rad, 2 / 1500.0),
                        A.EchoOut(*out, pts), lay)
     keep_own(c, aim, counts, prim, out[3], out[1], out[4])
-    apply_laws(c, sonar.frequency_hz, prim, out[4], out[3], pts)
+    apply_laws(law_table(c.laws, sonar.frequency_hz), c, prim, out[4], out[3], pts)
     k_wave = 2 * np.pi / sonar.wavelength_m
     w_ref = np.zeros(n)
     r_ref = np.full(n, np.inf)

@@ -13,6 +13,7 @@ import analytic
 from analytic import gamma_membrane, sphere_quadrature
 from sonar_embree import sonars
 from sonar_embree.propagation.echoes import merged
+from sonar_embree.propagation.prepared import prepare
 from sonar_embree.raycast import RayCaster
 from sonar_embree.scene import survey_origin
 
@@ -48,14 +49,14 @@ def ball_energy(scene, traj, sonar=None, quality=1.0, rx_shift=None, aim=True):
     sonar = (sonar or se.Sonar()).for_pulse(se.Pulse.cw())
     front = sonars.front_end(sonar, se.FanSettings(quality=quality, aim_objects=aim))
     comp = scene.compiled(survey_origin(traj.positions_m))
-    caster = RayCaster.for_scene(comp)
+    run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
     n = len(traj)
     rots = front.mount(traj.rotations(), np.arange(n)) if hasattr(front, "mount") else traj.rotations()
     shift = np.zeros(n) if rx_shift is None else rx_shift
     out = np.zeros(n)
     for a in range(0, n, 8):  # blocks of 8 pings, as simulate casts them (memory)
         b = min(a + 8, n)
-        e, _ = front.cast(caster, rots[a:b], traj.positions_m[a:b] - comp.origin_m, sonar.max_range_m, False, True,
+        e, _ = front.cast(run, rots[a:b], traj.positions_m[a:b] - comp.origin_m, sonar.max_range_m, False, True,
                           {}, rx_shift=shift[a:b])
         e = merged(e)
         row = np.repeat(np.arange(e.ray_start.size - 1), np.diff(e.ray_start))
@@ -269,10 +270,10 @@ def fls_beam_energy(scene, traj, sonar, label):
     echo weights), as the speckle-free beamformer forms it from the lines' intensities."""
     front = sonars.front_end(sonar, se.FanSettings())
     comp = scene.compiled(survey_origin(traj.positions_m))
-    caster = RayCaster.for_scene(comp)
+    run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
     n = len(traj)
     rots = front.mount(traj.rotations(), np.arange(n))
-    e, _ = front.cast(caster, rots, traj.positions_m - comp.origin_m, sonar.max_range_m, False, True, {},
+    e, _ = front.cast(run, rots, traj.positions_m - comp.origin_m, sonar.max_range_m, False, True, {},
                       rx_shift=np.zeros(n))
     e = merged(e)
     row = np.repeat(np.arange(e.ray_start.size - 1), np.diff(e.ray_start))
@@ -372,12 +373,12 @@ def _path_energy(scene, traj, sonar):
     """(pings, 3) Σ weight of the ball's echoes per path (direct, one bounce, two bounces)."""
     front = sonars.front_end(sonar, se.FanSettings())
     comp = scene.compiled(survey_origin(traj.positions_m))
-    caster = RayCaster.for_scene(comp)
+    run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
     n = len(traj)
     out = np.zeros((n, 3))
     for a in range(0, n, 8):
         b = min(a + 8, n)
-        e, _ = front.cast(caster, traj.rotations()[a:b], traj.positions_m[a:b] - comp.origin_m, sonar.max_range_m,
+        e, _ = front.cast(run, traj.rotations()[a:b], traj.positions_m[a:b] - comp.origin_m, sonar.max_range_m,
                           False, True, {}, rx_shift=np.zeros(b - a))
         e = merged(e)
         ping = np.repeat(np.arange(e.ray_start.size - 1), np.diff(e.ray_start)) // e.n_channels
@@ -459,10 +460,10 @@ def _floor_hits(rx_shift, pings=None):
     traj = se.Trajectory.line((-0.1, 0, H), (0.1, 0, H), 4)
     pings = np.arange(4) if pings is None else np.asarray(pings)
     comp = scene.compiled(survey_origin(traj.positions_m))
-    caster, rot = RayCaster.for_scene(comp), traj.rotations()[pings]
+    run, rot = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0), traj.rotations()[pings]
     pos = traj.positions_m[pings] - comp.origin_m
     shift = np.asarray(rx_shift, dtype=float)[pings]
-    _, blk = front.cast(caster, rot, pos, sonar.max_range_m, True, False, {}, rx_shift=shift)
+    _, blk = front.cast(run, rot, pos, sonar.max_range_m, True, False, {}, rx_shift=shift)
     ping = np.repeat(np.arange(2 * len(pings)) // 2, np.diff(blk.ray_start))
     lit = blk.weight > 0
     u = (blk.point_m[lit] - pos[ping[lit]]) / blk.range_m[lit, None]

@@ -18,6 +18,7 @@ import naive
 import sonar_embree as se
 from sonar_embree.propagation.fan import FanPlan
 from sonar_embree.raycast.embree import EmbreeCaster
+from sonar_embree.propagation.prepared import prepare
 from sonar_embree.propagation.refraction import cast_refracted
 from sonar_embree.sonars.sidescan import SideScanFrontEnd
 from sonar_embree.kernels import args as A
@@ -103,10 +104,10 @@ def test_first_arrival_per_launch_angle_against_the_ray_map():
     sonar = _sonar(profile)
     front = SideScanFrontEnd(sonar, se.FanSettings())
     compiled = _scene().compiled(np.zeros(3))
-    caster = EmbreeCaster.for_scene(compiled)
+    run = prepare(EmbreeCaster(compiled), front, sonar.frequency_hz, RANGE, 0)
     rot = se.Trajectory.line((0.0, 0.0, H), (1.0, 0.0, H), 2).rotations()[:1]
     pos = np.array([[0.0, 0.0, H]]) - compiled.origin_m
-    blk = cast_refracted(caster, front.plan, rot, pos, sonar.environment, front.two_way_np_per_m, RANGE, sonar,
+    blk = cast_refracted(run, front.plan, rot, pos, sonar.environment, front.two_way_np_per_m, RANGE, sonar,
                          True, {})
     plan = front.plan
     a0 = int(np.flatnonzero(plan.s == 0.0)[0])
@@ -180,7 +181,7 @@ def three_layer_block():
     sonar = se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS, environment=se.Environment(sound_speed=THREE))
     front = SideScanFrontEnd(sonar, se.FanSettings())
     compiled = _planes_scene().compiled(np.zeros(3))
-    caster = EmbreeCaster.for_scene(compiled)
+    caster = EmbreeCaster(compiled)
     rot = np.ascontiguousarray(se.Trajectory.line((0.0, 0.0, Z_SONAR), (1.0, 0.3, Z_SONAR), 2).rotations()[:1])
     pos = np.array([[0.0, 0.0, Z_SONAR]]) - compiled.origin_m
     el_start, beta, dbeta, _, _ = probe_rows(caster, front.plan, rot, pos, 45.0)

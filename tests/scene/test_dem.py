@@ -350,24 +350,27 @@ def test_a_dem_too_large_to_mesh_whole_is_refused_before_reading(tmp_path, monke
 
 
 def test_an_evicted_tile_scene_frees_its_bvh_at_once(tmp_path):
-    """Finding 12 (a tiled stream's memory climbed by ~0.5 GB over 100 000 pings): a caster and its compiled
-    scene refer to each other, so an evicted scene's BVH waited for the garbage collector. Evicting releases
-    it: with the collector off, the first scene's caster is gone once two newer scenes pushed it out."""
+    """Finding 12 (a tiled stream's memory climbed by ~0.5 GB over 100 000 pings): a caster kept with its compiled
+    scene made a reference cycle, so an evicted scene's BVH waited for the garbage collector. Casters now live in
+    a run's RunCache (a line's blocks share one), which holds its most recent scenes: with the collector off, the
+    first scene's caster is gone once two newer scenes pushed it out of the cache, and its scene is freed too."""
     import gc
     import weakref
 
+    from sonar_embree.propagation.prepared import RunCache, scene_caster
     from sonar_embree.raycast import RayCaster
 
-    tiles = se.TiledDEM(_write_dem(tmp_path / "dem.tif"), tile_px=16)
+    tiles, cache = se.TiledDEM(_write_dem(tmp_path / "dem.tif"), tile_px=16), RunCache(scenes=2)
     first = tiles.scene_around(np.array([[X0 + 8.0, Y0 - 20.0, -40.0]]), 4.0)
-    ref = weakref.ref(RayCaster.for_scene(first.compiled()))
+    ref = weakref.ref(scene_caster(first.compiled(), RayCaster, cache))
+    scene_ref = weakref.ref(first.compiled())
     del first
     gc.collect()
     gc.disable()
     try:
         assert ref() is not None                                        # kept while its scene is cached
         for x in (40.0, 72.0):                                          # two other tile sets: the first evicted
-            tiles.scene_around(np.array([[X0 + x, Y0 - 20.0, -40.0]]), 4.0)
-        assert ref() is None
+            scene_caster(tiles.scene_around(np.array([[X0 + x, Y0 - 20.0, -40.0]]), 4.0).compiled(), RayCaster, cache)
+        assert ref() is None and scene_ref() is None
     finally:
         gc.enable()

@@ -92,19 +92,22 @@ def test_shadow_behind_a_box_resting_on_the_floor_is_one_run(caster):
 
 
 def test_seafloor_caster_covers_exactly_the_seafloor():
-    """truth.seafloor_caster: the caster itself when every object is seafloor, none without a seafloor, else a
-    caster of the same class over the seafloor's triangles, mapped back to the scene's, built once."""
-    from sonar_embree.signal.truth import seafloor_caster
+    """prepared.seafloor_caster: the caster itself when every object is seafloor, none without a seafloor, else a
+    caster of the same class over the seafloor's triangles, mapped back to the scene's, built once per RunCache."""
+    from sonar_embree.propagation.prepared import RunCache, seafloor_caster
     from sonar_embree.raycast import EmbreeCaster, NumpyCaster
 
     scene = flat_scene().add(box((1.0, 1.0, 1.0), (0.0, 14.0, 0.5)), label="box")
     c = scene.compiled()
     for cls in (EmbreeCaster, NumpyCaster):
-        caster = cls.for_scene(c)
-        assert seafloor_caster(caster, np.ones(2, bool)) == (caster, None)
-        assert seafloor_caster(caster, np.zeros(2, bool)) == (None, None)
-        sea, faces = seafloor_caster(caster, c.is_seafloor)
-        assert type(sea) is cls and sea is not caster and seafloor_caster(caster, c.is_seafloor)[0] is sea
+        caster, cache = cls(c), RunCache()
+        assert seafloor_caster(caster, np.ones(2, bool)).caster is caster
+        assert seafloor_caster(caster, np.ones(2, bool)).faces is None
+        assert seafloor_caster(caster, np.zeros(2, bool)).caster is None
+        got = seafloor_caster(caster, c.is_seafloor, cache)
+        sea, faces = got.caster, got.faces
+        assert type(sea) is cls and sea is not caster and seafloor_caster(caster, c.is_seafloor, cache) is got
+        assert seafloor_caster(caster, c.is_seafloor).caster is not sea        # without a cache: built anew
         np.testing.assert_array_equal(faces, np.flatnonzero(c.face_object == 0))
         # straight down through the box's top: the full scene hits the box, the seafloor caster the floor under it
         o = np.array([[0.0, 14.0, 5.0]], np.float32) - c.origin_m.astype(np.float32)
