@@ -150,7 +150,7 @@ def test_one_owner_per_dependency(dependency, owner):
 
 
 def test_nothing_is_stuffed_into_an_objects_dict():
-    """Caches are declared (``CompiledScene.prepared``), not written into ``obj.__dict__``."""
+    """Run state is declared (``PreparedRun`` fields), not written into ``obj.__dict__``."""
     hits = [name for name, _, tree in _modules() for n in ast.walk(tree)
             if isinstance(n, ast.Attribute) and n.attr == "__dict__"]
     assert hits == []

@@ -38,9 +38,9 @@ class BounceLoss:
     inner: object
     g: float
 
-    def contributions(self, front, caster, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
+    def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        parts, aimed = self.inner.contributions(front, caster, blk, direct, rot, pos_local, max_range_m, ids,
+        parts, aimed = self.inner.contributions(front, run, blk, direct, rot, pos_local, max_range_m, ids,
                                                 want_points, clock, rx_shift)
         scaled = [p._replace(echoes=dataclasses.replace(p.echoes, weight=p.echoes.weight * self.g ** p.path))
                   for p in parts]
