@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 
 from .instrument.devices import device
-from .instrument.directivity import membrane_directivity_index_db
+from .instrument.beams import APERTURE_BEAMS, Beam, aperture_beam
 from .environment import Environment
 from .instrument.array import ReceiverArray, receive_array_of
 from .instrument.receiver import Receiver, receiver_of
@@ -187,6 +187,11 @@ class Sonar(Transducer):
         each element is synthesised along its own bistatic path, kept as ``Record.element_data`` (complex), and
         element 0's intensity is the record's channel. Needs coherent speckle. None: one receiver per side, at
         the transmitter.
+    beam : str
+        Each side's pattern (:data:`~sonar_embree.instrument.beams.APERTURE_BEAMS`): ``"membrane"`` (default, the
+        baffled rectangular membrane lx × ly) or ``"gaussian"`` (a Gaussian of the membrane's −3 dB widths; no
+        side lobes). Applied after the path kernels (:attr:`transducer`); under a sea surface only the membrane
+        (issue 51).
     """
 
     #: Its front end takes seabed clutter and volume reverberation (:class:`Transducer`).
@@ -203,11 +208,15 @@ class Sonar(Transducer):
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
     receive_array: ReceiverArray | None = None
+    beam: str = "membrane"
 
     def __post_init__(self):
         self._check_environment("Sonar")
         self._check_levels("Sonar")
         object.__setattr__(self, "receive_array", receive_array_of(self.receive_array))
+        if self.beam not in APERTURE_BEAMS:
+            raise ConfigError(f"Sonar.beam must be one of {', '.join(repr(k) for k in APERTURE_BEAMS)}, "
+                              f"got {self.beam!r}")
         for name in ("frequency_hz", "length_m", "height_m", "max_range_m"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)
@@ -231,15 +240,19 @@ class Sonar(Transducer):
                                                                                    -3.0, two_way=True)))
 
     @property
+    def transducer(self) -> Beam:
+        """Each side's beam (:mod:`sonar_embree.instrument.beams`): ``beam`` of the aperture lx × ly at the carrier."""
+        return aperture_beam(self.beam, self.length_m, self.height_m, self.wavenumber_rad_m)
+
+    @property
     def directivity_index_db(self) -> float:
-        """Receiving directivity index DI = 10·log10(4π/∫ b² dΩ) of the baffled membrane, dB (docs/physics.md §14).
+        """Receiving directivity index DI = 10·log10(4π/∫ b² dΩ) of each side's beam, dB (docs/physics.md §14).
 
         The integral of the power pattern over the hemisphere (Urick 1983, §3.6;
-        :func:`sonar_embree.instrument.directivity.membrane_directivity_index_db`): 28.23 dB for the default
-        190 mm × 3.8 mm at 400 kHz, where the large-aperture 10·log10(4π·lx·ly/λ²) gives 28.10 dB.
+        :func:`sonar_embree.instrument.directivity.membrane_directivity_index_db` for the membrane): 28.23 dB for
+        the default 190 mm × 3.8 mm at 400 kHz, where the large-aperture 10·log10(4π·lx·ly/λ²) gives 28.10 dB.
         """
-        k = self.wavenumber_rad_m
-        return membrane_directivity_index_db(0.5 * k * self.length_m, 0.5 * k * self.height_m)
+        return self.transducer.directivity_index_db
 
     @property
     def tilt_rad(self) -> float:

@@ -31,8 +31,9 @@ def _phi_grid():
     return np.unique(np.concatenate([dense, coarse]))
 
 
-def flat_floor_g(r_m, h=10.0, mu_db=-27.0, alpha_db_m=0.096, sigma=None, **beam):
-    """g(R) of eq. (2) on the slant ranges ``r_m`` (all ≥ h); ``sigma(cos θi)``: another law than Lambert μ."""
+def flat_floor_g(r_m, h=10.0, mu_db=-27.0, alpha_db_m=0.096, sigma=None, gamma=None, **beam):
+    """g(R) of eq. (2) on the slant ranges ``r_m`` (all ≥ h); ``sigma(cos θi)``: another law than Lambert μ;
+    ``gamma(u_fwd, u_side, u_down)``: another one-way pattern than the membrane of ``beam``."""
     r_m = np.asarray(r_m, dtype=float)
     phi = _phi_grid()
     out = np.empty_like(r_m)
@@ -43,7 +44,8 @@ def flat_floor_g(r_m, h=10.0, mu_db=-27.0, alpha_db_m=0.096, sigma=None, **beam)
         u_f = rho * np.sin(phi) / r
         u_s = rho * np.cos(phi) / r
         u_d = np.broadcast_to(h / r, u_f.shape)
-        az = np.trapezoid(gamma_membrane(u_f, u_s, u_d, **beam) ** 4, phi, axis=1)
+        pattern = gamma_membrane(u_f, u_s, u_d, **beam) if gamma is None else gamma(u_f, u_s, u_d)
+        az = np.trapezoid(pattern ** 4, phi, axis=1)
         rr = r[:, 0]
         cos_i = h / rr
         sig = mu * cos_i ** 2 if sigma is None else sigma(cos_i)

@@ -858,3 +858,30 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels
             s = np.interp(tau, grid, data[p, k].real) + 1j * np.interp(tau, grid, data[p, k].imag)
             out += np.where(inside, s * np.exp(2j * np.pi * carrier_hz * tau), 0.0)
     return out
+
+
+def beam_cosines(s, cos_beta, sin_beta, el_start, tilt_rad, layout=None):
+    """v = cos ψ·sin(β − δ) of every ray (kernels.beam_cosines): rows of ``el_start``, each azimuth-major over its
+    elevation cells (or each ray's own s, cos β, sin β in ``layout``)."""
+    if layout is not None and len(layout):
+        sa, cb, sb = layout[:, 0], layout[:, 1], layout[:, 2]
+    else:
+        parts = []
+        for r in range(len(el_start) - 1):
+            cells = np.arange(el_start[r], el_start[r + 1])
+            parts.append(np.stack(np.broadcast_arrays(s[:, None], cos_beta[cells][None, :],
+                                                      sin_beta[cells][None, :]), axis=-1).reshape(-1, 3))
+        sa, cb, sb = np.concatenate(parts).T
+    return np.sqrt(1 - sa ** 2) * np.sin(np.arctan2(sb, cb) - tilt_rad)
+
+
+def weigh_lines(el_start, n_az, line_gain, ray_gain, weight):
+    """A copy of ``weight`` × line_gain[ping, azimuth line] × ray_gain (kernels.weigh_lines)."""
+    out = weight.copy()
+    i = 0
+    for r in range(len(el_start) - 1):
+        n_el = el_start[r + 1] - el_start[r]
+        for a in range(n_az):
+            out[i:i + n_el] *= line_gain[r // 2, a] * ray_gain[i:i + n_el]
+            i += n_el
+    return out

@@ -92,12 +92,13 @@ def membrane_size_for_beamwidth(width_rad: float, wavelength_m: float, rule: str
 # --------------------------------------------------------------------------- fan
 
 
-def azimuth_samples(wavelength_m: float, length_m: float, oversample: float, n_nulls: int):
+def azimuth_samples(wavelength_m: float, length_m: float, oversample: float, n_nulls: int, keep_nulls: bool = False):
     """Along-track direction cosines of the fan and their common spacing.
 
     Spacing ds = λ/(2·lx)/oversample integrates the band-limited sinc⁴ exactly
     (docs/physics.md §7); the span is ± ``n_nulls`` first nulls; the count is odd so
-    one line lies on boresight. Rays exactly on a null (zero weight) are dropped.
+    one line lies on boresight. Rays exactly on a null (zero weight) are dropped, unless ``keep_nulls`` (a beam
+    other than the membrane, sampled on its lattice, drops its own).
 
     Returns
     -------
@@ -110,7 +111,7 @@ def azimuth_samples(wavelength_m: float, length_m: float, oversample: float, n_n
     s_max = min(n_nulls * wavelength_m / length_m, 0.999)
     m = int(math.floor(s_max / ds + 1e-9))
     s = np.arange(-m, m + 1, dtype=np.float64) * ds
-    return s[~on_null(np.pi * length_m / wavelength_m * s)], ds
+    return (s if keep_nulls else s[~on_null(np.pi * length_m / wavelength_m * s)]), ds
 
 
 def on_null(x) -> np.ndarray:

@@ -402,3 +402,32 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
                 points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
                 points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
                 points_out[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def beam_cosines(fan, tilt_rad, layout, v_out):
+    """v = cos ψ·sin(β − δ) of every ray of a block: its direction cosine across the beam, in the elevation plane
+    perpendicular to the boresight tilted δ = ``tilt_rad`` (a separable beam weighs it after the path kernels,
+    :func:`sonar_embree.propagation.fan.weigh_by_beam`). ``fan`` and ``layout`` as for :func:`fan_echoes` (the rows
+    of ``fan.el_start``, azimuth-major, or each ray's own cell); writes ``v_out`` (n,)."""
+    s, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    n_az, per_ray = s.shape[0], layout.shape[0] > 0
+    cos_t, sin_t = math.cos(tilt_rad), math.sin(tilt_rad)
+    for r in prange(el_start.shape[0] - 1):
+        _, _, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
+        for i in range(base, end):
+            sa, cb, sb, _, _ = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
+            v_out[i] = math.sqrt(1.0 - sa * sa) * (sb * cos_t - cb * sin_t)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def weigh_lines(el_start, n_az, line_gain, ray_gain, weight):
+    """weight[i] ×= line_gain[ping, a]·ray_gain[i] for every ray i of a fan (rows 2·ping + side of ``el_start``,
+    each azimuth-major: azimuth line a, then its elevation cells), in place."""
+    for r in prange(el_start.shape[0] - 1):
+        n_el, base, b = el_start[r + 1] - el_start[r], n_az * el_start[r], r // 2
+        for a in range(n_az):
+            g = line_gain[b, a]
+            for j in range(n_el):
+                i = base + a * n_el + j
+                weight[i] *= g * ray_gain[i]

@@ -22,7 +22,6 @@ from scipy.spatial import cKDTree
 
 from .. import checks
 from ..errors import ConfigError
-from ..instrument import beam
 from ..validation import warn_once
 from .echoes import Echoes
 
@@ -107,13 +106,13 @@ def check_clutter(compiled, sonar) -> None:
 
 
 def side_gamma(sonar, u_body: np.ndarray, side: float) -> np.ndarray:
-    """Γ of the port (``side`` −1) or starboard (+1) membrane for body-frame unit directions (n, 3)."""
+    """Γ of the port (``side`` −1) or starboard (+1) beam (:attr:`~sonar_embree.config.Sonar.transducer`) for
+    body-frame unit directions (n, 3)."""
     d = sonar.tilt_rad
     e_side = np.array([0.0, side, 0.0])
     bore = math.cos(d) * e_side + np.array([0.0, 0.0, math.sin(d)])
     e2 = -math.sin(d) * e_side + np.array([0.0, 0.0, math.cos(d)])
-    return beam.directivity(u_body[:, 0], u_body @ e2, u_body @ bore, sonar.wavenumber_rad_m, sonar.length_m,
-                            sonar.height_m)
+    return sonar.transducer.one_way(u_body[:, 0], u_body @ e2, u_body @ bore)
 
 
 def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range_m: float,

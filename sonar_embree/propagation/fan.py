@@ -21,6 +21,7 @@ from ..instrument import beam
 from .. import checks, kernels
 from ..kernels.args import EchoOut, Fan, Poses, Weighting, scene_arrays
 from .aim import aim_block, drop_aimed
+from .gain import weigh_by_beam
 from ..config import FanSettings, Sonar
 from ..laws import apply_laws
 from ..raycast import Caster
@@ -48,19 +49,23 @@ class FanPlan:
     max_step_rad: float
     slope_cap_m_rad: float
     max_rays: int
-    beam: np.ndarray         # (4,) k·lx/2, k·ly/2, tilt (rad), 0
+    beam: np.ndarray         # (4,) k·lx/2, k·ly/2, tilt (rad), 0: the membrane the surface paths' kernels weigh
     min_range_m: float       # near-field bound on R in the weights
     footprint: bool          # spread echoes over their cells' range intervals (else point echoes)
     sides: tuple = (True, True)  # which sides get rays (port, starboard); a side without has empty rows
     spans_motion: bool = True    # lines added for the receive beam's turn under motion (moving_lines)
+    pattern: object = None       # each side's Beam (instrument.beams), weighed after the direct paths' kernels
 
     @classmethod
     def build(cls, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1) -> "FanPlan":
         """The fan of ``sonar``: rays on the ``sides`` (port, starboard) that have them, in elevation out to the
-        ``elevation_nulls``-th null of the membrane's vertical pattern (the baffle at most)."""
-        fan = fan.resolved()
+        ``elevation_nulls``-th null of the membrane's vertical pattern (the baffle at most), on the membrane's
+        azimuth lattice (a Gaussian beam of the same widths takes the same, less the lines on its own nulls)."""
+        fan, pattern = fan.resolved(), sonar.transducer
+        membrane = pattern.kernel_membrane is not None
         s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
-                                     fan.azimuth_nulls)
+                                     fan.azimuth_nulls, keep_nulls=not membrane)
+        s = s if membrane else s[~pattern.null_lines(s)]
         lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad, elevation_nulls)
         m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
         probe = np.linspace(lo, hi, m)
@@ -70,7 +75,13 @@ class FanPlan:
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side,
                    np.array([0.5 * k * sonar.length_m, 0.5 * k * sonar.height_m, sonar.tilt_rad, 0.0]),
-                   sonar.wavelength_m, fan.footprint, tuple(bool(x) for x in sides))
+                   sonar.wavelength_m, fan.footprint, tuple(bool(x) for x in sides), pattern=pattern)
+
+    @property
+    def direct_beam(self) -> np.ndarray:
+        """The direct paths' kernels' beam argument: unit gain (their weights carry no pattern; :func:`weigh_by_beam`
+        applies it after them), the baffle at the tilt."""
+        return np.array([0.0, 0.0, self.beam[2], 0.0])
 
     @property
     def n_probe(self) -> int:
@@ -116,10 +127,10 @@ def _moved(plan: FanPlan, n_lo: int, n_hi: int):
     """The plan with ``n_lo`` lattice lines added below its span and ``n_hi`` above (:func:`moving_lines`), and the
     span's end indices i0, i1 (a few array operations on the plan's lines, made again for each block)."""
     i0, i1 = round(plan.s[0] / plan.ds), round(plan.s[-1] / plan.ds)
-    null = beam.on_null(plan.beam[0] * plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null
+    null = plan.pattern.null_lines(plan.ds * np.array([i0 - 1, i1 + 1]))   # the span ends on a dropped null
     i0, i1 = i0 - int(null[0]), i1 + int(null[1])
     extra = [np.arange(i0 - n_lo, i0) * plan.ds, np.arange(i1 + 1, i1 + n_hi + 1) * plan.ds]
-    extra = [x[~beam.on_null(plan.beam[0] * x)] for x in extra]
+    extra = [x[~plan.pattern.null_lines(x)] for x in extra]
     return dataclasses.replace(plan, s=np.concatenate([extra[0], plan.s, extra[1]])), i0, i1
 
 
@@ -336,10 +347,12 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     rng, t_s, ext, w, cos_i = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
     c = caster.compiled
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.fan_echoes(Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start), Poses(rot, pos_local, rx_shift), prim, tfar,
-                       scene_arrays(c), Weighting(plan.beam, two_way_np_per_m, plan.min_range_m, max_range_m,
-                                                  plan.slope_cap_m_rad, time_per_m),
+    fan = Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start)
+    kernels.fan_echoes(fan, Poses(rot, pos_local, rx_shift), prim, tfar, scene_arrays(c),
+                       Weighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m, max_range_m,
+                                 plan.slope_cap_m_rad, time_per_m),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
+    weigh_by_beam(plan, fan, rx_shift, w)
     apply_laws(laws, c, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

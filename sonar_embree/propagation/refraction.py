@@ -25,6 +25,7 @@ from ..kernels.args import ArcWeighting, EchoOut, Fan, Poses, scene_arrays
 from .aim import AimedEchoes, drop_aimed, keep_own, lattice_rays
 from .buffers import Buffers
 from .echoes import Echoes
+from .gain import weigh_by_beam
 from .fan import (PROBE_LINES, BlockEchoes, FanPlan, drop_lines, elevation_rows, moving_lines, nadir_altitude,
                   rays_per_ping)
 from ..laws import apply_laws
@@ -183,10 +184,12 @@ def cast_refracted(run, plan: FanPlan, rot, pos_local, environment, two_way_np_p
     c = caster.compiled
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
-    kernels.arc_echoes(Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start), Poses(rot, pos_local, rx_shift), hit_prim,
-                       hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
-                                                               plan.slope_cap_m_rad, c_nom),
+    fan = Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start)
+    kernels.arc_echoes(fan, Poses(rot, pos_local, rx_shift), hit_prim, hit, ray, scene_arrays(c),
+                       ArcWeighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m, m.t_max,
+                                    plan.slope_cap_m_rad, c_nom),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
+    weigh_by_beam(plan, fan, rx_shift, w)           # the gain of each ray's launch direction
     apply_laws(run.law_table, c, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
@@ -215,6 +218,7 @@ def _aimed(run, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per
     before = clock.get("embree", 0.0)
     t_s, ext, w, pts, hit_prim, cos_i = layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m,
                                                       two_way_np_per_m, sonar, want_points, clock, buffers)
+    weigh_by_beam(plan, Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), ray_start), rx_shift, w, layout)
     obj = keep_own(run.compiled, aim, counts, hit_prim, w, t_s, cos_i)
     echoes = Echoes(2, ray_start, t_s, ext, w, pts, obj)
     return AimedEchoes(echoes, layout, hit_prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1),
@@ -234,7 +238,8 @@ def layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m: Mar
     run : PreparedRun
         The run's caster and laws.
     plan : FanPlan
-        Its beam, near-field bound, slope cap and footprint setting.
+        Its baffle (:attr:`~sonar_embree.propagation.fan.FanPlan.direct_beam`: the rays are weighed with unit gain,
+        the caller applies its beam), near-field bound, slope cap and footprint setting.
     rot, pos_local, rx_shift, m, two_way_np_per_m, sonar, want_points, clock, buffers
         As for :func:`cast_refracted` (``m`` the block's :class:`Marching`).
 
@@ -253,8 +258,8 @@ def layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m: Mar
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.arc_echoes(Fan(plan.s, plan.ds, none, none, none, ray_start), Poses(rot, pos_local, rx_shift), hit_prim,
-                       hit, ray, scene_arrays(c), ArcWeighting(plan.beam, two_way_np_per_m, plan.min_range_m, m.t_max,
-                                                               plan.slope_cap_m_rad, sonar.sound_speed_m_s),
+                       hit, ray, scene_arrays(c), ArcWeighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m,
+                                                               m.t_max, plan.slope_cap_m_rad, sonar.sound_speed_m_s),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
     apply_laws(run.law_table, c, hit_prim, cos_i, w, pts)
     if not plan.footprint:

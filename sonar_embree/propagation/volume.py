@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..instrument import beam
 
 #: Along-track span of the quadrature, in first-null direction cosines λ/lx (Γ⁴ below −50 dB of the axis beyond).
 AZIMUTH_NULLS = 8
@@ -59,7 +58,7 @@ class VolumeBeam:
         uu, tt = np.meshgrid(u, t, indexing="ij")
         s = np.sqrt(1.0 - uu * uu)
         v, w = s * np.sin(tt), s * np.cos(tt)                           # along e2 and along the boresight
-        gamma = beam.directivity(uu.ravel(), v.ravel(), w.ravel(), k, sonar.length_m, sonar.height_m)
+        gamma = sonar.transducer.one_way(uu.ravel(), v.ravel(), w.ravel())
         weight = gamma ** 4 * np.outer(wu, wt).ravel()
         dirs, d = [], sonar.tilt_rad
         for side in (-1.0, 1.0):

@@ -1,6 +1,6 @@
 """A down-looking single-beam echo sounder: one channel, a baffled piston (docs/physics.md §11).
 
-The transducer is a beam of :mod:`sonar_embree.sonars.beams` (``beam``): by default the baffled
+The transducer is a beam of :mod:`sonar_embree.instrument.beams` (``beam``): by default the baffled
 circular piston of radius a, b(θ) = 2·J1(ka·sin θ)/(ka·sin θ) (Kinsler et al., *Fundamentals of
 Acoustics*, 4th ed., §8.8), θ from the body's down axis, ka·sin(θ3/2) = 1.6163 for the −3 dB full
 width θ3; or the square piston. The beam is modelled out to :data:`SPAN_NULLS` times its first
@@ -30,7 +30,7 @@ from ..environment import Environment
 from ..laws import apply_laws
 from ..signal.processing import absorption_np_per_m
 from ..validation import check_number
-from .beams import BEAMS, Beam, beam_for
+from ..instrument.beams import BEAMS, Beam, beam_for
 from .base import FrontEnd
 
 #: The fan reaches this many times the first null's angle (the first side lobes; b⁴ < −70 dB beyond).
@@ -64,7 +64,7 @@ class EchoSounder(Transducer):
     source_level_db, self_noise_db_per_hz, receiver
         As for :class:`~sonar_embree.Sonar`.
     beam : str
-        The transducer, a key of :data:`~sonar_embree.sonars.beams.BEAMS`: ``"piston"`` (circular, default) or
+        The transducer, a key of :data:`~sonar_embree.instrument.beams.BEAMS`: ``"piston"`` (circular, default) or
         ``"square"``; ``beamwidth_deg`` is its one-way −3 dB full width (in a principal plane for the square).
     """
 
@@ -94,7 +94,7 @@ class EchoSounder(Transducer):
 
     @property
     def transducer(self) -> Beam:
-        """The beam (:data:`~sonar_embree.sonars.beams.BEAMS`) with this beamwidth at the carrier."""
+        """The beam (:data:`~sonar_embree.instrument.beams.BEAMS`) with this beamwidth at the carrier."""
         return beam_for(self.beam, self.beamwidth_deg, self.wavelength_m)
 
     @property
@@ -317,6 +317,11 @@ class _Cone:
     min_range_m: float
     slope_cap_m_rad: float
     footprint: bool = True
+
+    @property
+    def direct_beam(self) -> np.ndarray:
+        """The kernels' beam argument: the cone's own (unit gain)."""
+        return self.beam
 
     @classmethod
     def of(cls, sonar: EchoSounder) -> "_Cone":

@@ -33,6 +33,7 @@ from ..propagation.echoes import Echoes, row_of, row_starts
 from ..environment import Environment
 from ..errors import ConfigError
 from ..instrument.receiver import Receiver
+from ..instrument.beams import APERTURE_BEAMS
 from ..validation import check_number
 from .msis import ELEVATION_NULLS, HEAD_FROM_SIDESCAN, MIN_BEAMWIDTH_DEG, SideScanEquivalent, display_grey
 from .sidescan import SideScanFrontEnd
@@ -65,8 +66,8 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         One-way −3 dB vertical width of the elements' (and the transmitter's) fan, degrees.
     tilt_deg : float
         Depression of the fan's axis below the vehicle's horizontal plane, degrees.
-    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver
-        As for :class:`~sonar_embree.Sonar`.
+    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver, beam
+        As for :class:`~sonar_embree.Sonar` (``beam``: the pattern of the membrane of these widths, or a Gaussian).
     """
 
     #: Its record is one (ping, beam, sample) array of formed beams (:class:`~sonar_embree.config.Transducer`).
@@ -85,9 +86,13 @@ class ForwardLooking(SideScanEquivalent, Transducer):
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
+    beam: str = "membrane"
 
     def __post_init__(self):
         self._check_environment("ForwardLooking")
+        if self.beam not in APERTURE_BEAMS:
+            raise ConfigError(f"ForwardLooking.beam must be one of {', '.join(repr(k) for k in APERTURE_BEAMS)}, "
+                              f"got {self.beam!r}")
         for name, lo, hi in (("n_beams", 1, 4096), ("n_elements", 2, 4096)):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
@@ -149,7 +154,8 @@ class ForwardLooking(SideScanEquivalent, Transducer):
                                                                self.wavelength_m),
                      tilt_deg=self.tilt_deg, max_range_m=self.max_range_m, sample_rate_hz=self.sample_rate_hz,
                      environment=self.environment, source_level_db=self.source_level_db,
-                     self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver)
+                     self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver,
+                     beam=self.beam)
 
     @property
     def directivity_index_db(self) -> float:

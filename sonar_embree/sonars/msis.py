@@ -22,6 +22,7 @@ from ..propagation.echoes import Echoes, merged
 from ..environment import Environment
 from ..errors import ConfigError
 from ..instrument.receiver import Receiver
+from ..instrument.beams import APERTURE_BEAMS
 from ..validation import check_number
 from .sidescan import SideScanFrontEnd
 from ..instrument.beam import membrane_size_for_beamwidth
@@ -78,8 +79,8 @@ class MSIS(SideScanEquivalent, Transducer):
         forth centred on ``start_bearing_deg``.
     start_bearing_deg : float
         Bearing of ping 0 (full circle) or the sector's centre, degrees clockwise from the vehicle's forward axis.
-    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver
-        As for :class:`~sonar_embree.Sonar`.
+    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver, beam
+        As for :class:`~sonar_embree.Sonar` (``beam``: the pattern of the membrane of these widths, or a Gaussian).
     """
 
     frequency_hz: float = 700e3
@@ -95,11 +96,15 @@ class MSIS(SideScanEquivalent, Transducer):
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
+    beam: str = "membrane"
 
     channels = ("beam",)
 
     def __post_init__(self):
         self._check_environment("MSIS")
+        if self.beam not in APERTURE_BEAMS:
+            raise ConfigError(f"MSIS.beam must be one of {', '.join(repr(k) for k in APERTURE_BEAMS)}, "
+                              f"got {self.beam!r}")
         for name, hi in (("horizontal_beamwidth_deg", 30.0), ("vertical_beamwidth_deg", 90.0),
                          ("step_deg", 90.0), ("sector_deg", 360.0)):
             check_number("MSIS", name, getattr(self, name), positive=True, hi=hi)
@@ -123,7 +128,8 @@ class MSIS(SideScanEquivalent, Transducer):
                      height_m=membrane_size_for_beamwidth(math.radians(self.vertical_beamwidth_deg), lam),
                      tilt_deg=self.tilt_deg, max_range_m=self.max_range_m, sample_rate_hz=self.sample_rate_hz,
                      environment=self.environment, source_level_db=self.source_level_db,
-                     self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver)
+                     self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver,
+                     beam=self.beam)
 
     def dataset_coords(self, first_ping: int, n_pings: int) -> dict:
         """The head's bearing at each ping of a record that starts at survey ping ``first_ping``."""

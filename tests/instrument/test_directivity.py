@@ -9,7 +9,7 @@ from scipy.special import j1
 import analytic
 import sonar_embree as se
 from sonar_embree.instrument.directivity import membrane_directivity_index_db, piston_directivity_index_db
-from sonar_embree.sonars.beams import CircularPiston, SquarePiston
+from sonar_embree.instrument.beams import CircularPiston, SquarePiston
 
 
 @pytest.mark.parametrize("f, lx, ly", [(400e3, 0.19, 0.0038), (100e3, 0.5, 0.01), (200e3, 0.03, 0.03),

@@ -1,5 +1,5 @@
 """The echo sounder's beams (docs/physics.md §11): each evaluated from body-frame directions after the path
-kernels; a new one is a file in sonars/beams/ and a line in BEAMS (the square piston was added so)."""
+kernels; a new one is a file in instrument/beams/ and a line in BEAMS (the square piston was added so)."""
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -8,7 +8,7 @@ import analytic
 import sonar_embree as se
 from conftest import flat_scene
 from sonar_embree.sonars import EchoSounder
-from sonar_embree.sonars.beams import BEAMS, SquarePiston, beam_for
+from sonar_embree.instrument.beams import BEAMS, SquarePiston, beam_for
 
 H = 20.0
 
@@ -41,8 +41,9 @@ def test_square_piston_beamwidth_null_and_directivity_index():
 
 
 def test_the_beams_are_registered_and_a_wrong_name_is_refused():
-    assert set(BEAMS) == {"piston", "square"}
-    with pytest.raises(se.ConfigError, match="EchoSounder.beam must be one of 'piston', 'square', got 'cone'"):
+    assert set(BEAMS) == {"piston", "square", "membrane", "gaussian"}
+    with pytest.raises(se.ConfigError,
+                       match="EchoSounder.beam must be one of 'piston', 'square', 'membrane', 'gaussian', got 'cone'"):
         EchoSounder(beam="cone")
 
 

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...instrument.directivity import piston_directivity_index_db
+from ..directivity import piston_directivity_index_db
 from .base import Beam
 from scipy.special import j1
 

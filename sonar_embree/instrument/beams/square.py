@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ...instrument.directivity import membrane_directivity_index_db
+from ..directivity import membrane_directivity_index_db
 from .base import Beam
 
 #: k·L/2·sin(θ3/2) of a square piston at its one-way −3 dB point in a principal plane, sin(x)/x = 1/√2.

@@ -1,0 +1,37 @@
+"""The beam after the direct paths' kernels (issue 51, item 2): each ray's two-way gain from its direction, once.
+
+The kernels of the direct paths (:func:`kernels.fan_echoes`, :func:`kernels.arc_echoes`) weigh rays with unit
+gain; :func:`weigh_by_beam` multiplies the fan's separable beam in after them, whatever the beam
+(:mod:`sonar_embree.instrument.beams`: the membrane, a Gaussian).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .. import kernels
+from ..kernels.args import Fan
+
+
+def weigh_by_beam(plan, fan: Fan, rx_shift: np.ndarray, weight: np.ndarray,
+                  layout: np.ndarray = kernels.NO_LAYOUT) -> None:
+    """Multiply the weights of a block's direct rays by their two-way gain Γ²(u)·Γ_rx²(u), in place (issue 51: the
+    beam after the path kernels; docs/physics.md §2, §16).
+
+    Γ = along(s)·across(v) is the plan's separable beam (:attr:`~sonar_embree.propagation.fan.FanPlan.pattern`) at each ray's direction cosines
+    s along track and v = cos ψ·sin(β − δ) across (:func:`kernels.beam_cosines`), and Γ_rx the same with s shifted
+    by the ping's ``rx_shift`` δ = 2·v_fwd/c (pings,). ``fan`` (:data:`~sonar_embree.kernels.args.Fan`) gives the
+    rows, azimuth-major over their elevation cells (the along-track factors then go once per line and ping,
+    :func:`kernels.weigh_lines`); with ``layout`` (n, 5) each ray has its own s, cos β, sin β."""
+    pattern, n = plan.pattern, weight.shape[0]
+    v = np.empty(n)
+    kernels.beam_cosines(fan, float(plan.beam[2]), layout, v)
+    e = pattern.across(v)
+    e2 = e * e
+    if layout.shape[0] == 0:
+        a, a_rx = pattern.along(fan.s), pattern.along(fan.s[None, :] - rx_shift[:, None])
+        kernels.weigh_lines(fan.el_start, fan.s.shape[0], (a * a)[None, :] * (a_rx * a_rx), e2 * e2, weight)
+        return
+    s = layout[:, 0]
+    shift = np.repeat(rx_shift, np.diff(fan.el_start[::2]))       # rows 2·ping + side: the ping of each ray
+    a, a_rx = pattern.along(s), pattern.along(s - shift)
+    weight *= (a * a) * (a_rx * a_rx) * (e2 * e2)

@@ -1,0 +1,180 @@
+"""A Gaussian beam for every sonar type (issue 51, item 2): one file (instrument/beams/gaussian.py) and one line in
+BEAMS. Beams are weighed after the direct paths' kernels, so the side-scan, MSIS and forward-looking sonar take it
+as the echo sounder does. Each check against a closed form or quadrature written here."""
+import math
+
+import numpy as np
+import pytest
+import trimesh
+from scipy.optimize import brentq
+
+import analytic
+import naive
+import sonar_embree as se
+from conftest import H, flat_scene
+from sonar_embree import kernels
+from sonar_embree.instrument.beams import BEAMS, Gaussian
+from sonar_embree.kernels import args as A
+
+LN2 = math.log(2.0)
+
+
+def _half_width(size_m, lam):
+    """sin(θ3/2) of a membrane side: sin(x)/x = 1/√2 at x = π·L/λ·sin(θ3/2) (the textbook's root)."""
+    x3 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 0.5, 2.0)
+    return x3 * lam / (np.pi * size_m)
+
+
+def _gaussian(a, b):
+    """b(u, v) = 2^(−((u/a)² + (v/b)²)/2): one-way power 1/2 at u = a or v = b."""
+    return lambda u, v: 2.0 ** (-0.5 * ((u / a) ** 2 + (v / b) ** 2))
+
+
+def test_one_file_and_one_line():
+    assert BEAMS["gaussian"] is Gaussian and Gaussian.__module__ == "sonar_embree.instrument.beams.gaussian"
+    assert se.Sonar(beam="gaussian").transducer.separable
+    with pytest.raises(se.ConfigError, match="Sonar.beam must be one of 'membrane', 'gaussian', got 'piston'"):
+        se.Sonar(beam="piston")
+    for cls in (se.MSIS, se.ForwardLooking):
+        with pytest.raises(se.ConfigError, match=f"{cls.__name__}.beam must be one of"):
+            cls(beam="cone")
+
+
+@pytest.mark.parametrize("widths_deg", [(5.0, 5.0), (1.0, 50.0), (60.0, 30.0)])
+def test_directivity_index_against_quadrature(widths_deg):
+    lam = 0.0075
+    a, b = (math.sin(math.radians(w) / 2) for w in widths_deg)
+    g = Gaussian(a, b, lam)
+    want = analytic.directivity_index_db(_gaussian(a, b))
+    assert g.directivity_index_db == pytest.approx(want, abs=0.01)
+    if max(widths_deg) <= 5.0:                                    # narrow: 10·log10(4π·ln 2/(π·a·b))
+        assert g.directivity_index_db == pytest.approx(10 * math.log10(4 * LN2 / (a * b)), abs=0.05)
+    u = np.array([a, 0.0, 0.3 * a]), np.array([0.0, b, 0.2 * b]), np.array([0.9, 0.9, -0.1])
+    np.testing.assert_allclose(g.one_way(*u) ** 2, [0.5, 0.5, 0.0], atol=1e-15)
+
+
+def test_a_side_scan_with_a_gaussian_beam_against_quadrature():
+    """Flat floor at 10 m, speckle-free, the default sonar with beam="gaussian": its −3 dB widths are the membrane's
+    (solved here from sinc = 1/√2), b = 2^−((u/a)² + (v/b)²)/2 in the membrane's frame (v across, in the elevation
+    plane, tilted 20°); eq. (2) by quadrature within 0.2 dB over 11–49 m, both sides, and the membrane's record
+    differs from it by more than 0.5 dB somewhere (the beam is not ignored)."""
+    sonar = se.Sonar(beam="gaussian")
+    lam = sonar.wavelength_m
+    a, b = _half_width(sonar.length_m, lam), _half_width(sonar.height_m, lam)
+    d = np.radians(sonar.tilt_deg)
+
+    def gamma(u_fwd, u_side, u_down):
+        v, w = -u_side * np.sin(d) + u_down * np.cos(d), u_side * np.cos(d) + u_down * np.sin(d)
+        return _gaussian(a, b)(u_fwd, v) * (w > 0)
+
+    traj = se.Trajectory.line((0, 0, H), (1, 0, H), 3).stop_and_hop()
+    pulse = se.Pulse.cw(duration_s=100e-6, taper=0.0)
+    rec = se.simulate(flat_scene(), traj, sonar, pulse, start_time="2000-01-01")
+    r = rec.slant_range_m
+    band = (r >= 11.0) & (r <= 49.0)
+    want = analytic.flat_floor_expected_intensity(r[band], gamma=gamma)
+    for ch in (rec.starboard, rec.port):
+        err = 10 * np.log10(ch.mean(axis=0)[band] / want)
+        assert np.max(np.abs(err)) < 0.2, np.max(np.abs(err))
+    membrane = se.simulate(flat_scene(), traj, se.Sonar(), pulse, start_time="2000-01-01")
+    assert np.max(np.abs(10 * np.log10(membrane.starboard.mean(axis=0)[band] / want))) > 0.5
+
+
+def test_an_echo_sounder_with_a_gaussian_beam_against_quadrature():
+    """E[I](t) = ∫ g(R)|p|² dR, g = σ(h/R)·10^(−2αR/10)/R³·2π·b⁴(θ) for the circular Gaussian of a 10° beam
+    (b² = 2^−(sin θ/sin 5°)²), energy within 0.05 dB and the main lobe sample by sample within 0.1 dB."""
+    h = 20.0
+    sonar = se.EchoSounder(frequency_hz=200e3, beamwidth_deg=10.0, max_range_m=30.0, sample_rate_hz=400e3,
+                           beam="gaussian")
+    rec = se.simulate(flat_scene(), se.Trajectory.line((0, 0, h), (1, 0, h), 2).stop_and_hop(), sonar,
+                      se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01")
+    grid = np.linspace(h, 30.0, 40001)
+    st = np.sin(np.arccos(h / grid))
+    b4 = 2.0 ** (-2.0 * (st / math.sin(math.radians(5.0))) ** 2)
+    g = 2 * np.pi * b4 * 10 ** (-2.7) * (h / grid) ** 2 * 10 ** (-2 * sonar.alpha_db_per_m * grid / 10) / grid ** 3
+    cum = np.concatenate([[0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(grid))])
+    r, ext = rec.slant_range_m, sonar.sound_speed_m_s * 100e-6 / 2
+    want = np.interp(r, grid, cum) - np.interp(r - ext, grid, cum)
+    got = rec.channel("down").mean(axis=0)
+    band = (r > h) & (r < 25.0)
+    assert abs(10 * np.log10(got[band].sum() / want[band].sum())) < 0.05
+    lobe = want > 0.1 * want.max()
+    assert lobe.sum() > 50 and np.max(np.abs(10 * np.log10(got[lobe] / want[lobe]))) < 0.1
+
+
+def _ball_energy(sonar, centre, traj):
+    scene = se.Scene().add(trimesh.creation.icosphere(3, 0.03).apply_translation(centre),
+                           material=se.Material(backscatter_db=-10.0), label="ball")
+    return se.simulate(scene, traj, sonar, se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01").data.sum()
+
+
+@pytest.mark.parametrize("kind", ["msis", "forward-looking"])
+def test_msis_and_forward_looking_take_the_gaussian(kind):
+    """A 3 cm ball on the beam's azimuth axis, e below its elevation axis (past the −3 dB edge, where the membrane
+    falls faster), 10 m away: the Gaussian record over
+    the membrane's is (across_G(sin e)/across_M(sin e))⁴ (two ways, transmit and receive), within 0.3 dB, with the
+    membrane's height solved here from its −3 dB width (sinc = 1/√2) and across_G = 2^−(v/sin(θ3/2))²/2."""
+    if kind == "msis":
+        make = lambda beam: se.MSIS(max_range_m=15.0, beam=beam)    # noqa: E731
+        width, tilt, e_deg = 30.0, 20.0, 25.0
+    else:
+        make = lambda beam: se.ForwardLooking(max_range_m=15.0, n_beams=16, n_elements=16, beam=beam)  # noqa: E731
+        width, tilt, e_deg = 20.0, 10.0, 16.0
+    lam = make("membrane").wavelength_m
+    half = math.sin(math.radians(width) / 2)
+    ly = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 0.5, 2.0) * lam / (np.pi * half)
+    e, r = math.radians(e_deg), 10.0
+    dep = math.radians(tilt) + e
+    centre = (r * math.cos(dep), 0.0, H - r * math.sin(dep))            # ahead (bearing 0), below the axis
+    traj = se.Trajectory.line((0, 0, H), (0.01, 0, H), 2).stop_and_hop()
+    got = _ball_energy(make("gaussian"), centre, traj) / _ball_energy(make("membrane"), centre, traj)
+    v = math.sin(e)
+    x = np.pi * ly / lam * v
+    want = (2.0 ** (-0.5 * (v / half) ** 2) / (math.sin(x) / x)) ** 4
+    assert 10 * math.log10(got / want) == pytest.approx(0.0, abs=0.3)
+    assert abs(10 * math.log10(want)) > 1.0                               # the two beams differ there
+
+
+def test_a_gaussian_beam_under_a_sea_surface_is_refused():
+    sonar = se.Sonar(beam="gaussian", environment=se.Environment(surface=se.SeaSurface(z_m=H + 5.0)))
+    with pytest.raises(se.ConfigError, match="beam = 'gaussian' under a sea surface"):
+        se.simulate(flat_scene(), se.Trajectory.line((0, 0, H), (1, 0, H), 2), sonar, start_time="2000-01-01")
+
+
+def test_the_beam_kernels_against_their_twins():
+    """kernels.beam_cosines (fan rows and per-ray layouts) and kernels.weigh_lines against the NumPy twins."""
+    rng = np.random.default_rng(4)
+    s = np.linspace(-0.02, 0.02, 7)
+    el_start = np.array([0, 5, 9, 9, 16], np.int64)
+    beta = rng.uniform(0.1, 1.4, 16)
+    cb, sb = np.cos(beta), np.sin(beta)
+    n = s.size * 16
+    v = np.empty(n)
+    kernels.beam_cosines(A.Fan(s, 0.01, cb, sb, np.full(16, 0.01), el_start), 0.35, kernels.NO_LAYOUT, v)
+    np.testing.assert_allclose(v, naive.beam_cosines(s, cb, sb, el_start, 0.35), rtol=1e-13, atol=1e-15)
+    layout = np.column_stack([rng.uniform(-0.1, 0.1, 40), np.cos(b := rng.uniform(0, 1.5, 40)), np.sin(b),
+                              np.full(40, 0.01), np.full(40, 0.01)])
+    ray_start = np.array([0, 10, 25, 25, 40], np.int64)
+    v2 = np.empty(40)
+    kernels.beam_cosines(A.Fan(s, 0.01, np.zeros(0), np.zeros(0), np.zeros(0), ray_start), 0.35, layout, v2)
+    np.testing.assert_allclose(v2, naive.beam_cosines(s, cb, sb, el_start, 0.35, layout), rtol=1e-13, atol=1e-15)
+    line, ray, w = rng.uniform(0, 1, (2, s.size)), rng.uniform(0, 1, n), rng.uniform(0, 1, n)
+    want = naive.weigh_lines(el_start, s.size, line, ray, w)
+    kernels.weigh_lines(el_start, s.size, line, ray, w)
+    np.testing.assert_allclose(w, want, rtol=1e-15)
+
+
+def test_a_side_scans_beam_survives_the_record_file_and_toml(tmp_path):
+    from sonar_embree.runs.runconfig import load_run_config
+
+    rec = se.simulate(flat_scene(), se.Trajectory.line((0, 0, H), (1, 0, H), 2), se.Sonar(beam="gaussian"),
+                      start_time="2000-01-01")
+    rec.save(tmp_path / "r.npz")
+    assert se.Record.load(tmp_path / "r.npz").sonar.beam == "gaussian"
+    (tmp_path / "run.toml").write_text('[sonar]\nbeam = "gaussian"\n[trajectory]\nstart = [0.0, 0.0, 10.0]\n'
+                                       'end = [1.0, 0.0, 10.0]\nn_pings = 2\n[[objects]]\nseafloor = "flat"\n'
+                                       'size_m = [40.0, 40.0]\n')
+    assert load_run_config(tmp_path / "run.toml").sonar.beam == "gaussian"
+    (tmp_path / "bad.toml").write_text((tmp_path / "run.toml").read_text().replace('"gaussian"', '"cone"'))
+    with pytest.raises(se.ConfigError, match="beam must be one of 'membrane', 'gaussian', got 'cone'"):
+        load_run_config(tmp_path / "bad.toml")
