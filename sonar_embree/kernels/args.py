@@ -16,11 +16,16 @@ Poses = namedtuple("Poses", "rot pos rx_shift")
 #: The scene's arrays in its local frame: vertices (v, 3) float64, faces (f, 3) int32, face_normals (f, 3),
 #: face_two_sided (f,) bool.
 SceneArrays = namedtuple("SceneArrays", "vertices faces face_normals face_two_sided")
-#: What a hit's weight needs: the beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), the near-field
-#: range bound and range window (m), the cap on |dR/dβ| (m/rad) and the two-way time per metre 2/c (s/m) or, for
-#: curved rays, the one-way time window t_max (s) and the sonar's sound speed c_nom (m/s).
+#: What a sea-surface path's weight needs: the membrane its kernel weighs (k·lx/2, k·ly/2, tilt rad, 0), two-way
+#: absorption (Np/m), the near-field range bound and range window (m), the cap on |dR/dβ| (m/rad) and the two-way
+#: time per metre 2/c (s/m).
 Weighting = namedtuple("Weighting", "beam two_way_np_per_m min_range_m max_range_m slope_cap_m_rad time_per_m")
-ArcWeighting = namedtuple("ArcWeighting", "beam two_way_np_per_m min_range_m t_max slope_cap_m_rad c_nom")
+#: What a direct hit's weight needs (its beam is applied after the kernel): the baffle's tilt (rad), then as
+#: :data:`Weighting`; for curved rays the one-way time window t_max (s) and the sonar's sound speed c_nom (m/s)
+#: in place of the range window and 2/c.
+DirectWeighting = namedtuple("DirectWeighting",
+                             "tilt_rad two_way_np_per_m min_range_m max_range_m slope_cap_m_rad time_per_m")
+ArcWeighting = namedtuple("ArcWeighting", "tilt_rad two_way_np_per_m min_range_m t_max slope_cap_m_rad c_nom")
 #: A block's direct hits, aligned with its rays: slant range (n,) (m, inf: none), hit points (n, 3) (local frame,
 #: m) and triangles (n,) int32.
 Hits = namedtuple("Hits", "range point prim")

@@ -251,7 +251,7 @@ def ray_cell(i, base, first, n_el, s, ds, cos_beta, sin_beta, dbeta, layout):
 
 
 @njit(cache=True, nogil=True)
-def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db, consts):
+def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, ds, db, consts):
     """The physics of one hit of :func:`fan_echoes`, on scalars only (no array arguments: no reference counting per
     ray; docs/physics.md §2–3).
 
@@ -266,19 +266,17 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db
         The triangle scatters from both sides.
     cpsi, cb, sb : float
         √(1 − s²), cos β and sin β of the ray's body-frame direction (s, ±cψ·cos β, cψ·sin β).
-    g_az, g_az_rx : float
-        The along-track gains transmitting and receiving.
     ds, db : float
         The ray's cell: its along-track width ds and elevation width dβ (rad); solid angle ds·dβ.
     consts : tuple of float
-        k·ly/2, cos tilt, sin tilt, two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m).
+        cos tilt, sin tilt, two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m).
 
     Returns
     -------
     (R (m), cos θi, w, travel-time extent (s)); w = 0: no echo (back face, grazing, beyond R_max, behind the
     baffle).
     """
-    k_ly2, cos_t, sin_t, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = consts
+    cos_t, sin_t, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = consts
     rr = t_emb
     if abs(dn) > REFIT_MIN_COS:
         t64 = num / dn
@@ -291,11 +289,8 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db
         return rr, 0.0, 0.0, 0.0
     if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle
         return rr, 0.0, 0.0, 0.0
-    g_el = _sinc(k_ly2 * cpsi * (sb * cos_t - cb * sin_t))  # sin(β − δ)
-    g = g_az * g_el
-    g_rx = g_az_rx * g_el
     rb = rr if rr > min_range_m else min_range_m
-    w = g * g * (g_rx * g_rx) * math.exp(-two_way_np_per_m * rr) * ds * db / (rb * rb)
+    w = math.exp(-two_way_np_per_m * rr) * ds * db / (rb * rb)
     slope = rr * abs(fn) / cos_i
     if slope > slope_cap_m_rad:
         slope = slope_cap_m_rad
@@ -304,25 +299,22 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, g_az, g_az_rx, ds, db
 
 @njit(cache=True, nogil=True, parallel=True)
 def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
-    """Propagation of every ray of a block: range, range extent, incidence and weight without the law.
+    """Propagation of every ray of a block: range, range extent, incidence and weight without the beam and the law.
 
-    (docs/physics.md §2–3.) The scattering law multiplies σ(θi)/cos θi in afterwards
+    (docs/physics.md §2–3.) The beam multiplies Γ²·Γ_rx² in afterwards
+    (:func:`sonar_embree.propagation.gain.weigh_by_beam`), the scattering law σ(θi)/cos θi
     (:mod:`sonar_embree.laws`).
 
     The hit range is the float64 intersection with the hit triangle's plane (Embree's
     float32 distance where that is ill-conditioned). A ray of cell ds × dβ on a
     surface of normal n̂ returns
 
-        w = Γ²_tx·Γ²_rx · exp(−2α'R) · ds·dβ / max(R, R_min)²     (× σ(θi)/cos θi by the law)
-
-    with Γ_rx the receiving membrane's gain at the along-track direction cosine s − δ of the
-    ping (motion during the ping: the receiver has moved on by v·τ, δ = 2·v_fwd/c; δ = 0 is
-    stop-and-hop, Γ_rx = Γ_tx and w carries Γ⁴ bit for bit),
+        w = exp(−2α'R) · ds·dβ / max(R, R_min)²     (× Γ²_tx·Γ²_rx by the beam, × σ(θi)/cos θi by the law)
 
     spread over the slant-range interval R ± ΔR/2 its cell covers on the plane,
     ΔR = R·|n̂·∂u/∂β| / cos θi · dβ (at most ``slope_cap_m_rad``·dβ). Misses, back
-    faces (unless two-sided: then cos θi = |n̂·u|), grazing hits (cos θi ≤ 1e-9) and
-    hits beyond ``max_range_m`` get w = 0.
+    faces (unless two-sided: then cos θi = |n̂·u|), grazing hits (cos θi ≤ 1e-9), rays behind
+    the baffle and hits beyond ``max_range_m`` get w = 0.
 
     Parameters
     ----------
@@ -330,16 +322,15 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
         The block's fan, as for :func:`fan_rays`; ``dbeta`` the cell width of each
         elevation ray, ``ds`` the azimuth spacing.
     poses : :data:`~sonar_embree.kernels.args.Poses`
-        Rotations, positions and δ per ping: the receive beam's along-track direction-cosine offset
-        (0: stop-and-hop).
+        Rotations and positions per ping (``rx_shift`` not read: the beam applies it).
     prim : (n,) int32
         Triangle hit by each ray, −1 for a miss.
     tfar : (n,) float32
         Embree's hit distance, m.
     scene : :data:`~sonar_embree.kernels.args.SceneArrays`
         The scene in its local frame; ``face_two_sided`` the triangles that scatter from both sides.
-    weighting : :data:`~sonar_embree.kernels.args.Weighting`
-        The beam (k·lx/2, k·ly/2, tilt δ in rad, 0), two-way absorption (Np/m), near-field range bound,
+    weighting : :data:`~sonar_embree.kernels.args.DirectWeighting`
+        The baffle's tilt δ (rad), two-way absorption (Np/m), near-field range bound,
         range window, bound on |dR/dβ| (m/rad) and the two-way travel time per metre 2/c (s/m).
     out : :data:`~sonar_embree.kernels.args.EchoOut`
         Written with R (m), the travel time 2R/c (s, inf: no echo), the travel-time extent ΔR·2/c (s), w and
@@ -350,18 +341,18 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
         not read. No rows (``NO_LAYOUT``): the fan's layout.
     """
     s, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    rot, pos, rx_shift = poses
+    rot, pos = poses.rot, poses.pos
     vertices, faces, face_normals, face_two_sided = scene
-    beam, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = weighting
+    tilt_rad, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = weighting
     range_out, time_out, extent_out, weight_out, cos_out, points_out = out
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
-    consts = (beam[1], math.cos(beam[2]), math.sin(beam[2]), two_way_np_per_m, min_range_m, max_range_m,
-              slope_cap_m_rad, time_per_m)
+    consts = (math.cos(tilt_rad), math.sin(tilt_rad), two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad,
+              time_per_m)
     per_ray = layout.shape[0] > 0
     for r in prange(el_start.shape[0] - 1):
         b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
-        s_prev, cpsi, g_az, g_az_rx = math.nan, 0.0, 0.0, 0.0
+        s_prev, cpsi = math.nan, 0.0
         for i in range(base, end):
             range_out[i] = math.inf
             time_out[i] = math.inf
@@ -379,8 +370,6 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
             if sa != s_prev:
                 s_prev = sa
                 cpsi = math.sqrt(1.0 - sa * sa)
-                g_az = _sinc(beam[0] * sa)
-                g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
             e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
             f1, f2 = -side * cpsi * sb, cpsi * cb  # ∂u/∂β in body axes (0, f1, f2)
             dn, num, fn = 0.0, 0.0, 0.0
@@ -389,8 +378,8 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
                 dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
                 num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
                 fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
-            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb,
-                                           g_az, g_az_rx, ds_i, db, consts)
+            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb, ds_i,
+                                           db, consts)
             if cos_i == 0.0:
                 continue
             range_out[i] = rr

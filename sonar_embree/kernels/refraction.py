@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
-from .rays import _sinc, ray_cell, row_rays
+from .rays import ray_cell, row_rays
 
 #: Columns of a ray's marching state (see the module docstring).
 STATE_WIDTH = 14
@@ -516,55 +516,41 @@ def _hit_of(st, i, k, ray, layers, z0, s, dx, dd, cb, sb, out):
     out[i, 12] = _speed(lk, depth)
 
 
-@njit(cache=True, nogil=True, inline='always')
-def _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb):
-    """Γ of body direction (s, β) for the baffled membrane (0 behind the baffle), as in fan_echoes; ``g_az`` the
-    azimuth factor sinc(k·lx/2·s), cos_t and sin_t of the tilt."""
-    if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:
-        return 0.0
-    return g_az * _sinc(beam[1] * cpsi * (sb * cos_t - cb * sin_t))
-
-
 @njit(cache=True, nogil=True, parallel=True)
 def arc_echoes(fan, poses, hit_prim, hit, ray, scene, weighting, out, layout):
     """Weights of the curved rays of a block (docs/physics.md §12); the law multiplies σ(θi)/cos θi afterwards.
 
-    w = Γ²(launch)·Γ_rx²(launch) · exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²,
+    w = exp(−2α'·L) · ds·dβ / max(A_Ω, R_min²),  A_Ω = X̃·|M| / c0²   (× Γ²·Γ_rx² of the launch direction by the beam),
 
     at two-way time 2T (apparent range c_nom·T), spread over the travel-time interval
     2·|n̂·δ⊥|·dβ / (c_h·cos θi) of its cell, δ⊥ the ray tube's sideways motion per dβ
     (−(M/c0)·n̂_v·∂θ0/∂β + (X̃/c0)·cos θ0·ĥ⊥·∂φ/∂β, n̂_v the normal of the ray in its vertical
     plane, ĥ⊥ the horizontal normal of that plane; the straight-ray footprint when c is constant).
     Misses, back faces (unless two-sided), grazing hits, hits after ``t_max`` and rays behind the
-    baffle get w = 0. Arguments as for :func:`~sonar_embree.kernels.rays.fan_echoes` (``poses.pos`` unread), plus
+    baffle get w = 0. Arguments as for :func:`~sonar_embree.kernels.rays.fan_echoes` (``poses.pos`` and
+    ``poses.rx_shift`` unread), plus
     ``hit_prim``, ``hit``, ``ray`` from :func:`arc_land` / :func:`arc_start`; ``weighting`` an
     :data:`~sonar_embree.kernels.args.ArcWeighting` with ``t_max`` (one-way, s) and ``c_nom`` (the sonar's sound
     speed, m/s). Outputs as there; points are the hit points.
-    Γ_rx: the receive beam moved on during the ping, its along-track cosine shifted by ``rx_shift`` (pings,)
-    δ = 2·v_fwd/c (docs/physics.md §16; the horizontal slowness is conserved, so the ray reaching the moved
-    receiver leaves X with s − 2v·T/M ≈ s − 2v/c0); Γ_rx = Γ, bit for bit, when δ = 0. With ``layout``
+    Γ_rx (applied after, :func:`sonar_embree.propagation.gain.weigh_by_beam`): the receive beam moved on during the
+    ping, its along-track cosine shifted by δ = 2·v_fwd/c (docs/physics.md §16; the horizontal slowness is
+    conserved, so the ray reaching the moved receiver leaves X with s − 2v·T/M ≈ s − 2v/c0). With ``layout``
     (:func:`arc_start`) each ray has its own s, β, dβ and ds.
     """
     s, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    rot, rx_shift = poses.rot, poses.rx_shift
+    rot = poses.rot
     face_normals, face_two_sided = scene.face_normals, scene.face_two_sided
-    beam, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom = weighting
+    tilt_rad, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom = weighting
     range_out, time_out, extent_out, weight_out, cos_out, points_out = out
     n_az = s.shape[0]
     per_ray = layout.shape[0] > 0
     want_points = points_out.shape[0] == range_out.shape[0]
-    cos_t = math.cos(beam[2])
-    sin_t = math.sin(beam[2])
+    cos_t = math.cos(tilt_rad)
+    sin_t = math.sin(tilt_rad)
     for r in prange(el_start.shape[0] - 1):
         b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
-        s_prev = math.nan
-        g_az, g_az_rx = 0.0, 0.0
         for i in range(base, end):
             sa, cb, sb, db, ds_i = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
-            if sa != s_prev:
-                s_prev = sa
-                g_az = _sinc(beam[0] * sa)
-                g_az_rx = _sinc(beam[0] * (sa - rx_shift[b]))
             cpsi = math.sqrt(1.0 - sa * sa)
             range_out[i] = math.inf
             time_out[i] = math.inf
@@ -583,14 +569,12 @@ def arc_echoes(fan, poses, hit_prim, hit, ray, scene, weighting, out, layout):
             cos_i = -dn
             if cos_i < 0.0 and face_two_sided[t]:
                 cos_i = dn
-            g = _membrane_gain(beam, cos_t, sin_t, g_az, cpsi, cb, sb)
-            if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or g == 0.0:
+            behind = cpsi * (cb * cos_t + sb * sin_t) <= 0.0              # cos(β − δ): behind the baffle
+            if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or behind:
                 continue
             c0 = ray[i, 4]
             area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
-            g_rx = g if rx_shift[b] == 0.0 else _membrane_gain(beam, cos_t, sin_t, g_az_rx, cpsi, cb, sb)
-            g2 = g * g
-            weight_out[i] = (g2 * (g_rx * g_rx) * math.exp(-two_way_np_per_m * hit[i, 7]) * ds_i * db
+            weight_out[i] = (math.exp(-two_way_np_per_m * hit[i, 7]) * ds_i * db
                              / max(area, min_range_m * min_range_m))
             range_out[i] = c_nom * hit[i, 6]
             time_out[i] = 2.0 * hit[i, 6]

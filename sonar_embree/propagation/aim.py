@@ -23,7 +23,7 @@ from .. import checks, kernels
 from .echoes import Echoes
 from .gain import weigh_by_beam
 from ..kernels import aim as K
-from ..kernels.args import EchoOut, Fan, Poses, Weighting, scene_arrays
+from ..kernels.args import DirectWeighting, EchoOut, Fan, Poses, scene_arrays
 from ..laws import apply_laws
 
 #: Rays across an object's bounding cone, each way, at quality 1 (× √quality): balls of 2–25 cm within 0.3 dB
@@ -130,10 +130,10 @@ def aim_block(caster, aim: AimPlan, plan, rot, pos_local, rx_shift, two_way_np_p
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     fan = Fan(plan.s, plan.ds, none, none, none, ray_start)
     kernels.fan_echoes(fan, Poses(rot, pos_local, rx_shift), prim, tfar, scene_arrays(c),
-                       Weighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m, max_range_m,
-                                 plan.slope_cap_m_rad, time_per_m),
+                       DirectWeighting(plan.tilt_rad, two_way_np_per_m, plan.min_range_m, max_range_m,
+                                       plan.slope_cap_m_rad, time_per_m),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
-    weigh_by_beam(plan, fan, rx_shift, w, layout)
+    weigh_by_beam(plan.pattern, plan.tilt_rad, fan, rx_shift, w, layout)
     ids = keep_own(c, aim, counts, prim, w, t_s, cos_i)
     apply_laws(laws, c, prim, cos_i, w, pts)
     if not plan.footprint:

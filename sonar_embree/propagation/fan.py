@@ -19,7 +19,7 @@ import numpy as np
 
 from ..instrument import beam
 from .. import checks, kernels
-from ..kernels.args import EchoOut, Fan, Poses, Weighting, scene_arrays
+from ..kernels.args import DirectWeighting, EchoOut, Fan, Poses, scene_arrays
 from .aim import aim_block, drop_aimed
 from .gain import weigh_by_beam
 from ..config import FanSettings, Sonar
@@ -78,10 +78,10 @@ class FanPlan:
                    sonar.wavelength_m, fan.footprint, tuple(bool(x) for x in sides), pattern=pattern)
 
     @property
-    def direct_beam(self) -> np.ndarray:
-        """The direct paths' kernels' beam argument: unit gain (their weights carry no pattern; :func:`weigh_by_beam`
-        applies it after them), the baffle at the tilt."""
-        return np.array([0.0, 0.0, self.beam[2], 0.0])
+    def tilt_rad(self) -> float:
+        """The boresight's depression δ, rad: the baffle the direct paths' kernels keep (their weights carry no
+        pattern; :func:`~sonar_embree.propagation.gain.weigh_by_beam` applies it after them)."""
+        return float(self.beam[2])
 
     @property
     def n_probe(self) -> int:
@@ -349,10 +349,10 @@ def cast_block(caster: Caster, plan: FanPlan, rot: np.ndarray, pos_local: np.nda
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     fan = Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start)
     kernels.fan_echoes(fan, Poses(rot, pos_local, rx_shift), prim, tfar, scene_arrays(c),
-                       Weighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m, max_range_m,
-                                 plan.slope_cap_m_rad, time_per_m),
+                       DirectWeighting(plan.tilt_rad, two_way_np_per_m, plan.min_range_m, max_range_m,
+                                       plan.slope_cap_m_rad, time_per_m),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
-    weigh_by_beam(plan, fan, rx_shift, w)
+    weigh_by_beam(plan.pattern, plan.tilt_rad, fan, rx_shift, w)
     apply_laws(laws, c, prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0

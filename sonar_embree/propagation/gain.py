@@ -12,19 +12,19 @@ from .. import kernels
 from ..kernels.args import Fan
 
 
-def weigh_by_beam(plan, fan: Fan, rx_shift: np.ndarray, weight: np.ndarray,
+def weigh_by_beam(pattern, tilt_rad: float, fan: Fan, rx_shift: np.ndarray, weight: np.ndarray,
                   layout: np.ndarray = kernels.NO_LAYOUT) -> None:
     """Multiply the weights of a block's direct rays by their two-way gain Γ²(u)·Γ_rx²(u), in place (issue 51: the
     beam after the path kernels; docs/physics.md §2, §16).
 
-    Γ = along(s)·across(v) is the plan's separable beam (:attr:`~sonar_embree.propagation.fan.FanPlan.pattern`) at each ray's direction cosines
-    s along track and v = cos ψ·sin(β − δ) across (:func:`kernels.beam_cosines`), and Γ_rx the same with s shifted
+    Γ = along(s)·across(v) is the separable beam ``pattern`` (:attr:`~sonar_embree.propagation.fan.FanPlan.pattern`)
+    at each ray's direction cosines s along track and v = cos ψ·sin(β − δ) across (δ = ``tilt_rad``,
+    :func:`kernels.beam_cosines`), and Γ_rx the same with s shifted
     by the ping's ``rx_shift`` δ = 2·v_fwd/c (pings,). ``fan`` (:data:`~sonar_embree.kernels.args.Fan`) gives the
     rows, azimuth-major over their elevation cells (the along-track factors then go once per line and ping,
     :func:`kernels.weigh_lines`); with ``layout`` (n, 5) each ray has its own s, cos β, sin β."""
-    pattern, n = plan.pattern, weight.shape[0]
-    v = np.empty(n)
-    kernels.beam_cosines(fan, float(plan.beam[2]), layout, v)
+    v = np.empty(weight.shape[0])
+    kernels.beam_cosines(fan, float(tilt_rad), layout, v)
     e = pattern.across(v)
     e2 = e * e
     if layout.shape[0] == 0:

@@ -186,10 +186,10 @@ def cast_refracted(run, plan: FanPlan, rot, pos_local, environment, two_way_np_p
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     fan = Fan(plan.s, plan.ds, cos_b, sin_b, dbeta, el_start)
     kernels.arc_echoes(fan, Poses(rot, pos_local, rx_shift), hit_prim, hit, ray, scene_arrays(c),
-                       ArcWeighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m, m.t_max,
+                       ArcWeighting(plan.tilt_rad, two_way_np_per_m, plan.min_range_m, m.t_max,
                                     plan.slope_cap_m_rad, c_nom),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), kernels.NO_LAYOUT)
-    weigh_by_beam(plan, fan, rx_shift, w)           # the gain of each ray's launch direction
+    weigh_by_beam(plan.pattern, plan.tilt_rad, fan, rx_shift, w)       # the gain of each ray's launch direction
     apply_laws(run.law_table, c, hit_prim, cos_i, w, pts)
     if not plan.footprint:
         ext[:] = 0.0
@@ -218,7 +218,8 @@ def _aimed(run, aim, plan, rot, pos_local, rx_shift, m: Marching, two_way_np_per
     before = clock.get("embree", 0.0)
     t_s, ext, w, pts, hit_prim, cos_i = layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m,
                                                       two_way_np_per_m, sonar, want_points, clock, buffers)
-    weigh_by_beam(plan, Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), ray_start), rx_shift, w, layout)
+    weigh_by_beam(plan.pattern, plan.tilt_rad, Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), ray_start),
+                  rx_shift, w, layout)
     obj = keep_own(run.compiled, aim, counts, hit_prim, w, t_s, cos_i)
     echoes = Echoes(2, ray_start, t_s, ext, w, pts, obj)
     return AimedEchoes(echoes, layout, hit_prim, counts > 0, counts.reshape(n_p, -1).sum(axis=1),
@@ -238,7 +239,7 @@ def layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m: Mar
     run : PreparedRun
         The run's caster and laws.
     plan : FanPlan
-        Its baffle (:attr:`~sonar_embree.propagation.fan.FanPlan.direct_beam`: the rays are weighed with unit gain,
+        Its baffle (:attr:`~sonar_embree.propagation.fan.FanPlan.tilt_rad`: the rays are weighed with unit gain,
         the caller applies its beam), near-field bound, slope cap and footprint setting.
     rot, pos_local, rx_shift, m, two_way_np_per_m, sonar, want_points, clock, buffers
         As for :func:`cast_refracted` (``m`` the block's :class:`Marching`).
@@ -258,7 +259,7 @@ def layout_echoes(run, layout, ray_start, plan, rot, pos_local, rx_shift, m: Mar
     rng, t_s, ext, w, cos_i = (np.empty(n) for _ in range(5))
     pts = np.empty((n, 3) if want_points or c.needs_points else (0, 3))
     kernels.arc_echoes(Fan(plan.s, plan.ds, none, none, none, ray_start), Poses(rot, pos_local, rx_shift), hit_prim,
-                       hit, ray, scene_arrays(c), ArcWeighting(plan.direct_beam, two_way_np_per_m, plan.min_range_m,
+                       hit, ray, scene_arrays(c), ArcWeighting(plan.tilt_rad, two_way_np_per_m, plan.min_range_m,
                                                                m.t_max, plan.slope_cap_m_rad, sonar.sound_speed_m_s),
                        EchoOut(rng, t_s, ext, w, cos_i, pts), layout)
     apply_laws(run.law_table, c, hit_prim, cos_i, w, pts)

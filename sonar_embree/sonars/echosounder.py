@@ -319,9 +319,9 @@ class _Cone:
     footprint: bool = True
 
     @property
-    def direct_beam(self) -> np.ndarray:
-        """The kernels' beam argument: the cone's own (unit gain)."""
-        return self.beam
+    def tilt_rad(self) -> float:
+        """The baffle the curved-ray kernels keep: 90° (its rings look down; the piston's gain is applied after)."""
+        return float(self.beam[2])
 
     @classmethod
     def of(cls, sonar: EchoSounder) -> "_Cone":

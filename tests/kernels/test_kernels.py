@@ -215,9 +215,13 @@ def test_fan_rays_match_naive(rng):
 
 @pytest.mark.parametrize("inverted", [False, True])
 def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
-    """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight.
-    Inverted: the same mesh with its faces turned away, in a two-sided material, gives the same echoes."""
+    """Hits on a tilted, bumpy mesh: range, footprint extent (against the secant of the cell) and weight, the
+    kernel's (unit gain) times the membrane the beam stage applies after it (propagation.gain.weigh_by_beam)
+    against the twin that weighs the membrane itself. Inverted: the same mesh with its faces turned away, in a
+    two-sided material, gives the same echoes."""
+    from sonar_embree.instrument.beams import Membrane
     from sonar_embree.laws import apply_laws, law_table
+    from sonar_embree.propagation.gain import weigh_by_beam
     from sonar_embree.raycast import RayCaster
 
     heights = rng.uniform(-0.3, 0.3, (21, 21)) + np.linspace(0, 4, 21)[None, :]
@@ -241,10 +245,12 @@ def test_fan_echoes_match_naive_on_sloped_facets(rng, inverted):
     t_k = np.empty(n)
     per_m = 2 / 1500.0  # travel time and its extent come out in seconds
     shift = rng.uniform(-3e-3, 3e-3, rot.shape[0])  # motion during the ping (0: stop-and-hop)
-    kernels.fan_echoes(A.Fan(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start), A.Poses(rot, pos, shift), prim,
-                       tfar, A.SceneArrays(c.vertices, c.faces, c.face_normals, two_sided),
-                       A.Weighting(np.array([k * lx / 2, k * ly / 2, tilt, 0.0]), 0.02, 0.004, 60.0, 500.0, per_m),
+    fan = A.Fan(s, 0.01, np.cos(beta), np.sin(beta), dbeta, el_start)
+    kernels.fan_echoes(fan, A.Poses(rot, pos, shift), prim, tfar,
+                       A.SceneArrays(c.vertices, c.faces, c.face_normals, two_sided),
+                       A.DirectWeighting(tilt, 0.02, 0.004, 60.0, 500.0, per_m),
                        A.EchoOut(rng_k, t_k, ext_k, w_k, cos_k, pts), kernels.NO_LAYOUT)
+    weigh_by_beam(Membrane(k * lx / 2, k * ly / 2, 2 * np.pi / k), tilt, fan, shift, w_k)
     ext_k = ext_k / per_m
     np.testing.assert_array_equal(t_k, rng_k * per_m)
     apply_laws(law_table(c.laws, 100e3), c, prim, cos_k, w_k)  # the scene's law (Lambert) multiplies σ/cos θi in
@@ -388,6 +394,7 @@ def test_aim_kernels_match_naive(rng):
     from sonar_embree.propagation.fan import FanPlan
     from sonar_embree.kernels import aim as K
     from sonar_embree.laws import apply_laws, law_table
+    from sonar_embree.propagation.gain import weigh_by_beam
     from sonar_embree.raycast import RayCaster
 
     scene = _aim_scene(rng)
@@ -438,10 +445,11 @@ def test_aim_kernels_match_naive(rng):
 
     out = [np.empty(n) for _ in range(5)]
     pts = np.empty((n, 3))
-    kernels.fan_echoes(A.Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), start[::table.shape[1]]),
-                       A.Poses(rot, pos, shift), prim, tfar, A.scene_arrays(c),
-                       A.Weighting(plan.beam, 0.02, plan.min_range_m, 50.0, plan.slope_cap_m_rad, 2 / 1500.0),
+    fan = A.Fan(plan.s, plan.ds, np.zeros(0), np.zeros(0), np.zeros(0), start[::table.shape[1]])
+    kernels.fan_echoes(fan, A.Poses(rot, pos, shift), prim, tfar, A.scene_arrays(c),
+                       A.DirectWeighting(plan.tilt_rad, 0.02, plan.min_range_m, 50.0, plan.slope_cap_m_rad, 2 / 1500.0),
                        A.EchoOut(*out, pts), lay)
+    weigh_by_beam(plan.pattern, plan.tilt_rad, fan, shift, out[3], lay)     # the beam after the kernel
     keep_own(c, aim, counts, prim, out[3], out[1], out[4])
     apply_laws(law_table(c.laws, sonar.frequency_hz), c, prim, out[4], out[3], pts)
     k_wave = 2 * np.pi / sonar.wavelength_m

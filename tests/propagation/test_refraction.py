@@ -286,19 +286,22 @@ def test_marching_matches_the_plain_trigonometry_tracer(three_layer_block):
 
 @pytest.mark.parametrize("delta", [0.0, 3e-3])
 def test_arc_echoes_matches_its_twin(three_layer_block, delta):
-    """Weights, times and footprints of the sampled rays; the footprint's time span is |∂T/∂β|·dβ both ways;
-    stop-and-hop and moving during the ping (the receive beam turned by δ = 2v/c)."""
+    """Weights (the kernel's unit gain times the membrane the beam stage applies after it, against the twin that
+    weighs the membrane itself), times and footprints of the sampled rays; the footprint's time span is |∂T/∂β|·dβ
+    both ways; stop-and-hop and moving during the ping (the receive beam turned by δ = 2v/c)."""
     from sonar_embree import kernels
+    from sonar_embree.propagation.gain import weigh_by_beam
     b, plan, s = three_layer_block, three_layer_block["front"].plan, three_layer_block["sonar"]
     n = b["hit"].shape[0]
     out = [np.empty(n) for _ in range(5)]
     c = b["caster"].compiled
     rx_shift = np.full(b["rot"].shape[0], delta)
-    kernels.arc_echoes(A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"]),
-                       A.Poses(b["rot"], b["pos"], rx_shift), b["hit_prim"], b["hit"], b["ray"], A.scene_arrays(c),
-                       A.ArcWeighting(plan.beam, b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"],
-                                      plan.slope_cap_m_rad, s.sound_speed_m_s),
+    fan = A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"])
+    kernels.arc_echoes(fan, A.Poses(b["rot"], b["pos"], rx_shift), b["hit_prim"], b["hit"], b["ray"],
+                       A.scene_arrays(c), A.ArcWeighting(plan.tilt_rad, b["front"].two_way_np_per_m, plan.min_range_m,
+                                                         b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s),
                        A.EchoOut(*out, np.empty((0, 3))), kernels.NO_LAYOUT)
+    weigh_by_beam(plan.pattern, plan.tilt_rad, fan, rx_shift, out[3])
     rng_k, t_k, ext_k, w_k, _ = out
     rays = _sample(b, seed=7)
     prim = np.full(n, -1, np.int32)
@@ -458,7 +461,7 @@ def test_arc_kernels_with_each_rays_own_layout_give_the_fans_bits(three_layer_bl
     np.testing.assert_array_equal(ray, b["ray"])
     c = b["caster"].compiled
     args = (A.Poses(b["rot"], b["pos"], np.full(1, 2e-3)), b["hit_prim"], b["hit"], b["ray"], A.scene_arrays(c),
-            A.ArcWeighting(plan.beam, b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"],
+            A.ArcWeighting(plan.tilt_rad, b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"],
                            plan.slope_cap_m_rad, s.sound_speed_m_s))
     fan, per_ray = [np.empty(n) for _ in range(5)], [np.empty(n) for _ in range(5)]
     kernels.arc_echoes(A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], el), *args,

@@ -105,7 +105,8 @@ def test_an_echo_sounder_with_a_gaussian_beam_against_quadrature():
 def _ball_energy(sonar, centre, traj):
     scene = se.Scene().add(trimesh.creation.icosphere(3, 0.03).apply_translation(centre),
                            material=se.Material(backscatter_db=-10.0), label="ball")
-    return se.simulate(scene, traj, sonar, se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01").data.sum()
+    pulse = se.Pulse.cw(duration_s=100e-6, taper=0.0)
+    return se.simulate(scene, traj, sonar, pulse, start_time="2000-01-01").data.sum()
 
 
 @pytest.mark.parametrize("kind", ["msis", "forward-looking"])
