@@ -885,3 +885,11 @@ def weigh_lines(el_start, n_az, line_gain, ray_gain, weight):
             out[i:i + n_el] *= line_gain[r // 2, a] * ray_gain[i:i + n_el]
             i += n_el
     return out
+
+
+def weigh_fan(s, cos_beta, sin_beta, el_start, tilt_rad, across, line_gain, weight):
+    """A copy of ``weight`` × line_gain[ping, azimuth line] × across(v)⁴ where weight > 0 (kernels.weigh_fan),
+    ``across`` a NumPy function of v = cos ψ·sin(β − δ)."""
+    v = beam_cosines(s, cos_beta, sin_beta, el_start, tilt_rad)
+    gain = np.where(weight > 0, across(v) ** 4, 1.0)
+    return weigh_lines(el_start, len(s), line_gain, gain, weight)

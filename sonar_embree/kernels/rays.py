@@ -420,3 +420,63 @@ def weigh_lines(el_start, n_az, line_gain, ray_gain, weight):
             for j in range(n_el):
                 i = base + a * n_el + j
                 weight[i] *= g * ray_gain[i]
+
+
+#: The beam forms :func:`weigh_fan` and :func:`weigh_rays` evaluate themselves (a beam's ``kernel_form`` =
+#: (kind, p_along, p_across)): sinc(p·x) on each axis (a membrane, p = k·lx/2 and k·ly/2) and exp(−p·x²) (a
+#: Gaussian, p = ln 2/(2·a²) and ln 2/(2·b²)); x = s along track, v = cos ψ·sin(β − δ) across.
+ACROSS_SINC, ACROSS_GAUSS = 1, 2
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _along(kind, p, x):
+    if kind == ACROSS_SINC:
+        return _sinc(p * x)
+    return math.exp(-p * x * x)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _across(kind, p, cpsi, sin_bd):
+    if kind == ACROSS_SINC:
+        return _sinc(p * cpsi * sin_bd)                     # the argument as the membrane's kernels formed it
+    v = cpsi * sin_bd
+    return math.exp(-p * v * v)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def weigh_fan(fan, tilt_rad, kind, p_along, p, line_gain, weight):
+    """weight[i] ×= line_gain[ping, a]·e⁴ for every lit ray (weight > 0) of a fan, e the beam's across-track factor
+    (:data:`ACROSS_SINC`, :data:`ACROSS_GAUSS` with its parameter ``p``; ``p_along`` not read: the line gains hold
+    the along-track factors) at v = cos ψ·sin(β − δ), δ = ``tilt_rad``;
+    ``fan`` as for :func:`fan_echoes` (rows 2·ping + side, azimuth-major over their elevation cells), in place.
+    One pass, the factor only where there is an echo (:func:`sonar_embree.propagation.gain.weigh_by_beam`)."""
+    s, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    n_az = s.shape[0]
+    cos_t, sin_t = math.cos(tilt_rad), math.sin(tilt_rad)
+    for r in prange(el_start.shape[0] - 1):
+        first, n_el, b = el_start[r], el_start[r + 1] - el_start[r], r // 2
+        for a in range(n_az):
+            g, cpsi = line_gain[b, a], math.sqrt(1.0 - s[a] * s[a])
+            for j in range(n_el):
+                i = n_az * first + a * n_el + j
+                if weight[i] > 0.0:
+                    e = _across(kind, p, cpsi, sin_beta[first + j] * cos_t - cos_beta[first + j] * sin_t)
+                    e2 = e * e
+                    weight[i] *= g * (e2 * e2)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def weigh_rays(layout, ray_start, rx_shift, tilt_rad, kind, p_along, p_across, weight):
+    """weight[i] ×= Γ²(u)·Γ_rx²(u) for every lit ray (weight > 0) with its own cell (``layout`` (n, 5): s, cos β,
+    sin β, dβ, ds; rows 2·ping + side of ``ray_start``): Γ = along(s)·across(v), Γ_rx with s − δ of the ping's
+    ``rx_shift`` δ, the beam form ``kind`` with ``p_along``, ``p_across`` (:data:`ACROSS_SINC`,
+    :data:`ACROSS_GAUSS`); in place."""
+    cos_t, sin_t = math.cos(tilt_rad), math.sin(tilt_rad)
+    for r in prange(ray_start.shape[0] - 1):
+        shift = rx_shift[r // 2]
+        for i in range(ray_start[r], ray_start[r + 1]):
+            if weight[i] > 0.0:
+                sa = layout[i, 0]
+                e = _across(kind, p_across, math.sqrt(1.0 - sa * sa), layout[i, 2] * cos_t - layout[i, 1] * sin_t)
+                g, g_rx = _along(kind, p_along, sa) * e, _along(kind, p_along, sa - shift) * e
+                weight[i] *= g * g * (g_rx * g_rx)

@@ -21,16 +21,28 @@ def weigh_by_beam(pattern, tilt_rad: float, fan: Fan, rx_shift: np.ndarray, weig
     at each ray's direction cosines s along track and v = cos ψ·sin(β − δ) across (δ = ``tilt_rad``,
     :func:`kernels.beam_cosines`), and Γ_rx the same with s shifted
     by the ping's ``rx_shift`` δ = 2·v_fwd/c (pings,). ``fan`` (:data:`~sonar_embree.kernels.args.Fan`) gives the
-    rows, azimuth-major over their elevation cells (the along-track factors then go once per line and ping,
-    :func:`kernels.weigh_lines`); with ``layout`` (n, 5) each ray has its own s, cos β, sin β."""
+    rows, azimuth-major over their elevation cells (the along-track factors then go once per line and ping; the
+    across-track factor in one kernel pass, :func:`kernels.weigh_fan`, for a beam that names its form there,
+    ``kernel_form``, else from ``pattern.across``, :func:`kernels.weigh_lines`); with ``layout`` (n, 5) each ray
+    has its own s, cos β, sin β (:func:`kernels.weigh_rays`, or the beam's NumPy factors)."""
+    if layout.shape[0] == 0:
+        a, a_rx = pattern.along(fan.s), pattern.along(fan.s[None, :] - rx_shift[:, None])
+        line = (a * a)[None, :] * (a_rx * a_rx)
+        if pattern.kernel_form is not None:                    # one pass, the factor where there is an echo
+            kernels.weigh_fan(fan, float(tilt_rad), *pattern.kernel_form, line, weight)
+            return
+        v = np.empty(weight.shape[0])
+        kernels.beam_cosines(fan, float(tilt_rad), layout, v)
+        e2 = pattern.across(v) ** 2
+        kernels.weigh_lines(fan.el_start, fan.s.shape[0], line, e2 * e2, weight)
+        return
+    if pattern.kernel_form is not None:
+        kernels.weigh_rays(layout, fan.el_start, rx_shift, float(tilt_rad), *pattern.kernel_form, weight)
+        return
     v = np.empty(weight.shape[0])
     kernels.beam_cosines(fan, float(tilt_rad), layout, v)
     e = pattern.across(v)
     e2 = e * e
-    if layout.shape[0] == 0:
-        a, a_rx = pattern.along(fan.s), pattern.along(fan.s[None, :] - rx_shift[:, None])
-        kernels.weigh_lines(fan.el_start, fan.s.shape[0], (a * a)[None, :] * (a_rx * a_rx), e2 * e2, weight)
-        return
     s = layout[:, 0]
     shift = np.repeat(rx_shift, np.diff(fan.el_start[::2]))       # rows 2·ping + side: the ping of each ray
     a, a_rx = pattern.along(s), pattern.along(s - shift)

@@ -143,7 +143,8 @@ def test_a_gaussian_beam_under_a_sea_surface_is_refused():
 
 
 def test_the_beam_kernels_against_their_twins():
-    """kernels.beam_cosines (fan rows and per-ray layouts) and kernels.weigh_lines against the NumPy twins."""
+    """kernels.beam_cosines (fan rows and per-ray layouts), kernels.weigh_lines, kernels.weigh_fan and
+    kernels.weigh_rays (both beam forms) against the NumPy twins."""
     rng = np.random.default_rng(4)
     s = np.linspace(-0.02, 0.02, 7)
     el_start = np.array([0, 5, 9, 9, 16], np.int64)
@@ -163,6 +164,22 @@ def test_the_beam_kernels_against_their_twins():
     want = naive.weigh_lines(el_start, s.size, line, ray, w)
     kernels.weigh_lines(el_start, s.size, line, ray, w)
     np.testing.assert_allclose(w, want, rtol=1e-15)
+    w[::5] = 0.0                                                        # misses: weighed by nothing
+    fan = A.Fan(s, 0.01, cb, sb, np.full(16, 0.01), el_start)
+    forms = ((kernels.ACROSS_SINC, lambda p, x: np.sinc(p * x / np.pi)), (kernels.ACROSS_GAUSS, lambda p, x: np.exp(
+        -p * x * x)))
+    for kind, f in forms:
+        want, got = naive.weigh_fan(s, cb, sb, el_start, 0.35, lambda v: f(30.0, v), line, w), w.copy()
+        kernels.weigh_fan(fan, 0.35, kind, 0.0, 30.0, line, got)
+        np.testing.assert_allclose(got, want, rtol=1e-13)
+        assert np.count_nonzero(got != w) > n // 2
+        w2, shift = rng.uniform(0, 1, 40), np.array([0.0, 2e-3])          # rays with their own cells, two pings
+        w2[::6] = 0.0
+        v2 = naive.beam_cosines(s, cb, sb, el_start, 0.35, layout)
+        a, a_rx = f(50.0, layout[:, 0]), f(50.0, layout[:, 0] - np.repeat(shift, np.diff(ray_start[::2])))
+        want = np.where(w2 > 0, w2 * (a * f(30.0, v2)) ** 2 * (a_rx * f(30.0, v2)) ** 2, 0.0)
+        kernels.weigh_rays(layout, ray_start, shift, 0.35, kind, 50.0, 30.0, w2)
+        np.testing.assert_allclose(w2, want, rtol=1e-13)
 
 
 def test_a_side_scans_beam_survives_the_record_file_and_toml(tmp_path):

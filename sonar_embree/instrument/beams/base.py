@@ -33,6 +33,10 @@ class Beam:
     #: (k·lx/2, k·ly/2) of the membrane the sea surface's path kernels still weigh in themselves (issue 51: those
     #: kernels have not moved their gains out yet), or None for a beam they cannot weigh.
     kernel_membrane = None
+    #: (kind, p_along, p_across) of a separable beam the beam stage evaluates in its kernels
+    #: (:data:`sonar_embree.kernels.ACROSS_SINC`, ``ACROSS_GAUSS``), or None: :meth:`along` and :meth:`across` in
+    #: NumPy (any beam works so; naming its form there only makes it faster).
+    kernel_form = None
 
     def one_way(self, u_fwd, u_side, u_down) -> np.ndarray:
         """b of unit directions (n,) each, 0 behind the baffle (u_down ≤ 0)."""

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import kernels
 from .. import beam
 from .base import Beam
 
@@ -52,6 +53,10 @@ class Gaussian(Beam):
 
     def across(self, v) -> np.ndarray:
         return np.exp(-0.5 * math.log(2.0) * (np.asarray(v, dtype=np.float64) / self.b) ** 2)
+
+    @property
+    def kernel_form(self) -> tuple:
+        return kernels.ACROSS_GAUSS, 0.5 * math.log(2.0) / self.a ** 2, 0.5 * math.log(2.0) / self.b ** 2
 
     @property
     def first_null_rad(self) -> float:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ... import kernels
 from .. import beam
 from ..directivity import membrane_directivity_index_db
 from .base import Beam
@@ -57,6 +58,10 @@ class Membrane(Beam):
     def kernel_membrane(self) -> tuple:
         """(k·lx/2, k·ly/2): the membrane the sea surface's path kernels still weigh in themselves."""
         return self.half_k_lx, self.half_k_ly
+
+    @property
+    def kernel_form(self) -> tuple:
+        return kernels.ACROSS_SINC, float(self.half_k_lx), float(self.half_k_ly)
 
     @property
     def directivity_index_db(self) -> float:
