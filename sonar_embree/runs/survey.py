@@ -26,6 +26,7 @@ from ..io.owner import OutputFolder
 from ..io.geo import crs_name, from_lonlat
 from ..io.geotiff import sample_points
 from ..scene import Scene, TiledDEM, load_mesh, seafloor
+from ..propagation.prepared import RunCache
 from ..simulate import simulate
 from ..survey import mosaic, stream
 from ..survey.planning import line_trajectories, plan_lines
@@ -129,7 +130,7 @@ def run_survey(dem, navs, out, device: str, *, range_m: float | None = None, pin
 
 def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pixel_m, kw, summary, tow) -> list:
     """Every line, then the products and the summary (last: it marks the survey done)."""
-    written, lines = [], []
+    written, lines, cache = [], [], RunCache()          # lines over the same tiles share their BVHs
     for name, (nav, traj) in zip(names, sources):
         if tow[0] is not None or tow[1] is not None:
             traj = traj.with_layback(tow[0], cable_out_m=tow[1])
@@ -138,7 +139,7 @@ def _run_lines(top, names, sources, tiles, sonar, pulse, samples, overwrite, pix
         rx = (line_receiver(summary["device"], sonar, pulse, tiles, traj) if summary["gain"] == "tvg"
               else devices.device(summary["device"]).receiver("agc"))
         files = _render_line(top, name, tiles, traj, dataclasses.replace(sonar, receiver=rx), pulse, samples,
-                             overwrite, {**kw, "labels": summary["labels"]})
+                             overwrite, {**kw, "labels": summary["labels"], "cache": cache})
         written += list(files.values())
         lines.append({"nav": os.path.abspath(nav), "pings": len(traj), "gain": dataclasses.asdict(rx.gain),
                       "files": {k: os.path.relpath(v, top.path) for k, v in files.items()}})   # relative to survey.json

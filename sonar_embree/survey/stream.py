@@ -293,7 +293,7 @@ def _checked_args(block_pings, flags: dict, simulate_kwargs: dict) -> None:
 def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings: int = 512, xtf_path=None,
                 xtf_scale="auto", resume: bool = True, overwrite: bool = False, progress_bar: bool = False,
                 png_path=None, xtf_samples: int | None = None, workers: int | None = None,
-                scheduler: str | None = None, client=None, **simulate_kwargs) -> str:
+                scheduler: str | None = None, client=None, cache: RunCache | None = None, **simulate_kwargs) -> str:
     """Simulate ``trajectory`` block by block into a Zarr store at ``path`` (and an XTF file), memory bounded by
     one block.
 
@@ -337,6 +337,9 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         :class:`~sonar_embree.TiledDEM`, its tiles at the same paths.
     client : distributed.Client, optional
         Render the blocks on this client's cluster.
+    cache : RunCache, optional
+        What the blocks rendered in this process share (the scene's BVH, tables): default a new one for the line;
+        hand the same to several lines over one scene (a survey does). Workers keep their own.
 
     Returns
     -------
@@ -344,6 +347,8 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
         ``path``.
     """
     _checked_cluster(workers, scheduler, client)
+    if cache is not None and not isinstance(cache, RunCache):
+        raise ConfigError(f"render_line: cache must be a sonar_embree.RunCache, got {cache!r}")
     path = os.path.abspath(os.fspath(path))
     xtf_path = None if xtf_path is None else os.path.abspath(os.fspath(xtf_path))
     _checked_args(block_pings, {"resume": resume, "overwrite": overwrite, "progress_bar": progress_bar},
@@ -362,7 +367,7 @@ def render_line(scene, trajectory, path, sonar=None, pulse=None, *, block_pings:
             if _on_cluster(n, block, progress, workers, scheduler, client):
                 _run_blocks_on_cluster(*args, (workers, scheduler, client))
             else:
-                _run_blocks(*args)
+                _run_blocks(*args, cache=cache)
         except OSError as exc:
             raise os_error_line(exc, exc.filename or path) from None
     if png_path is not None:
@@ -466,11 +471,11 @@ def _run_blocks_on_cluster(scene, trajectory, path, sonar, pulse, block, key, xt
 
 
 def _run_blocks(scene, trajectory, path, sonar, pulse, block, key, xtf_path, xtf_opts, progress, bar,
-                simulate_kwargs) -> None:
-    """The blocks in this process, one after the other."""
+                simulate_kwargs, cache: RunCache | None = None) -> None:
+    """The blocks in this process, one after the other, sharing ``cache`` (default a new one)."""
     n = len(trajectory)
     starts = range(0 if progress is None else progress["pings_done"], n, block)
-    cache = RunCache()
+    cache = RunCache() if cache is None else cache
     records = (render_block(scene, trajectory[a:min(a + block, n)], sonar, pulse, a, simulate_kwargs, cache)
                for a in starts)
     _write_blocks(zip(starts, records), path, trajectory, block, key, xtf_path, xtf_opts, progress, bar)

@@ -69,3 +69,15 @@ def test_a_cache_keeps_only_its_most_recent_scenes(counting):
     for scene in (a, a, b, a):
         se.simulate(scene, TRAJ, sonar, caster=counting, cache=cache, start_time="2026-01-01")
     assert counting.built == 3
+
+
+def test_lines_share_a_cache_handed_to_them(tmp_path, counting):
+    """render_line(cache=...): two lines over one scene build its BVH once (a survey hands its lines one)."""
+    scene, sonar, cache = _scene(), se.Sonar(max_range_m=20.0), se.RunCache()
+    for i, y in enumerate((6.0, 7.0)):
+        line = se.Trajectory.line((-2.0, y, 8.0), (2.0, y, 8.0), 8)
+        se.stream.render_line(scene, line, tmp_path / f"l{i}.zarr", sonar, block_pings=4, caster=counting,
+                              start_time="2026-01-01", cache=cache)
+    assert counting.built == 1
+    with pytest.raises(se.ConfigError, match="render_line: cache must be a sonar_embree.RunCache"):
+        se.stream.render_line(scene, line, tmp_path / "x.zarr", sonar, cache={})
