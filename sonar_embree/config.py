@@ -190,8 +190,7 @@ class Sonar(Transducer):
     beam : str
         Each side's pattern (:data:`~sonar_embree.instrument.beams.APERTURE_BEAMS`): ``"membrane"`` (default, the
         baffled rectangular membrane lx × ly) or ``"gaussian"`` (a Gaussian of the membrane's −3 dB widths; no
-        side lobes). Applied after the path kernels (:attr:`transducer`); under a sea surface only the membrane
-        (issue 51).
+        side lobes). Applied after the direct paths' kernels (:attr:`transducer`), inside the sea surface's.
     """
 
     #: Its front end takes seabed clutter and volume reverberation (:class:`Transducer`).

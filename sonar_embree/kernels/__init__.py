@@ -24,8 +24,9 @@ from .eigenrays import (EIGEN_WIDTH, M_COS_I, M_COS_S, M_EXT, M_PHI, M_T, M_W, M
 from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_legs
 from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start
 from .bvh import (DeviceBvh, cuda_available, lbvh_boxes, lbvh_children, morton_codes, traverse_cpu)
-from .rays import (ACROSS_GAUSS, ACROSS_SINC, _sinc, beam_cosines, cos_sin, elevation_density, fan_echoes, fan_rays,
-                   place_rows, probe_rays, sinc_rows, weigh_fan, weigh_lines, weigh_rays)
+from .rays import (BEAM_GAUSS, BEAM_SINC, _sinc, beam_cosines, beam_factor, factor_rows, cos_sin,
+                   elevation_density, fan_echoes, fan_rays, place_rows, probe_rays, sinc_rows, weigh_fan,
+                   weigh_lines, weigh_rays)
 from .sas import backproject
 from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
 from .splat import splat_rows, splat_table
@@ -37,4 +38,5 @@ __all__ = ["backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_chi
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "splat_rows",
            "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
            "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows",
-           "beam_cosines", "weigh_lines", "weigh_fan", "weigh_rays", "ACROSS_SINC", "ACROSS_GAUSS"]
+           "beam_cosines", "weigh_lines", "weigh_fan", "weigh_rays", "BEAM_SINC", "BEAM_GAUSS",
+           "beam_factor", "factor_rows"]

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .rays import _sinc
+from .rays import beam_factor
 
 #: Columns of :func:`surface_eigenrays`' output: ξ (s/m), one-way time (s), path length (m), tube area per steradian
 #: at P (m²), horizontal distance from S to the surface point (m), sin θ at S, at P and at the surface, c at P (m/s).
@@ -206,7 +206,7 @@ def _membrane(beam, side, u0, u1, u2, delta):
     ct, st = math.cos(beam[2]), math.sin(beam[2])
     if not side * u1 * ct + u2 * st > 0.0:
         return 0.0
-    return _sinc(beam[0] * (u0 - delta)) * _sinc(beam[1] * (u2 * ct - side * u1 * st))
+    return beam_factor(beam[3], beam[0] * (u0 - delta)) * beam_factor(beam[3], beam[1] * (u2 * ct - side * u1 * st))
 
 
 @njit(cache=True, nogil=True, parallel=True)

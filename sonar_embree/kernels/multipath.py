@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .rays import _sinc, sinc_rows
+from .rays import beam_factor, factor_rows
 
 #: Rays per pass of :func:`mixed_legs` (and the swell's paths): their sinc arguments are gathered, then evaluated in one
 #: vectorised loop. 1024 rather than 256: a chunk's call passes ~40 arrays (reference counts), −7 % per kernel.
@@ -125,7 +125,7 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
             c1 = min(c0 + _CHUNK, ray_start[row + 1])
             carry = _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, bistatic, out, layout,
                                  sc)
-            sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per echo
+            factor_rows(weighting.beam[3], sc, 4, c1 - c0)              # vectorised: 4 factors (sincs) per echo
             for k in range(c1 - c0):                                    # = 2·g1²·g2², bit for bit, when δ = 0
                 g1, g1r, g2, g2r = sc[4, k] * sc[0, k], sc[5, k] * sc[0, k], sc[1, k] * sc[3, k], sc[2, k] * sc[3, k]
                 g = (g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2) * sc[6, k]
@@ -158,13 +158,13 @@ def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, 
             if layout[i, 0] != s_prev:
                 s_prev = layout[i, 0]
                 cpsi = math.sqrt(1.0 - s_prev * s_prev)
-                ga, gar = _sinc(beam[0] * s_prev), _sinc(beam[0] * (s_prev - shift))
+                ga, gar = beam_factor(beam[3], beam[0] * s_prev), beam_factor(beam[3], beam[0] * (s_prev - shift))
             cb, sbeta, db, ds_i = layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
         else:
             if j == n_el - 1:
                 j, az = 0, az + 1
                 cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
-                ga, gar = _sinc(beam[0] * s_az[az]), _sinc(beam[0] * (s_az[az] - shift))
+                ga, gar = beam_factor(beam[3], beam[0] * s_az[az]), beam_factor(beam[3], beam[0] * (s_az[az] - shift))
             else:
                 j += 1
             cell = el_start[row] + j

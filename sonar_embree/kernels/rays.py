@@ -422,31 +422,41 @@ def weigh_lines(el_start, n_az, line_gain, ray_gain, weight):
                 weight[i] *= g * ray_gain[i]
 
 
-#: The beam forms :func:`weigh_fan` and :func:`weigh_rays` evaluate themselves (a beam's ``kernel_form`` =
-#: (kind, p_along, p_across)): sinc(p·x) on each axis (a membrane, p = k·lx/2 and k·ly/2) and exp(−p·x²) (a
-#: Gaussian, p = ln 2/(2·a²) and ln 2/(2·b²)); x = s along track, v = cos ψ·sin(β − δ) across.
-ACROSS_SINC, ACROSS_GAUSS = 1, 2
+#: The separable beam forms the kernels evaluate (a beam's ``kernel_form`` = (kind, q_along, q_across), and the
+#: fourth value of a plan's beam array): each one-way factor is f(q·x), x = s along track and v = cos ψ·sin(β − δ)
+#: across, f = sinc (:data:`BEAM_SINC`, a membrane: q = k·lx/2, k·ly/2) or f(y) = exp(−y²) (:data:`BEAM_GAUSS`, a
+#: Gaussian: q = √(ln 2/2)/a, √(ln 2/2)/b).
+BEAM_SINC, BEAM_GAUSS = 0, 1
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _along(kind, p, x):
-    if kind == ACROSS_SINC:
-        return _sinc(p * x)
-    return math.exp(-p * x * x)
+def beam_factor(kind, y):
+    """f(y) of the beam form ``kind`` (:data:`BEAM_SINC`: sin(y)/y, :data:`BEAM_GAUSS`: exp(−y²))."""
+    if kind == BEAM_GAUSS:
+        return math.exp(-y * y)
+    return _sinc(y)
+
+
+@njit(cache=True, nogil=True)
+def factor_rows(kind, a, rows, m):
+    """a[j, k] = f(a[j, k]) for j < rows, k < m, in place: the form ``kind``'s factor (sinc: :func:`sinc_rows`)."""
+    if kind == BEAM_GAUSS:
+        for j in range(rows):
+            for k in range(m):
+                a[j, k] = math.exp(-a[j, k] * a[j, k])
+    else:
+        sinc_rows(a, rows, m)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _across(kind, p, cpsi, sin_bd):
-    if kind == ACROSS_SINC:
-        return _sinc(p * cpsi * sin_bd)                     # the argument as the membrane's kernels formed it
-    v = cpsi * sin_bd
-    return math.exp(-p * v * v)
+def _across(kind, q, cpsi, sin_bd):
+    return beam_factor(kind, q * cpsi * sin_bd)             # the argument as the membrane's kernels formed it
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def weigh_fan(fan, tilt_rad, kind, p_along, p, line_gain, weight):
     """weight[i] ×= line_gain[ping, a]·e⁴ for every lit ray (weight > 0) of a fan, e the beam's across-track factor
-    (:data:`ACROSS_SINC`, :data:`ACROSS_GAUSS` with its parameter ``p``; ``p_along`` not read: the line gains hold
+    (:data:`BEAM_SINC`, :data:`BEAM_GAUSS` with its parameter ``p``; ``p_along`` not read: the line gains hold
     the along-track factors) at v = cos ψ·sin(β − δ), δ = ``tilt_rad``;
     ``fan`` as for :func:`fan_echoes` (rows 2·ping + side, azimuth-major over their elevation cells), in place.
     One pass, the factor only where there is an echo (:func:`sonar_embree.propagation.gain.weigh_by_beam`)."""
@@ -469,8 +479,8 @@ def weigh_fan(fan, tilt_rad, kind, p_along, p, line_gain, weight):
 def weigh_rays(layout, ray_start, rx_shift, tilt_rad, kind, p_along, p_across, weight):
     """weight[i] ×= Γ²(u)·Γ_rx²(u) for every lit ray (weight > 0) with its own cell (``layout`` (n, 5): s, cos β,
     sin β, dβ, ds; rows 2·ping + side of ``ray_start``): Γ = along(s)·across(v), Γ_rx with s − δ of the ping's
-    ``rx_shift`` δ, the beam form ``kind`` with ``p_along``, ``p_across`` (:data:`ACROSS_SINC`,
-    :data:`ACROSS_GAUSS`); in place."""
+    ``rx_shift`` δ, the beam form ``kind`` with ``p_along``, ``p_across`` (:data:`BEAM_SINC`,
+    :data:`BEAM_GAUSS`); in place."""
     cos_t, sin_t = math.cos(tilt_rad), math.sin(tilt_rad)
     for r in prange(ray_start.shape[0] - 1):
         shift = rx_shift[r // 2]
@@ -478,5 +488,5 @@ def weigh_rays(layout, ray_start, rx_shift, tilt_rad, kind, p_along, p_across, w
             if weight[i] > 0.0:
                 sa = layout[i, 0]
                 e = _across(kind, p_across, math.sqrt(1.0 - sa * sa), layout[i, 2] * cos_t - layout[i, 1] * sin_t)
-                g, g_rx = _along(kind, p_along, sa) * e, _along(kind, p_along, sa - shift) * e
+                g, g_rx = beam_factor(kind, p_along * sa) * e, beam_factor(kind, p_along * (sa - shift)) * e
                 weight[i] *= g * g * (g_rx * g_rx)

@@ -11,7 +11,7 @@ import numpy as np
 
 from ._numba import njit, prange
 from .multipath import _CHUNK, _azimuth, _gain_args, _rotation
-from .rays import _sinc, sinc_rows
+from .rays import beam_factor, factor_rows
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -145,7 +145,7 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
                 two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj,
                 face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out,
                 phi_out, leg_out, r_out, sc, layout)
-            sinc_rows(sc, 4, c1 - c0)                                   # vectorised: 4 sincs per ray
+            factor_rows(beam[3], sc, 4, c1 - c0)                        # vectorised: 4 factors (sincs) per ray
             for k in range(c1 - c0):
                 g, g_rx = sc[4, k] * sc[0, k] * sc[6, k], sc[5, k] * sc[0, k] * sc[6, k]
                 gd, gd_rx = sc[1, k] * sc[3, k] * sc[7, k], sc[2, k] * sc[3, k] * sc[7, k]
@@ -193,7 +193,8 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
         if layout.shape[0] > 0:                          # a ray aimed at an object: its own cell
             i = up[k]
             cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
-            ga, gar = _sinc(beam[0] * layout[i, 0]), _sinc(beam[0] * (layout[i, 0] - shift))
+            sa = layout[i, 0]
+            ga, gar = beam_factor(beam[3], beam[0] * sa), beam_factor(beam[3], beam[0] * (sa - shift))
             cb, sb, db, ds = layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
         else:
             ray = up[k] - ray_start[row]
@@ -201,7 +202,7 @@ def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_a
             cell = el_start[row] + ray - a * n_el
             if a != a_now:
                 a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
-                ga, gar = _sinc(beam[0] * s_az[a]), _sinc(beam[0] * (s_az[a] - shift))
+                ga, gar = beam_factor(beam[3], beam[0] * s_az[a]), beam_factor(beam[3], beam[0] * (s_az[a] - shift))
             cb, sb, db = cos_beta[cell], sin_beta[cell], dbeta[cell]
         sc[4, c], sc[5, c] = ga, gar                     # Γ(u) from the fan grid: the mirror maps the image ray onto u
         sc[0, c] = beam[1] * cpsi * (sb * ct - cb * st)

@@ -49,7 +49,7 @@ class FanPlan:
     max_step_rad: float
     slope_cap_m_rad: float
     max_rays: int
-    beam: np.ndarray         # (4,) k·lx/2, k·ly/2, tilt (rad), 0: the membrane the surface paths' kernels weigh
+    beam: np.ndarray         # (4,) q_along, q_across, tilt (rad), form: the beam the surface paths' kernels weigh
     min_range_m: float       # near-field bound on R in the weights
     footprint: bool          # spread echoes over their cells' range intervals (else point echoes)
     sides: tuple = (True, True)  # which sides get rays (port, starboard); a side without has empty rows
@@ -62,7 +62,7 @@ class FanPlan:
         ``elevation_nulls``-th null of the membrane's vertical pattern (the baffle at most), on the membrane's
         azimuth lattice (a Gaussian beam of the same widths takes the same, less the lines on its own nulls)."""
         fan, pattern = fan.resolved(), sonar.transducer
-        membrane = pattern.kernel_membrane is not None
+        membrane = pattern.kernel_form is not None and pattern.kernel_form[0] == kernels.BEAM_SINC
         s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
                                      fan.azimuth_nulls, keep_nulls=not membrane)
         s = s if membrane else s[~pattern.null_lines(s)]
@@ -71,10 +71,10 @@ class FanPlan:
         probe = np.linspace(lo, hi, m)
         lines = PROBE_LINES * np.abs(s).max()
         body = np.concatenate([beam.fan_body(lines, probe, -1), beam.fan_body(lines, probe, +1)])
-        k = sonar.wavenumber_rad_m
+        kind, q_along, q_across = pattern.kernel_form or (kernels.BEAM_SINC, 0.0, 0.0)   # (unit: no kernel form)
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side,
-                   np.array([0.5 * k * sonar.length_m, 0.5 * k * sonar.height_m, sonar.tilt_rad, 0.0]),
+                   np.array([q_along, q_across, sonar.tilt_rad, float(kind)]),
                    sonar.wavelength_m, fan.footprint, tuple(bool(x) for x in sides), pattern=pattern)
 
     @property

@@ -1,6 +1,7 @@
 """A Gaussian beam for every sonar type (issue 51, item 2): one file (instrument/beams/gaussian.py) and one line in
 BEAMS. Beams are weighed after the direct paths' kernels, so the side-scan, MSIS and forward-looking sonar take it
 as the echo sounder does. Each check against a closed form or quadrature written here."""
+import dataclasses
 import math
 
 import numpy as np
@@ -136,10 +137,115 @@ def test_msis_and_forward_looking_take_the_gaussian(kind):
     assert abs(10 * math.log10(want)) > 1.0                               # the two beams differ there
 
 
-def test_a_gaussian_beam_under_a_sea_surface_is_refused():
-    sonar = se.Sonar(beam="gaussian", environment=se.Environment(surface=se.SeaSurface(z_m=H + 5.0)))
-    with pytest.raises(se.ConfigError, match="beam = 'gaussian' under a sea surface"):
-        se.simulate(flat_scene(), se.Trajectory.line((0, 0, H), (1, 0, H), 2), sonar, start_time="2000-01-01")
+class NumpyGaussian(Gaussian):
+    """The Gaussian without a kernel form: a beam the kernels do not know (the beam stage takes it through NumPy)."""
+
+    kernel_form = None
+
+
+@pytest.fixture
+def numpy_gaussian(monkeypatch):
+    """A new beam registered as a user would add one (one class, one line in BEAMS), for this test only."""
+    from sonar_embree import config
+    from sonar_embree.instrument import beams
+    monkeypatch.setitem(beams.BEAMS, "numpy-gaussian", NumpyGaussian)
+    names = beams.APERTURE_BEAMS + ("numpy-gaussian",)
+    monkeypatch.setattr(beams, "APERTURE_BEAMS", names)
+    monkeypatch.setattr(config, "APERTURE_BEAMS", names)
+    return "numpy-gaussian"
+
+
+def test_a_beam_the_kernels_do_not_know_runs_through_numpy_and_is_refused_under_a_surface(numpy_gaussian):
+    """The same Gaussian through the beam stage's NumPy path gives the kernel path's record within 1e-12 of its
+    largest sample (flat floor and an object, so fan and aimed rays); under a sea surface, whose kernels weigh only
+    forms they know, it is refused in one line."""
+    scene = flat_scene().add(trimesh.creation.box((1.0, 1.0, 1.0)).apply_translation((0.0, 12.0, 0.5)), label="box")
+    traj = se.Trajectory.line((-1, 0, H), (1, 0, H), 3)
+    kw = dict(start_time="2000-01-01", speckle=True, seed=1)
+    fast = se.simulate(scene, traj, se.Sonar(max_range_m=30.0, beam="gaussian"), **kw).data
+    slow = se.simulate(scene, traj, se.Sonar(max_range_m=30.0, beam=numpy_gaussian), **kw).data
+    assert np.max(np.abs(fast - slow)) < 1e-12 * fast.max() and fast.max() > 0
+    sonar = se.Sonar(beam=numpy_gaussian, environment=se.Environment(surface=se.SeaSurface(z_m=H + 5.0)))
+    with pytest.raises(se.ConfigError, match="beam = 'numpy-gaussian' under a sea surface: the surface's paths"):
+        se.simulate(flat_scene(), traj, sonar, start_time="2000-01-01")
+
+
+def _beam_frame(u, tilt_rad):
+    """(along, across) direction cosines of world directions u (n, 3) for the port side of a sonar heading +x:
+    outboard +y, down −z, boresight depressed by the tilt."""
+    out, down = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, -1.0])
+    e2 = -np.sin(tilt_rad) * out + np.cos(tilt_rad) * down
+    return u[:, 0], u @ e2
+
+
+def test_the_surface_paths_weigh_the_gaussian():
+    """A 5 cm ball 8 m to port, 3 m below a sonar 3 m under a mirror-like flat surface: per path, the Gaussian
+    record's ball energy over the membrane's is the ratio of their gains at u1 (sonar → ball) and u2 (sonar → the
+    ball's image in the surface): Γ⁴(u1) direct, Γ²(u1)·Γ²(u2) one bounce, Γ⁴(u2) two bounces, within 0.3 dB;
+    Γ_G = 2^−((x/a)² + (v/b)²)/2 and Γ_M = sinc·sinc, both written here."""
+    from sonar_embree import sonars
+    from sonar_embree.propagation.echoes import merged
+    from sonar_embree.propagation.prepared import prepare
+    from sonar_embree.raycast import RayCaster
+    from sonar_embree.scene import survey_origin
+
+    z_s, ball = H + 3.0, np.array([0.0, 8.0, H - 3.0])
+    scene = se.Scene().add(trimesh.creation.icosphere(3, 0.05).apply_translation(ball),
+                           material=se.Material(backscatter_db=-10.0), label="ball")
+    traj = se.Trajectory.line((-0.01, 0, H), (0.01, 0, H), 2).stop_and_hop()
+    energy = {}
+    for beam in ("membrane", "gaussian"):
+        sonar = se.Sonar(max_range_m=30.0, beam=beam,
+                         environment=se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(se.Pulse.cw())
+        front = sonars.front_end(sonar, se.FanSettings())
+        comp = scene.compiled(survey_origin(traj.positions_m))
+        run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
+        e, _ = front.cast(run, traj.rotations(), traj.positions_m - comp.origin_m, sonar.max_range_m, False, True,
+                          {}, rx_shift=np.zeros(2))
+        e = merged(e)
+        own = e.object_id == 0
+        energy[beam] = np.array([e.weight[own & (e.path == p)].sum() for p in range(3)])
+    s = se.Sonar()
+    lam, tilt = s.wavelength_m, np.radians(s.tilt_deg)
+    a, b = _half_width(s.length_m, lam), _half_width(s.height_m, lam)
+    pos = np.array([0.0, 0.0, H])
+    image = ball * [1, 1, -1] + [0, 0, 2 * z_s]
+    u = np.array([(ball - pos) / np.linalg.norm(ball - pos), (image - pos) / np.linalg.norm(image - pos)])
+    x, v = _beam_frame(u, tilt)
+    g_gauss = _gaussian(a, b)(x, v)
+    g_memb = np.sinc(s.length_m / lam * x) * np.sinc(s.height_m / lam * v)
+    ratio = (g_gauss / g_memb) ** 2                                   # per leg, two ways
+    want = np.array([ratio[0] ** 2, ratio[0] * ratio[1], ratio[1] ** 2])
+    assert np.all(energy["membrane"] > 0)
+    np.testing.assert_allclose(10 * np.log10(energy["gaussian"] / energy["membrane"]), 10 * np.log10(want),
+                               atol=0.3)
+    assert 10 * np.log10(want[2]) > 3.0                                 # the beams differ on the bounced leg
+
+
+@pytest.mark.parametrize("kind", ["sidescan", "msis", "forward_looking"])
+def test_gaussian_beams_pass_the_surface_verdict(kind):
+    """As the membrane (tests/sonars/test_sonar_types.py): a flat surface 4 m above changes nothing before the
+    one-bounce onset and adds energy after it, never takes any (less than with the membrane: a Gaussian has no side
+    lobes towards the surface; its paths' levels are checked in test_the_surface_paths_weigh_the_gaussian); a swell
+    and a surface over a profile run too."""
+    from test_sonar_types import _case, _floor
+
+    sonar, traj = _case(kind, n=3, beam="gaussian")
+    wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=H + 4.0)))
+    dry, moist = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, wet)
+    onset = (2 * H + 2 * 4.0) / sonar.sound_speed_m_s
+    before = dry.time_s < onset - sonar.for_pulse(dry.pulse).sample_rate_hz ** -1
+    np.testing.assert_allclose(moist.data[:, :, before], dry.data[:, :, before], rtol=1e-9, atol=0)
+    after = dry.time_s > onset + dry.pulse.duration_s
+    added = moist.data[:, :, after] - dry.data[:, :, after]
+    assert np.all(added >= -1e-12 * dry.data.max()) and added.sum() > 1e-6 * dry.data[:, :, after].sum()
+    if kind == "sidescan":
+        swell = se.Environment(surface=se.SeaSurface(z_m=H + 4.0, swell_height_m=0.5))
+        profile = se.SoundSpeedProfile(depth_m=[0.0, 100.0], speed_m_s=[1498.0, 1548.0], surface_z_m=H + 4.0)
+        curved = se.Environment(sound_speed=profile, surface=se.SeaSurface(z_m=H + 4.0))
+        for env in (swell, curved):
+            rec = se.simulate(_floor(), traj, dataclasses.replace(sonar, environment=env))
+            assert rec.data[:, :, after].sum() > dry.data[:, :, after].sum()
 
 
 def test_the_beam_kernels_against_their_twins():
@@ -166,11 +272,13 @@ def test_the_beam_kernels_against_their_twins():
     np.testing.assert_allclose(w, want, rtol=1e-15)
     w[::5] = 0.0                                                        # misses: weighed by nothing
     fan = A.Fan(s, 0.01, cb, sb, np.full(16, 0.01), el_start)
-    forms = ((kernels.ACROSS_SINC, lambda p, x: np.sinc(p * x / np.pi)), (kernels.ACROSS_GAUSS, lambda p, x: np.exp(
-        -p * x * x)))
-    for kind, f in forms:
+    forms = ((kernels.BEAM_SINC, lambda q, x: np.sinc(q * x / np.pi), 10.0),
+             (kernels.BEAM_GAUSS, lambda q, x: np.exp(-(q * x) ** 2), 1.0))      # q: a few lobes, or −35 dB at v = 1
+    for kind, f0, scale in forms:
+        def f(q, x):
+            return f0(scale * q / 10.0, x)
         want, got = naive.weigh_fan(s, cb, sb, el_start, 0.35, lambda v: f(30.0, v), line, w), w.copy()
-        kernels.weigh_fan(fan, 0.35, kind, 0.0, 30.0, line, got)
+        kernels.weigh_fan(fan, 0.35, kind, 0.0, 3.0 * scale, line, got)
         np.testing.assert_allclose(got, want, rtol=1e-13)
         assert np.count_nonzero(got != w) > n // 2
         w2, shift = rng.uniform(0, 1, 40), np.array([0.0, 2e-3])          # rays with their own cells, two pings
@@ -178,7 +286,7 @@ def test_the_beam_kernels_against_their_twins():
         v2 = naive.beam_cosines(s, cb, sb, el_start, 0.35, layout)
         a, a_rx = f(50.0, layout[:, 0]), f(50.0, layout[:, 0] - np.repeat(shift, np.diff(ray_start[::2])))
         want = np.where(w2 > 0, w2 * (a * f(30.0, v2)) ** 2 * (a_rx * f(30.0, v2)) ** 2, 0.0)
-        kernels.weigh_rays(layout, ray_start, shift, 0.35, kind, 50.0, 30.0, w2)
+        kernels.weigh_rays(layout, ray_start, shift, 0.35, kind, 5.0 * scale, 3.0 * scale, w2)
         np.testing.assert_allclose(w2, want, rtol=1e-13)
 
 

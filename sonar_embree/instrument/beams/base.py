@@ -30,12 +30,10 @@ class Beam:
     area_m2: float
     wavelength_m: float
     separable = False
-    #: (k·lx/2, k·ly/2) of the membrane the sea surface's path kernels still weigh in themselves (issue 51: those
-    #: kernels have not moved their gains out yet), or None for a beam they cannot weigh.
-    kernel_membrane = None
-    #: (kind, p_along, p_across) of a separable beam the beam stage evaluates in its kernels
-    #: (:data:`sonar_embree.kernels.ACROSS_SINC`, ``ACROSS_GAUSS``), or None: :meth:`along` and :meth:`across` in
-    #: NumPy (any beam works so; naming its form there only makes it faster).
+    #: (kind, q_along, q_across) of a separable beam whose one-way factors are f(q·x) of a form the kernels know
+    #: (:data:`sonar_embree.kernels.BEAM_SINC`, ``BEAM_GAUSS``): the beam stage evaluates it in one kernel pass, and
+    #: the sea surface's path kernels, which still weigh the beam themselves (issue 51), can take it. None: the beam
+    #: stage takes :meth:`along` and :meth:`across` in NumPy, and a sea surface is refused.
     kernel_form = None
 
     def one_way(self, u_fwd, u_side, u_down) -> np.ndarray:

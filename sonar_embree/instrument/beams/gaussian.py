@@ -56,7 +56,8 @@ class Gaussian(Beam):
 
     @property
     def kernel_form(self) -> tuple:
-        return kernels.ACROSS_GAUSS, 0.5 * math.log(2.0) / self.a ** 2, 0.5 * math.log(2.0) / self.b ** 2
+        q = math.sqrt(0.5 * math.log(2.0))                    # f(q·x) = exp(−(q·x)²) = 2^(−(x/a)²/2) with q/a
+        return kernels.BEAM_GAUSS, q / self.a, q / self.b
 
     @property
     def first_null_rad(self) -> float:

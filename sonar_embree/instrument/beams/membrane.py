@@ -55,13 +55,8 @@ class Membrane(Beam):
         return beam.first_null_rad(2.0 * min(self.half_k_lx, self.half_k_ly) * lam / (2.0 * math.pi), lam)
 
     @property
-    def kernel_membrane(self) -> tuple:
-        """(k·lx/2, k·ly/2): the membrane the sea surface's path kernels still weigh in themselves."""
-        return self.half_k_lx, self.half_k_ly
-
-    @property
     def kernel_form(self) -> tuple:
-        return kernels.ACROSS_SINC, float(self.half_k_lx), float(self.half_k_ly)
+        return kernels.BEAM_SINC, float(self.half_k_lx), float(self.half_k_ly)
 
     @property
     def directivity_index_db(self) -> float:
