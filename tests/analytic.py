@@ -74,6 +74,17 @@ def flat_floor_expected_intensity(r_cell_end_m, pulse_extent_m=0.075, h=10.0, dr
     return G(r_cell_end_m) - G(r_cell_end_m - pulse_extent_m)
 
 
+def down_looking_flat_floor(r_m, h, azimuth_b4, alpha_db_m, pulse_extent_m, mu_db=-27.0, r_max=30.0, n=40001):
+    """A down-looking beam over a flat Lambert floor at altitude h: E[I] at slant ranges ``r_m`` for a rectangular
+    pulse, ∫ g over [R − cτ/2, R], g(R) = μ·(h/R)²·10^(−2αR/10)/R³·∫ b⁴(θ, φ) dφ with cos θ = h/R;
+    ``azimuth_b4(theta)`` (k,) → the azimuth integral of b⁴ at each θ (rad)."""
+    grid = np.linspace(h, r_max, n)
+    g = (azimuth_b4(np.arccos(h / grid)) * 10 ** (mu_db / 10) * (h / grid) ** 2
+         * 10 ** (-2 * alpha_db_m * grid / 10) / grid ** 3)
+    cum = np.concatenate([[0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(grid))])
+    return np.interp(r_m, grid, cum) - np.interp(np.asarray(r_m) - pulse_extent_m, grid, cum)
+
+
 def tvg_flat_floor(r_m, h=10.0, mu_db=-27.0, pulse_extent_m=0.075, f0=400e3, c=1500.0, lx=0.19, ly=0.0038,
                    tilt_deg=20.0):
     """docs/physics.md §3: with perfect TVG a Lambertian flat floor follows μ·h²·Φ_eq·(cτ/2)·Γ_el⁴/ρ.
