@@ -222,7 +222,8 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
             clock["labels"] = clock.get("labels", 0.0) + time.perf_counter() - t
         t = time.perf_counter()
         vel = None if trajectory.velocity_m_s is None else trajectory.velocity_m_s[a:b]
-        run.back.add_block(e, a, ping_offset + a, run.compiled.origin_m, trajectory.positions_m[a:b], clock, vel,
+        run.back.add_block(e, a, ping_offset + a, run.prepared.compiled.origin_m, trajectory.positions_m[a:b], clock,
+                           vel,
                            points=None if run.prepared.clutter is None else _clutter_block(run, a, b),
                            volume=None if run.volume is None else _volume_block(run, trajectory, a, b),
                            receivers=run.front.receivers(run.rots[a:b], trajectory.positions_m[a:b]))
@@ -288,7 +289,6 @@ class _Run:
     sonar: object
     pulse: Pulse
     chain: SignalChain
-    compiled: object
     prepared: PreparedRun  # what the run builds before its first block: caster, law table, aim plan, …
     front: object
     back: object
@@ -345,7 +345,7 @@ class _Run:
                 else ExpectedSynthesis(sonar, pulse, chain, (n_p, n_ch, n_s), back_n0, kernel))
         truth = GroundTruth((n_p, len(front.channels), n_out), compiled, kernel) if labels else None
         rots = _mounted(front, trajectory, ping_offset)
-        return cls(sonar, pulse, chain, compiled, prepared, front, back, truth, rots, pos_local, max_r, n_out,
+        return cls(sonar, pulse, chain, prepared, front, back, truth, rots, pos_local, max_r, n_out,
                    np.full(n_p, np.nan), np.zeros(n_p, dtype=np.int64), n0, 2.0 * trajectory.forward_speed_m_s(rots) / c,
                    ping_offset, _volume_beam(sonar))
 

@@ -62,10 +62,9 @@ class FanPlan:
         ``elevation_nulls``-th null of the membrane's vertical pattern (the baffle at most), on the membrane's
         azimuth lattice (a Gaussian beam of the same widths takes the same, less the lines on its own nulls)."""
         fan, pattern = fan.resolved(), sonar.transducer
-        membrane = pattern.kernel_form is not None and pattern.kernel_form[0] == kernels.BEAM_SINC
         s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
-                                     fan.azimuth_nulls, keep_nulls=not membrane)
-        s = s if membrane else s[~pattern.null_lines(s)]
+                                     fan.azimuth_nulls, keep_nulls=True)
+        s = s[~pattern.null_lines(s)]                       # lines on the beam's own nulls weigh nothing
         lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad, elevation_nulls)
         m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
         probe = np.linspace(lo, hi, m)

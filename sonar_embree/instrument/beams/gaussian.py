@@ -7,7 +7,7 @@ For an echo sounder (``EchoSounder(beam="gaussian")``) it is circular, of the gi
 forward-looking element (``Sonar(beam="gaussian")``) it has the −3 dB widths of the rectangular membrane of the same
 size, so only the lobes' shape changes. It has no nulls: its fan spans as far as the membrane's would (past the
 membrane's first null the Gaussian is below −15 dB one way). Directivity index from the pattern's integral over the
-baffled hemisphere (Gauss–Legendre in θ and φ).
+baffled hemisphere (:func:`~sonar_embree.instrument.directivity.gaussian_directivity_index_db`).
 """
 from __future__ import annotations
 
@@ -18,12 +18,11 @@ import numpy as np
 
 from ... import kernels
 from .. import beam
+from ..directivity import gaussian_directivity_index_db
 from .base import Beam
 
 #: Where a membrane of the same −3 dB width has its first null, in units of the −3 dB direction cosine: π / 1.39156.
 NULL_PER_HALF_WIDTH = math.pi / 1.39156
-#: Gauss–Legendre nodes per panel, and panels per −3 dB half width in θ, of the directivity integral.
-NODES, PANELS_PER_HALF_WIDTH = 8, 4
 
 
 @dataclass(frozen=True)
@@ -72,17 +71,4 @@ class Gaussian(Beam):
     def directivity_index_db(self) -> float:
         """DI = 10·log10(4π / ∫ b² dΩ) over the baffled hemisphere, dB (10·log10(4π·ln 2/(π·a·b)) for a narrow
         beam)."""
-        n_t = PANELS_PER_HALF_WIDTH * int(math.ceil(0.5 * math.pi / math.asin(min(self.a, self.b, 1.0)))) + 2
-        x, w = np.polynomial.legendre.leggauss(NODES)
-        t, wt = _panels(0.0, 0.5 * math.pi, n_t, x, w)
-        p, wp = _panels(0.0, 0.5 * math.pi, 16, x, w)
-        st = np.sin(t)[:, None]
-        power = (self.along(st * np.cos(p)[None, :]) * self.across(st * np.sin(p)[None, :])) ** 2
-        total = 4.0 * float(wt @ (power * st) @ wp)
-        return 10.0 * math.log10(4.0 * math.pi / total)
-
-
-def _panels(lo, hi, n, x, w):
-    edges = np.linspace(lo, hi, n + 1)
-    half, mid = 0.5 * np.diff(edges), 0.5 * (edges[1:] + edges[:-1])
-    return (mid[:, None] + half[:, None] * x).ravel(), (half[:, None] * w).ravel()
+        return gaussian_directivity_index_db(float(self.a), float(self.b))
