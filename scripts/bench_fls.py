@@ -46,7 +46,7 @@ def main() -> int:
     rows = []
     for q in (0.5, 1.0, 2.0):
         fps, rec = _fps(floor, traj, small, pulse, q)
-        qd = ref._floor_quadrature(rec.time_s, rec.sonar.alpha_db_per_m)
+        qd = ref._floor_quadrature(rec.time_s, rec.acquisition.alpha_db_per_m)
         lit = (qd > 10 ** -2.5 * qd.max()) & (np.abs(rec.time_s - 2 * ref.H / ref.C) > 2.5 / ref.FS) & (
             rec.time_s < 2 * 24.0 / ref.C)
         err = 10 * np.log10(rec.data[0, 30][lit] / qd[lit])

@@ -30,7 +30,7 @@ def _membrane(width_deg, lam):
 
 
 def quadrature(t, sonar):
-    lam, k, d = sonar.wavelength_m, sonar.wavenumber_rad_m, math.radians(sonar.tilt_deg)
+    lam, k, d = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m, math.radians(sonar.tilt_deg)
     lx, ly = _membrane(sonar.horizontal_beamwidth_deg, lam), _membrane(sonar.vertical_beamwidth_deg, lam)
     rho = np.concatenate([np.linspace(0, 2, 801)[:-1], np.linspace(2, 30, 5601)])
     phi = np.unique(np.concatenate([np.linspace(-0.1, 0.1, 801), np.linspace(-np.pi, np.pi, 1441)]))
@@ -39,11 +39,11 @@ def quadrature(t, sonar):
     ux, uy, uz = p * np.cos(f) / r, p * np.sin(f) / r, H / r
     g = np.sinc(k * lx / 2 * uy / np.pi) * np.sinc(k * ly / 2 * (-ux * math.sin(d) + uz * math.cos(d)) / np.pi)
     g = np.where(ux * math.cos(d) + uz * math.sin(d) > 0, g, 0.0)
-    alpha = sonar.alpha_db_per_m * math.log(10) / 10
+    alpha = se.Acquisition.of(sonar).alpha_db_per_m * math.log(10) / 10
     dens = g ** 4 * 10 ** (MU_DB / 10) * (H / r) ** 2 * np.exp(-2 * alpha * r) / r ** 4
     per_rho = np.trapezoid(dens, phi, axis=1) * rho
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (per_rho[1:] + per_rho[:-1]) * np.diff(rho))])
-    two_r, c = 2 * np.sqrt(rho ** 2 + H ** 2), sonar.sound_speed_m_s
+    two_r, c = 2 * np.sqrt(rho ** 2 + H ** 2), se.Acquisition.of(sonar).sound_speed_m_s
     return (np.interp(c * t, two_r, cum, left=0, right=cum[-1])
             - np.interp(c * (t - TAU), two_r, cum, left=0, right=cum[-1]))
 
@@ -63,7 +63,7 @@ def main() -> int:
             rec = se.simulate(scene, traj, sonar, pulse, quality=q)
             best = min(best, time.perf_counter() - t0)
         ref = quadrature(rec.time_s, sonar)
-        c = sonar.sound_speed_m_s
+        c = se.Acquisition.of(sonar).sound_speed_m_s
         edge = (np.abs(rec.time_s - 2 * H / c) <= 1.5 / FS) | (np.abs(rec.time_s - 2 * H / c - TAU) <= 1.5 / FS)
         ok = (ref > 1e-3 * ref.max()) & ~edge
         err = 10 * np.log10(rec.data[:, 0].mean(axis=0)[ok] / ref[ok])

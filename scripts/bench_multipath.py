@@ -54,8 +54,8 @@ def paired(cases, rounds: int) -> dict:
     out = {}
     for name, (scene, traj, sonar) in cases.items():
         z = float(traj.positions_m[:, 2].max()) + 5.0
-        wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=z)))
-        wavy = dataclasses.replace(sonar, environment=se.Environment(
+        wet = se.Acquisition(sonar, se.Environment(surface=se.SeaSurface(z_m=z)))
+        wavy = se.Acquisition(sonar, se.Environment(
             surface=se.SeaSurface(z_m=z, swell_height_m=0.4, swell_length_m=8.0)))
         rows = []
         for _ in range(rounds):
@@ -80,10 +80,10 @@ def main() -> int:
     out = {}
     for name, (scene, traj, sonar) in cases.items():
         z = float(traj.positions_m[:, 2].max()) + 5.0
-        wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=z)))
+        wet = se.Acquisition(sonar, se.Environment(surface=se.SeaSurface(z_m=z)))
         swell = se.SeaSurface(z_m=z, swell_height_m=0.4, swell_length_m=8.0)
-        wavy = dataclasses.replace(sonar, environment=se.Environment(surface=swell))
-        lined = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=z, backscatter=-40.0)))
+        wavy = se.Acquisition(sonar, se.Environment(surface=swell))
+        lined = se.Acquisition(sonar, se.Environment(surface=se.SeaSurface(z_m=z, backscatter=-40.0)))
         out[name] = {"direct": _best(scene, traj, sonar), "surface": _best(scene, traj, wet)}
         out[name]["ratio"] = round(out[name]["surface"]["total"] / out[name]["direct"]["total"], 2)
         if "--line" in sys.argv:

@@ -65,7 +65,7 @@ def error_of(scene, traj, aim: bool):
     """(largest |error| dB over the pings within −20 dB, dark pings there, pings there) of the reference ball."""
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
     got = ball_energy(scene, traj, aim=aim)
-    ref = analytic.sphere_quadrature(A, REF, traj.positions_m, sonar.alpha_db_per_m, MU_DB, n=120)
+    ref = analytic.sphere_quadrature(A, REF, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, n=120)
     inside = ref >= 0.01 * ref.max()
     dark = int(np.sum(got[inside] <= 0.0))
     err = 10 * np.log10(np.maximum(got[inside], 1e-30) / ref[inside])

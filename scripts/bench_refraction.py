@@ -31,8 +31,8 @@ def main() -> int:
     out = {}
     for name, (scene, traj, sonar) in cases.items():
         z = float(traj.positions_m[:, 2].max()) + 20.0
-        profile = se.SoundSpeedProfile.linear(sonar.sound_speed_m_s - 0.5 * 20.0, 0.5, surface_z_m=z)
-        bent = dataclasses.replace(sonar, environment=se.Environment(sound_speed=profile))
+        profile = se.SoundSpeedProfile.linear(se.Acquisition.of(sonar).sound_speed_m_s - 0.5 * 20.0, 0.5, surface_z_m=z)
+        bent = se.Acquisition(sonar, se.Environment(sound_speed=profile))
         se.simulate(scene, traj[:2], bent, start_time="2000-01-01")  # compile the curved path
         if "--paired" in sys.argv:
             rounds = []
@@ -42,7 +42,7 @@ def main() -> int:
             out[name] = {"rounds (straight ms, ratio)": rounds,
                          "median ratio": float(sorted(r[1] for r in rounds)[len(rounds) // 2])}
             continue
-        wet = dataclasses.replace(sonar, environment=se.Environment(sound_speed=profile,
+        wet = se.Acquisition(sonar, se.Environment(sound_speed=profile,
                                                                     surface=se.SeaSurface(z_m=z)))
         se.simulate(scene, traj[:2], wet, start_time="2000-01-01")  # compile the surface's curved paths
         out[name] = {"straight": _best(scene, traj, sonar), "profile": _best(scene, traj, bent),

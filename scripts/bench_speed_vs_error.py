@@ -112,7 +112,7 @@ def embree_throughput(scene, n_rays=100_000, repeat=5):
     caster = RayCaster(c)
     traj = shipwreck.straight_pass(1) if "wreck" in c.labels else se.Trajectory.line((0, 0, 10.0), (1, 0, 10.0), 1)
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
-    plan = FanPlan.build(sonar, se.FanSettings())
+    plan = FanPlan.build(se.Acquisition.of(sonar), se.FanSettings())
     from sonar_embree.propagation.fan import elevation_rows
 
     rot = traj.rotations()

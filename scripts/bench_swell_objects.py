@@ -37,7 +37,7 @@ def main(argv=None) -> int:
     p.add_argument("--quick", action="store_true", help="8 pings, one run (smoke test)")
     args = p.parse_args(argv)
     sea = se.SeaSurface(z_m=15.0, swell_height_m=0.3, swell_length_m=10.0, swell_direction_deg=90.0)
-    sonar = se.Sonar(max_range_m=45.0, environment=se.Environment(surface=sea))
+    sonar = se.Acquisition(se.Sonar(max_range_m=45.0), se.Environment(surface=sea))
     n, repeat = (8, 1) if args.quick else (64, 3)
     traj = se.Trajectory.line((-5, 0, 10), (5, 0, 10), n)
     out = {}

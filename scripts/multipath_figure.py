@@ -47,7 +47,7 @@ def records(se, pings):
                 "flat surface and its surface line (−40 dB)": se.SeaSurface(z_m=H + D, backscatter=-40.0)}
     out = {}
     for name, surf in surfaces.items():
-        sonar = se.Sonar(max_range_m=30.0, tilt_deg=10.0, height_m=0.0019, environment=se.Environment(surface=surf))
+        sonar = se.Acquisition(se.Sonar(max_range_m=30.0, tilt_deg=10.0, height_m=0.0019), se.Environment(surface=surf))
         out[name] = se.simulate(_scene(se), traj, sonar, se.Pulse.cw(), start_time="2000-01-01")
     return out
 
@@ -58,7 +58,7 @@ def _images(recs, span_db=50.0, columns=300):
 
     dbs = []
     for rec in recs.values():
-        g = tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+        g = tvg_gain(rec.time_s, rec.acquisition.sound_speed_m_s, rec.acquisition.alpha_db_per_m)
         block = max(rec.time_s.size // columns, 1)
         port, stbd = (block_mean(x * g, block) for x in (rec.port, rec.starboard))
         with np.errstate(divide="ignore"):
@@ -85,7 +85,7 @@ def onset(recs) -> dict:
     direct, flat = (np.asarray(list(recs.values())[k].starboard).mean(axis=0) for k in (0, 1))
     t = list(recs.values())[0].time_s
     k = int(np.flatnonzero(flat - direct > 1e-9 * direct.max())[0])
-    c = list(recs.values())[0].sonar.sound_speed_m_s
+    c = list(recs.values())[0].acquisition.sound_speed_m_s
     return {"first_multipath_s": float(t[k]), "one_bounce_onset_s": (2 * H + 2 * D) / c, "sample_s": float(t[1] - t[0])}
 
 

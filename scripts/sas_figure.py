@@ -73,7 +73,7 @@ def side_scan_on_grid(rec, x, y, channel):
     xx, yy = np.meshgrid(x, y)
     p = pos[ping][None, :, :]
     rho = np.sqrt((xx - p[..., 0]) ** 2 + (yy - p[..., 1]) ** 2 + p[..., 2] ** 2)
-    n = np.clip(np.rint(2 * rho / rec.sonar.sound_speed_m_s * rec.sonar.sample_rate_hz).astype(int), 0,
+    n = np.clip(np.rint(2 * rho / rec.acquisition.sound_speed_m_s * rec.sonar.sample_rate_hz).astype(int), 0,
                 rec.data.shape[2] - 1)
     return rec.channel(channel)[np.broadcast_to(ping[None, :], n.shape), n]
 

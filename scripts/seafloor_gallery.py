@@ -65,7 +65,7 @@ def _db_image(rec, white_db, span_db=50.0, columns=400):
     from sonar_embree.signal.processing import tvg_gain
     from sonar_embree.display.waterfall import block_mean, to_ground_range
 
-    g = tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+    g = tvg_gain(rec.time_s, rec.acquisition.sound_speed_m_s, rec.acquisition.alpha_db_per_m)
     block = max(rec.time_s.size // (2 * columns), 1)  # average in intensity, then place on the ground
     r = block_mean(rec.slant_range_m[None, :], block)[0]
     sides = [to_ground_range(block_mean(x * g, block), r, rec.altitude_m, columns)[1]
@@ -100,7 +100,7 @@ def measured_sigma(se):
         return se.simulate(scene, line, sonar, pulse, start_time="2000-01-01")
 
     ref = record(se.Material(backscatter_db=0.0))
-    centre = ref.slant_range_m - sonar.sound_speed_m_s * pulse.duration_s / 4   # middle of each range cell
+    centre = ref.slant_range_m - se.Acquisition.of(sonar).sound_speed_m_s * pulse.duration_s / 4   # middle of each range cell
     ok = centre > ALTITUDE_M * 1.001
     grazing = np.degrees(np.arcsin(ALTITUDE_M / centre[ok]))
     base = ref.starboard.mean(axis=0)[ok]

@@ -24,7 +24,7 @@ _LAZY = {
     "planning": (".survey.planning", None), "replay": (".survey.replay", None), "stream": (".survey.stream", None),
     "sediments": (".laws.sediments", None),
     "FanSettings": (".config", "FanSettings"), "Material": (".config", "Material"), "Pulse": (".config", "Pulse"),
-    "SignalChain": (".config", "SignalChain"), "Sonar": (".config", "Sonar"),
+    "SignalChain": (".config", "SignalChain"), "Sonar": (".config", "Sonar"), "Acquisition": (".config", "Acquisition"),
     "AmbientNoise": (".environment", "AmbientNoise"), "Environment": (".environment", "Environment"),
     "SeaSurface": (".environment", "SeaSurface"), "SoundSpeedProfile": (".environment", "SoundSpeedProfile"),
     "ConfigError": (".errors", "ConfigError"), "SceneError": (".errors", "SceneError"),

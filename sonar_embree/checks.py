@@ -231,7 +231,7 @@ def check_side_scan_only(sonar, feature: str) -> None:
     """Refuse ``feature`` (clutter, volume reverberation) for a sonar type whose front end does not declare them
     (``models_clutter_and_volume``: the side-scan ``Sonar`` alone)."""
     if not sonar.models_clutter_and_volume:
-        raise ConfigError(f"{feature} is simulated for the side-scan Sonar, not {type(sonar).__name__}")
+        raise ConfigError(f"{feature} is simulated for the side-scan Sonar, not {sonar.type_name}")
 
 
 def check_receiver_band(sonar, pulse) -> None:
@@ -257,7 +257,7 @@ def check_surface(compiled, sonar, pos_local: np.ndarray) -> None:
     if surface is None:
         return
     if not sonar.models_surface:
-        raise ConfigError(f"Environment.surface: the sea surface's paths are not modelled for {type(sonar).__name__}")
+        raise ConfigError(f"Environment.surface: the sea surface's paths are not modelled for {sonar.type_name}")
     z_s = surface.lowest_z_m - float(compiled.origin_m[2])  # a swell's troughs
     above = np.flatnonzero(pos_local[:, 2] >= z_s)
     if above.size:
@@ -280,7 +280,7 @@ def check_profile(compiled, sonar, pos_local: np.ndarray, labels: bool) -> None:
     if not env.refracts:
         return
     if not sonar.models_refraction:
-        raise ConfigError(f"Environment.sound_speed: curved rays are not cast for {type(sonar).__name__}")
+        raise ConfigError(f"Environment.sound_speed: curved rays are not cast for {sonar.type_name}")
     if labels:
         raise ConfigError("ground-truth labels assume straight rays: not available with a sound-speed profile yet "
                           "(drop Environment.sound_speed or the labels)")

@@ -25,10 +25,11 @@ from .instrument.beam import beamwidth_deg, membrane_size_for_beamwidth
 
 
 class Transducer:
-    """What every sonar type shares: carrier, sample rate, range window and medium (SI, derived).
+    """What every sonar type shares: carrier, sample rate, range window, levels and receiver (the instrument alone).
 
-    A sonar type's dataclass has the fields ``frequency_hz``, ``max_range_m``,
-    ``sample_rate_hz`` and ``environment``; this mixin derives the rest.
+    A sonar type's dataclass has the fields ``frequency_hz``, ``max_range_m`` and ``sample_rate_hz``; what depends
+    on the water (c, λ, k, α, the beam at λ, the range bins) is resolved once per run by :class:`Acquisition`
+    from the sonar and its medium (an :class:`~sonar_embree.environment.Environment`).
     """
 
     #: The record's channels, in order (a sonar type's own names).
@@ -50,40 +51,30 @@ class Transducer:
         """Coordinates the type adds to its record's dataset (name → (dims, values, CF attributes)): none here."""
         return {}
 
-    def along_track_footprint_m(self) -> float | None:
-        """The two-way −3 dB along-track footprint at the window's far end, m, of a type with an along-track
-        membrane (the side-scan's); None for the others (MSIS, forward-looking, echo sounder)."""
+    def along_track_footprint_m(self, sound_speed_m_s: float) -> float | None:
+        """The two-way −3 dB along-track footprint at the window's far end, m, in water of sound speed ``sound_speed_m_s`` (m/s), of
+        a type with an along-track membrane (the side-scan's); None for the others (MSIS, forward-looking, echo
+        sounder)."""
         return None
 
     #: Receive elements per side (:class:`~sonar_embree.ReceiverArray`); a side-scan's field, None for the others.
     receive_array = None
 
-    def _check_environment(self, owner: str) -> None:
-        """Take a saved record's environment table as an :class:`Environment`; refuse anything else that is not one."""
-        if isinstance(self.environment, dict):  # from a saved record's metadata
-            object.__setattr__(self, "environment", Environment(**self.environment))
-        if not isinstance(self.environment, Environment):
-            raise ConfigError(f"{owner}.environment must be a sonar_embree.Environment, got {self.environment!r}")
+    def transducer_in(self, sound_speed_m_s: float) -> Beam:
+        """The beam (:mod:`sonar_embree.instrument.beams`) in water of sound speed ``sound_speed_m_s`` (m/s; λ = c/f0)."""
+        raise NotImplementedError(f"{type(self).__name__}.transducer_in")
 
-    @property
-    def wavelength_m(self) -> float:
-        """Acoustic wavelength λ = c / f0 in m."""
-        return self.sound_speed_m_s / self.frequency_hz
+    def directivity_index_in(self, sound_speed_m_s: float) -> float:
+        """Receiving directivity index of the beam at sound speed ``sound_speed_m_s`` (m/s), dB (docs/physics.md §14)."""
+        return self.transducer_in(sound_speed_m_s).directivity_index_db
 
-    @property
-    def sound_speed_m_s(self) -> float:
-        """Speed of sound of the environment, m/s."""
-        return self.environment.sound_speed_m_s
+    def speckle_cell_in(self, sound_speed_m_s: float) -> float:
+        """Speckle lattice spacing by default at sound speed ``sound_speed_m_s`` (m/s), m: the beam's
+        (:attr:`~sonar_embree.instrument.beams.Beam.speckle_cell_m`)."""
+        return self.transducer_in(sound_speed_m_s).speckle_cell_m
 
-    @property
-    def alpha_db_per_m(self) -> float:
-        """One-way absorption in use at f0, dB/m (:meth:`Environment.alpha_db_per_m`)."""
-        return self.environment.alpha_db_per_m(self.frequency_hz)
-
-    @property
-    def wavenumber_rad_m(self) -> float:
-        """Wavenumber k = 2π f0 / c in rad/m."""
-        return 2.0 * math.pi * self.frequency_hz / self.sound_speed_m_s
+    def check_sound_speed(self, sound_speed_m_s: float) -> None:
+        """Refuse what the instrument cannot do in water of sound speed ``sound_speed_m_s`` (m/s); nothing by default."""
 
     def for_pulse(self, pulse: "Pulse") -> "Sonar":
         """This sonar with ``sample_rate_hz`` filled in for ``pulse`` when it is ``None``.
@@ -115,34 +106,132 @@ class Transducer:
         """10^(SL/10): µPa² per unit-source intensity (1.0 for a unit source)."""
         return 1.0 if self.source_level_db is None else 10.0 ** (self.source_level_db / 10.0)
 
-    def noise_density(self) -> float:
-        """The received noise spectral density in µPa²/Hz: ambient/DI + self-noise (0 for a unit source)."""
-        if self.source_level_db is None:
-            return 0.0
-        n = 0.0
-        if self.environment.noise is not None:
-            n += 10.0 ** ((float(self.environment.noise.spectral_density_db(self.frequency_hz))
-                           - self.directivity_index_db) / 10.0)
-        if self.self_noise_db_per_hz is not None:
-            n += 10.0 ** (self.self_noise_db_per_hz / 10.0)
-        return n
-
     def _rate(self) -> float:
         if self.sample_rate_hz is None:
             raise ConfigError("Sonar.sample_rate_hz is None (derived from the pulse): use Sonar.for_pulse(pulse) "
                               "or give sample_rate_hz")
         return self.sample_rate_hz
 
+
+#: Attributes an :class:`Acquisition` never reads through to its sonar (its own fields, and Python's protocols:
+#: pickling and copying look these up before the fields exist).
+_OWN = frozenset({"sonar", "environment", "sound_speed_m_s", "wavelength_m", "wavenumber_rad_m", "alpha_db_per_m"})
+
+
+@dataclass(frozen=True)
+class Acquisition:
+    """One sonar in one medium: what a run resolves once from (sonar, environment) (docs/physics.md §1).
+
+    The sonar dataclasses hold the instrument alone; a run (:func:`sonar_embree.simulate`) takes the medium as its
+    own input and pairs the two here. The sonar's fields and methods read through (``acq.frequency_hz`` is
+    ``acq.sonar.frequency_hz``); what depends on the water is computed once, on construction.
+
+    Parameters
+    ----------
+    sonar : Sonar, EchoSounder, MSIS or ForwardLooking
+        The instrument.
+    environment : Environment
+        The medium (sound speed, absorption, surface, profile, noise); default :class:`Environment` ().
+
+    Attributes
+    ----------
+    sound_speed_m_s : float
+        c, m/s (the environment's nominal speed).
+    wavelength_m, wavenumber_rad_m : float
+        λ = c/f0 (m) and k = 2π f0/c (rad/m) at the carrier.
+    alpha_db_per_m : float
+        One-way absorption at f0, dB/m (:meth:`Environment.alpha_db_per_m`).
+    """
+
+    sonar: object
+    environment: Environment = Environment()
+    sound_speed_m_s: float = dataclasses.field(init=False)
+    wavelength_m: float = dataclasses.field(init=False)
+    wavenumber_rad_m: float = dataclasses.field(init=False)
+    alpha_db_per_m: float = dataclasses.field(init=False)
+
+    def __post_init__(self):
+        if not isinstance(self.sonar, Transducer):
+            raise ConfigError(f"Acquisition.sonar must be a sonar_embree sonar type, got {type(self.sonar).__name__}")
+        if not isinstance(self.environment, Environment):
+            raise ConfigError(f"Acquisition.environment must be a sonar_embree.Environment, got {self.environment!r}")
+        c, f0 = self.environment.sound_speed_m_s, self.sonar.frequency_hz
+        for name, value in (("sound_speed_m_s", c), ("wavelength_m", c / f0),
+                            ("wavenumber_rad_m", 2.0 * math.pi * f0 / c),
+                            ("alpha_db_per_m", self.environment.alpha_db_per_m(f0))):
+            object.__setattr__(self, name, value)
+        self.sonar.check_sound_speed(c)
+        if self.sonar.sample_rate_hz is not None and self.n_samples > 50_000_000:
+            raise ConfigError(f"{type(self.sonar).__name__}.max_range_m={self.sonar.max_range_m} with sample_rate_hz="
+                              f"{self.sonar.sample_rate_hz} gives {self.n_samples} samples per ping at "
+                              f"c = {c:g} m/s; reduce one of them")
+
+    @classmethod
+    def of(cls, sonar) -> "Acquisition":
+        """``sonar`` itself if it is an acquisition, else ``sonar`` in the default :class:`Environment` ()."""
+        return sonar if isinstance(sonar, Acquisition) else cls(sonar)
+
+    def __getattr__(self, name: str):
+        """The sonar's own field or method ``name`` (only called for what this object does not hold itself)."""
+        if name in _OWN or name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(self.sonar, name)
+
+    def for_pulse(self, pulse: "Pulse") -> "Acquisition":
+        """This acquisition with the sonar's sample rate filled in for ``pulse`` (:meth:`Transducer.for_pulse`)."""
+        sonar = self.sonar.for_pulse(pulse)
+        return self if sonar is self.sonar else Acquisition(sonar, self.environment)
+
+    def as_sidescan(self) -> "Acquisition":
+        """The side-scan acquisition of an MSIS or forward-looking sonar's beam, in the same medium."""
+        return Acquisition(self.sonar.as_sidescan(self.sound_speed_m_s), self.environment)
+
+    @property
+    def type_name(self) -> str:
+        """The sonar type's class name, for messages (``"Sonar"``, ``"MSIS"``, …)."""
+        return type(self.sonar).__name__
+
+    @property
+    def transducer(self) -> Beam:
+        """The sonar's beam at this wavelength (:meth:`Transducer.transducer_in`)."""
+        return self.sonar.transducer_in(self.sound_speed_m_s)
+
+    @property
+    def directivity_index_db(self) -> float:
+        """Receiving directivity index at this wavelength, dB (:meth:`Transducer.directivity_index_in`)."""
+        return self.sonar.directivity_index_in(self.sound_speed_m_s)
+
+    @property
+    def default_speckle_cell_m(self) -> float:
+        """Speckle lattice spacing by default, m (:meth:`Transducer.speckle_cell_in`)."""
+        return self.sonar.speckle_cell_in(self.sound_speed_m_s)
+
+    def along_track_footprint_m(self) -> float | None:
+        """The two-way −3 dB along-track footprint at the far range, m (:meth:`Transducer.along_track_footprint_m`)."""
+        return self.sonar.along_track_footprint_m(self.sound_speed_m_s)
+
+    def noise_density(self) -> float:
+        """The received noise spectral density in µPa²/Hz: ambient/DI + self-noise (0 for a unit source)."""
+        s = self.sonar
+        if s.source_level_db is None:
+            return 0.0
+        n = 0.0
+        if self.environment.noise is not None:
+            n += 10.0 ** ((float(self.environment.noise.spectral_density_db(s.frequency_hz))
+                           - self.directivity_index_db) / 10.0)
+        if s.self_noise_db_per_hz is not None:
+            n += 10.0 ** (s.self_noise_db_per_hz / 10.0)
+        return n
+
     @property
     def n_samples(self) -> int:
         """Samples per ping and side: t = 0 … 2·max_range/c inclusive."""
-        return int(math.floor(2.0 * self.max_range_m / self.sound_speed_m_s * self._rate())) + 1
+        return int(math.floor(2.0 * self.sonar.max_range_m / self.sound_speed_m_s * self.sonar._rate())) + 1
 
     @property
     def range_bin_m(self) -> float:
         """Slant-range spacing of the samples, c / (2 fs), in m."""
-        return self.sound_speed_m_s / (2.0 * self._rate())
-
+        return self.sound_speed_m_s / (2.0 * self.sonar._rate())
 
 
 @dataclass(frozen=True)
@@ -166,15 +255,10 @@ class Sonar(Transducer):
         (default) derives it from the pulse when simulating (:meth:`for_pulse`):
         max(4/τ, 4·the sweep's largest offset from f0), i.e. 40 kHz for the
         default 100 µs CW pulse and 2·B for an LFM of bandwidth B centred on f0.
-    environment : Environment
-        The medium (sound speed, water, absorption); default :class:`Environment` ().
-        The medium's keywords ``sound_speed_m_s``, ``absorption_db_per_m``,
-        ``temperature_c``, ``salinity_ppt``, ``depth_m`` and ``ph`` are still accepted
-        here and go into ``environment``; read them as properties of the same name.
     source_level_db : float or None
         Source level SL, dB re 1 µPa at 1 m on axis, in [150, 250]. ``None`` (default): a
         unit source (on-axis intensity 1 at 1 m), no noise. Set: the record is in µPa²
-        (the unit-source record × 10^(SL/10)) and holds the environment's ambient noise
+        (the unit-source record × 10^(SL/10)) and holds the medium's ambient noise
         and the receiver's self-noise (docs/physics.md §14).
     self_noise_db_per_hz : float or None
         The receiver's own noise as an equivalent input spectral density, dB re 1 µPa²/Hz
@@ -190,7 +274,10 @@ class Sonar(Transducer):
     beam : str
         Each side's pattern (:data:`~sonar_embree.instrument.beams.APERTURE_BEAMS`): ``"membrane"`` (default, the
         baffled rectangular membrane lx × ly) or ``"gaussian"`` (a Gaussian of the membrane's −3 dB widths; no
-        side lobes). Applied after the direct paths' kernels (:attr:`transducer`), inside the sea surface's.
+        side lobes). Applied after the direct paths' kernels (:meth:`transducer_in`), inside the sea surface's.
+
+    The medium is not the sonar's: a run takes it (``simulate(..., environment=)``, the ``[environment]`` table) and
+    :class:`Acquisition` resolves c, λ, the beam and the range bins from the two.
     """
 
     #: Its front end takes seabed clutter and volume reverberation (:class:`Transducer`).
@@ -202,7 +289,6 @@ class Sonar(Transducer):
     tilt_deg: float = 20.0
     max_range_m: float = 50.0
     sample_rate_hz: float | None = None
-    environment: Environment = Environment()
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
@@ -210,7 +296,6 @@ class Sonar(Transducer):
     beam: str = "membrane"
 
     def __post_init__(self):
-        self._check_environment("Sonar")
         self._check_levels("Sonar")
         object.__setattr__(self, "receive_array", receive_array_of(self.receive_array))
         if self.beam not in APERTURE_BEAMS:
@@ -219,39 +304,30 @@ class Sonar(Transducer):
         for name in ("frequency_hz", "length_m", "height_m", "max_range_m"):
             _check_number("Sonar", name, getattr(self, name), positive=True)
         _check_number("Sonar", "tilt_deg", self.tilt_deg, lo=0.0, hi=90.0)
-        if self.sample_rate_hz is None:
-            return
-        _check_number("Sonar", "sample_rate_hz", self.sample_rate_hz, positive=True)
-        if self.n_samples > 50_000_000:
-            raise ConfigError(
-                f"Sonar.max_range_m={self.max_range_m} with sample_rate_hz={self.sample_rate_hz} "
-                f"gives {self.n_samples} samples per ping; reduce one of them")
+        if self.sample_rate_hz is not None:
+            _check_number("Sonar", "sample_rate_hz", self.sample_rate_hz, positive=True)
 
-    @property
-    def default_speckle_cell_m(self) -> float:
-        """Speckle lattice spacing by default, lx/2: the along-track resolution (docs/physics.md §4)."""
+    def speckle_cell_in(self, sound_speed_m_s: float) -> float:
+        """Speckle lattice spacing by default, lx/2: the along-track resolution (docs/physics.md §4), m."""
         return 0.5 * self.length_m
 
-    def along_track_footprint_m(self) -> float:
-        """2·R_max·tan(θ₃/2), θ₃ the full two-way −3 dB along-track width (sinc⁴ = ½,
+    def along_track_footprint_m(self, sound_speed_m_s: float) -> float:
+        """2·R_max·tan(θ₃/2), θ₃ the full two-way −3 dB along-track width at sound speed ``sound_speed_m_s`` (sinc⁴ = ½,
         :func:`sonar_embree.instrument.beam.beamwidth_deg`), m."""
-        return self.max_range_m * 2.0 * math.tan(math.radians(0.5 * beamwidth_deg(self.length_m, self.wavelength_m,
+        return self.max_range_m * 2.0 * math.tan(math.radians(0.5 * beamwidth_deg(self.length_m, sound_speed_m_s / self.frequency_hz,
                                                                                    -3.0, two_way=True)))
 
-    @property
-    def transducer(self) -> Beam:
-        """Each side's beam (:mod:`sonar_embree.instrument.beams`): ``beam`` of the aperture lx × ly at the carrier."""
-        return aperture_beam(self.beam, self.length_m, self.height_m, self.wavenumber_rad_m)
+    def transducer_in(self, sound_speed_m_s: float) -> Beam:
+        """Each side's beam (:mod:`sonar_embree.instrument.beams`): ``beam`` of the aperture lx × ly in water of
+        sound speed ``sound_speed_m_s`` (m/s; k = 2π f0/c).
 
-    @property
-    def directivity_index_db(self) -> float:
-        """Receiving directivity index DI = 10·log10(4π/∫ b² dΩ) of each side's beam, dB (docs/physics.md §14).
-
-        The integral of the power pattern over the hemisphere (Urick 1983, §3.6;
-        :func:`sonar_embree.instrument.directivity.membrane_directivity_index_db` for the membrane): 28.23 dB for
-        the default 190 mm × 3.8 mm at 400 kHz, where the large-aperture 10·log10(4π·lx·ly/λ²) gives 28.10 dB.
+        Its receiving directivity index DI = 10·log10(4π/∫ b² dΩ) is the integral of the power pattern over the
+        hemisphere (Urick 1983, §3.6; :func:`sonar_embree.instrument.directivity.membrane_directivity_index_db`
+        for the membrane): 28.23 dB for the default 190 mm × 3.8 mm at 400 kHz and 1500 m/s, where the
+        large-aperture 10·log10(4π·lx·ly/λ²) gives 28.10 dB.
         """
-        return self.transducer.directivity_index_db
+        return aperture_beam(self.beam, self.length_m, self.height_m,
+                             2.0 * math.pi * self.frequency_hz / sound_speed_m_s)
 
     @property
     def tilt_rad(self) -> float:
@@ -261,7 +337,8 @@ class Sonar(Transducer):
     @classmethod
     def preset(cls, name: str, **overrides) -> "Sonar":
         """The side-scan sonar of a device preset (:data:`sonar_embree.instrument.devices.DEVICES`), e.g.
-        ``Sonar.preset("edgetech-4125-400", max_range_m=75)``; ``overrides`` replace any field."""
+        ``Sonar.preset("edgetech-4125-400", max_range_m=75)``; ``overrides`` replace any field (and
+        ``sound_speed_m_s``, the water in which the membrane has the device's beamwidths: 1500 m/s by default)."""
         d = device(name)
         kw = dict(frequency_hz=d.frequency_hz, tilt_deg=d.tilt_deg, max_range_m=d.ranges_m[0],
                   source_level_db=d.source_level_db)
@@ -269,7 +346,7 @@ class Sonar(Transducer):
 
     @classmethod
     def from_beamwidths(cls, azimuth_deg: float = 1.0, elevation_deg: float = 50.0, *,
-                        rule: str = "exact", **kwargs) -> "Sonar":
+                        rule: str = "exact", sound_speed_m_s: float = 1500.0, **kwargs) -> "Sonar":
         """Build a sonar whose membrane gives the requested one-way −3 dB beamwidths.
 
         Parameters
@@ -281,45 +358,45 @@ class Sonar(Transducer):
             has exactly the requested −3 dB width. ``"small-angle"`` uses
             L = 0.886·λ/θ (θ in rad), the rule behind the paper's 190 mm × 3.8 mm
             for 1° × 50° (whose exact widths are 1.002° × 51.84°).
+        sound_speed_m_s : float
+            The speed of sound c (m/s) at which the widths hold (λ = c/f0); 1500 m/s by default.
         **kwargs
-            Any other :class:`Sonar` field (frequency_hz, environment, …).
+            Any other :class:`Sonar` field (frequency_hz, tilt_deg, …).
         """
         for name, val in (("azimuth_deg", azimuth_deg), ("elevation_deg", elevation_deg)):
             _check_number("Sonar.from_beamwidths", name, val, positive=True, hi=179.0)
         if rule not in ("exact", "small-angle"):
             raise ConfigError(f"Sonar.from_beamwidths rule must be 'exact' or 'small-angle', got {rule!r}")
         f0 = kwargs.get("frequency_hz", cls.frequency_hz)
-        env = kwargs.get("environment", Environment())
-        c = env.sound_speed_m_s if isinstance(env, Environment) else 1500.0
         _check_number("Sonar", "frequency_hz", f0, positive=True)
-        _check_number("Sonar", "sound_speed_m_s", c, positive=True)
-        lam = c / f0
+        _check_number("Sonar.from_beamwidths", "sound_speed_m_s", sound_speed_m_s, positive=True)
+        lam = sound_speed_m_s / f0
         lx = membrane_size_for_beamwidth(math.radians(azimuth_deg), lam, rule)
         ly = membrane_size_for_beamwidth(math.radians(elevation_deg), lam, rule)
         return cls(length_m=lx, height_m=ly, **kwargs)
 
 
 
-#: The medium's keywords that old ``[sonar]`` TOML tables (and saved records) held; the readers map them into the
-#: :class:`Environment` with a deprecation warning (:func:`legacy_medium`). In Python the medium is set in one
-#: place: ``Sonar(environment=Environment(...))``.
+#: The medium's keywords that old ``[sonar]`` TOML tables (and saved records) held; the readers move them into the
+#: :class:`Environment` with a deprecation warning (:func:`split_medium`). In Python the medium is a run's input:
+#: ``simulate(..., environment=Environment(...))``.
 LEGACY_MEDIUM_KEYS = ("sound_speed_m_s", "absorption_db_per_m", "temperature_c", "salinity_ppt", "depth_m", "ph")
 
 
-def legacy_medium(table: dict, where: str) -> dict:
-    """``table`` (a sonar's keywords) with its old medium keys moved into its ``environment`` (a dict or an
-    :class:`Environment`); an error names a key whose value the environment refuses."""
-    legacy = {k: table[k] for k in LEGACY_MEDIUM_KEYS if k in table}
-    if not legacy:
-        return dict(table)
-    out = {k: v for k, v in table.items() if k not in legacy}
-    env = out.get("environment", Environment())
-    env = Environment(**env) if isinstance(env, dict) else env
+def split_medium(table: dict, where: str, environment: Environment | None = None) -> tuple[dict, Environment]:
+    """``table`` (a sonar's keywords, as old files and TOML tables held them) without its medium, and that medium:
+    ``environment`` (default :class:`Environment` ()) or the table's own ``environment`` entry (a dict or an
+    :class:`Environment`, as records written before the medium left the sonar hold it), with the old medium keys
+    moved in. An error names a key whose value the environment refuses."""
+    out = dict(table)
+    env = out.pop("environment", None)
+    env = environment if env is None else env
+    env = Environment() if env is None else Environment(**env) if isinstance(env, dict) else env
+    legacy = {k: out.pop(k) for k in LEGACY_MEDIUM_KEYS if k in out}
     try:
-        out["environment"] = dataclasses.replace(env, **legacy)
+        return out, (dataclasses.replace(env, **legacy) if legacy else env)
     except ConfigError as exc:  # name the key as it was given
         raise ConfigError(str(exc).replace("Environment.", f"{where}.", 1)) from None
-    return out
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ from .propagation.clutter import check_clutter, clutter_echoes
 from .propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
 from .propagation.volume import VolumeBeam, volume_density
 from .signal import processing, pulses
-from .config import FanSettings, Pulse, SignalChain, Sonar
+from .config import Acquisition, FanSettings, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError
 from .signal.truth import GroundTruth
@@ -97,6 +97,7 @@ def tile_reach_m(sonar) -> float:
 
 
 def _check_inputs(scene, trajectory, sonar, pulse, fan):
+    sonar = sonar.sonar if isinstance(sonar, Acquisition) else sonar   # the instrument the user gave
     for name, value, cls in (("scene", scene, Scene), ("trajectory", trajectory, Trajectory),
                              ("sonar", sonar, sonars.SONAR_TYPES), ("pulse", pulse, Pulse), ("fan", fan, FanSettings)):
         if not isinstance(value, cls):
@@ -126,11 +127,13 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         of the trajectory.
     trajectory : Trajectory
         One pose per ping.
-    sonar : Sonar or EchoSounder, optional
-        The sonar type, its transducer and range window (and its medium); default
-        :class:`Sonar` () (side-scan: channels port and starboard).
+    sonar : Sonar, EchoSounder, MSIS, ForwardLooking or Acquisition, optional
+        The sonar type, its transducer and range window; default
+        :class:`Sonar` () (side-scan: channels port and starboard). An
+        :class:`~sonar_embree.config.Acquisition` brings its medium along (then leave ``environment`` out).
     environment : Environment, optional
-        The medium (sound speed, water, absorption model); replaces ``sonar.environment``.
+        The medium (sound speed, water, absorption model, sea surface, profile, noise); default
+        :class:`Environment` (). The run pairs it with the sonar once (:class:`~sonar_embree.config.Acquisition`).
     pulse : Pulse, optional
         Transmitted pulse; default 100 µs rectangular CW.
     speckle, band, detection, matched_filter, tvg, noise_db_per_hz, lowpass_hz, speckle_cell_m, seed
@@ -260,10 +263,13 @@ def _resolve(sonar, pulse, fan, quality, chain, environment, caster, cache, ping
             raise ConfigError("simulate: give either quality or fan, not both (FanSettings has a quality field)")
         fan = FanSettings(quality=quality)
     fan = FanSettings() if fan is None else fan
-    if environment is not None:
-        if not isinstance(environment, Environment):
-            raise ConfigError(f"simulate: environment must be a sonar_embree.Environment, got {environment!r}")
-        sonar = dataclasses.replace(sonar, environment=environment)
+    if isinstance(sonar, Acquisition):      # a sonar already in its medium
+        if environment is not None and environment != sonar.environment:
+            raise ConfigError("simulate: give the medium once: as environment or in the Acquisition, not both")
+        sonar, environment = sonar.sonar, sonar.environment
+    environment = Environment() if environment is None else environment
+    if not isinstance(environment, Environment):
+        raise ConfigError(f"simulate: environment must be a sonar_embree.Environment, got {environment!r}")
     if caster is not None and not (isinstance(caster, type) and issubclass(caster, Caster)):
         raise ConfigError(f"simulate: caster must be a subclass of sonar_embree.raycast.Caster, got {caster!r}")
     if cache is not None and not isinstance(cache, RunCache):
@@ -273,7 +279,7 @@ def _resolve(sonar, pulse, fan, quality, chain, environment, caster, cache, ping
 
     if not isinstance(sonar, sonars.SONAR_TYPES) or not isinstance(pulse, Pulse):
         return sonar, pulse, fan, chain  # _check_inputs names the wrong type
-    sonar = sonar.for_pulse(pulse)
+    sonar = Acquisition(sonar.for_pulse(pulse), environment)   # the sonar in this run's medium, resolved once
     if chain is None:
         seed = chain_kwargs["seed"]
         chain = SignalChain(**{**chain_kwargs, "seed": int(seed) if isinstance(seed, np.integer) else seed})
@@ -317,12 +323,12 @@ class _Run:
             raise ConfigError("simulate: keep_complex needs speckle=True, coherent detection and no lowpass_hz "
                               "(the complex signal exists only there)")
         if front.beamforms and chain.speckle and chain.detection != "coherent":
-            raise ConfigError(f"simulate: {type(sonar).__name__} forms its beams from complex signals; its speckle "
+            raise ConfigError(f"simulate: {sonar.type_name} forms its beams from complex signals; its speckle "
                               "needs detection='coherent'")
         _check_array(sonar, chain)
         if labels and not front.supports_labels:
             raise ConfigError(f"simulate: labels are made for side-scan, MSIS and forward-looking sonars, not "
-                              f"{type(sonar).__name__}")
+                              f"{sonar.type_name}")
         compiled = scene.compiled(survey_origin(trajectory.positions_m))  # the frame where the rays are
         caster = scene_caster(compiled, RayCaster if caster is None else caster, cache)
         c, fs = sonar.sound_speed_m_s, sonar.sample_rate_hz
@@ -462,7 +468,8 @@ def _record(run: _Run, intensity, cplx, samples, trajectory, fan, start_iso: str
              "first_ping": int(run.first_ping)}
     if chain.speckle and chain.band == "carrier":
         attrs["carrier_rate_hz"] = run.back.tables.carrier_factor * sonar.sample_rate_hz
-    return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory, sonar,
-                  run.pulse, run.altitude, attrs, None if run.truth is None else run.truth.labels(),
+    return Record(np.ascontiguousarray(intensity), np.arange(run.n_out) / sonar.sample_rate_hz, trajectory,
+                  sonar.sonar, run.pulse, run.altitude, attrs, None if run.truth is None else run.truth.labels(),
                   None if cplx is None else np.ascontiguousarray(cplx), channels=tuple(run.front.channels),
-                  samples=samples, element_data=None if elements is None else np.ascontiguousarray(elements))
+                  samples=samples, element_data=None if elements is None else np.ascontiguousarray(elements),
+                  environment=sonar.environment)

@@ -398,7 +398,7 @@ def test_inverted_box_warns_and_two_sided_echoes(warnings_log):
 
 # --- 13: no NaN or inf in a record; one-line errors instead of tracebacks ---------------------------------
 def test_tvg_that_would_overflow_is_refused_and_display_tvg_never_overflows(tmp_path):
-    sonar = se.Sonar(environment=se.Environment(absorption_db_per_m=100.0), max_range_m=20.0)
+    sonar = se.Acquisition(se.Sonar( max_range_m=20.0), se.Environment(absorption_db_per_m=100.0))
     with pytest.raises(se.ConfigError, match="SignalChain.tvg: the gain"):
         se.simulate(_floor(), _line(), sonar, tvg=True)
     rec = se.simulate(_floor(), _line(), sonar)  # legal without TVG (all echoes underflow to ~0)
@@ -406,7 +406,7 @@ def test_tvg_that_would_overflow_is_refused_and_display_tvg_never_overflows(tmp_
     img = rec.waterfall()  # the display TVG works in decades: no inf * 0
     assert img.dtype == np.uint8
     strong = se.simulate(_floor(), _line(),
-                         se.Sonar(environment=se.Environment(absorption_db_per_m=2.0), max_range_m=20.0))
+                         se.Acquisition(se.Sonar( max_range_m=20.0), se.Environment(absorption_db_per_m=2.0)))
     assert np.isfinite(strong.starboard).all() and strong.waterfall().max() > 100  # the floor is seen
 
 
@@ -574,7 +574,7 @@ def test_echo_box_spans_the_pings_the_two_way_beam_gives():
     rows_echo, rows_centre = echo["bbox"][3], centre["bbox"][3]
 
     # independent reference: I(x) = ∫ Γ⁴((x + a sin φ)/R) cos²φ dφ over the lit half, Γ the azimuth sinc
-    k = 2 * np.pi * sonar.frequency_hz / sonar.sound_speed_m_s
+    k = 2 * np.pi * sonar.frequency_hz / se.Acquisition.of(sonar).sound_speed_m_s
     R = np.hypot(abs(y) - a, h - 1.0)
     g4 = lambda u: np.sinc(k * sonar.length_m / 2 * u / R / np.pi) ** 4  # noqa: E731
 

@@ -1,6 +1,7 @@
 """The speckle-free flat-floor return against independent quadrature of docs/physics.md eq. (1)–(2)."""
 import numpy as np
 import pytest
+import sonar_embree as se
 
 import analytic
 from conftest import H
@@ -33,7 +34,7 @@ def test_mean_line_matches_analytic_within_half_db(flat_record, reference):
 
 
 def test_nothing_arrives_before_first_bottom_return(flat_record):
-    t_first = 2 * H / flat_record.sonar.sound_speed_m_s
+    t_first = 2 * H / flat_record.acquisition.sound_speed_m_s
     dt = 1 / flat_record.sonar.sample_rate_hz
     early = flat_record.time_s < t_first - dt
     assert early.sum() > 500
@@ -52,7 +53,7 @@ def test_no_nan_and_non_negative(flat_record):
 
 def test_axes(flat_record):
     s = flat_record.sonar
-    assert flat_record.port.shape == (3, s.n_samples)
+    assert flat_record.port.shape == (3, se.Acquisition.of(s).n_samples)
     np.testing.assert_allclose(np.diff(flat_record.time_s), 1 / s.sample_rate_hz)
-    np.testing.assert_allclose(flat_record.slant_range_m, flat_record.time_s * s.sound_speed_m_s / 2)
-    assert flat_record.slant_range_m[-1] == pytest.approx(s.max_range_m, abs=s.range_bin_m)
+    np.testing.assert_allclose(flat_record.slant_range_m, flat_record.time_s * se.Acquisition.of(s).sound_speed_m_s / 2)
+    assert flat_record.slant_range_m[-1] == pytest.approx(s.max_range_m, abs=se.Acquisition.of(s).range_bin_m)

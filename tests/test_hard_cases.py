@@ -101,7 +101,7 @@ def test_tall_object_right_below_the_sonar():
 def test_one_kilometre_at_900_khz(speckle):
     """Two-way absorption of ~580 dB at 1 km: the far end underflows to 0, never NaN or garbage; TVG stays finite."""
     sonar = se.Sonar(frequency_hz=900e3, max_range_m=1000.0, length_m=0.1, height_m=0.002)
-    assert 2 * sonar.alpha_db_per_m * 1000 > 500
+    assert 2 * se.Acquisition.of(sonar).alpha_db_per_m * 1000 > 500
     scene = se.Scene().add(se.seafloor.flat((2200, 200)), label="seafloor")
     rec = se.simulate(scene, line_along_x(1), sonar, se.Pulse.cw(), speckle=speckle, tvg=True, quality=0.25)
     _finite(rec)
@@ -210,7 +210,7 @@ def test_object_at_the_edge_of_the_fan_echoes_nothing_before_its_nearest_point()
     floor = se.simulate(flat_scene(), traj, sonar, pulse).starboard
     both = se.simulate(flat_scene().add(sphere, material=se.Material(-15.0), label="sphere"), traj, sonar,
                        pulse).starboard
-    r = 0.5 * sonar.sound_speed_m_s * np.arange(floor.shape[1]) / sonar.for_pulse(pulse).sample_rate_hz
+    r = 0.5 * se.Acquisition.of(sonar).sound_speed_m_s * np.arange(floor.shape[1]) / sonar.for_pulse(pulse).sample_rate_hz
     r_near = np.linalg.norm(traj.positions_m - centre, axis=1) - radius
     assert np.any(both[:, (r > 23.5) & (r < 25.0)] > 3.0 * floor[:, (r > 23.5) & (r < 25.0)])  # it is seen
     for p in range(traj.n_pings):

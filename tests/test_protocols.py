@@ -58,7 +58,7 @@ def test_no_module_dispatches_on_a_class_name_or_a_sonar_type():
 @pytest.mark.parametrize("sonar_cls", sonars.SONAR_TYPES)
 def test_every_front_end_follows_the_protocol(sonar_cls):
     sonar = sonar_cls().for_pulse(se.Pulse.cw())
-    front = sonars.front_end(sonar, FanSettings())
+    front = sonars.front_end(se.Acquisition.of(sonar), FanSettings())
     assert isinstance(front, FrontEnd)
     assert type(front).cast is not FrontEnd.cast                          # the one part without a default
     assert front.channels == sonar.channels and front.synth_channels >= len(front.channels)
@@ -150,7 +150,7 @@ def test_a_run_prepares_its_state_by_name_and_shares_it_only_on_request():
     c = scene.compiled(np.zeros(3))
     fields = {f.name for f in dataclasses.fields(c)}
     assert not fields & {"prepared", "casters", "cache"} and [k for k in vars(c) if k.startswith("_")] == []
-    sonar = se.Sonar(environment=se.Environment(surface=se.SeaSurface(z_m=10.0, swell_height_m=0.4)))
+    sonar = se.Acquisition(se.Sonar(), se.Environment(surface=se.SeaSurface(z_m=10.0, swell_height_m=0.4)))
     front = sonars.front_end(sonar.for_pulse(se.Pulse.cw()), se.FanSettings())
     cache = RunCache()
     runs = [prepare(scene_caster(c, NumpyCaster, cache), front, sonar.frequency_hz, 30.0, 1, True, cache)

@@ -79,7 +79,7 @@ def _ripple_period_m(rec, lo_m=25.0, hi_m=50.0, step_m=0.05):
     from sonar_embree.signal.labels import SEAFLOOR
     from sonar_embree.signal.processing import tvg_gain
 
-    x = rec.starboard * tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+    x = rec.starboard * tvg_gain(rec.time_s, rec.acquisition.sound_speed_m_s, rec.acquisition.alpha_db_per_m)
     grid = np.arange(lo_m, hi_m, step_m)
     spec = np.zeros(4 * grid.size // 2 + 1)
     for p in range(rec.n_pings):
@@ -110,7 +110,7 @@ def test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend(tmp_path):
         assert iio.imread(tmp_path / f"{name}.png").std() > 10
     recs = {n: se.Record.load(tmp_path / f"{n}.npz") for n in records}
     for name, rec in recs.items():
-        port = rec.port * tvg_gain(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+        port = rec.port * tvg_gain(rec.time_s, rec.acquisition.sound_speed_m_s, rec.acquisition.alpha_db_per_m)
         kind = rec.labels.kind[0]  # the wreck lies to port
         floor = np.median(port[kind == SEAFLOOR])
         assert (kind == OBJECT).mean() > 0.02 and (kind == SHADOW).mean() > 0.05, name

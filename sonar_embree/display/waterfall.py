@@ -196,7 +196,7 @@ def _reduced(record, tvg: bool, ground_range: bool, max_columns, group: int):
     codes = record.samples is not None         # a device's codes carry its own gain law
     if tvg and not codes and not record.attrs.get("tvg", False):
         with np.errstate(divide="ignore"):  # in decades, then rescaled: no overflow for any absorption
-            decades = 4.0 * np.log10(r) + 2.0 * record.sonar.alpha_db_per_m * r / 10.0
+            decades = 4.0 * np.log10(r) + 2.0 * record.acquisition.alpha_db_per_m * r / 10.0
         gain = 10.0 ** (decades - decades[np.isfinite(decades)].max(initial=0.0))
     altitude = np.asarray(record.altitude_m, dtype=np.float64)
     ground = ground_grid(r, altitude) if ground_range else None

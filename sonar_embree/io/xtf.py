@@ -173,7 +173,8 @@ def _file_header(record, factor: float, ints, file_name: str = "", n_s: int | No
     h["NumberOfSonarChannels"] = 2
     s = record.sonar
     h["ThisFileName"] = file_name.encode()[:64]
-    along, across = (beamwidth_deg(size, s.wavelength_m) for size in (s.length_m, s.height_m))   # one-way −3 dB
+    lam = record.acquisition.wavelength_m
+    along, across = (beamwidth_deg(size, lam) for size in (s.length_m, s.height_m))   # one-way −3 dB
     for i, (kind, name) in enumerate(((PORT_CHANNEL, b"port"), (STARBOARD_CHANNEL, b"starboard"))):
         c = h["ChanInfo"][i]
         c["TypeOfChannel"], c["SubChannelNumber"] = kind, i
@@ -267,7 +268,7 @@ def xtf_bytes(record, start=None, *, scale="auto", surface_z_m=None, samples: bo
     ints = record.samples if samples and record.samples is not None else None
     factor = sample_scale(record, scale) if ints is None else 1.0
     t = record.trajectory
-    sea = record.sonar.environment.surface
+    sea = record.environment.surface
     surface_z_m = sea.z_m if surface_z_m is None and sea is not None else surface_z_m   # depth below its surface
     if surface_z_m is not None:
         if isinstance(surface_z_m, bool) or not isinstance(surface_z_m, (int, float)) or not math.isfinite(surface_z_m):
@@ -393,7 +394,7 @@ def _packets(record, when, surface_z_m, ints, n_s: int, fixes: dict) -> np.ndarr
     h["NumBytesThisRecord"] = packet.dtype.itemsize
     _ping_times(h, when, t.times_s, fixes["times_s"])
     h["PingNumber"] = np.arange(n_p)                                # EventNumber stays 0: no event marked
-    h["SoundVelocity"] = 0.5 * s.sound_speed_m_s
+    h["SoundVelocity"] = 0.5 * record.environment.sound_speed_m_s
     _navigation(h, record, surface_z_m, fixes)
     codes = {} if ints is None else s.receiver.header_codes()
     tvg = ints is not None and codes.get("GainCode", 0) > 0             # the codes carry the receiver's TVG

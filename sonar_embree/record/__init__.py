@@ -8,7 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Pulse, legacy_medium
+from ..config import Acquisition, Pulse, split_medium
+from ..environment import Environment
 from ..errors import ConfigError
 from ..io.files import atomic_write
 from ..signal.labels import Labels
@@ -31,8 +32,8 @@ class Record:
         Time from the start of transmission, s.
     trajectory : Trajectory
         The pose of every ping.
-    sonar : Sonar or EchoSounder
-        The sonar type and its settings (with its medium).
+    sonar : Sonar, EchoSounder, MSIS or ForwardLooking
+        The sonar type and its settings (the instrument alone).
     pulse : Pulse
     altitude_m : (n_pings,) float64
         Distance to the first surface straight below the sonar (NaN if none in range).
@@ -52,6 +53,8 @@ class Record:
     element_data : (n_pings, n_channels, n_elements, n_samples) complex128 or None
         A receiver array's complex baseband per element (:class:`~sonar_embree.ReceiverArray`; matched-filtered
         and TVG'd as ``complex_data``); element 0 is the channel's ``data``. None without an array.
+    environment : Environment
+        The medium the record was simulated in (sound speed, absorption, surface, profile, noise).
     """
 
     data: np.ndarray
@@ -66,6 +69,7 @@ class Record:
     channels: tuple = ("port", "starboard")
     samples: np.ndarray | None = None
     element_data: np.ndarray | None = None
+    environment: Environment = Environment()
 
     def __post_init__(self):
         if self.data.ndim != 3 or self.data.shape[1] != len(self.channels):
@@ -102,9 +106,14 @@ class Record:
         return self.channel("starboard", complex_=True)
 
     @property
+    def acquisition(self) -> Acquisition:
+        """The sonar in the record's medium: c, λ, k, α, the beam and its DI (:class:`~sonar_embree.config.Acquisition`)."""
+        return Acquisition(self.sonar, self.environment)
+
+    @property
     def slant_range_m(self) -> np.ndarray:
         """Slant range of each sample, R = c·t/2 (m), shape (n_samples,)."""
-        return 0.5 * self.sonar.sound_speed_m_s * self.time_s
+        return 0.5 * self.environment.sound_speed_m_s * self.time_s
 
     @property
     def n_pings(self) -> int:
@@ -119,8 +128,9 @@ class Record:
         first = parts[0]
         for p in parts[1:]:
             if (p.sonar != first.sonar or p.pulse != first.pulse or p.channels != first.channels
-                    or not np.array_equal(p.time_s, first.time_s)):
-                raise ConfigError("Record.concatenate: the records differ in sonar, pulse, channels or time axis")
+                    or p.environment != first.environment or not np.array_equal(p.time_s, first.time_s)):
+                raise ConfigError("Record.concatenate: the records differ in sonar, medium, pulse, channels or time "
+                                  "axis")
         attrs = dict(first.attrs)
         if "rays_per_ping" in attrs:
             n = np.array([p.n_pings for p in parts], dtype=float)
@@ -131,7 +141,8 @@ class Record:
         elements = None if first.element_data is None else np.concatenate([p.element_data for p in parts])
         return cls(np.concatenate([p.data for p in parts]), first.time_s,
                    Trajectory.concatenate([p.trajectory for p in parts]), first.sonar, first.pulse,
-                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels, ints, elements)
+                   np.concatenate([p.altitude_m for p in parts]), attrs, labels, cplx, first.channels, ints, elements,
+                   first.environment)
 
     # ------------------------------------------------------------------ files
     def metadata(self) -> dict:
@@ -140,7 +151,8 @@ class Record:
         from .._version import __version__
 
         meta = {"format_version": FORMAT_VERSION, "package_version": __version__,
-                "sonar": dataclasses.asdict(self.sonar), "pulse": dataclasses.asdict(self.pulse),
+                "sonar": dataclasses.asdict(self.sonar), "environment": dataclasses.asdict(self.environment),
+                "pulse": dataclasses.asdict(self.pulse),
                 "attrs": self.attrs}
         meta["sonar_type"], meta["channels"] = type(self.sonar).__name__, list(self.channels)
         meta["trajectory"] = {"crs": self.trajectory.crs, "start_time": self.trajectory.start_time}
@@ -224,10 +236,11 @@ class Record:
             labels = Labels(**p["labels"], names=tuple(meta["labels"]["names"]),
                             is_seafloor=tuple(meta["labels"]["is_seafloor"]))
         sonar_cls = {c.__name__: c for c in SONAR_TYPES}[meta.get("sonar_type", "Sonar")]
-        sonar = sonar_cls(**legacy_medium(meta["sonar"], sonar_cls.__name__))     # files written before [environment]
-        return cls(p["data"], p["time_s"], traj, sonar, Pulse(**meta["pulse"]), p["altitude_m"], meta.get("attrs", {}),
-                   labels, p.get("complex_data"), tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"),
-                   p.get("element_data"))
+        # files written before the medium left the sonar hold it in the sonar's table (older ones as its keys)
+        table, env = split_medium(meta["sonar"], sonar_cls.__name__, meta.get("environment"))
+        return cls(p["data"], p["time_s"], traj, sonar_cls(**table), Pulse(**meta["pulse"]), p["altitude_m"],
+                   meta.get("attrs", {}), labels, p.get("complex_data"),
+                   tuple(meta.get("channels", ("port", "starboard"))), p.get("samples"), p.get("element_data"), env)
 
     def to_xarray(self):
         """The record as an ``xarray.Dataset`` (see :func:`sonar_embree.record.dataset.to_xarray`)."""

@@ -46,7 +46,7 @@ def _flat_attrs(record) -> dict:
                                      if record.sonar.source_level_db is None else
                                      f"source level {record.sonar.source_level_db:g} dB re 1 uPa at 1 m: intensities in "
                                      "uPa^2 (docs/physics.md section 14)")}
-    for group, obj in (("sonar", record.sonar), ("environment", record.sonar.environment), ("pulse", record.pulse)):
+    for group, obj in (("sonar", record.sonar), ("environment", record.environment), ("pulse", record.pulse)):
         for k, v in dataclasses.asdict(obj).items():
             if v is not None and not isinstance(v, dict):
                 attrs[f"{group}.{k}"] = _attr_value(v)

@@ -59,7 +59,7 @@ def render_part(spec: SceneSpec, job: Job, start: int, stop: int) -> Record:
     scene, cache = _scene(spec, job.seed)
     return simulate(scene, job.trajectory[start:stop], job.sonar, job.pulse, fan=job.fan, chain=job.chain,
                     labels=job.labels, keep_complex=job.keep_complex, ping_offset=start, start_time=job.start_time,
-                    cache=cache)
+                    cache=cache, environment=job.environment)
 
 
 def _write_outputs(rec: Record, job: Job, sweep: Sweep, folder: str) -> None:

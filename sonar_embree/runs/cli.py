@@ -24,8 +24,9 @@ CONFIG.toml describes the scene, trajectory and sonar; keys map 1:1 onto the Pyt
 dataclasses (units in the key names):
 
   [sonar]       frequency_hz, length_m, height_m, tilt_deg, max_range_m,
-                sample_rate_hz, sound_speed_m_s, absorption_db_per_m (default:
-                Francois-Garrison from temperature_c, salinity_ppt, depth_m, ph)
+                sample_rate_hz (the instrument; type, preset, beam, levels)
+  [environment] sound_speed_m_s, absorption_db_per_m (default: Francois-Garrison
+                from temperature_c, salinity_ppt, depth_m, ph), surface, noise
   [pulse]       kind = "cw" | "lfm" | "exp_chirp", duration_s, taper (0 rectangle
                 ... 1 Blackman-Harris; default 0.1); lfm: bandwidth_hz, center_hz;
                 exp_chirp: f_start_hz, f_stop_hz

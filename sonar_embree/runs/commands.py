@@ -150,7 +150,8 @@ def _render(args) -> list:
         raise SonarEmbreeError(f"{args.config}: [output] every format is false; nothing to write")
     workers = _checked_workers(args.workers)
     kw = dict(chain=_chain(args, cfg.chain), fan=_fan(args, cfg.fan), progress=not args.no_progress,
-              start_time=args.start_time, labels=o.needs_labels(), caster=CASTERS[args.caster])
+              start_time=args.start_time, labels=o.needs_labels(), caster=CASTERS[args.caster],
+              environment=cfg.environment)
     with OutputFolder.claim(args.output, registry.file_names(o.formats()), overwrite=args.overwrite,
                             inputs=[args.config], command="render") as out:
         if (workers or 1) > 1 or args.scheduler is not None:   # the blocks on Dask workers, joined here

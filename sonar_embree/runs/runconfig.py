@@ -27,7 +27,8 @@ except ModuleNotFoundError:  # Python < 3.11
     import tomli as tomllib
 
 from .. import assets
-from ..config import LEGACY_MEDIUM_KEYS, FanSettings, Material, Pulse, SignalChain, Sonar, field_names, legacy_medium
+from ..config import (LEGACY_MEDIUM_KEYS, Acquisition, FanSettings, Material, Pulse, SignalChain, Sonar, field_names,
+                      split_medium)
 from ..environment import Environment
 from ..errors import ConfigError, SceneError, SonarEmbreeError
 from ..record import registry
@@ -119,6 +120,12 @@ class RunConfig:
     fan: FanSettings
     chain: SignalChain
     output: OutputOptions
+    environment: Environment = Environment()
+
+    @property
+    def acquisition(self) -> Acquisition:
+        """The run's sonar in its medium (for the pulse's sample rate): c, λ, the beam, the noise."""
+        return Acquisition(self.sonar.for_pulse(self.pulse), self.environment)
 
 
 def _check_keys(where: str, table, allowed, source: str):
@@ -147,9 +154,9 @@ SONAR_TYPES = {"sidescan": Sonar, "msis": MSIS, "echosounder": EchoSounder, "for
 def table_keys(cls) -> tuple:
     """The keys a TOML table of ``cls`` may hold: its fields (``[sonar]``: also the medium's old keys)."""
     if cls is Sonar:
-        return tuple(k for k in field_names(Sonar) if k != "environment") + LEGACY_MEDIUM_KEYS + ("preset", "type")
+        return field_names(Sonar) + LEGACY_MEDIUM_KEYS + ("preset", "type")
     if cls in SONAR_TYPES.values():
-        return tuple(k for k in field_names(cls) if k != "environment") + ("type",)
+        return field_names(cls) + ("type",)
     return field_names(cls)
 
 
@@ -167,14 +174,13 @@ def _dataclass_table(data, name, cls, source):
     return _build(source, f"[{name}]", cls, table)
 
 
-def build_sonar(source: str, where: str, sonar_table: dict, environment: Environment) -> Sonar:
-    """The sonar of a ``[sonar]`` table (its ``type``) in ``environment``; the medium's old ``[sonar]`` keys are
-    mapped into a side-scan's."""
+def build_sonar(source: str, where: str, sonar_table: dict, environment: Environment) -> tuple:
+    """(the sonar of a ``[sonar]`` table (its ``type``), the medium ``environment``): a side-scan table's old medium
+    keys are moved into the medium, with a warning."""
     cls = sonar_class(source, where, sonar_table)
     _check_keys(where, sonar_table, table_keys(cls), source)
     if cls is not Sonar:
-        return _build(source, where, cls, {**{k: v for k, v in sonar_table.items() if k != "type"},
-                                           "environment": environment})
+        return _build(source, where, cls, {k: v for k, v in sonar_table.items() if k != "type"}), environment
     both = [k for k in LEGACY_MEDIUM_KEYS if k in sonar_table and getattr(environment, k) != getattr(Environment(), k)]
     if both:
         raise ConfigError(f"{source}: {where}: {both[0]!r} is given in both [sonar] and [environment]; "
@@ -185,11 +191,10 @@ def build_sonar(source: str, where: str, sonar_table: dict, environment: Environ
         verb = "belongs" if len(old) == 1 else "belong"
         warnings.warn(f"{source}: {where}: {', '.join(old)} {verb} in [environment] (read from [sonar] for now)",
                       FutureWarning, stacklevel=2)
-        kwargs = legacy_medium({**kwargs, "environment": environment}, "Sonar")
+        kwargs, environment = split_medium(kwargs, "Sonar", environment)
     if "preset" in sonar_table:  # a device's sonar; the table's other keys override it
-        return _build(source, where, lambda **kw: Sonar.preset(sonar_table["preset"], **kw),
-                      {"environment": environment, **kwargs})
-    return _build(source, where, Sonar, {"environment": environment, **kwargs})
+        return _build(source, where, lambda **kw: Sonar.preset(sonar_table["preset"], **kw), kwargs), environment
+    return _build(source, where, Sonar, kwargs), environment
 
 
 def _resolve(base: str, path) -> str:
@@ -226,15 +231,17 @@ def load_run_config(path) -> RunConfig:
         profile["csv"] = _resolve(base, profile["csv"])
     environment = _dataclass_table(data, "environment", Environment, source)
     sonar_table = data.get("sonar", {})
-    sonar = build_sonar(source, "[sonar]", sonar_table, environment)
+    sonar, environment = build_sonar(source, "[sonar]", sonar_table, environment)
     pulse = _dataclass_table(data, "pulse", Pulse, source)
     if "preset" in sonar_table and "pulse" not in data:  # the device's own pulse
         pulse = Pulse.preset(sonar_table["preset"])
     fan = _dataclass_table(data, "fan", FanSettings, source)
 
     chain = _dataclass_table(data, "simulation", SignalChain, source)
+    # the sonar in its medium (an array's grating lobes at this λ, the samples per ping at this c)
+    acquisition = _build(source, "[sonar]", Acquisition, {"sonar": sonar.for_pulse(pulse), "environment": environment})
     try:
-        chain.resolved(sonar, pulse)  # combinations of sonar, pulse and chain, before any work
+        chain.resolved(acquisition, pulse)  # combinations of sonar, medium, pulse and chain, before any work
     except SonarEmbreeError as exc:
         raise ConfigError(f"{source}: [simulation]: {exc}") from None
     out = data.get("output", {})
@@ -253,7 +260,7 @@ def load_run_config(path) -> RunConfig:
     for i, obj in enumerate(objects):
         add_object(scene, obj, source, base, f"[[objects]] #{i + 1}")
 
-    return RunConfig(scene, traj, sonar, pulse, fan, chain, output)
+    return RunConfig(scene, traj, sonar, pulse, fan, chain, output, environment)
 
 
 def parse_trajectory(table, source: str, base: str, where: str) -> Trajectory:

@@ -18,7 +18,7 @@ import os
 
 import numpy as np
 
-from ..config import Material, Pulse, Sonar
+from ..config import Acquisition, Material, Pulse, Sonar
 from ..laws import sediments
 from ..errors import ConfigError
 from ..instrument import devices
@@ -201,7 +201,7 @@ def line_receiver(device: str, sonar, pulse, tiles, traj):
     on_floor = (r > 1.05 * alt) & np.all(rec.data[0] > 0, axis=0)
     if not on_floor.any():
         return d.receiver(start_range_m=TVG_START_FRACTION * alt)
-    levels = 10.0 * np.log10(rec.data[0][:, on_floor]) + law.gain_db(r[on_floor], sonar.alpha_db_per_m)
+    levels = 10.0 * np.log10(rec.data[0][:, on_floor]) + law.gain_db(r[on_floor], rec.acquisition.alpha_db_per_m)
     r0 = d.receiver()
     fs_db = 20.0 * np.log10(r0.full_scale_v) - r0.sensitivity_db
     g0 = min(fs_db + 20.0 * np.log10(SEABED_FULL_SCALE) - float(np.median(levels)),
@@ -243,8 +243,9 @@ def _device(name: str, range_m, ping_rate_hz):
     d = devices.device(name)
     rng = float(d.ranges_m[0] if range_m is None else range_m)
     sonar = Sonar.preset(name, max_range_m=rng, receiver=d.receiver())
-    rate = d.ping_rate_hz(rng, sonar.sound_speed_m_s) if ping_rate_hz is None else float(ping_rate_hz)
-    limit = sonar.sound_speed_m_s / (2.0 * rng)
+    c = Acquisition(sonar).sound_speed_m_s        # the survey's medium: the default water
+    rate = d.ping_rate_hz(rng, c) if ping_rate_hz is None else float(ping_rate_hz)
+    limit = c / (2.0 * rng)
     if rate > limit * (1.0 + 1e-9):
         log.warning("survey: %.4g pings a second is faster than the %.4g at which the echoes of %.4g m return "
                     "(c/2R); pinging at %.4g", rate, limit, rng, limit)

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import FanSettings, Material, Pulse, SignalChain, Sonar, field_names
+from ..config import Acquisition, FanSettings, Material, Pulse, SignalChain, Sonar, field_names
 from ..environment import Environment
 from ..errors import ConfigError, SonarEmbreeError
 from ..record import registry
@@ -83,6 +83,7 @@ class Job:
     labels: bool
     keep_complex: bool = False
     start_time: str = DEFAULT_SWEEP_START
+    environment: Environment = Environment()
 
     @property
     def id(self) -> str:
@@ -263,7 +264,7 @@ def _poses_of(t: Trajectory) -> list:
 
 
 def _job_settings_digest(jobs) -> str:
-    return _digest([[dataclasses.asdict(x) for x in (j.sonar, j.pulse, j.fan, j.chain)] for j in jobs])
+    return _digest([[dataclasses.asdict(x) for x in (j.sonar, j.environment, j.pulse, j.fan, j.chain)] for j in jobs])
 
 
 def _files_digest(paths) -> str:
@@ -336,7 +337,7 @@ def load_sweep(path) -> Sweep:
         s = settings[ci]
         chain = dataclasses.replace(s["simulation"], seed=int(seed))
         jobs.append(Job(len(jobs), si, ti, combos[ci], int(seed), trajectories[ti], s["sonar"], s["pulse"],
-                        s["fan"], chain, labels, keep_complex, start))
+                        s["fan"], chain, labels, keep_complex, start, s["environment"]))
     return Sweep(src, name, tuple(scenes), tuple(traj_names), tuple(jobs), tuple(outputs), ppt, dict(png),
                  tuple(sorted(categories)), start, _files_digest(_input_files(base, data)))
 
@@ -403,11 +404,14 @@ def _build_combo(base_tables, combo, src, keep_complex) -> dict:
     built = {}
     for t, cls in TABLES.items():
         if t == "sonar":
-            built[t] = runconfig.build_sonar(src, f"[sonar] ({where})", tables[t], built["environment"])
+            built[t], built["environment"] = runconfig.build_sonar(src, f"[sonar] ({where})", tables[t],
+                                                                   built["environment"])
         else:
             built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
+    acquisition = runconfig._build(src, f"[sonar] ({where})", Acquisition,
+                                   {"sonar": built["sonar"].for_pulse(built["pulse"]), "environment": built["environment"]})
     try:
-        chain = built["simulation"].resolved(built["sonar"].for_pulse(built["pulse"]), built["pulse"])
+        chain = built["simulation"].resolved(acquisition, built["pulse"])
     except SonarEmbreeError as exc:
         raise ConfigError(f"{src}: {where}: {exc}") from None
     if keep_complex and not (chain.speckle and chain.detection == "coherent" and chain.lowpass_hz is None):

@@ -179,7 +179,7 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
     p = _checked_selection(pings, pos.shape[0], "pings")
     if not np.all(np.isfinite(pos[p])):
         raise ConfigError("record_image: positions_m holds values that are not finite")
-    s = record.sonar
+    s = record.acquisition
     fwd = record.trajectory.rotations()[p][:, :, 0]
     if isinstance(max_u, str):
         if max_u != "auto":

@@ -20,13 +20,14 @@ FRONT_ENDS = {Sonar: SideScanFrontEnd, EchoSounder: EchoSounderFrontEnd, MSIS: M
 SONAR_TYPES = tuple(FRONT_ENDS)
 
 
-def front_end(sonar, fan):
-    """The front end of ``sonar`` (a :data:`SONAR_TYPES` instance) with ray density ``fan``."""
+def front_end(acquisition, fan):
+    """The front end of ``acquisition`` (an :class:`~sonar_embree.config.Acquisition` of a :data:`SONAR_TYPES`
+    instance) with ray density ``fan``."""
     for cls, fe in FRONT_ENDS.items():
-        if type(sonar) is cls:
-            return fe(sonar, fan)
+        if type(acquisition.sonar) is cls:
+            return fe(acquisition, fan)
     raise ConfigError(f"simulate: sonar must be one of {', '.join(c.__name__ for c in SONAR_TYPES)}, "
-                      f"got {type(sonar).__name__}")
+                      f"got {type(acquisition.sonar).__name__}")
 
 
 __all__ = ["EchoSounder", "FRONT_ENDS", "ForwardLooking", "MSIS", "SONAR_TYPES", "front_end"]

@@ -26,7 +26,6 @@ from ..propagation.aim import AimPlan, lattice_rays
 from ..config import FanSettings, Transducer
 from ..instrument.receiver import Receiver
 from ..propagation.echoes import Echoes
-from ..environment import Environment
 from ..laws import apply_laws
 from ..signal.processing import absorption_np_per_m
 from ..validation import check_number
@@ -59,8 +58,6 @@ class EchoSounder(Transducer):
         Slant range of the last sample, m.
     sample_rate_hz : float or None
         Record sample rate, Hz (``None``: from the pulse, as for :class:`~sonar_embree.Sonar`).
-    environment : Environment
-        The medium.
     source_level_db, self_noise_db_per_hz, receiver
         As for :class:`~sonar_embree.Sonar`.
     beam : str
@@ -72,7 +69,6 @@ class EchoSounder(Transducer):
     beamwidth_deg: float = 10.0
     max_range_m: float = 50.0
     sample_rate_hz: float | None = None
-    environment: Environment = Environment()
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
@@ -82,7 +78,6 @@ class EchoSounder(Transducer):
     tilted = False   # it looks down: the set-up checks judge no tilt
 
     def __post_init__(self):
-        self._check_environment("EchoSounder")
         check_number("EchoSounder", "frequency_hz", self.frequency_hz, positive=True)
         check_number("EchoSounder", "beamwidth_deg", self.beamwidth_deg, positive=True, hi=60.0)
         if self.beam not in BEAMS:
@@ -92,20 +87,10 @@ class EchoSounder(Transducer):
             check_number("EchoSounder", "sample_rate_hz", self.sample_rate_hz, positive=True)
         self._check_levels("EchoSounder")
 
-    @property
-    def transducer(self) -> Beam:
-        """The beam (:data:`~sonar_embree.instrument.beams.BEAMS`) with this beamwidth at the carrier."""
-        return beam_for(self.beam, self.beamwidth_deg, self.wavelength_m)
-
-    @property
-    def directivity_index_db(self) -> float:
-        """Receiving directivity index of the beam, dB (docs/physics.md §14)."""
-        return self.transducer.directivity_index_db
-
-    @property
-    def default_speckle_cell_m(self) -> float:
-        """Speckle lattice spacing by default: the beam's (the piston's radius a, its near-field resolution)."""
-        return self.transducer.speckle_cell_m
+    def transducer_in(self, sound_speed_m_s: float) -> Beam:
+        """The beam (:data:`~sonar_embree.instrument.beams.BEAMS`) with this beamwidth in water of sound speed ``sound_speed_m_s`` (m/s)
+        (m); its speckle cell (the piston's radius a, its near-field resolution) is the default lattice spacing."""
+        return beam_for(self.beam, self.beamwidth_deg, sound_speed_m_s / self.frequency_hz)
 
 
 def ring_edges(span_rad: float, d_theta: float, k: float) -> np.ndarray:

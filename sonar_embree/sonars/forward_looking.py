@@ -30,7 +30,6 @@ import numpy as np
 from ..instrument import beam
 from ..config import FanSettings, Sonar, Transducer
 from ..propagation.echoes import Echoes, row_of, row_starts
-from ..environment import Environment
 from ..errors import ConfigError
 from ..instrument.receiver import Receiver
 from ..instrument.beams import APERTURE_BEAMS
@@ -66,7 +65,7 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         One-way −3 dB vertical width of the elements' (and the transmitter's) fan, degrees.
     tilt_deg : float
         Depression of the fan's axis below the vehicle's horizontal plane, degrees.
-    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver, beam
+    max_range_m, sample_rate_hz, source_level_db, self_noise_db_per_hz, receiver, beam
         As for :class:`~sonar_embree.Sonar` (``beam``: the pattern of the membrane of these widths, or a Gaussian).
     """
 
@@ -82,14 +81,12 @@ class ForwardLooking(SideScanEquivalent, Transducer):
     tilt_deg: float = 10.0
     max_range_m: float = 40.0
     sample_rate_hz: float | None = None
-    environment: Environment = Environment()
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
     beam: str = "membrane"
 
     def __post_init__(self):
-        self._check_environment("ForwardLooking")
         if self.beam not in APERTURE_BEAMS:
             raise ConfigError(f"ForwardLooking.beam must be one of {', '.join(repr(k) for k in APERTURE_BEAMS)}, "
                               f"got {self.beam!r}")
@@ -107,17 +104,21 @@ class ForwardLooking(SideScanEquivalent, Transducer):
             check_number("ForwardLooking", "sample_rate_hz", self.sample_rate_hz, positive=True)
         if self.element_spacing_m is not None:
             check_number("ForwardLooking", "element_spacing_m", self.element_spacing_m, positive=True)
-        u_edge = math.sin(math.radians(0.5 * self.field_of_view_deg))
-        if self.spacing_m * (1.0 + u_edge) >= self.wavelength_m:
-            raise ConfigError(f"ForwardLooking.element_spacing_m = {self.spacing_m:g} m puts grating lobes inside the "
-                              f"field of view (needs d < λ/(1 + sin(fov/2)) = "
-                              f"{self.wavelength_m / (1.0 + u_edge):.4g} m)")
         self._check_levels("ForwardLooking")
 
-    @property
-    def spacing_m(self) -> float:
-        """Element spacing d, m (λ/2 unless given)."""
-        return self.wavelength_m / 2.0 if self.element_spacing_m is None else float(self.element_spacing_m)
+    def check_sound_speed(self, sound_speed_m_s: float) -> None:
+        """Refuse an element spacing that puts grating lobes inside the field of view at sound speed ``sound_speed_m_s`` (m/s)."""
+        u_edge = math.sin(math.radians(0.5 * self.field_of_view_deg))
+        wavelength_m = sound_speed_m_s / self.frequency_hz
+        d = self.spacing_in(sound_speed_m_s)
+        if d * (1.0 + u_edge) >= wavelength_m:
+            raise ConfigError(f"ForwardLooking.element_spacing_m = {d:g} m puts grating lobes inside the "
+                              f"field of view (needs d < λ/(1 + sin(fov/2)) = {wavelength_m / (1.0 + u_edge):.4g} m "
+                              f"at λ = {wavelength_m:.4g} m)")
+
+    def spacing_in(self, sound_speed_m_s: float) -> float:
+        """Element spacing d, m (λ/2 at sound speed ``sound_speed_m_s`` (m/s) unless given)."""
+        return sound_speed_m_s / self.frequency_hz / 2.0 if self.element_spacing_m is None else float(self.element_spacing_m)
 
     @property
     def channels(self) -> tuple:
@@ -134,12 +135,13 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         half = 0.5 * self.field_of_view_deg
         return np.linspace(-half, half, self.n_beams) if self.n_beams > 1 else np.zeros(1)
 
-    def array_factor(self, u) -> np.ndarray:
-        """(n_beams, n) AF_k(u) of the uniform line array at direction cosines ``u`` (n,) to starboard (real: phase
-        referred to the array's centre; 1 on the steering direction)."""
+    def array_factor(self, u, sound_speed_m_s: float) -> np.ndarray:
+        """(n_beams, n) AF_k(u) of the uniform line array at direction cosines ``u`` (n,) to starboard at sound speed
+        ``sound_speed_m_s`` (m/s) (real: phase referred to the array's centre; 1 on the steering direction)."""
         u = np.asarray(u, dtype=np.float64)
         u_k = np.sin(np.radians(self.beam_angles_deg()))
-        psi = self.wavenumber_rad_m * self.spacing_m * (u[None, :] - u_k[:, None])
+        k = 2.0 * math.pi * self.frequency_hz / sound_speed_m_s
+        psi = k * self.spacing_in(sound_speed_m_s) * (u[None, :] - u_k[:, None])
         m = self.n_elements
         num, den = np.sin(0.5 * m * psi), m * np.sin(0.5 * psi)
         small = np.abs(den) < 1e-12 * m
@@ -147,27 +149,29 @@ class ForwardLooking(SideScanEquivalent, Transducer):
             af = np.where(small, np.cos(0.5 * m * psi) / np.cos(0.5 * psi), num / den)   # ψ = 2πn: the limit
         return af
 
-    def as_sidescan(self) -> Sonar:
-        """The side-scan sonar whose starboard fan is one element's (d wide, h high), turned to look forward."""
-        return Sonar(frequency_hz=self.frequency_hz, length_m=self.spacing_m,
+    def as_sidescan(self, sound_speed_m_s: float) -> Sonar:
+        """The side-scan sonar whose starboard fan is one element's (d wide, h high) at sound speed ``sound_speed_m_s`` (m/s), turned
+        to look forward."""
+        return Sonar(frequency_hz=self.frequency_hz, length_m=self.spacing_in(sound_speed_m_s),
                      height_m=beam.membrane_size_for_beamwidth(math.radians(self.vertical_beamwidth_deg),
-                                                               self.wavelength_m),
+                                                               sound_speed_m_s / self.frequency_hz),
                      tilt_deg=self.tilt_deg, max_range_m=self.max_range_m, sample_rate_hz=self.sample_rate_hz,
-                     environment=self.environment, source_level_db=self.source_level_db,
+                     source_level_db=self.source_level_db,
                      self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver,
                      beam=self.beam)
 
-    @property
-    def directivity_index_db(self) -> float:
+    def directivity_index_in(self, sound_speed_m_s: float) -> float:
         """A beam's receiving DI: the element's (Urick §3.6) plus the array gain 10·log10 M against isotropic
         noise (elements at λ/2, Urick §3.4), dB."""
-        return self.as_sidescan().directivity_index_db + 10.0 * math.log10(self.n_elements)
+        element = self.as_sidescan(sound_speed_m_s).directivity_index_in(sound_speed_m_s)
+        return element + 10.0 * math.log10(self.n_elements)
 
 
-def array_samples(sonar: ForwardLooking, oversample: float):
+def array_samples(sonar, oversample: float):
     """Direction cosines u of the fan's azimuth lines, along the side-scan's x axis (= −u to starboard), and
-    their spacing: ds = λ/(2·M·d)/oversample over |u| ≤ :data:`U_MAX`, one line on boresight."""
-    ds = sonar.wavelength_m / (2.0 * sonar.n_elements * sonar.spacing_m) / oversample
+    their spacing: ds = λ/(2·M·d)/oversample over |u| ≤ :data:`U_MAX`, one line on boresight, for ``sonar`` a
+    forward-looking :class:`~sonar_embree.config.Acquisition`."""
+    ds = sonar.wavelength_m / (2.0 * sonar.n_elements * sonar.spacing_in(sonar.sound_speed_m_s)) / oversample
     m = int(math.floor(U_MAX / ds + 1e-9))
     return np.arange(-m, m + 1, dtype=np.float64) * ds, ds
 
@@ -185,15 +189,15 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
                               "surface (rms_wave_height_m for roughness)")
         super().__init__(sonar.as_sidescan(), fan, sides=(False, True), elevation_nulls=ELEVATION_NULLS)
         s, ds = array_samples(sonar, fan.resolved().azimuth_oversample)
-        n_lines = max(MIN_PROBE_LINES, int(math.ceil(2.0 * s[-1] * sonar.n_elements * sonar.spacing_m
-                                                     / sonar.wavelength_m)) + 1)
+        n_lines = max(MIN_PROBE_LINES, int(math.ceil(2.0 * s[-1] * sonar.n_elements
+                                                     * sonar.spacing_in(sonar.sound_speed_m_s) / sonar.wavelength_m)) + 1)
         lines = np.linspace(-s[-1], s[-1], n_lines)
         body = np.concatenate([beam.fan_body(lines, self.plan.probe_beta, side) for side in (-1, +1)])
         # its lines span the field of view, one synthesised channel each: none added under motion (δ ≪ the span)
         self.plan = dataclasses.replace(self.plan, s=s, ds=ds, probe_body=body, spans_motion=False)
         self.fls, self.channels = sonar, sonar.channels
         self.n_synth_channels = s.shape[0]
-        self.af = sonar.array_factor(-s)                           # u to starboard = −s (HEAD_FROM_SIDESCAN)
+        self.af = sonar.array_factor(-s, sonar.sound_speed_m_s)      # u to starboard = −s (HEAD_FROM_SIDESCAN)
         self.beam_power = self.af ** 2
 
     def label_lines(self, plan):

@@ -19,7 +19,6 @@ import numpy as np
 
 from ..config import FanSettings, Sonar, Transducer
 from ..propagation.echoes import Echoes, merged
-from ..environment import Environment
 from ..errors import ConfigError
 from ..instrument.receiver import Receiver
 from ..instrument.beams import APERTURE_BEAMS
@@ -40,20 +39,16 @@ ELEVATION_NULLS = 3
 
 
 class SideScanEquivalent:
-    """Mixin of the sonar types cast by a side-scan's fan (``as_sidescan()``): what the back ends and the receiver
-    read of a sonar is the equivalent side-scan's."""
+    """Mixin of the sonar types cast by a side-scan's fan (``as_sidescan(λ)``): their beam and speckle lattice are
+    the equivalent side-scan's."""
 
-    @property
-    def n_samples(self) -> int:
-        return self.as_sidescan().n_samples
+    def transducer_in(self, sound_speed_m_s: float):
+        """The beam at sound speed ``sound_speed_m_s`` (m/s), in the equivalent side-scan's frame (:meth:`as_sidescan`)."""
+        return self.as_sidescan(sound_speed_m_s).transducer_in(sound_speed_m_s)
 
-    @property
-    def range_bin_m(self) -> float:
-        return self.as_sidescan().range_bin_m
-
-    @property
-    def default_speckle_cell_m(self) -> float:
-        return self.as_sidescan().default_speckle_cell_m
+    def speckle_cell_in(self, sound_speed_m_s: float) -> float:
+        """The equivalent side-scan's lattice spacing (:meth:`sonar_embree.Sonar.speckle_cell_in`), m."""
+        return self.as_sidescan(sound_speed_m_s).speckle_cell_in(sound_speed_m_s)
 
     @property
     def tilt_rad(self) -> float:
@@ -79,7 +74,7 @@ class MSIS(SideScanEquivalent, Transducer):
         forth centred on ``start_bearing_deg``.
     start_bearing_deg : float
         Bearing of ping 0 (full circle) or the sector's centre, degrees clockwise from the vehicle's forward axis.
-    max_range_m, sample_rate_hz, environment, source_level_db, self_noise_db_per_hz, receiver, beam
+    max_range_m, sample_rate_hz, source_level_db, self_noise_db_per_hz, receiver, beam
         As for :class:`~sonar_embree.Sonar` (``beam``: the pattern of the membrane of these widths, or a Gaussian).
     """
 
@@ -92,7 +87,6 @@ class MSIS(SideScanEquivalent, Transducer):
     start_bearing_deg: float = 0.0
     max_range_m: float = 20.0
     sample_rate_hz: float | None = None
-    environment: Environment = Environment()
     source_level_db: float | None = None
     self_noise_db_per_hz: float | None = None
     receiver: Receiver | None = None
@@ -101,7 +95,6 @@ class MSIS(SideScanEquivalent, Transducer):
     channels = ("beam",)
 
     def __post_init__(self):
-        self._check_environment("MSIS")
         if self.beam not in APERTURE_BEAMS:
             raise ConfigError(f"MSIS.beam must be one of {', '.join(repr(k) for k in APERTURE_BEAMS)}, "
                               f"got {self.beam!r}")
@@ -120,14 +113,15 @@ class MSIS(SideScanEquivalent, Transducer):
             raise ConfigError(f"MSIS.step_deg = {self.step_deg:g} exceeds the sector of {self.sector_deg:g} degrees")
         self._check_levels("MSIS")
 
-    def as_sidescan(self) -> Sonar:
-        """The side-scan sonar whose starboard beam is this MSIS's beam (head frame = its body frame)."""
-        lam = self.wavelength_m
+    def as_sidescan(self, sound_speed_m_s: float) -> Sonar:
+        """The side-scan sonar whose starboard beam is this MSIS's beam at sound speed ``sound_speed_m_s`` (m/s) (head frame = its body
+        frame)."""
+        lam = sound_speed_m_s / self.frequency_hz
         return Sonar(frequency_hz=self.frequency_hz,
                      length_m=membrane_size_for_beamwidth(math.radians(self.horizontal_beamwidth_deg), lam),
                      height_m=membrane_size_for_beamwidth(math.radians(self.vertical_beamwidth_deg), lam),
                      tilt_deg=self.tilt_deg, max_range_m=self.max_range_m, sample_rate_hz=self.sample_rate_hz,
-                     environment=self.environment, source_level_db=self.source_level_db,
+                     source_level_db=self.source_level_db,
                      self_noise_db_per_hz=self.self_noise_db_per_hz, receiver=self.receiver,
                      beam=self.beam)
 
@@ -147,9 +141,6 @@ class MSIS(SideScanEquivalent, Transducer):
         off = np.where(phase <= n, phase, 2 * n - phase) * self.step_deg
         return (self.start_bearing_deg - 0.5 * n * self.step_deg + off) % 360.0
 
-    @property
-    def directivity_index_db(self) -> float:
-        return self.as_sidescan().directivity_index_db
 
 
 class MSISFrontEnd(SideScanFrontEnd):

@@ -189,7 +189,7 @@ def _range_compensated(source, pos, ground, heights, values) -> np.ndarray:
 def _alpha(source) -> float:
     """The one-way absorption of a record or a store, dB/m."""
     if isinstance(source, Record):
-        return float(source.sonar.alpha_db_per_m)
+        return float(source.acquisition.alpha_db_per_m)
     return float(_dataset(source).attrs.get("simulation.alpha_db_per_m", 0.0))
 
 

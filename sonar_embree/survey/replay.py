@@ -206,25 +206,27 @@ def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | 
     s, traj = line.settings, line.trajectory
     pulse = pulse or (Pulse.preset(device) if device else Pulse.cw(duration_s=100e-6))
     factor = max(1, math.ceil(4.0 / pulse.duration_s / s["sample_rate_hz"]))
-    kw = dict(max_range_m=s["slant_range_m"], sample_rate_hz=factor * s["sample_rate_hz"],
-              environment=Environment(sound_speed_m_s=s["sound_speed_m_s"]))
+    kw = dict(max_range_m=s["slant_range_m"], sample_rate_hz=factor * s["sample_rate_hz"])
     if elevation is not None and not device:
         kw.update(tilt_deg=float(elevation[0]), height_m=float(elevation[1]))
-    sonar = (Sonar.preset(device, frequency_hz=s["frequency_hz"], **kw) if device
-             else Sonar(frequency_hz=s["frequency_hz"], **kw))
+    water = Environment(sound_speed_m_s=s["sound_speed_m_s"])   # the file's sound speed
+    sonar = (Sonar.preset(device, frequency_hz=s["frequency_hz"], sound_speed_m_s=water.sound_speed_m_s, **kw)
+             if device else Sonar(frequency_hz=s["frequency_hz"], **kw))
     if scene is None:
         law = sediments.preset(law) if isinstance(law, str) else law
         xy = traj.positions_m[:, :2]
         size = np.ptp(xy, axis=0) + 2.2 * s["slant_range_m"]
         floor = seafloor.flat(tuple(size), center_m=tuple(xy.mean(axis=0)))
         scene = Scene().add(floor, material=Material(scattering=law, clutter=clutter), label="seafloor")
-    rec = simulate(scene, traj, sonar, pulse, speckle=True, seed=seed, start_time=traj.start_time or "2000-01-01")
+    rec = simulate(scene, traj, sonar, pulse, speckle=True, seed=seed, start_time=traj.start_time or "2000-01-01",
+                   environment=water)
     n = s["samples_per_channel"]
     data = np.stack([decimate(rec.data[:, ch, :], n, "max")[:, :n] for ch in (0, 1)], axis=1)
     if s["tvg"]:
         k = s["gain_code"] if s["gain_code"] in (20, 30, 40) else 30
-        r = np.maximum(0.5 * sonar.sound_speed_m_s * np.arange(data.shape[2]) / s["sample_rate_hz"], 1.0)
-        data = data * 10.0 ** ((s["initial_gain_db"] + k * np.log10(r) + 2 * sonar.alpha_db_per_m * r) / 10.0)
+        r = np.maximum(0.5 * water.sound_speed_m_s * np.arange(data.shape[2]) / s["sample_rate_hz"], 1.0)
+        data = data * 10.0 ** ((s["initial_gain_db"] + k * np.log10(r) + 2 * rec.acquisition.alpha_db_per_m * r)
+                               / 10.0)
     data = np.sqrt(data) if s["integer"] else data
     return data * 10.0 ** (gain_db / (20.0 if s["integer"] else 10.0))
 

@@ -300,7 +300,8 @@ class Trajectory:
 
     @classmethod
     def survey(cls, waypoints_m, speed_m_s: float, ping_rate_hz: float | None = None, *, sonar=None,
-               pitch_deg=0.0, roll_deg=0.0, crs=None, start_time=None) -> "Trajectory":
+               pitch_deg=0.0, roll_deg=0.0, crs=None, start_time=None,
+               sound_speed_m_s: float = 1500.0) -> "Trajectory":
         """Pings timed by a ping rate along a path flown at a speed (docs/physics.md §16).
 
         The path is that of :meth:`through_waypoints`; ping k is at arc length k·v/PRF and time k/PRF, so the
@@ -316,15 +317,18 @@ class Trajectory:
             Speed over the path, m/s.
         ping_rate_hz : float or None
             Pings per second.
-        sonar : Sonar or EchoSounder, optional
-            Its range window and sound speed limit (and by default set) the ping rate.
+        sonar : Sonar, EchoSounder, MSIS or ForwardLooking, optional
+            Its range window limits (and by default sets) the ping rate, at ``sound_speed_m_s``.
+        sound_speed_m_s : float
+            The water's speed of sound c, m/s (default: the default :class:`~sonar_embree.Environment`'s).
         crs, start_time : optional
             The waypoints' projected CRS and the UTC time of the first ping, kept on the trajectory (as in
             the constructor).
         """
         if not (isinstance(speed_m_s, (int, float)) and math.isfinite(speed_m_s) and 0 < speed_m_s <= 50):
             raise ConfigError(f"Trajectory.survey speed_m_s must be in (0, 50] m/s, got {speed_m_s!r}")
-        prf = _ping_rate(ping_rate_hz, sonar)
+        check_number("Trajectory.survey", "sound_speed_m_s", sound_speed_m_s, positive=True)
+        prf = _ping_rate(ping_rate_hz, sonar, sound_speed_m_s)
         length, sample = _path(waypoints_m, "survey", 2000)
         n = int(math.floor(length * prf / speed_m_s * (1 + 1e-12))) + 1
         if n > 50_000_000:
@@ -644,9 +648,10 @@ def _csv_velocity(col: dict, traj: "Trajectory", path: str):
     return v
 
 
-def _ping_rate(ping_rate_hz, sonar) -> float:
-    """The survey's ping rate: the given one (checked against the sonar's window) or back to back."""
-    limit = None if sonar is None else sonar.sound_speed_m_s / (2.0 * sonar.max_range_m)
+def _ping_rate(ping_rate_hz, sonar, c: float) -> float:
+    """The survey's ping rate: the given one (checked against the sonar's window at sound speed ``c``) or back to
+    back."""
+    limit = None if sonar is None else c / (2.0 * sonar.max_range_m)
     if ping_rate_hz is None:
         if limit is None:
             raise ConfigError("Trajectory.survey: give ping_rate_hz or the sonar (back to back at 2 R_max / c)")

@@ -1,5 +1,9 @@
 """The medium's seam: Environment, its absorption models and the TOML [environment] table (docs/physics.md §3)."""
 
+import copy
+import dataclasses
+import pickle
+
 import numpy as np
 import pytest
 
@@ -8,7 +12,7 @@ from sonar_embree import runconfig
 from sonar_embree.environment import ABSORPTION_MODELS
 from sonar_embree.environment.ainslie_mccolm import ainslie_mccolm_db_per_m
 from sonar_embree.environment.francois_garrison import francois_garrison_db_per_m
-from sonar_embree.config import LEGACY_MEDIUM_KEYS, legacy_medium
+from sonar_embree.config import LEGACY_MEDIUM_KEYS, split_medium
 
 import analytic
 from conftest import flat_scene, write_anchor_config as _write
@@ -43,16 +47,32 @@ def test_environment_chooses_the_model_and_the_override_wins():
         se.Environment(sound_speed_m_s=-1.0)
 
 
-def test_sonar_reads_its_environment_and_the_medium_is_set_in_one_place():
+def test_the_medium_is_a_run_input_and_the_acquisition_resolves_c_lambda_alpha_once():
+    """Issue 51, item 3: no sonar type has an environment field; an Acquisition pairs a sonar with its medium and
+    holds c, λ = c/f0, k = 2π f0/c and α(f0) as fields made on construction."""
     env = se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
-    sonar = se.Sonar(environment=env)
-    assert sonar.sound_speed_m_s == 1480.0 and sonar.wavelength_m == pytest.approx(1480.0 / 400e3)
-    assert sonar.alpha_db_per_m == env.alpha_db_per_m(400e3)
+    from sonar_embree import sonars
+    for cls in sonars.SONAR_TYPES:
+        assert "environment" not in {f.name for f in dataclasses.fields(cls)}, cls
+        with pytest.raises(TypeError, match="environment"):
+            cls(environment=env)
+    acq = se.Acquisition(se.Sonar(), env)
+    assert acq.sound_speed_m_s == 1480.0 and acq.wavelength_m == pytest.approx(1480.0 / 400e3)
+    assert acq.wavenumber_rad_m == pytest.approx(2 * np.pi * 400e3 / 1480.0)
+    assert acq.alpha_db_per_m == env.alpha_db_per_m(400e3) and acq.frequency_hz == 400e3   # the sonar's, read through
+    assert {"sound_speed_m_s", "wavelength_m", "wavenumber_rad_m", "alpha_db_per_m"} <= set(vars(acq))
+    assert pickle.loads(pickle.dumps(acq)) == acq and copy.deepcopy(acq) == acq
+    with pytest.raises(AttributeError):
+        acq.no_such_field
+    # the beam follows the water: the same membrane is narrower in slower water (λ smaller)
+    assert acq.directivity_index_db > se.Acquisition(se.Sonar()).directivity_index_db
     for key in LEGACY_MEDIUM_KEYS:       # the medium's keys are the environment's, not the instrument's
         with pytest.raises(TypeError, match=key):
             se.Sonar(**{key: 1.0})
-    with pytest.raises(se.ConfigError, match="Sonar.environment"):
-        se.Sonar(environment="sea")
+    with pytest.raises(se.ConfigError, match="give the medium once"):
+        se.simulate(flat_scene(), se.Trajectory.line((0, 0, 10), (1, 0, 10), 2), acq, environment=se.Environment())
+    with pytest.raises(se.ConfigError, match="Acquisition.environment"):
+        se.Acquisition(se.Sonar(), "sea")
 
 
 def test_old_toml_medium_keys_in_sonar_are_mapped_with_a_deprecation_warning(tmp_path):
@@ -66,14 +86,17 @@ def test_old_toml_medium_keys_in_sonar_are_mapped_with_a_deprecation_warning(tmp
     said = [str(w.message) for w in caught]
     assert any("sound_speed_m_s, temperature_c belong in [environment]" in m for m in said), said
     assert any("'law' is now called 'scattering'" in m for m in said), said
-    assert run.sonar.environment == se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
+    assert run.environment == se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
     assert run.scene.compiled(np.zeros(3)).laws[0] == se.laws.Lambert(-20.0)
 
 
 def test_a_record_saved_with_the_medium_in_its_sonar_table_loads():
     meta = {"frequency_hz": 400e3, "max_range_m": 20.0, "sound_speed_m_s": 1480.0}
-    sonar = se.Sonar(**legacy_medium(meta, "Sonar"))
-    assert sonar.sound_speed_m_s == 1480.0 and sonar.max_range_m == 20.0
+    table, env = split_medium(meta, "Sonar")
+    sonar = se.Sonar(**table)
+    assert env.sound_speed_m_s == 1480.0 and sonar.max_range_m == 20.0
+    nested = {"frequency_hz": 400e3, "environment": {"sound_speed_m_s": 1490.0}}   # the medium inside the sonar
+    assert split_medium(nested, "Sonar") == ({"frequency_hz": 400e3}, se.Environment(sound_speed_m_s=1490.0))
 
 
 def test_simulate_uses_the_environment_given():
@@ -82,9 +105,9 @@ def test_simulate_uses_the_environment_given():
     warm = se.Environment(temperature_c=20.0)
     scene = flat_scene()
     a = se.simulate(scene, traj, sonar, environment=warm, start_time="2000-01-01")
-    b = se.simulate(scene, traj, se.Sonar(max_range_m=20.0, environment=warm), start_time="2000-01-01")
+    b = se.simulate(scene, traj, se.Acquisition(se.Sonar(max_range_m=20.0), warm), start_time="2000-01-01")
     c = se.simulate(scene, traj, sonar, start_time="2000-01-01")
-    assert a.sonar.environment == warm and a.attrs["alpha_db_per_m"] == warm.alpha_db_per_m(400e3)
+    assert a.environment == warm and a.attrs["alpha_db_per_m"] == warm.alpha_db_per_m(400e3)
     assert np.array_equal(a.port, b.port)
     # warmer water absorbs more at 400 kHz: 2·Δα·R dB less at slant range R (docs/physics.md eq. 1)
     r = a.slant_range_m
@@ -100,10 +123,10 @@ def test_simulate_uses_the_environment_given():
 
 def test_toml_environment_table_and_old_sonar_keys(tmp_path):
     cfg = runconfig.load_run_config(_write(tmp_path, env="temperature_c = 4.0\nabsorption_model = \"ainslie-mccolm\"\n"))
-    assert cfg.sonar.environment.temperature_c == 4.0
-    assert cfg.sonar.environment.absorption_model == "ainslie-mccolm"
+    assert cfg.environment.temperature_c == 4.0
+    assert cfg.environment.absorption_model == "ainslie-mccolm"
     old = runconfig.load_run_config(_write(tmp_path, sonar_extra="temperature_c = 4.0\n"))
-    assert old.sonar.environment.temperature_c == 4.0
+    assert old.environment.temperature_c == 4.0
     with pytest.raises(se.ConfigError, match="'temperature_c' is given in both"):
         runconfig.load_run_config(_write(tmp_path, sonar_extra="temperature_c = 4.0\n", env="temperature_c = 5.0\n"))
     with pytest.raises(se.ConfigError, match="unknown key 'salinity' in \\[environment\\]"):
@@ -112,7 +135,7 @@ def test_toml_environment_table_and_old_sonar_keys(tmp_path):
 
 def test_toml_sea_surface(tmp_path):
     cfg = runconfig.load_run_config(_write(tmp_path, env="surface = { z_m = 30.0, rms_wave_height_m = 0.001 }\n"))
-    assert cfg.sonar.environment.surface == se.SeaSurface(z_m=30.0, rms_wave_height_m=0.001)
+    assert cfg.environment.surface == se.SeaSurface(z_m=30.0, rms_wave_height_m=0.001)
     with pytest.raises(se.ConfigError, match="unknown key 'height' in Environment.surface|Environment.surface: "
                                              "unknown key 'height'"):
         runconfig.load_run_config(_write(tmp_path, env="surface = { z_m = 30.0, height = 1.0 }\n"))

@@ -48,8 +48,9 @@ def test_baffle_and_no_nan_over_the_sphere(rng):
 
 def test_from_beamwidths_rules():
     exact = se.Sonar.from_beamwidths(1.0, 50.0)
-    assert beam.beamwidth_deg(exact.length_m, exact.wavelength_m) == pytest.approx(1.0, rel=1e-9)
-    assert beam.beamwidth_deg(exact.height_m, exact.wavelength_m) == pytest.approx(50.0, rel=1e-9)
+    lam = se.Acquisition(exact).wavelength_m
+    assert beam.beamwidth_deg(exact.length_m, lam) == pytest.approx(1.0, rel=1e-9)
+    assert beam.beamwidth_deg(exact.height_m, lam) == pytest.approx(50.0, rel=1e-9)
     small = se.Sonar.from_beamwidths(1.0, 50.0, rule="small-angle")
     assert small.length_m == pytest.approx(0.190, abs=5e-4)
     assert small.height_m == pytest.approx(0.0038, abs=5e-5)
@@ -60,8 +61,8 @@ def test_from_beamwidths_rules():
 def test_fan_integrates_two_way_pattern():
     """Σ Γ⁴ dΩ over the fan equals an independent dense quadrature of ∫Γ⁴ dΩ."""
     sonar = se.Sonar()
-    s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, 2.0, 4)
-    lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad)
+    s, ds = beam.azimuth_samples(se.Acquisition.of(sonar).wavelength_m, sonar.length_m, 2.0, 4)
+    lo, hi = beam.elevation_span_rad(se.Acquisition.of(sonar).wavelength_m, sonar.height_m, sonar.tilt_rad)
     edges = np.linspace(lo, hi, 200)
     b, db = np.empty(7800), np.empty(7800)
     kernels.place_rows(edges, np.full((1, 199), 3000.0), np.array([0, 7800]), b, db)

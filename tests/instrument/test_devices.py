@@ -23,8 +23,8 @@ def _width_deg(size_m, wavelength_m, two_way=False):
 def test_preset_reproduces_its_cited_beamwidths(name):
     d = se.devices.DEVICES[name]
     s = se.Sonar.preset(name)
-    assert _width_deg(s.length_m, s.wavelength_m, d.azimuth_two_way) == pytest.approx(d.azimuth_deg, rel=0.05)
-    assert _width_deg(s.height_m, s.wavelength_m) == pytest.approx(d.elevation_deg, rel=0.05)
+    assert _width_deg(s.length_m, se.Acquisition.of(s).wavelength_m, d.azimuth_two_way) == pytest.approx(d.azimuth_deg, rel=0.05)
+    assert _width_deg(s.height_m, se.Acquisition.of(s).wavelength_m) == pytest.approx(d.elevation_deg, rel=0.05)
     assert (s.frequency_hz, s.tilt_deg, s.max_range_m, s.source_level_db) == (d.frequency_hz, d.tilt_deg,
                                                                               d.ranges_m[0], d.source_level_db)
     assert d.source and set(d.assumed) <= {f.name for f in dataclasses.fields(d)} | {"pulse duration"}
@@ -54,7 +54,7 @@ def test_preset_overrides_errors_and_toml(tmp_path):
     a, b = text.index("[pulse]"), text.index("[simulation]")
     (tmp_path / "p.toml").write_text(text[:a] + text[b:])
     cfg = runconfig.load_run_config(tmp_path / "p.toml")
-    assert cfg.sonar == se.Sonar.preset("starfish-450f", max_range_m=40.0, environment=cfg.sonar.environment)
+    assert cfg.sonar == se.Sonar.preset("starfish-450f", max_range_m=40.0)
     assert cfg.pulse == se.Pulse.preset("starfish-450f")                 # the device's pulse
     (tmp_path / "q.toml").write_text(text.replace("starfish-450f", "starfish-9"))
     with pytest.raises(se.ConfigError, match="unknown device preset"):

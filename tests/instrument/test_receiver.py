@@ -29,7 +29,7 @@ def _record(receiver, target=False, pings=3, **kw):
 
 def _codes(rec, s_db, g0, k, bits, vfs):
     r = np.maximum(rec.slant_range_m, 1.0)
-    g = g0 + k * np.log10(r) + 2 * rec.sonar.alpha_db_per_m * r
+    g = g0 + k * np.log10(r) + 2 * rec.acquisition.alpha_db_per_m * r
     v = 10 ** (s_db / 20) * np.sqrt(rec.data) * 10 ** (g / 20)
     return np.clip(np.rint(v / (vfs / (2 ** bits - 1))), 0, 2 ** bits - 1), v
 
@@ -127,16 +127,16 @@ def test_a_tvg_that_overflows_is_refused_before_any_ping(monkeypatch):
 
     sim_module = __import__("importlib").import_module("sonar_embree.simulate")
 
-    sonar = se.Sonar(max_range_m=45.0, source_level_db=210.0, environment=se.Environment(absorption_db_per_m=100.0),
-                     receiver=se.Receiver(gain=se.TVG(k=30)))
+    sonar = se.Acquisition(se.Sonar(max_range_m=45.0, source_level_db=210.0,
+                     receiver=se.Receiver(gain=se.TVG(k=30))), se.Environment(absorption_db_per_m=100.0))
     cast = []
     monkeypatch.setattr(sim_module._Run, "setup", lambda *a, **k: cast.append(1))
     with pytest.raises(se.ConfigError, match=r"Receiver TVG: the gain reaches 9\d\d\d dB at max_range_m = 45 m "
                                              r"with 100 dB/m absorption, beyond float64"):
         se.simulate(_scene(), se.Trajectory.line((-0.2, 0, 10.0), (0.2, 0, 10.0), 3), sonar)
     assert cast == []
-    ok = se.Sonar(max_range_m=45.0, source_level_db=210.0, environment=se.Environment(absorption_db_per_m=100.0),
-                  receiver=se.Receiver(gain=se.TVG(k=30, absorption=False)))
+    ok = se.Acquisition(se.Sonar(max_range_m=45.0, source_level_db=210.0,
+                  receiver=se.Receiver(gain=se.TVG(k=30, absorption=False))), se.Environment(absorption_db_per_m=100.0))
     se.Receiver(gain=ok.receiver.gain).gain.check_range(45.0, 100.0)      # without the 2αR term: fine
 
 
@@ -148,9 +148,9 @@ def test_agc_does_not_stretch_round_off_into_codes():
     sonar = se.Sonar(max_range_m=40.0, source_level_db=210.0, receiver=rx).for_pulse(se.Pulse.cw())
     tiny = np.full((2, 2, 500), 2e-187)
     tiny[:, :, ::7] = 0.0
-    assert rx.samples(tiny, np.arange(500) / sonar.sample_rate_hz, sonar).max() == 0
+    assert rx.samples(tiny, np.arange(500) / sonar.sample_rate_hz, se.Acquisition.of(sonar)).max() == 0
     # the bound itself: 160 dB on 1 µPa² at −180 dB re 1 V/µPa is 1e-9 V × 1e8 = 0.1 V
-    one = rx.samples(np.ones((1, 1, 500)), np.arange(500) / sonar.sample_rate_hz, sonar)
+    one = rx.samples(np.ones((1, 1, 500)), np.arange(500) / sonar.sample_rate_hz, se.Acquisition.of(sonar))
     np.testing.assert_allclose(one[0, 0, 250], round(0.1 / rx.step_v), atol=1)
 
 

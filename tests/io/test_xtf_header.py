@@ -31,7 +31,7 @@ def lines(tmp_path_factory):
     rx = se.Receiver(gain=se.TVG(k=30.0, g0_db=20.0))
     recs = {"codes": se.simulate(scene, traj, se.Sonar(max_range_m=30.0, receiver=rx, source_level_db=215.0),
                                  speckle=False),
-            "floats": se.simulate(scene, traj, se.Sonar(max_range_m=30.0, environment=se.Environment(
+            "floats": se.simulate(scene, traj, se.Acquisition(se.Sonar(max_range_m=30.0), se.Environment(
                 surface=se.SeaSurface(z_m=-2.0))), speckle=False),
             "towed": se.simulate(scene, traj.with_layback(cable_out_m=15.0), se.Sonar(max_range_m=30.0),
                                  speckle=False)}
@@ -53,8 +53,8 @@ def test_channel_info_as_the_spec_defines_it(lines):
             assert ci.UniPolar == 1                   # "0 = data is polar, 1 = data is unipolar": intensities ≥ 0
             # "HorizBeamAngle: typically 1 degree or so" (along track); "BeamWidth: 3dB beam width, typically 50
             # degrees" (the vertical fan); "TiltAngle: typically 30 degrees" (depression)
-            assert ci.HorizBeamAngle == pytest.approx(_width_deg(s.length_m, s.wavelength_m), rel=1e-5)
-            assert ci.BeamWidth == pytest.approx(_width_deg(s.height_m, s.wavelength_m), rel=1e-5)
+            assert ci.HorizBeamAngle == pytest.approx(_width_deg(s.length_m, se.Acquisition.of(s).wavelength_m), rel=1e-5)
+            assert ci.BeamWidth == pytest.approx(_width_deg(s.height_m, se.Acquisition.of(s).wavelength_m), rel=1e-5)
             assert ci.TiltAngle == pytest.approx(s.tilt_deg)
             assert ci.BeamsPerArray == 1              # one beam a side, as devices write it (issue 50)
         assert header.NavUnits == 3                   # "0 = meters, 3 = degrees" (a line with a CRS)
@@ -69,7 +69,7 @@ def test_ping_and_channel_headers_as_the_spec_defines_them(lines):
         for chan in first.ping_chan_headers:
             # "SecondsPerPing: amount of time, in seconds, from ping to ping (SlantRange/750)", 750 the SoundVelocity
             assert chan.SecondsPerPing == pytest.approx(chan.SlantRange / first.SoundVelocity, rel=1e-6)
-            assert first.SoundVelocity == pytest.approx(s.sound_speed_m_s / 2)
+            assert first.SoundVelocity == pytest.approx(se.Acquisition.of(s).sound_speed_m_s / 2)
             # "ProcessingFlags: 4 = TVG; 8 = BAC&GAC; 16 = filter": TVG only where the receiver applied one
             assert chan.ProcessingFlags == (4 if name == "codes" else 0)
     _, _, pings, _ = lines["floats"]                  # "SensorDepth: towfish depth (m)" below its sea surface
@@ -127,7 +127,7 @@ def test_an_xtf_decimated_to_the_devices_samples_per_channel(tmp_path):
     edges = [k * n // 1000 for k in range(1001)]
     want = [rec.samples[2, 1, edges[k]:edges[k + 1]].max() for k in range(1000)]
     np.testing.assert_array_equal(ping.data[1], want)
-    assert ping.ping_chan_headers[1].TimeDuration == pytest.approx(2 * 30.0 / rec.sonar.sound_speed_m_s)  # 2R/c
+    assert ping.ping_chan_headers[1].TimeDuration == pytest.approx(2 * 30.0 / rec.acquisition.sound_speed_m_s)  # 2R/c
     (tmp_path / "s").mkdir()
     se.stream.render_line(scene, traj, tmp_path / "y.zarr", sonar, se.Pulse.preset("imagenex-872-800"),
                           block_pings=4, xtf_path=tmp_path / "s" / "y.xtf", xtf_samples=1000, **kw)
@@ -213,7 +213,7 @@ def test_each_presets_xtf_fields_as_the_device_writes_them(tmp_path, name):
             assert c.DownsampleMethod == (2 if d.samples_per_channel else 0)
             assert c.MillivoltScale == round(1000 * d.full_scale_v) and c.ProcessingFlags == 4 and c.GainCode == 30
             assert c.TimeDuration == pytest.approx(c.SecondsPerPing) and c.SecondsPerPing == pytest.approx(
-                2 * rng / sonar.sound_speed_m_s, rel=1e-6)
+                2 * rng / se.Acquisition.of(sonar).sound_speed_m_s, rel=1e-6)
     assert pos == len(raw)
     if name.startswith("marine-sonic"):
         assert (want_bytes, want_n, d.full_scale_v) == (2, 1024, 5.0)

@@ -406,7 +406,7 @@ def test_aim_kernels_match_naive(rng):
     rot = Rotation.from_euler("zyx", rng.uniform(-0.01, 0.01, (6, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
     pos = np.column_stack([rng.uniform(-0.1, 0.1, 6), rng.uniform(-0.5, 0.5, 6), np.full(6, 10.0)]) - c.origin_m
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
-    plan = FanPlan.build(sonar, se.FanSettings())
+    plan = FanPlan.build(se.Acquisition.of(sonar), se.FanSettings())
     aim = AimPlan.build(c, plan, 1.0)
     span = aim.span.copy()
     span[4] = 50.0
@@ -452,7 +452,7 @@ def test_aim_kernels_match_naive(rng):
     weigh_by_beam(plan.pattern, plan.tilt_rad, fan, shift, out[3], lay)     # the beam after the kernel
     keep_own(c, aim, counts, prim, out[3], out[1], out[4])
     apply_laws(law_table(c.laws, sonar.frequency_hz), c, prim, out[4], out[3], pts)
-    k_wave = 2 * np.pi / sonar.wavelength_m
+    k_wave = 2 * np.pi / se.Acquisition.of(sonar).wavelength_m
     w_ref = np.zeros(n)
     r_ref = np.full(n, np.inf)
     for r in range(table.shape[0]):

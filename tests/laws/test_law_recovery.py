@@ -16,12 +16,12 @@ def _recovered_sigma(material):
     rec = se.simulate(flat_scene(**material), line_along_x(n_pings=2, length=0.1), sonar,
                       se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
     r_end = rec.slant_range_m
-    ext = sonar.sound_speed_m_s * TAU / 2
+    ext = se.Acquisition.of(sonar).sound_speed_m_s * TAU / 2
     grazing = np.degrees(np.arcsin(H / np.clip(r_end - ext / 2, H, None)))
     pick = np.flatnonzero((r_end - ext > H + 1e-3) & (grazing >= 15.0))[::40]
     nodes, weights = np.polynomial.legendre.leggauss(6)
     r = (r_end[pick, None] - ext / 2) + nodes[None, :] * ext / 2            # Gauss points in each cell
-    g1 = analytic.flat_floor_g(r.ravel(), h=H, alpha_db_m=rec.sonar.alpha_db_per_m, sigma=lambda c: 1.0 + 0 * c,
+    g1 = analytic.flat_floor_g(r.ravel(), h=H, alpha_db_m=rec.acquisition.alpha_db_per_m, sigma=lambda c: 1.0 + 0 * c,
                                ly=LY, tilt_deg=TILT).reshape(r.shape)
     cell = (g1 * weights).sum(axis=1) * ext / 2                             # ∫ g(R)/σ over the cell
     measured = rec.starboard.mean(axis=0)[pick] / cell

@@ -52,7 +52,7 @@ def test_scintillation_index_is_the_compound_poisson_closed_form(density):
     measured = np.mean(np.mean(i ** 2, axis=0) / mean_sq - 1)
     si = []
     for k in pick[::10]:
-        g1, g2, gd = _cell_integrals(r[k], rec.sonar.alpha_db_per_m)
+        g1, g2, gd = _cell_integrals(r[k], rec.acquisition.alpha_db_per_m)
         mean_s = 10 ** (-4.0) * math.exp(0.5 * (SPREAD * math.log(10) / 10) ** 2)   # ⟨σ⟩ of the log-normal
         mom2 = mean_s ** 2 * math.exp((SPREAD * math.log(10) / 10) ** 2)             # ⟨σ²⟩
         si.append(1 + density * mom2 * g2 / (density * mean_s * g1 + gd) ** 2)

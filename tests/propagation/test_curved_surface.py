@@ -30,7 +30,7 @@ def _profile():
 def _record(surface=True, profile=True):
     env = se.Environment(sound_speed=_profile() if profile else None,
                          surface=se.SeaSurface(z_m=H + DEPTH) if surface else None)
-    sonar = se.Sonar(tilt_deg=TILT, max_range_m=RANGE, sample_rate_hz=FS, environment=env)
+    sonar = se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=RANGE, sample_rate_hz=FS), env)
     scene = se.Scene().add(se.seafloor.flat((500.0, 300.0)), material=se.Material(backscatter_db=MU_DB),
                            label="seafloor")
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
@@ -132,7 +132,7 @@ def test_surface_paths_in_a_profile_match_the_ray_map_quadrature(records):
     are off by more than 1 dB)."""
     wet, dry, straight = records
     t = wet.time_s
-    direct, one, two = quadrature(t, wet.sonar.alpha_db_per_m)
+    direct, one, two = quadrature(t, wet.acquisition.alpha_db_per_m)
     ref = direct + one + two
     sim = wet.starboard[0]
     edges = [2 * np.log(_speed(DEPTH + H) / C_SONAR) / GRAD]          # the direct onset (vertical ray)
@@ -158,7 +158,7 @@ def test_each_surface_path_starts_within_a_sample_of_the_quadrature(records, mon
     the first sample above 10⁻³ of its peak within one sample, and its level within 0.5 dB over its 30 dB."""
     wet, dry, _ = records
     t = wet.time_s
-    _, one, two = quadrature(t, wet.sonar.alpha_db_per_m)
+    _, one, two = quadrature(t, wet.acquisition.alpha_db_per_m)
     for keep, ref in (("mixed_echoes", one), ("image_echoes", two)):
         drop = "image_echoes" if keep == "mixed_echoes" else "mixed_echoes"
         real = getattr(curved_surface, drop)
@@ -230,7 +230,7 @@ def test_an_object_above_the_sonar_blocks_the_surface_paths():
     chords are checked), so the record equals that without a surface, bit for bit."""
     def record(surface):
         env = se.Environment(sound_speed=_profile(), surface=se.SeaSurface(z_m=H + DEPTH) if surface else None)
-        sonar = se.Sonar(tilt_deg=TILT, max_range_m=60.0, sample_rate_hz=FS, environment=env)
+        sonar = se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=60.0, sample_rate_hz=FS), env)
         plate = se.seafloor.flat((500.0, 300.0))
         plate.apply_translation((0.0, 0.0, H + 5.0))
         scene = (se.Scene().add(se.seafloor.flat((500.0, 300.0)), material=se.Material(backscatter_db=MU_DB),

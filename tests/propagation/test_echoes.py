@@ -14,7 +14,7 @@ def test_back_end_from_hand_made_echoes(n_channels):
     weight, spread by the unit echo's kernel, at that time on that row, for any channel count."""
     sonar = se.Sonar().for_pulse(se.Pulse.cw(taper=0.0))
     pulse = se.Pulse.cw(taper=0.0)
-    chain = se.SignalChain().resolved(sonar, pulse)
+    chain = se.SignalChain().resolved(se.Acquisition.of(sonar), pulse)
     fs = sonar.sample_rate_hz
     n_p, n_s = 2, 400
     rows = n_p * n_channels

@@ -27,7 +27,7 @@ FS = 100e3
 
 def _sonar(surface=None, **kw):
     env = se.Environment(surface=surface) if surface is not None else se.Environment()
-    return se.Sonar(tilt_deg=TILT, height_m=LY, max_range_m=35.0, sample_rate_hz=FS, environment=env, **kw)
+    return se.Acquisition(se.Sonar(tilt_deg=TILT, height_m=LY, max_range_m=35.0, sample_rate_hz=FS, **kw), env)
 
 
 def _record(surface=None, extra=None, moving_m_s=None):
@@ -94,7 +94,7 @@ def records():
 @pytest.fixture(scope="module")
 def flat_quadrature(records):
     rec = records["flat"]
-    return quadrature(rec.time_s, rec.sonar.sound_speed_m_s, rec.sonar.alpha_db_per_m)
+    return quadrature(rec.time_s, rec.acquisition.sound_speed_m_s, rec.acquisition.alpha_db_per_m)
 
 
 def _edges(t, c, paths=("one", "two")):
@@ -111,7 +111,7 @@ def test_four_path_image_sum_matches_quadrature(records, flat_quadrature):
     rec, q = records["flat"], flat_quadrature
     total = q["direct"] + q["mixed"] + q["image"]
     got = rec.starboard.mean(axis=0)
-    c = rec.sonar.sound_speed_m_s
+    c = rec.acquisition.sound_speed_m_s
     multi = ((q["mixed"] + q["image"]) > 0.1 * total) & ~_edges(rec.time_s, c)   # onset timing: tested below
     assert multi.sum() > 100
     err = 10 * np.log10(got[multi] / total[multi])
@@ -128,8 +128,8 @@ def test_moving_during_the_ping_turns_every_path_s_receive_beam(records):
     unturned on them would miss by more than 0.05 dB)."""
     still, v = records["flat"], 2.0
     moving = _record(se.SeaSurface(z_m=H + D), moving_m_s=v)
-    c = still.sonar.sound_speed_m_s
-    q0, q1 = (quadrature(still.time_s, c, still.sonar.alpha_db_per_m, delta=d) for d in (0.0, 2 * v / c))
+    c = still.acquisition.sound_speed_m_s
+    q0, q1 = (quadrature(still.time_s, c, still.acquisition.alpha_db_per_m, delta=d) for d in (0.0, 2 * v / c))
     tot0, tot1 = (q["direct"] + q["mixed"] + q["image"] for q in (q0, q1))
     multi = ((q0["mixed"] + q0["image"]) > 0.5 * tot0) & ~_edges(still.time_s, c) & (tot0 > 1e-6 * tot0.max())
     assert multi.sum() > 100
@@ -141,7 +141,7 @@ def test_moving_during_the_ping_turns_every_path_s_receive_beam(records):
 
 
 def test_one_and_two_bounce_onsets(records, flat_quadrature):
-    rec, c = records["flat"], records["flat"].sonar.sound_speed_m_s
+    rec, c = records["flat"], records["flat"].acquisition.sound_speed_m_s
     t = rec.time_s
     extra = rec.starboard.mean(axis=0) - records["none"].starboard.mean(axis=0)
     first = t[np.flatnonzero(extra > 1e-9 * records["none"].starboard.max())[0]]
@@ -158,8 +158,8 @@ def test_one_and_two_bounce_onsets(records, flat_quadrature):
 def test_rough_surface_scales_multipath_by_the_coherent_reflection(records):
     hw = 0.3e-3
     rough = _record(se.SeaSurface(z_m=H + D, rms_wave_height_m=hw))
-    k = rough.sonar.wavenumber_rad_m
-    c, t = rough.sonar.sound_speed_m_s, rough.time_s
+    k = rough.acquisition.wavenumber_rad_m
+    c, t = rough.acquisition.sound_speed_m_s, rough.time_s
     direct = records["none"].starboard.mean(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):  # 0/0 before the first bounce arrives
         ratio = (rough.starboard.mean(axis=0) - direct) / (records["flat"].starboard.mean(axis=0) - direct)
@@ -611,10 +611,10 @@ def test_surface_survives_the_record_file(tmp_path):
     scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
     line = se.Trajectory.line((-0.5, 0.0, 6.0), (0.5, 0.0, 6.0), 2)
     surface = se.SeaSurface(z_m=9.0, rms_wave_height_m=0.001)
-    rec = se.simulate(scene, line, se.Sonar(max_range_m=20.0, environment=se.Environment(surface=surface)),
+    rec = se.simulate(scene, line, se.Acquisition(se.Sonar(max_range_m=20.0), se.Environment(surface=surface)),
                       start_time="2000-01-01")
     rec.save(tmp_path / "r.npz")
-    assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == surface
+    assert se.Record.load(tmp_path / "r.npz").environment.surface == surface
 
 
 # --- a swell: the surface meshed and every surface path by one Embree reflection (sonar_embree.propagation.swell) ---
@@ -627,7 +627,7 @@ def test_a_flat_swell_mesh_gives_the_four_path_quadrature(flat_quadrature, monke
     q = flat_quadrature
     rec = _record(se.SeaSurface(z_m=H + D, swell_height_m=1e-6, swell_length_m=20.0))
     total = q["direct"] + q["mixed"] + q["image"]
-    c = rec.sonar.sound_speed_m_s
+    c = rec.acquisition.sound_speed_m_s
     multi = ((q["mixed"] + q["image"]) > 0.1 * total) & ~_edges(rec.time_s, c)
     err = 10 * np.log10(rec.starboard.mean(axis=0)[multi] / total[multi])
     assert multi.sum() > 100 and np.max(np.abs(err)) < 0.5, np.max(np.abs(err))
@@ -638,8 +638,8 @@ def test_a_flat_swell_mesh_moves_during_the_ping_as_the_image_method_does(record
     stop-and-hop, against the quadrature's moving/still ratio (as for the flat surface), within 0.05 dB."""
     flat = se.SeaSurface(z_m=H + D, swell_height_m=1e-6, swell_length_m=20.0)
     still, moving = _record(flat), _record(flat, moving_m_s=2.0)
-    c = still.sonar.sound_speed_m_s
-    q0, q1 = (quadrature(still.time_s, c, still.sonar.alpha_db_per_m, delta=d) for d in (0.0, 4.0 / c))
+    c = still.acquisition.sound_speed_m_s
+    q0, q1 = (quadrature(still.time_s, c, still.acquisition.alpha_db_per_m, delta=d) for d in (0.0, 4.0 / c))
     tot0, tot1 = (q["direct"] + q["mixed"] + q["image"] for q in (q0, q1))
     multi = ((q0["mixed"] + q0["image"]) > 0.5 * tot0) & ~_edges(still.time_s, c) & (tot0 > 1e-6 * tot0.max())
     want = 10 * np.log10(tot1[multi] / tot0[multi])
@@ -704,8 +704,8 @@ def line_record():
 
 def test_surface_line_matches_quadrature_and_starts_at_2d_over_c(records, flat_quadrature, line_record):
     rec, q = line_record, flat_quadrature
-    c, t = rec.sonar.sound_speed_m_s, rec.time_s
-    q_line = line_quadrature(t, c, rec.sonar.alpha_db_per_m)
+    c, t = rec.acquisition.sound_speed_m_s, rec.time_s
+    q_line = line_quadrature(t, c, rec.acquisition.alpha_db_per_m)
     total = q["direct"] + q["mixed"] + q["image"] + q_line
     got = rec.starboard.mean(axis=0)
     near = np.zeros(t.shape, dtype=bool)
@@ -726,7 +726,7 @@ def test_surface_line_of_a_swell_and_its_shadow(line_record):
     sonar over starboard darkens the starboard line and leaves port's."""
     import trimesh
 
-    c = line_record.sonar.sound_speed_m_s
+    c = line_record.acquisition.sound_speed_m_s
     alone = (line_record.time_s > 2 * D / c + 2 * TAU) & (line_record.time_s < 2 * H / c - 2 * TAU)
     swell = _record(se.SeaSurface(z_m=H + D, swell_height_m=1e-6, swell_length_m=20.0, backscatter=MU_S_DB))
     np.testing.assert_allclose(swell.starboard.mean(axis=0)[alone], line_record.starboard.mean(axis=0)[alone],
@@ -763,10 +763,10 @@ def test_chapman_harris_law_and_surface_backscatter_settings(tmp_path):
     scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
     s = dataclasses.replace(s, z_m=9.0)
     rec = se.simulate(scene, se.Trajectory.line((-0.5, 0.0, 6.0), (0.5, 0.0, 6.0), 2),
-                      se.Sonar(max_range_m=20.0, environment=se.Environment(surface=s)), start_time="2000-01-01")
+                      se.Acquisition(se.Sonar(max_range_m=20.0), se.Environment(surface=s)), start_time="2000-01-01")
     assert rec.starboard[:, rec.slant_range_m < 5.9].max() > 0                 # the line, before the floor at 6 m
     rec.save(tmp_path / "r.npz")
-    assert se.Record.load(tmp_path / "r.npz").sonar.environment.surface == s
+    assert se.Record.load(tmp_path / "r.npz").environment.surface == s
 
 
 def test_mixed_legs_with_each_rays_own_layout_matches_naive(rng):

@@ -39,14 +39,14 @@ def _ball_scene(a, y, z, floor=True):
 def _pings_over(y, n_nulls=1.2):
     """Pings every 2 cm along x over the along-track span where the ball at |y| can be in the main lobe."""
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
-    half = n_nulls * sonar.wavelength_m / sonar.length_m * np.hypot(y, H) + 0.02
+    half = n_nulls * se.Acquisition.of(sonar).wavelength_m / sonar.length_m * np.hypot(y, H) + 0.02
     n = 2 * int(half / DX) + 1
     return se.Trajectory.line((-DX * (n // 2), 0, H), (DX * (n // 2), 0, H), n)
 
 
 def ball_energy(scene, traj, sonar=None, quality=1.0, rx_shift=None, aim=True):
     """(pings,) Σ weight of the echoes on the object labelled "ball", both channels (the front end's own echoes)."""
-    sonar = (sonar or se.Sonar()).for_pulse(se.Pulse.cw())
+    sonar = se.Acquisition.of(sonar or se.Sonar()).for_pulse(se.Pulse.cw())
     front = sonars.front_end(sonar, se.FanSettings(quality=quality, aim_objects=aim))
     comp = scene.compiled(survey_origin(traj.positions_m))
     run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
@@ -79,7 +79,7 @@ def test_sphere_echo_follows_the_two_way_pattern_in_every_ping(a, y, z):
     traj = _pings_over(y)
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
     got = ball_energy(_ball_scene(a, y, z), traj)
-    ref = sphere_quadrature(a, (0.0, y, z), traj.positions_m, sonar.alpha_db_per_m, MU_DB)
+    ref = sphere_quadrature(a, (0.0, y, z), traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB)
     inside = ref >= 0.01 * ref.max()
     assert inside.sum() >= 15
     err = 10 * np.log10(np.maximum(got[inside], 1e-300) / ref[inside])
@@ -97,7 +97,7 @@ def test_a_small_sphere_has_the_lambert_sphere_level():
     R = np.linalg.norm(v)
     u = v / R
     g = gamma_membrane(u[0], abs(u[1]), -u[2])
-    ref = g ** 4 * 10 ** (-2 * sonar.alpha_db_per_m * R / 10) * (2 * np.pi * a * a * 10 ** (MU_DB / 10) / 3) / R ** 4
+    ref = g ** 4 * 10 ** (-2 * se.Acquisition.of(sonar).alpha_db_per_m * R / 10) * (2 * np.pi * a * a * 10 ** (MU_DB / 10) / 3) / R ** 4
     assert abs(10 * np.log10(got / ref)) < 1.0
 
 
@@ -107,7 +107,7 @@ def test_a_ball_at_shallow_depression_is_seen_in_every_ping():
     z = H - 25.0 * np.tan(np.radians(5.0))
     traj = _pings_over(y)
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
-    ref = sphere_quadrature(0.1, (0.0, y, z), traj.positions_m, sonar.alpha_db_per_m, MU_DB)
+    ref = sphere_quadrature(0.1, (0.0, y, z), traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB)
     inside = ref >= 0.01 * ref.max()
     for q in (1.0, 4.0):
         got = ball_energy(_ball_scene(0.1, y, z), traj, quality=q)
@@ -127,7 +127,7 @@ def test_msis_sees_a_small_sphere_at_every_bearing_step():
     bearings = np.radians(sonar.bearings_deg(np.arange(n)))
     psi0, rho, d = np.radians(30.0), 12.0, np.radians(sonar.tilt_deg)
     centre = (rho * np.sin(psi0), rho * np.cos(psi0), H - rho * np.tan(d))
-    lam, k = sonar.wavelength_m, sonar.wavenumber_rad_m
+    lam, k = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m
     x0 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 1e-9, np.pi)
     lx, ly = (x0 * lam / (np.pi * np.sin(np.radians(w) / 2))
               for w in (sonar.horizontal_beamwidth_deg, sonar.vertical_beamwidth_deg))
@@ -144,7 +144,7 @@ def test_msis_sees_a_small_sphere_at_every_bearing_step():
     scene = se.Scene().add(se.seafloor.flat((120, 120)), label="seafloor")
     scene.add(_ball_mesh(0.05, centre), label="ball", material=se.Material(backscatter_db=MU_DB))
     got = ball_energy(scene, traj, sonar)
-    ref = sphere_quadrature(0.05, centre, traj.positions_m, sonar.alpha_db_per_m, MU_DB, gamma=gamma)
+    ref = sphere_quadrature(0.05, centre, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, gamma=gamma)
     inside = ref >= 0.01 * ref.max()
     assert inside.sum() >= 10
     err = 10 * np.log10(np.maximum(got[inside], 1e-300) / ref[inside])
@@ -178,7 +178,7 @@ def test_a_small_objects_labels_and_coco_box_cover_every_ping_of_its_echo(tmp_pa
     traj = _pings_over(y)
     sonar = se.Sonar(max_range_m=45.0)
     rec = se.simulate(_ball_scene(a, y, z), traj, sonar, labels=True)
-    ref = sphere_quadrature(a, (0.0, y, z), traj.positions_m, rec.sonar.alpha_db_per_m, MU_DB)
+    ref = sphere_quadrature(a, (0.0, y, z), traj.positions_m, rec.acquisition.alpha_db_per_m, MU_DB)
     rec.to_coco(tmp_path / "c.json")
     coco = json.loads((tmp_path / "c.json").read_text())
     balls = [an for an in coco["annotations"] if an["category_id"] == next(
@@ -216,8 +216,7 @@ def test_a_midwater_box_in_a_profile_starts_at_its_closed_form_arrival(edge, y, 
     exact travel time of a linear gradient T = acosh(1 + g²·|P − S|²/(2·c(P)·c(S)))/g."""
     c_s, g, fs, depth = 1500.0, 0.5, 50e3, 20.0
     profile = se.SoundSpeedProfile.linear(c_s - g * depth, g, depth_m=300.0, surface_z_m=H + depth)
-    sonar = se.Sonar(tilt_deg=10.0, max_range_m=40.0, sample_rate_hz=fs,
-                     environment=se.Environment(sound_speed=profile))
+    sonar = se.Acquisition(se.Sonar(tilt_deg=10.0, max_range_m=40.0, sample_rate_hz=fs), se.Environment(sound_speed=profile))
     box = trimesh.creation.box(extents=(edge, edge, edge))
     box.apply_translation((0.0, y, z))
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
@@ -245,7 +244,7 @@ def _fls_gamma(sonar, k_beam, heading_deg):
     frame per ping: forward (sin ψ, cos ψ, 0), starboard (cos ψ, −sin ψ, 0), down (0, 0, −1)."""
     from scipy.optimize import brentq
 
-    lam, k, d, m = sonar.wavelength_m, sonar.wavenumber_rad_m, sonar.spacing_m, sonar.n_elements
+    lam, k, d, m = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m, sonar.spacing_in(se.Acquisition.of(sonar).sound_speed_m_s), sonar.n_elements
     x0 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 1e-9, np.pi)
     h = x0 * lam / (np.pi * np.sin(np.radians(sonar.vertical_beamwidth_deg) / 2))
     tilt, psi = np.radians(sonar.tilt_deg), np.radians(np.atleast_1d(heading_deg))
@@ -268,7 +267,7 @@ def _fls_gamma(sonar, k_beam, heading_deg):
 def fls_beam_energy(scene, traj, sonar, label):
     """(pings, beams) energy of object ``label``'s echoes in each beam: Σ over azimuth lines of AF_k²·(the line's
     echo weights), as the speckle-free beamformer forms it from the lines' intensities."""
-    front = sonars.front_end(sonar, se.FanSettings())
+    front = sonars.front_end(se.Acquisition.of(sonar), se.FanSettings())
     comp = scene.compiled(survey_origin(traj.positions_m))
     run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
     n = len(traj)
@@ -304,7 +303,7 @@ def test_fls_spheres_peak_in_their_nearest_beam_at_the_closed_form_level():
         energy = fls_beam_energy(scene, traj, sonar, f"ball{i}")[0]
         k = int(np.argmax(energy))
         assert k == int(np.argmin(np.abs(angles - b))), (b, angles[k])
-        ref = sphere_quadrature(a, c, traj.positions_m, sonar.alpha_db_per_m, MU_DB, n=120,
+        ref = sphere_quadrature(a, c, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, n=120,
                                 gamma=_fls_gamma(sonar, k, 0.0))[0]
         assert abs(10 * np.log10(energy[k] / ref)) < 1.0, (b, 10 * np.log10(energy[k] / ref))
 
@@ -323,7 +322,7 @@ def test_fls_sphere_swept_across_a_beam_traces_the_array_factor():
     traj = se.Trajectory(np.tile([[0.0, 0.0, H]], (headings.size, 1)), heading_deg=headings,
                          times_s=np.arange(headings.size, dtype=float))
     got = fls_beam_energy(scene, traj, sonar, "ball")[:, k0]
-    ref = sphere_quadrature(a, c, traj.positions_m, sonar.alpha_db_per_m, MU_DB, n=120,
+    ref = sphere_quadrature(a, c, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, n=120,
                             gamma=_fls_gamma(sonar, k0, headings))
     main = ref >= 0.1 * ref.max()
     assert main.sum() >= 8 and np.all(got[main] > 0)
@@ -362,7 +361,7 @@ def test_echo_sounder_sees_a_small_ball_in_every_ping():
     scene = se.Scene().add(se.seafloor.flat((60, 60)), label="seafloor")
     scene.add(_ball_mesh(a, centre), label="ball", material=se.Material(backscatter_db=MU_DB))
     got = ball_energy(scene, traj, sonar)
-    ref = sphere_quadrature(a, centre, traj.positions_m, sonar.alpha_db_per_m, MU_DB, n=120, gamma=gamma)
+    ref = sphere_quadrature(a, centre, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, n=120, gamma=gamma)
     inside = ref >= 0.01 * ref.max()
     assert inside.sum() >= 20
     err = 10 * np.log10(np.maximum(got[inside], 1e-300) / ref[inside])
@@ -371,7 +370,7 @@ def test_echo_sounder_sees_a_small_ball_in_every_ping():
 
 def _path_energy(scene, traj, sonar):
     """(pings, 3) Σ weight of the ball's echoes per path (direct, one bounce, two bounces)."""
-    front = sonars.front_end(sonar, se.FanSettings())
+    front = sonars.front_end(se.Acquisition.of(sonar), se.FanSettings())
     comp = scene.compiled(survey_origin(traj.positions_m))
     run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
     n = len(traj)
@@ -395,12 +394,12 @@ def test_surface_paths_of_a_small_ball_follow_the_image_method():
     two-bounce energy the monostatic quadrature seen from S' (the mirrored beam), both within 1 dB wherever within
     −20 dB of their peaks, in every ping (docs/physics.md §13 with §7b)."""
     z_s, a, centre = H + 5.0, 0.05, (0.0, -30.0, 4.0)
-    sonar = se.Sonar(max_range_m=45.0, environment=se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(
+    sonar = se.Acquisition(se.Sonar(max_range_m=45.0), se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(
         se.Pulse.cw())
     traj = _pings_over(centre[1])
     scene = _ball_scene(a, centre[1], centre[2], floor=False)
     got = _path_energy(scene, traj, sonar)
-    alpha = sonar.alpha_db_per_m
+    alpha = se.Acquisition.of(sonar).alpha_db_per_m
     image = traj.positions_m * [1, 1, -1] + [0, 0, 2 * z_s]
 
     def mirrored_gamma(u, ping):                     # the image's beam: the sonar's, mirrored in the surface
@@ -438,11 +437,11 @@ def test_a_small_ball_in_a_sound_speed_profile_is_seen_in_every_ping():
     curved rays; before, dark in most)."""
     g, depth = 0.5, 20.0
     profile = se.SoundSpeedProfile.linear(1500.0 - g * depth, g, depth_m=300.0, surface_z_m=H + depth)
-    sonar = se.Sonar(environment=se.Environment(sound_speed=profile)).for_pulse(se.Pulse.cw())
+    sonar = se.Acquisition(se.Sonar(), se.Environment(sound_speed=profile)).for_pulse(se.Pulse.cw())
     a, y, z = 0.05, -30.0, 4.0
     traj = _pings_over(y)
     got = ball_energy(_ball_scene(a, y, z), traj, sonar)
-    ref = sphere_quadrature(a, (0.0, y, z), traj.positions_m, sonar.alpha_db_per_m, MU_DB)
+    ref = sphere_quadrature(a, (0.0, y, z), traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB)
     inside = ref >= 0.01 * ref.max()
     assert inside.sum() >= 15
     err = 10 * np.log10(np.maximum(got[inside], 1e-300) / ref[inside])
@@ -455,7 +454,7 @@ def _floor_hits(rx_shift, pings=None):
     ``pings`` (default all) of a 4-ping line cast as one block, moving with receive shift ``rx_shift`` (one per
     ping of the line)."""
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
-    front = sonars.front_end(sonar, se.FanSettings())
+    front = sonars.front_end(se.Acquisition.of(sonar), se.FanSettings())
     scene = se.Scene().add(se.seafloor.flat((200, 200)), label="seafloor")
     traj = se.Trajectory.line((-0.1, 0, H), (0.1, 0, H), 4)
     pings = np.arange(4) if pings is None else np.asarray(pings)
@@ -482,8 +481,8 @@ def test_the_fan_spans_the_receive_lobe_under_motion():
     s_0, w_0, _, _ = _floor_hits(np.zeros(4))
     assert (s_m @ w_m) / w_m.sum() == pytest.approx(delta / 2, rel=0.01)
     s = np.linspace(-1.0, 1.0, 2_000_001)
-    g2 = np.sinc(sonar.length_m / sonar.wavelength_m * s) ** 2        # one-way power pattern Γ² along track
-    g2_rx = np.sinc(sonar.length_m / sonar.wavelength_m * (s - delta)) ** 2
+    g2 = np.sinc(sonar.length_m / se.Acquisition.of(sonar).wavelength_m * s) ** 2        # one-way power pattern Γ² along track
+    g2_rx = np.sinc(sonar.length_m / se.Acquisition.of(sonar).wavelength_m * (s - delta)) ** 2
     assert w_m.sum() / w_0.sum() == pytest.approx((g2 @ g2_rx) / (g2 @ g2), rel=0.003)
 
 
@@ -493,7 +492,7 @@ def test_the_lines_each_ping_counts_do_not_depend_on_its_block():
     bit."""
     shifts = np.array([0.0, 0.004, -0.009, 0.013])
     _, w_all, ping_all, blk = _floor_hits(shifts)
-    assert blk.plan.s.size > sonars.front_end(se.Sonar().for_pulse(se.Pulse.cw()), se.FanSettings()).plan.s.size
+    assert blk.plan.s.size > sonars.front_end(se.Acquisition(se.Sonar()).for_pulse(se.Pulse.cw()), se.FanSettings()).plan.s.size
     for p in range(4):
         _, w_1, _, one = _floor_hits(shifts, [p])
         np.testing.assert_array_equal(np.sort(w_all[ping_all == p]), np.sort(w_1))
@@ -516,8 +515,8 @@ def test_a_line_of_changing_speed_has_the_same_bits_in_any_blocks(env):
     v[:, 0] = [0.0, 3.0, -4.0, 10.0, 6.0, -10.0]
     traj = se.Trajectory(np.stack([x, np.zeros(n), np.full(n, H)], axis=1), heading_deg=np.full(n, 90.0),
                          velocity_m_s=v)
-    sonar = (se.MSIS(max_range_m=15.0, environment=environment) if env == "msis"
-             else se.Sonar(max_range_m=15.0, environment=environment))
+    sonar = (se.Acquisition(se.MSIS(max_range_m=15.0), environment) if env == "msis"
+             else se.Acquisition(se.Sonar(max_range_m=15.0), environment))
     kw = dict(labels=env != "profile", speckle=False)          # no labels with curved rays (refused)
     whole = se.simulate(scene, traj, sonar, **kw)
     parts = [se.simulate(scene, traj[:3], sonar, **kw), se.simulate(scene, traj[3:], sonar, ping_offset=3, **kw)]
@@ -587,10 +586,10 @@ def test_a_small_ball_seen_through_a_swell_follows_its_glints():
     the swell's image fan saw it, by luck."""
     z_s, a, centre = H + 5.0, 0.05, (0.0, -30.0, 4.0)
     sea = se.SeaSurface(z_m=z_s, swell_height_m=0.3, swell_length_m=10.0, swell_direction_deg=90.0)
-    sonar = se.Sonar(max_range_m=45.0, environment=se.Environment(surface=sea)).for_pulse(se.Pulse.cw())
+    sonar = se.Acquisition(se.Sonar(max_range_m=45.0), se.Environment(surface=sea)).for_pulse(se.Pulse.cw())
     traj = _pings_over(centre[1])
     got = _path_energy(_ball_scene(a, centre[1], centre[2], floor=False), traj, sonar)
-    ref = _swell_strip_paths(a, centre, traj.positions_m, sonar.alpha_db_per_m, z_s, 0.3, 10.0)
+    ref = _swell_strip_paths(a, centre, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, z_s, 0.3, 10.0)
     for k in (1, 2):
         inside = ref[:, k - 1] >= 0.01 * ref[:, k - 1].max()
         assert inside.sum() >= 15

@@ -26,7 +26,7 @@ PROFILE = se.SoundSpeedProfile.linear(1500.0, 0.05, surface_z_m=20.0)
 def test_the_medium_picks_the_path_models_once(env, direct, surface):
     got_direct, got_surface = paths.path_models(env)
     assert type(got_direct) is direct and tuple(type(m) for m in got_surface) == surface
-    front = sonars.front_end(se.Sonar(max_range_m=30.0, environment=env).for_pulse(se.Pulse.cw()), se.FanSettings())
+    front = sonars.front_end(se.Acquisition(se.Sonar(max_range_m=30.0), env).for_pulse(se.Pulse.cw()), se.FanSettings())
     assert type(front.direct_path) is direct and tuple(type(m) for m in front.surface_paths) == surface
 
 
@@ -60,7 +60,7 @@ def _record(monkeypatch, g):
                            label="seafloor")
     traj = se.Trajectory.line((-1, 0, 8), (1, 0, 8), 3)
     env = se.Environment(surface=se.SeaSurface(z_m=11.0))                # 3 m over the sonar
-    rec = se.simulate(scene, traj, se.Sonar(max_range_m=60.0, tilt_deg=10.0, environment=env), se.Pulse.cw(), speckle=False,
+    rec = se.simulate(scene, traj, se.Acquisition(se.Sonar(max_range_m=60.0, tilt_deg=10.0), env), se.Pulse.cw(), speckle=False,
                       labels=False, start_time="2026-01-01")
     return rec.data
 

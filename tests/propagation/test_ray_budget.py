@@ -44,7 +44,7 @@ def test_nothing_in_range_costs_next_to_nothing():
     traj = line_along_x(2, z=60.0)
     empty, rec = _rays(flat_scene().add(decoy_above(traj), label="decoy"), traj=traj)
     assert np.all(rec.port == 0) and np.all(rec.starboard == 0)
-    probe = FanPlan.build(rec.sonar, se.FanSettings()).n_probe
+    probe = FanPlan.build(rec.acquisition, se.FanSettings()).n_probe
     assert empty - probe < 0.05 * (full - probe)
 
 
@@ -111,8 +111,8 @@ def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
     from sonar_embree import sonars
 
     sonar = se.Sonar().for_pulse(se.Pulse.cw())
-    plan = sonars.front_end(sonar, se.FanSettings()).plan
-    ds, null = plan.ds, sonar.wavelength_m / sonar.length_m
+    plan = sonars.front_end(se.Acquisition.of(sonar), se.FanSettings()).plan
+    ds, null = plan.ds, se.Acquisition.of(sonar).wavelength_m / sonar.length_m
     same, keep = moving_lines(plan, np.zeros(3))
     assert same is plan and keep is None
     delta = 2 * 10.0 / 1500.0
@@ -130,5 +130,5 @@ def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
     np.testing.assert_array_equal(own[1], np.isin(moved.s, plan.s))                 # δ = 0: the transmit lines
     assert own[0, 0] and not own[0, -1] and own[2, -1] and not own[2, 0]           # each its own side's lines
     assert moved.s[own[2]][-1] + ds / 2 >= null + delta / 2
-    fls = sonars.front_end(se.ForwardLooking().for_pulse(se.Pulse.cw()), se.FanSettings()).plan
+    fls = sonars.front_end(se.Acquisition(se.ForwardLooking()).for_pulse(se.Pulse.cw()), se.FanSettings()).plan
     assert moving_lines(fls, np.full(3, delta))[0] is fls

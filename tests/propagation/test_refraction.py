@@ -32,8 +32,7 @@ def _profile(gradient=GRAD):
 
 
 def _sonar(profile):
-    return se.Sonar(tilt_deg=TILT, max_range_m=RANGE, sample_rate_hz=FS,
-                    environment=se.Environment(sound_speed=profile))
+    return se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=RANGE, sample_rate_hz=FS), se.Environment(sound_speed=profile))
 
 
 def _scene():
@@ -102,7 +101,7 @@ def test_first_arrival_per_launch_angle_against_the_ray_map():
     """Every boresight ray's echo lands where and when the quadrature ray map puts it (one sample, 1 cm)."""
     profile = _profile()
     sonar = _sonar(profile)
-    front = SideScanFrontEnd(sonar, se.FanSettings())
+    front = SideScanFrontEnd(se.Acquisition.of(sonar), se.FanSettings())
     compiled = _scene().compiled(np.zeros(3))
     run = prepare(EmbreeCaster(compiled), front, sonar.frequency_hz, RANGE, 0)
     rot = se.Trajectory.line((0.0, 0.0, H), (1.0, 0.0, H), 2).rotations()[:1]
@@ -132,7 +131,7 @@ def test_first_arrival_per_launch_angle_against_the_ray_map():
 def test_expected_intensity_matches_the_ray_map_quadrature(records):
     rec, straight = records
     t = rec.time_s
-    ref = quadrature(t, rec.sonar.alpha_db_per_m)
+    ref = quadrature(t, rec.acquisition.alpha_db_per_m)
     sim = rec.starboard[0]
     onset = 2 * np.log((C_SONAR + GRAD * H) / C_SONAR) / GRAD
     keep = (ref > 1e-3 * ref.max()) & (np.abs(t - onset) > 2.0 / FS) & (np.abs(t - onset - TAU) > 2.0 / FS)
@@ -178,8 +177,8 @@ def three_layer_block():
     from sonar_embree import kernels
     from sonar_embree.propagation.fan import probe_rows
     from sonar_embree.propagation.refraction import Buffers, Marching, march
-    sonar = se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS, environment=se.Environment(sound_speed=THREE))
-    front = SideScanFrontEnd(sonar, se.FanSettings())
+    sonar = se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS), se.Environment(sound_speed=THREE))
+    front = SideScanFrontEnd(se.Acquisition.of(sonar), se.FanSettings())
     compiled = _planes_scene().compiled(np.zeros(3))
     caster = EmbreeCaster(compiled)
     rot = np.ascontiguousarray(se.Trajectory.line((0.0, 0.0, Z_SONAR), (1.0, 0.3, Z_SONAR), 2).rotations()[:1])
@@ -192,7 +191,7 @@ def three_layer_block():
     kernels.arc_start(front.plan.s, np.cos(beta), np.sin(beta), el_start, rot, pos, layers, z0, no_box, np.inf,
                       state, lay, ray, kernels.NO_LAYOUT)
     start = state.copy()
-    t_max = 40.0 / sonar.sound_speed_m_s
+    t_max = 40.0 / se.Acquisition.of(sonar).sound_speed_m_s
     box = compiled.bounds_local[:, 2] + [-0.5, 0.5]
     hit_prim, hit, hit_len = march(caster, Marching(layers, z0, box, 0.02, t_max), state, lay, ray, {}, Buffers())
     lit = hit_prim >= 0                                       # the path length of each hit, also as float32
@@ -299,7 +298,7 @@ def test_arc_echoes_matches_its_twin(three_layer_block, delta):
     fan = A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"])
     kernels.arc_echoes(fan, A.Poses(b["rot"], b["pos"], rx_shift), b["hit_prim"], b["hit"], b["ray"],
                        A.scene_arrays(c), A.ArcWeighting(plan.tilt_rad, b["front"].two_way_np_per_m, plan.min_range_m,
-                                                         b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s),
+                                                         b["t_max"], plan.slope_cap_m_rad, se.Acquisition.of(s).sound_speed_m_s),
                        A.EchoOut(*out, np.empty((0, 3))), kernels.NO_LAYOUT)
     weigh_by_beam(plan.pattern, plan.tilt_rad, fan, rx_shift, out[3])
     rng_k, t_k, ext_k, w_k, _ = out
@@ -315,9 +314,9 @@ def test_arc_echoes_matches_its_twin(three_layer_block, delta):
         shift[i] = dtdb * c_hit[i] * cos_i                                 # |n̂·δ⊥| = |∂T/∂β|·c·cos θi
         prim[i], T[i], L[i] = b["hit_prim"][i], ref[1], ref[2]
     w, t, ext, rr = naive.arc_echoes(plan.s, plan.ds, b["beta"], b["dbeta"], b["el_start"], b["rot"], prim, None,
-                                     direction, T, L, area, shift, c_hit, c.face_normals, s.wavenumber_rad_m,
+                                     direction, T, L, area, shift, c_hit, c.face_normals, se.Acquisition.of(s).wavenumber_rad_m,
                                      s.length_m, s.height_m, s.tilt_rad, b["front"].two_way_np_per_m,
-                                     plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, s.sound_speed_m_s,
+                                     plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, se.Acquisition.of(s).sound_speed_m_s,
                                      rx_shift)
     idx = np.array([r[0] for r in rays])
     lit = w[idx] > 0
@@ -346,11 +345,11 @@ def test_profile_from_toml_inline_and_from_a_csv_next_to_the_config(tmp_path):
     from sonar_embree.runs import runconfig
     from conftest import write_anchor_config as _write
     env = "sound_speed = { depth_m = [0.0, 50.0], speed_m_s = [1500.0, 1525.0], surface_z_m = 40.0 }\n"
-    p = runconfig.load_run_config(_write(tmp_path, env=env)).sonar.environment.sound_speed
+    p = runconfig.load_run_config(_write(tmp_path, env=env)).environment.sound_speed
     assert (p.depth_m, p.speed_m_s, p.surface_z_m) == ((0.0, 50.0), (1500.0, 1525.0), 40.0)
     (tmp_path / "ctd.csv").write_text("depth_m,speed_m_s\n0,1500\n10,1502.5\n80,1490\n")
     env = "sound_speed = { csv = \"ctd.csv\", surface_z_m = 40.0 }\n"
-    p = runconfig.load_run_config(_write(tmp_path, env=env)).sonar.environment.sound_speed
+    p = runconfig.load_run_config(_write(tmp_path, env=env)).environment.sound_speed
     assert p.speed_m_s == (1500.0, 1502.5, 1490.0) and p.surface_z_m == 40.0
     with pytest.raises(se.ConfigError, match="unknown key 'gradient'"):
         runconfig.load_run_config(_write(tmp_path, env="sound_speed = { gradient = 0.5 }\n"))
@@ -360,10 +359,10 @@ def test_profile_from_toml_inline_and_from_a_csv_next_to_the_config(tmp_path):
 
 def test_profile_survives_the_record_file(tmp_path):
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
-    rec = se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=se.Environment(sound_speed=_profile())),
+    rec = se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), se.Environment(sound_speed=_profile())),
                       start_time="2000-01-01")
     rec.save(tmp_path / "r.npz")
-    back = se.Record.load(tmp_path / "r.npz").sonar.environment.sound_speed
+    back = se.Record.load(tmp_path / "r.npz").environment.sound_speed
     assert (back.depth_m, back.speed_m_s, back.surface_z_m) == (_profile().depth_m, _profile().speed_m_s, H + DEPTH)
 
 
@@ -380,11 +379,11 @@ def test_profile_errors_name_the_problem():
         se.SoundSpeedProfile((0.0,), (1490.0,), surface_z_m=float("inf"))
     env = se.Environment(sound_speed=_profile())
     with pytest.raises(se.ConfigError, match="labels assume straight rays"):
-        se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=env), start_time="2000-01-01", labels=True)
+        se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), env), start_time="2000-01-01", labels=True)
     shallow = se.Environment(sound_speed=se.SoundSpeedProfile.linear(1500.0, 0.5, surface_z_m=H - 1.0))
     with pytest.raises(se.ConfigError, match="above the sound-speed profile's depth 0"):
-        se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=shallow), start_time="2000-01-01")
-    assert se.simulate(_scene(), line, se.EchoSounder(environment=env), start_time="2000-01-01").data.max() > 0
+        se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), shallow), start_time="2000-01-01")
+    assert se.simulate(_scene(), line, se.Acquisition(se.EchoSounder(), env), start_time="2000-01-01").data.max() > 0
 
 
 def test_no_profile_runs_no_refraction_code(monkeypatch):
@@ -393,7 +392,7 @@ def test_no_profile_runs_no_refraction_code(monkeypatch):
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
     se.simulate(_scene(), line, se.Sonar(max_range_m=20.0), start_time="2000-01-01")
     flat = se.Environment(sound_speed=se.SoundSpeedProfile((0.0, 100.0), (1500.0, 1500.0)))
-    se.simulate(_scene(), line, se.Sonar(max_range_m=20.0, environment=flat), start_time="2000-01-01")
+    se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), flat), start_time="2000-01-01")
 
 
 def test_speckle_in_a_profile_averages_to_the_expected_record(records):
@@ -416,7 +415,7 @@ def test_curved_rays_move_during_the_ping_too():
     still, moving = _record(_profile()), _record(_profile(), moving=True)
     assert moving.attrs["motion_during_ping"] and not still.attrs["motion_during_ping"]
     s = still.sonar
-    a, delta = np.pi * s.frequency_hz * s.length_m / s.sound_speed_m_s, 2 * 2.0 / s.sound_speed_m_s
+    a, delta = np.pi * s.frequency_hz * s.length_m / se.Acquisition.of(s).sound_speed_m_s, 2 * 2.0 / se.Acquisition.of(s).sound_speed_m_s
     u = np.linspace(-40 / a, 40 / a, 400_001)
     gamma = np.sinc(a * u / np.pi) ** 2
     want_db = 10 * np.log10(np.trapezoid(gamma * np.sinc(a * (u - delta) / np.pi) ** 2, u) / np.trapezoid(gamma ** 2, u))
@@ -462,7 +461,7 @@ def test_arc_kernels_with_each_rays_own_layout_give_the_fans_bits(three_layer_bl
     c = b["caster"].compiled
     args = (A.Poses(b["rot"], b["pos"], np.full(1, 2e-3)), b["hit_prim"], b["hit"], b["ray"], A.scene_arrays(c),
             A.ArcWeighting(plan.tilt_rad, b["front"].two_way_np_per_m, plan.min_range_m, b["t_max"],
-                           plan.slope_cap_m_rad, s.sound_speed_m_s))
+                           plan.slope_cap_m_rad, se.Acquisition.of(s).sound_speed_m_s))
     fan, per_ray = [np.empty(n) for _ in range(5)], [np.empty(n) for _ in range(5)]
     kernels.arc_echoes(A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], el), *args,
                        A.EchoOut(*fan, np.empty((0, 3))), kernels.NO_LAYOUT)

@@ -18,7 +18,7 @@ def _gamma4(u, v, w):
 
 
 def _record(scene, traj, **kw):
-    sonar = se.Sonar(max_range_m=30.0, environment=se.Environment(volume_backscatter_db=SV, noise=None))
+    sonar = se.Acquisition(se.Sonar(max_range_m=30.0), se.Environment(volume_backscatter_db=SV, noise=None))
     return se.simulate(scene, traj, sonar, se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01", **kw)
 
 
@@ -26,7 +26,7 @@ def _urick(rec, psi):
     """σ_v·Ψ·∫dR'/R'² over the shell the rect pulse covers at each sample, R − cτ/2 … R (Urick's σ_v·Ψ·(cτ/2)/R²
     for R ≫ cτ/2), times the two-way absorption at the shell's middle."""
     r, half = rec.slant_range_m, 750.0 * TAU
-    a2 = 2 * rec.sonar.alpha_db_per_m * math.log(10) / 10
+    a2 = 2 * rec.acquisition.alpha_db_per_m * math.log(10) / 10
     with np.errstate(divide="ignore", invalid="ignore"):
         return 10 ** (SV / 10) * psi * (1 / (r - half) - 1 / r) * np.exp(-a2 * (r - half / 2))
 
@@ -70,7 +70,7 @@ def test_the_floor_cuts_the_column_as_its_directions_meet_it():
 def test_bad_values_and_other_sonar_types_are_refused():
     with pytest.raises(ConfigError, match="volume_backscatter_db"):
         se.Environment(volume_backscatter_db=5.0)
-    es = se.EchoSounder(max_range_m=10.0, environment=se.Environment(volume_backscatter_db=-70.0))
+    es = se.Acquisition(se.EchoSounder(max_range_m=10.0), se.Environment(volume_backscatter_db=-70.0))
     scene = se.Scene().add(se.seafloor.flat((20.0, 20.0)))
     with pytest.raises(ConfigError, match="side-scan Sonar, not EchoSounder"):
         se.simulate(scene, se.Trajectory.line((0, 0, 5.0), (1, 0, 5.0), 2), es, se.Pulse.cw(),

@@ -112,7 +112,7 @@ def test_misspelled_key_gets_a_suggestion(tmp_path, capsys):
 def test_impossible_sonar_values(field, value, tmp_path, capsys):
     with pytest.raises(se.ConfigError) as exc:
         if field == "sound_speed_m_s":          # the medium's: set in the environment
-            se.Sonar(environment=se.Environment(**{field: value}))
+            se.Environment(**{field: value})
         else:
             se.Sonar(**{field: value})
     assert field in str(exc.value) and str(value) in str(exc.value)

@@ -80,7 +80,7 @@ def test_pass_over_the_mound_gives_its_altitude_and_first_return(tmp_path):
     rec = se.simulate(scene, line, se.Sonar(max_range_m=40.0))
     assert rec.attrs["crs"] == CRS and rec.trajectory.crs == CRS    # the trajectory takes the scene's CRS
     dt = rec.time_s[1] - rec.time_s[0]
-    c = rec.sonar.sound_speed_m_s
+    c = rec.acquisition.sound_speed_m_s
     altitude = z - APEX
     assert abs(rec.altitude_m[2] - altitude) < c * dt / 2
     for side in (rec.port[2], rec.starboard[2]):

@@ -40,8 +40,8 @@ def test_thermal_noise_at_400_khz_is_37_db():
 def test_noise_only_samples_match_coates_times_band_minus_di(frequency_hz, wind):
     """Speckled record, the water column before the floor echo: mean power per sample = N(f)·fs / DI in µPa²."""
     lam = 1500.0 / frequency_hz
-    sonar = se.Sonar(frequency_hz=frequency_hz, length_m=50 * lam, height_m=lam, max_range_m=30.0,
-                     source_level_db=210.0, environment=se.Environment(noise=se.AmbientNoise(wind_speed_m_s=wind),
+    sonar = se.Acquisition(se.Sonar(frequency_hz=frequency_hz, length_m=50 * lam, height_m=lam, max_range_m=30.0,
+                     source_level_db=210.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=wind),
                                                                         absorption_db_per_m=0.05))
     pulse = se.Pulse.cw(duration_s=100e-6)
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, 25.0), (2.0, 0, 25.0), 12), sonar, pulse,
@@ -68,7 +68,7 @@ def test_source_level_scales_the_unit_source_record_exactly():
     """Noise off: the record with SL equals the unit-source record × 10^(SL/10) to float rounding."""
     line = se.Trajectory.line((0, 0, 10.0), (1, 0, 10.0), 3)
     unit = se.simulate(_floor(), line, se.Sonar(), se.Pulse.cw(), start_time="2000-01-01")
-    loud = se.simulate(_floor(), line, se.Sonar(source_level_db=215.0, environment=se.Environment(noise=None)),
+    loud = se.simulate(_floor(), line, se.Acquisition(se.Sonar(source_level_db=215.0), se.Environment(noise=None)),
                        se.Pulse.cw(), start_time="2000-01-01")
     np.testing.assert_allclose(loud.data, unit.data * 10 ** 21.5, rtol=1e-14, atol=0)
     assert unit.attrs["intensity_unit"] == "unit source" and unit.attrs["received_noise_db_per_hz"] is None
@@ -80,11 +80,10 @@ def test_floor_snr_at_40_m_matches_the_sonar_equation():
     """Speckle-free, SL 210 dB, ambient noise: SNR of the floor at 40 m slant range within 0.5 dB of the sonar
     equation with the equivalent azimuth width and the elevation pattern at the floor's depression."""
     h, r, tau, sl = 10.0, 40.0, 200e-6, 210.0
-    sonar = se.Sonar(max_range_m=45.0, source_level_db=sl, self_noise_db_per_hz=30.0,
-                     environment=se.Environment(noise=se.AmbientNoise(wind_speed_m_s=10.0)))
+    sonar = se.Acquisition(se.Sonar(max_range_m=45.0, source_level_db=sl, self_noise_db_per_hz=30.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=10.0)))
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, h), (0.2, 0, h), 2).stop_and_hop(), sonar,
                       se.Pulse.cw(duration_s=tau, taper=0.0), start_time="2000-01-01")
-    fs, c, alpha = rec.sonar.sample_rate_hz, 1500.0, rec.sonar.alpha_db_per_m
+    fs, c, alpha = rec.sonar.sample_rate_hz, 1500.0, rec.acquisition.alpha_db_per_m
     noise = 10 ** ((coates_db(400e3, 10.0) - analytic.directivity_index_db(analytic.membrane_pattern(0.19, 0.0038,
                                                                                       0.00375))) / 10)
     noise = (noise + 10 ** 3.0) * fs                                          # + self-noise, over the band
@@ -103,13 +102,12 @@ def test_floor_snr_at_40_m_matches_the_sonar_equation():
 
 def test_levels_survive_the_record_file_and_dataset(tmp_path):
     """SL, self-noise and the ambient noise round-trip through the npz record; the dataset says µPa²."""
-    sonar = se.Sonar(source_level_db=212.0, self_noise_db_per_hz=25.0,
-                     environment=se.Environment(noise=se.AmbientNoise(wind_speed_m_s=12.0, shipping=0.2)))
+    sonar = se.Acquisition(se.Sonar(source_level_db=212.0, self_noise_db_per_hz=25.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=12.0, shipping=0.2)))
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, 10.0), (1, 0, 10.0), 2), sonar, se.Pulse.cw(),
                       start_time="2000-01-01")
     rec.save(tmp_path / "r.npz")
     back = se.Record.load(tmp_path / "r.npz")
-    assert back.sonar == rec.sonar and back.sonar.environment.noise == se.AmbientNoise(12.0, 0.2)
+    assert back.sonar == rec.sonar and back.environment.noise == se.AmbientNoise(12.0, 0.2)
     ds = rec.to_xarray()
     assert ds["starboard"].attrs["units"] == "uPa2" and "212" in ds.attrs["intensity_reference"]
 
@@ -142,11 +140,11 @@ def test_noise_from_toml_and_off(tmp_path):
     cfg = runconfig.load_run_config(_write(tmp_path, sonar_extra="source_level_db = 205.0\nself_noise_db_per_hz = 20.0\n",
                                            env="noise = { wind_speed_m_s = 3.0, shipping = 0.1 }\n"))
     assert cfg.sonar.source_level_db == 205.0 and cfg.sonar.self_noise_db_per_hz == 20.0
-    assert cfg.sonar.environment.noise == se.AmbientNoise(wind_speed_m_s=3.0, shipping=0.1)
+    assert cfg.environment.noise == se.AmbientNoise(wind_speed_m_s=3.0, shipping=0.1)
     off = runconfig.load_run_config(_write(tmp_path, sonar_extra="source_level_db = 205.0\n", env="noise = false\n"))
-    assert off.sonar.environment.noise is None and off.sonar.noise_density() == 0.0
-    assert dataclasses.replace(off.sonar, source_level_db=None).noise_density() == 0.0
-    assert cfg.sonar.noise_density() > 0.0
+    assert off.environment.noise is None and off.acquisition.noise_density() == 0.0
+    assert se.Acquisition(dataclasses.replace(off.sonar, source_level_db=None), off.environment).noise_density() == 0.0
+    assert cfg.acquisition.noise_density() > 0.0
     with pytest.raises(se.ConfigError, match="'gust'"):
         runconfig.load_run_config(_write(tmp_path, env="noise = { gust = 3.0 }\n"))
 
@@ -154,8 +152,7 @@ def test_noise_from_toml_and_off(tmp_path):
 def test_echo_sounder_noise_uses_the_circular_piston_di():
     """EchoSounder: the same noise path with the DI of its piston's pattern, ka from the −3 dB width
     (2·J1(x)/x = 1/√2 at x = 1.6163)."""
-    es = se.EchoSounder(max_range_m=30.0, source_level_db=200.0,
-                        environment=se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
+    es = se.Acquisition(se.EchoSounder(max_range_m=30.0, source_level_db=200.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, 25.0), (1.0, 0, 25.0), 8), es, se.Pulse.cw(),
                       speckle=True, seed=5, start_time="2000-01-01")
     water = rec.time_s < 2 * 24.0 / 1500.0

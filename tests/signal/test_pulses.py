@@ -102,10 +102,10 @@ def test_francois_garrison_reproduces_physics_md():
 
 
 def test_sonar_absorption_default_and_override():
-    assert se.Sonar().alpha_db_per_m == pytest.approx(0.0961, abs=2e-4)
-    assert se.Sonar(environment=se.Environment(absorption_db_per_m=0.05)).alpha_db_per_m == 0.05
-    warm, cold = (se.Sonar(environment=se.Environment(temperature_c=t)) for t in (20, 4))
+    assert se.Acquisition(se.Sonar()).alpha_db_per_m == pytest.approx(0.0961, abs=2e-4)
+    assert se.Acquisition(se.Sonar(), se.Environment(absorption_db_per_m=0.05)).alpha_db_per_m == 0.05
+    warm, cold = (se.Acquisition(se.Sonar(), se.Environment(temperature_c=t)) for t in (20, 4))
     assert warm.alpha_db_per_m > cold.alpha_db_per_m
-    assert se.Sonar(frequency_hz=900e3).alpha_db_per_m > 0.2
+    assert se.Acquisition(se.Sonar(frequency_hz=900e3)).alpha_db_per_m > 0.2
     with pytest.raises(se.ConfigError, match="Environment.temperature_c"):
         se.Environment(temperature_c=80)

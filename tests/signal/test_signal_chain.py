@@ -143,7 +143,7 @@ def test_exp_chirp_with_equal_frequencies_gives_the_cw_record(scene_with_box):
 
 
 def test_perfect_tvg_flat_floor_follows_the_closed_form():
-    sonar = se.Sonar(environment=se.Environment(absorption_db_per_m=0.096))
+    sonar = se.Acquisition(se.Sonar(), se.Environment(absorption_db_per_m=0.096))
     rec = se.simulate(flat_scene(), line_along_x(n_pings=1), sonar, se.Pulse.cw(100e-6, taper=0.0), tvg=True)
     r = rec.slant_range_m
     band = (r > 14.0) & (r < 49.0)
@@ -262,7 +262,7 @@ def test_sample_rate_follows_the_pulse_unless_given():
     base = se.Sonar()
     assert base.sample_rate_hz is None
     with pytest.raises(se.ConfigError, match="for_pulse"):
-        _ = base.n_samples
+        _ = se.Acquisition.of(base).n_samples
     assert base.for_pulse(se.Pulse.cw(100e-6)).sample_rate_hz == 40e3
     assert base.for_pulse(se.Pulse.cw(250e-6)).sample_rate_hz == 16e3
     assert base.for_pulse(se.Pulse.lfm(60e3, duration_s=2e-3)).sample_rate_hz == 120e3
@@ -270,4 +270,4 @@ def test_sample_rate_follows_the_pulse_unless_given():
     assert se.Sonar(sample_rate_hz=25e3).for_pulse(se.Pulse.cw()).sample_rate_hz == 25e3
     rec = se.simulate(flat_scene(), line_along_x(n_pings=1), base, se.Pulse.lfm(60e3))
     assert rec.sonar.sample_rate_hz == 120e3 and rec.attrs["matched_filter"]
-    assert rec.port.shape[1] == rec.sonar.n_samples
+    assert rec.port.shape[1] == rec.acquisition.n_samples

@@ -40,7 +40,7 @@ def test_mean_of_speckled_pings_converges_to_speckle_free(independent_pings):
     assert err[0] > err[1] > err[2]                  # falls as 1/√N: err(82)/err(8) ≈ √(8/82) = 0.31
     assert err[2] < 0.5 * err[0]
     # nothing arrives before the first bottom return, speckle or not
-    early = speckled.time_s < 2 * H / SONAR.sound_speed_m_s - 1 / speckled.sonar.sample_rate_hz
+    early = speckled.time_s < 2 * H / se.Acquisition(SONAR).sound_speed_m_s - 1 / speckled.sonar.sample_rate_hz
     assert np.all(speckled.starboard[:, early] == 0) and np.all(speckled.port[:, early] == 0)
 
 
@@ -94,9 +94,9 @@ def test_compressed_fm_speckle_is_rayleigh():
     """LFM 20 kHz / 1 ms, matched filter: the lattice follows the compressed cell c/(2B) = 3.75 cm (not lx/2 =
     9.5 cm, where the contrast was 1.04) and the speckle contrast is 1 ± 0.03 (docs/physics.md §10)."""
     pulse = se.Pulse.lfm(20e3, duration_s=1e-3)
-    chain = se.SignalChain(speckle=True, matched_filter=True).resolved(SONAR, pulse)
-    assert chain.speckle_cell_m == pytest.approx(SONAR.sound_speed_m_s / (2 * 20e3))
-    assert se.SignalChain(speckle=True).resolved(SONAR, se.Pulse.cw(duration_s=1e-3)).speckle_cell_m == \
+    chain = se.SignalChain(speckle=True, matched_filter=True).resolved(se.Acquisition(SONAR), pulse)
+    assert chain.speckle_cell_m == pytest.approx(se.Acquisition(SONAR).sound_speed_m_s / (2 * 20e3))
+    assert se.SignalChain(speckle=True).resolved(se.Acquisition(SONAR), se.Pulse.cw(duration_s=1e-3)).speckle_cell_m == \
         pytest.approx(SONAR.length_m / 2)                           # a long CW pulse: along track is finer
     traj = se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), 41)
     scene = flat_scene()

@@ -66,14 +66,14 @@ def test_square_echo_sounder_level_against_quadrature():
     sonar = EchoSounder(frequency_hz=200e3, beamwidth_deg=10.0, max_range_m=30.0, sample_rate_hz=400e3, beam="square")
     rec = se.simulate(flat_scene(), se.Trajectory.line((0, 0, H), (1, 0, H), 2).stop_and_hop(), sonar,
                       se.Pulse.cw(duration_s=100e-6, taper=0.0), start_time="2000-01-01")
-    side, lam = sonar.transducer.side_m, sonar.wavelength_m
+    side, lam = se.Acquisition.of(sonar).transducer.side_m, se.Acquisition.of(sonar).wavelength_m
     phi = np.linspace(0.0, np.pi / 2, 181)                     # b⁴ is even in both cosines: 4 × a quadrant
 
     def b4(theta):
         st = np.sin(theta)[:, None]
         return 4 * np.trapezoid(_square_closed_form(st * np.cos(phi), st * np.sin(phi), side, lam) ** 4, phi, axis=1)
     r = rec.slant_range_m
-    want = analytic.down_looking_flat_floor(r, H, b4, sonar.alpha_db_per_m, sonar.sound_speed_m_s * 100e-6 / 2)
+    want = analytic.down_looking_flat_floor(r, H, b4, se.Acquisition.of(sonar).alpha_db_per_m, se.Acquisition.of(sonar).sound_speed_m_s * 100e-6 / 2)
     got = rec.channel("down").mean(axis=0)
     band = (r > H) & (r < 25.0)
     assert abs(10 * np.log10(got[band].sum() / want[band].sum())) < 0.05

@@ -33,7 +33,7 @@ def test_one_channel_and_first_return_at_2h_over_c(sounding):
     with pytest.raises(se.ConfigError, match="no channel 'port'"):
         rec.port
     down = rec.channel("down")
-    t0 = 2 * H / rec.sonar.sound_speed_m_s
+    t0 = 2 * H / rec.acquisition.sound_speed_m_s
     dt = 1 / rec.sonar.sample_rate_hz
     first = rec.time_s[np.argmax(down[0] > 0)]
     assert abs(first - t0) <= dt
@@ -46,9 +46,9 @@ def _quadrature(rec):
     grid = np.linspace(H, 30.0, 400001)
     theta = np.arccos(H / grid)
     g = 2 * np.pi * _piston(theta, 10.0) ** 4 * 10 ** (-2.7) * (H / grid) ** 2 \
-        * 10 ** (-2 * s.alpha_db_per_m * grid / 10) / grid ** 3
+        * 10 ** (-2 * se.Acquisition.of(s).alpha_db_per_m * grid / 10) / grid ** 3
     cum = np.concatenate([[0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(grid))])
-    r, ext = rec.slant_range_m, s.sound_speed_m_s * 100e-6 / 2
+    r, ext = rec.slant_range_m, se.Acquisition.of(s).sound_speed_m_s * 100e-6 / 2
     return np.interp(r, grid, cum) - np.interp(r - ext, grid, cum)
 
 
@@ -114,7 +114,7 @@ def test_echo_sounder_moves_during_the_ping():
     line = se.Trajectory.line((0, 0, H), (2, 0, H), 2, speed_m_s=v)
     moving, still = (se.simulate(flat_scene(), t, sonar, se.Pulse.cw(duration_s=100e-6, taper=0.0),
                                  start_time="2000-01-01") for t in (line, line.stop_and_hop()))
-    c, alpha = sonar.sound_speed_m_s, sonar.alpha_db_per_m * np.log(10) / 10
+    c, alpha = se.Acquisition.of(sonar).sound_speed_m_s, se.Acquisition.of(sonar).alpha_db_per_m * np.log(10) / 10
     theta = np.linspace(0.0, np.radians(4 * bw), 2001)[:, None]
     phi = np.linspace(0.0, 2 * np.pi, 721)[None, :]
     r = H / np.cos(theta)

@@ -46,13 +46,13 @@ def test_array_factor_steering_width_and_nulls():
     for k in (30, 50, 60):
         u_k = math.sin(math.radians(angles[k]))
         u = u_k + np.linspace(-0.2, 0.2, 40001)
-        af2 = fls.array_factor(u)[k] ** 2
+        af2 = fls.array_factor(u, se.Acquisition.of(fls).sound_speed_m_s)[k] ** 2
         np.testing.assert_allclose(af2, _af2(u, u_k), atol=1e-12)
         assert u[np.argmax(af2)] == pytest.approx(u_k, abs=1e-5)
         above = u[af2 >= 0.5]
         assert above.max() - above.min() == pytest.approx(2 * 1.3916 * LAM / (np.pi * M * LAM / 2), rel=1e-3)
         null = u_k + LAM / (M * LAM / 2)
-        assert fls.array_factor([null])[k, 0] == pytest.approx(0.0, abs=1e-9)
+        assert fls.array_factor([null], se.Acquisition.of(fls).sound_speed_m_s)[k, 0] == pytest.approx(0.0, abs=1e-9)
     assert angles[0] == -FOV / 2 and angles[-1] == FOV / 2 and angles[30] == 0.0
 
 
@@ -135,7 +135,7 @@ def test_flat_floor_boresight_beam_matches_quadrature():
                            label="seafloor")
     traj = _still()
     rec = se.simulate(floor, traj, _sonar(), se.Pulse.cw(duration_s=TAU, taper=0.0), start_time="2000-01-01")
-    q = _floor_quadrature(rec.time_s, rec.sonar.alpha_db_per_m)
+    q = _floor_quadrature(rec.time_s, rec.acquisition.alpha_db_per_m)
     got = rec.data[0, 30]
     onset = np.abs(rec.time_s - 2 * H / C) <= 2.5 / FS
     # within 25 dB of the peak: at the vertical pattern's second null (5.5 m, 26 dB down) the fan's rays, placed
@@ -175,9 +175,9 @@ def test_fan_image_zarr_and_toml(tmp_path):
         se.simulate(_ball_scene(x, y, H), _still(), _sonar(), speckle=True, detection="incoherent", band="carrier")
     with pytest.raises(se.ConfigError, match="swell"):
         swell = se.Environment(surface=se.SeaSurface(z_m=H + 3, swell_height_m=0.2, swell_length_m=8.0))
-        se.simulate(_ball_scene(x, y, H), _still(), _sonar(environment=swell))
+        se.simulate(_ball_scene(x, y, H), _still(), se.Acquisition(_sonar(), swell))
     with pytest.raises(se.ConfigError, match="grating lobes"):
-        se.ForwardLooking(element_spacing_m=0.0015)
+        se.Acquisition(se.ForwardLooking(element_spacing_m=0.0015))
     with pytest.raises(se.ConfigError, match="n_beams"):
         se.ForwardLooking(n_beams=2.5)
 
@@ -192,7 +192,7 @@ def test_receiver_noise_is_added_per_beam(speckle):
     sonar = _sonar(source_level_db=200.0, self_noise_db_per_hz=20.0)
     rec = se.simulate(far, traj, sonar, se.Pulse.cw(duration_s=TAU, taper=0.0), speckle=speckle,
                       start_time="2000-01-01")
-    amb = sonar.environment.noise.spectral_density_db(F0)
+    amb = rec.environment.noise.spectral_density_db(F0)
     elem_di = analytic.directivity_index_db(analytic.membrane_pattern(LAM / 2, _height(), LAM))
     n = 10 ** ((amb - elem_di - 10 * np.log10(M)) / 10) + 10 ** 2.0
     if speckle:
@@ -341,7 +341,7 @@ def test_memory_is_estimated_before_the_rays_are_cast(monkeypatch):
     n = int(err.value.args[0].split(" need ")[1].split(" rays")[0])
     from sonar_embree import sonars
 
-    probes = sonars.front_end(sonar.for_pulse(se.Pulse.cw()), se.FanSettings()).plan.n_probe
+    probes = sonars.front_end(se.Acquisition.of(sonar).for_pulse(se.Pulse.cw()), se.FanSettings()).plan.n_probe
     assert n + probes == rec.attrs["rays_per_ping"]                  # what the fan casts, less its probes
     with pytest.raises(se.ConfigError, match=r"vertical_beamwidth_deg must be >= 0.1, got 1e-09"):
         se.ForwardLooking(vertical_beamwidth_deg=1e-9)

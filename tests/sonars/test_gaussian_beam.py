@@ -33,7 +33,7 @@ def _gaussian(a, b):
 
 def test_one_file_and_one_line():
     assert BEAMS["gaussian"] is Gaussian and Gaussian.__module__ == "sonar_embree.instrument.beams.gaussian"
-    assert se.Sonar(beam="gaussian").transducer.separable
+    assert se.Acquisition(se.Sonar(beam="gaussian")).transducer.separable
     with pytest.raises(se.ConfigError, match="Sonar.beam must be one of 'membrane', 'gaussian', got 'piston'"):
         se.Sonar(beam="piston")
     for cls in (se.MSIS, se.ForwardLooking):
@@ -60,7 +60,7 @@ def test_a_side_scan_with_a_gaussian_beam_against_quadrature():
     plane, tilted 20°); eq. (2) by quadrature within 0.2 dB over 11–49 m, both sides, and the membrane's record
     differs from it by more than 0.5 dB somewhere (the beam is not ignored)."""
     sonar = se.Sonar(beam="gaussian")
-    lam = sonar.wavelength_m
+    lam = se.Acquisition.of(sonar).wavelength_m
     a, b = _half_width(sonar.length_m, lam), _half_width(sonar.height_m, lam)
     d = np.radians(sonar.tilt_deg)
 
@@ -92,7 +92,7 @@ def test_an_echo_sounder_with_a_gaussian_beam_against_quadrature():
     r = rec.slant_range_m
     want = analytic.down_looking_flat_floor(
         r, h, lambda theta: 2 * np.pi * 2.0 ** (-2.0 * (np.sin(theta) / math.sin(math.radians(5.0))) ** 2),
-        sonar.alpha_db_per_m, sonar.sound_speed_m_s * 100e-6 / 2)
+        se.Acquisition.of(sonar).alpha_db_per_m, se.Acquisition.of(sonar).sound_speed_m_s * 100e-6 / 2)
     got = rec.channel("down").mean(axis=0)
     band = (r > h) & (r < 25.0)
     assert abs(10 * np.log10(got[band].sum() / want[band].sum())) < 0.05
@@ -119,7 +119,7 @@ def test_msis_and_forward_looking_take_the_gaussian(kind):
     else:
         make = lambda beam: se.ForwardLooking(max_range_m=15.0, n_beams=16, n_elements=16, beam=beam)  # noqa: E731
         width, tilt, e_deg = 20.0, 10.0, 16.0
-    lam = make("membrane").wavelength_m
+    lam = se.Acquisition(make("membrane")).wavelength_m
     half = math.sin(math.radians(width) / 2)
     ly = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 0.5, 2.0) * lam / (np.pi * half)
     e, r = math.radians(e_deg), 10.0
@@ -162,7 +162,7 @@ def test_a_beam_the_kernels_do_not_know_runs_through_numpy_and_is_refused_under_
     fast = se.simulate(scene, traj, se.Sonar(max_range_m=30.0, beam="gaussian"), **kw).data
     slow = se.simulate(scene, traj, se.Sonar(max_range_m=30.0, beam=numpy_gaussian), **kw).data
     assert np.max(np.abs(fast - slow)) < 1e-12 * fast.max() and fast.max() > 0
-    sonar = se.Sonar(beam=numpy_gaussian, environment=se.Environment(surface=se.SeaSurface(z_m=H + 5.0)))
+    sonar = se.Acquisition(se.Sonar(beam=numpy_gaussian), se.Environment(surface=se.SeaSurface(z_m=H + 5.0)))
     with pytest.raises(se.ConfigError, match="beam = 'numpy-gaussian' under a sea surface: the surface's paths"):
         se.simulate(flat_scene(), traj, sonar, start_time="2000-01-01")
 
@@ -192,9 +192,8 @@ def test_the_surface_paths_weigh_the_gaussian():
     traj = se.Trajectory.line((-0.01, 0, H), (0.01, 0, H), 2).stop_and_hop()
     energy = {}
     for beam in ("membrane", "gaussian"):
-        sonar = se.Sonar(max_range_m=30.0, beam=beam,
-                         environment=se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(se.Pulse.cw())
-        front = sonars.front_end(sonar, se.FanSettings())
+        sonar = se.Acquisition(se.Sonar(max_range_m=30.0, beam=beam), se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(se.Pulse.cw())
+        front = sonars.front_end(se.Acquisition.of(sonar), se.FanSettings())
         comp = scene.compiled(survey_origin(traj.positions_m))
         run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
         e, _ = front.cast(run, traj.rotations(), traj.positions_m - comp.origin_m, sonar.max_range_m, False, True,
@@ -203,7 +202,7 @@ def test_the_surface_paths_weigh_the_gaussian():
         own = e.object_id == 0
         energy[beam] = np.array([e.weight[own & (e.path == p)].sum() for p in range(3)])
     s = se.Sonar()
-    lam, tilt = s.wavelength_m, np.radians(s.tilt_deg)
+    lam, tilt = se.Acquisition.of(s).wavelength_m, np.radians(s.tilt_deg)
     a, b = _half_width(s.length_m, lam), _half_width(s.height_m, lam)
     pos = np.array([0.0, 0.0, H])
     image = ball * [1, 1, -1] + [0, 0, 2 * z_s]
@@ -228,16 +227,16 @@ def test_gaussian_beams_pass_the_surface_verdict(kind):
     from test_sonar_types import _case, _floor, assert_surface_verdict
 
     sonar, traj = _case(kind, n=3, beam="gaussian")
-    wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=H + 4.0)))
+    wet = se.Acquisition(sonar, se.Environment(surface=se.SeaSurface(z_m=H + 4.0)))
     dry, moist = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, wet)
     assert_surface_verdict(dry, moist, 4.0, 1e-6)
     if kind == "sidescan":
-        after = dry.time_s > (2 * H + 8.0) / sonar.sound_speed_m_s + dry.pulse.duration_s
+        after = dry.time_s > (2 * H + 8.0) / se.Acquisition.of(sonar).sound_speed_m_s + dry.pulse.duration_s
         swell = se.Environment(surface=se.SeaSurface(z_m=H + 4.0, swell_height_m=0.5))
         profile = se.SoundSpeedProfile(depth_m=[0.0, 100.0], speed_m_s=[1498.0, 1548.0], surface_z_m=H + 4.0)
         curved = se.Environment(sound_speed=profile, surface=se.SeaSurface(z_m=H + 4.0))
         for env in (swell, curved):
-            rec = se.simulate(_floor(), traj, dataclasses.replace(sonar, environment=env))
+            rec = se.simulate(_floor(), traj, se.Acquisition(sonar, env))
             assert rec.data[:, :, after].sum() > dry.data[:, :, after].sum()
 
 

@@ -45,7 +45,7 @@ def test_first_return_at_every_bearing_is_the_altitude():
     assert rec.data.shape[:2] == (16, 1) and rec.channels == ("beam",)
     dt = rec.time_s[1]
     first = np.array([rec.time_s[np.flatnonzero(rec.data[k, 0] > 0)[0]] for k in range(16)])
-    assert np.all(np.abs(first - 2 * H / rec.sonar.sound_speed_m_s) <= dt)
+    assert np.all(np.abs(first - 2 * H / rec.acquisition.sound_speed_m_s) <= dt)
 
 
 def _membrane(width_deg, lam):
@@ -56,7 +56,7 @@ def _membrane(width_deg, lam):
 def _quadrature(t, sonar, tilt_deg):
     """Expected intensity of a flat Lambert floor at times t for a rectangular pulse TAU: ∫ Γ⁴ μ cos²θi
     e^(−2α'R) / R⁴ dA over the ring c(t − τ) < 2R ≤ ct, on a polar grid around the head."""
-    lam, k = sonar.wavelength_m, sonar.wavenumber_rad_m
+    lam, k = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m
     lx, ly = _membrane(sonar.horizontal_beamwidth_deg, lam), _membrane(sonar.vertical_beamwidth_deg, lam)
     d = math.radians(tilt_deg)
     rho = np.concatenate([np.linspace(0, 2, 801)[:-1], np.linspace(2, 30, 5601)])
@@ -67,11 +67,11 @@ def _quadrature(t, sonar, tilt_deg):
     along_axis = ux * math.cos(d) + uz * math.sin(d)
     g = np.sinc(k * lx / 2 * uy / np.pi) * np.sinc(k * ly / 2 * (-ux * math.sin(d) + uz * math.cos(d)) / np.pi)
     g = np.where(along_axis > 0, g, 0.0)
-    alpha = sonar.alpha_db_per_m * math.log(10) / 10
+    alpha = se.Acquisition.of(sonar).alpha_db_per_m * math.log(10) / 10
     dens = g ** 4 * 10 ** (MU_DB / 10) * (H / r) ** 2 * np.exp(-2 * alpha * r) / r ** 4
     per_rho = np.trapezoid(dens, phi, axis=1) * rho
     cum = np.concatenate([[0.0], np.cumsum(0.5 * (per_rho[1:] + per_rho[:-1]) * np.diff(rho))])
-    c = sonar.sound_speed_m_s
+    c = se.Acquisition.of(sonar).sound_speed_m_s
     two_r = 2 * np.sqrt(rho ** 2 + H ** 2)
     return np.interp(c * t, two_r, cum, left=0, right=cum[-1]) - np.interp(c * (t - TAU), two_r, cum, left=0,
                                                                           right=cum[-1])
@@ -83,7 +83,7 @@ def test_flat_floor_matches_the_quadrature_of_eq1():
     sonar = se.MSIS(step_deg=90.0, sample_rate_hz=FS, max_range_m=25.0)
     rec = se.simulate(_floor(), _still(4).stop_and_hop(), sonar, se.Pulse.cw(duration_s=TAU, taper=0.0))
     q = _quadrature(rec.time_s, sonar, sonar.tilt_deg)
-    c = sonar.sound_speed_m_s
+    c = se.Acquisition.of(sonar).sound_speed_m_s
     edge = np.abs(rec.time_s - 2 * H / c) <= 1.5 / FS
     edge |= np.abs(rec.time_s - 2 * H / c - TAU) <= 1.5 / FS
     ok = (q > 1e-3 * q.max()) & ~edge

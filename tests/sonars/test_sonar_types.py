@@ -59,8 +59,8 @@ def test_speckle_is_fully_developed(kind):
 def test_law_scale_and_absorption(kind):
     """A Lambert floor 10 dB weaker gives the record × 0.1; absorption α (dB/m) takes 2αR off each sample."""
     sonar, traj = _case(kind, n=3)
-    quiet = dataclasses.replace(sonar, environment=se.Environment(absorption_db_per_m=0.0))
-    lossy = dataclasses.replace(sonar, environment=se.Environment(absorption_db_per_m=0.2))
+    quiet = se.Acquisition(sonar, se.Environment(absorption_db_per_m=0.0))
+    lossy = se.Acquisition(sonar, se.Environment(absorption_db_per_m=0.2))
     base = se.simulate(_floor(), traj, quiet)
     weak = se.simulate(_floor(-30.0), traj, quiet)
     lit = base.data > 1e-6 * base.data.max()
@@ -68,7 +68,7 @@ def test_law_scale_and_absorption(kind):
     damped = se.simulate(_floor(), traj, lossy)
     r = base.slant_range_m[None, None, :] * np.ones_like(base.data)
     loss_db = 10 * np.log10(damped.data[lit] / base.data[lit])
-    c_tau = 0.5 * base.sonar.sound_speed_m_s * base.pulse.duration_s          # ranges within a sample's pulse
+    c_tau = 0.5 * base.acquisition.sound_speed_m_s * base.pulse.duration_s          # ranges within a sample's pulse
     assert np.all(np.abs(loss_db + 2 * 0.2 * r[lit]) <= 2 * 0.2 * c_tau + 1e-6)
 
 
@@ -77,7 +77,7 @@ def test_sea_surface_adds_multipath_only_after_its_onset(kind):
     """A flat surface 4 m above the sonar: nothing changes before the one-bounce onset (2h + 2d)/c, energy is
     added after it (never taken away: the paths add in power)."""
     sonar, traj = _case(kind, n=3)
-    wet = dataclasses.replace(sonar, environment=se.Environment(surface=se.SeaSurface(z_m=H + 4.0)))
+    wet = se.Acquisition(sonar, se.Environment(surface=se.SeaSurface(z_m=H + 4.0)))
     dry, moist = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, wet)
     if kind not in LOOKS_UP:
         np.testing.assert_array_equal(moist.data, dry.data)
@@ -89,7 +89,7 @@ def assert_surface_verdict(dry, moist, above_m, min_share):
     """A surface ``above_m`` over the sonar changed nothing of ``dry`` before the one-bounce onset (2h + 2d)/c and
     only added energy after it, at least ``min_share`` of the dry record's there."""
     sonar = dry.sonar
-    onset = (2 * H + 2 * above_m) / sonar.sound_speed_m_s
+    onset = (2 * H + 2 * above_m) / se.Acquisition.of(sonar).sound_speed_m_s
     before = dry.time_s < onset - sonar.for_pulse(dry.pulse).sample_rate_hz ** -1
     np.testing.assert_allclose(moist.data[:, :, before], dry.data[:, :, before], rtol=1e-9, atol=0)
     after = dry.time_s > onset + dry.pulse.duration_s
@@ -101,7 +101,7 @@ def assert_surface_verdict(dry, moist, above_m, min_share):
 def test_source_level_scales_the_record(kind):
     """With a source level SL and a silent sea, the record is the unit-source record × 10^(SL/10) (µPa²)."""
     sonar, traj = _case(kind, n=2)
-    loud = dataclasses.replace(sonar, source_level_db=210.0, environment=se.Environment(noise=None))
+    loud = se.Acquisition(dataclasses.replace(sonar, source_level_db=210.0), se.Environment(noise=None))
     unit, db = se.simulate(_floor(), traj, sonar), se.simulate(_floor(), traj, loud)
     np.testing.assert_allclose(db.data, unit.data * 10 ** 21.0, rtol=1e-9, atol=0)
     assert db.attrs["intensity_unit"] == "uPa^2"

@@ -13,6 +13,8 @@ import numpy as np
 import pyproj
 import pytest
 
+import sonar_embree as se
+
 from sonar_embree.errors import ConfigError
 from sonar_embree.io.geotiff import write_grid
 from sonar_embree.io.owner import MANIFEST
@@ -149,14 +151,13 @@ def test_a_ping_rate_beyond_the_listening_time_is_lowered_with_a_notice(caplog):
 
     with caplog.at_level(logging.WARNING):
         sonar, _, rate = _device("cmax-cm2-325", 25.0, 100.0)
-    assert rate == pytest.approx(sonar.sound_speed_m_s / 50.0) and "pinging at" in caplog.text
+    assert rate == pytest.approx(se.Acquisition.of(sonar).sound_speed_m_s / 50.0) and "pinging at" in caplog.text
     caplog.clear()
     with caplog.at_level(logging.WARNING):
         assert _device("cmax-cm2-325", 25.0, 10.0)[2] == 10.0
     assert "pinging at" not in caplog.text
     scene, traj, sonar, pulse = anchor_mine_setup()
-    assert np.min(np.diff(traj.times_s)) >= 2 * sonar.max_range_m / sonar.sound_speed_m_s
-    import sonar_embree as se
+    assert np.min(np.diff(traj.times_s)) >= 2 * sonar.max_range_m / se.Acquisition.of(sonar).sound_speed_m_s
     fast = se.Trajectory.line((-12.0, 0.0, 10.0), (12.0, 0.0, 10.0), 240)              # 50 ms apart at 40 m
     with caplog.at_level(logging.WARNING):
         se.simulate(se.Scene().add(se.seafloor.flat((60.0, 60.0))), fast[:40], sonar, pulse)

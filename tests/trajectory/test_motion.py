@@ -127,8 +127,8 @@ def test_a_line_moves_during_the_ping_by_default_and_the_flat_floor_loses_the_be
     moving_rec, still_rec = (se.simulate(flat_scene(), t, sonar, se.Pulse.cw(100e-6, taper=0.0),
                                          start_time="2000-01-01") for t in (line, still))
     assert moving_rec.attrs["motion_during_ping"] and not still_rec.attrs["motion_during_ping"]
-    a = np.pi * sonar.frequency_hz * sonar.length_m / sonar.sound_speed_m_s          # k·lx/2
-    delta = 2 * v / sonar.sound_speed_m_s
+    a = np.pi * sonar.frequency_hz * sonar.length_m / se.Acquisition.of(sonar).sound_speed_m_s          # k·lx/2
+    delta = 2 * v / se.Acquisition.of(sonar).sound_speed_m_s
     u = np.linspace(-40 / a, 40 / a, 400_001)
     gamma = lambda x: np.sinc(a * x / np.pi)                                         # noqa: E731
     want_db = 10 * np.log10(np.trapezoid(gamma(u) ** 2 * gamma(u - delta) ** 2, u) / np.trapezoid(gamma(u) ** 4, u))

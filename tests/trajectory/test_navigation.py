@@ -132,7 +132,7 @@ def test_pings_wider_apart_than_the_beam_are_warned_about(caplog):
     probe, not a waterfall): none."""
     sonar = se.Sonar(max_range_m=45.0)
     x3 = brentq(lambda x: (np.sin(x) / x) ** 4 - 10 ** -0.3, 0.1, 3.0)           # sinc⁴ at −3 dB
-    foot = 2 * 45.0 * np.tan(np.arcsin(x3 * sonar.wavelength_m / (np.pi * sonar.length_m)))
+    foot = 2 * 45.0 * np.tan(np.arcsin(x3 * se.Acquisition.of(sonar).wavelength_m / (np.pi * sonar.length_m)))
     scene = se.Scene().add(se.seafloor.flat((200, 200)), label="seafloor")
     with caplog.at_level(logging.WARNING):
         se.simulate(scene, se.Trajectory.line((0, 0, 10), (18, 0, 10), 10), sonar, speckle=False)
