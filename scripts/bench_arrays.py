@@ -96,7 +96,8 @@ def _widths(rec, target, sub, upsample):
 def image_table() -> str:
     rec, target = _point_record()
     nav = rec.trajectory.positions_m
-    sub = np.abs(nav[:, 0] - target[0]) <= 0.5 * rec.acquisition.wavelength_m * np.linalg.norm(target - nav, axis=1).min() / D
+    sub = np.abs(nav[:, 0] - target[0]) <= 0.5 * rec.acquisition.wavelength_m * np.linalg.norm(target - nav,
+                                                                                               axis=1).min() / D
     ref = _widths(rec, target, sub, 16)
     x = np.arange(-1.0, 1.0, 0.01)
     rows = ["| upsampling | s per m² (1 cm pixels, 8 elements, {} pings) | −3 dB width error | first-null error |"

@@ -30,7 +30,8 @@ def _membrane(width_deg, lam):
 
 
 def quadrature(t, sonar):
-    lam, k, d = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m, math.radians(sonar.tilt_deg)
+    acq = se.Acquisition.of(sonar)
+    lam, k, d = acq.wavelength_m, acq.wavenumber_rad_m, math.radians(sonar.tilt_deg)
     lx, ly = _membrane(sonar.horizontal_beamwidth_deg, lam), _membrane(sonar.vertical_beamwidth_deg, lam)
     rho = np.concatenate([np.linspace(0, 2, 801)[:-1], np.linspace(2, 30, 5601)])
     phi = np.unique(np.concatenate([np.linspace(-0.1, 0.1, 801), np.linspace(-np.pi, np.pi, 1441)]))

@@ -47,9 +47,9 @@ def _scene(se):
 def records(se, length_m):
     """(unit-source Record, device Record) of the same line."""
     unit_sonar = se.Sonar.preset(PRESET, source_level_db=None)
-    device_sonar = se.Acquisition(se.Sonar.preset(PRESET,
-                                   receiver=se.Receiver(sensitivity_db=-180.0, gain=se.TVG(g0_db=40.0, k=30),
-                                                        adc_bits=16, full_scale_v=1.0)), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
+    rx = se.Receiver(sensitivity_db=-180.0, gain=se.TVG(g0_db=40.0, k=30), adc_bits=16, full_scale_v=1.0)
+    windy = se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0))
+    device_sonar = se.Acquisition(se.Sonar.preset(PRESET, receiver=rx), windy)
     path = [(-0.5 * length_m, 0.0, H), (0.5 * length_m, 0.0, H)]
     line = se.Trajectory.survey(path, speed_m_s=2.0, sonar=device_sonar)
     still = se.Trajectory(line.positions_m, line.heading_deg, line.pitch_deg, line.roll_deg, line.times_s)

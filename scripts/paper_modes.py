@@ -42,7 +42,8 @@ def starboard_image(rec, r_min_m, r_max_m, dynamic_range_db=40.0, max_columns=60
     from sonar_embree.display.waterfall import block_mean
 
     sel = (rec.slant_range_m >= r_min_m) & (rec.slant_range_m <= r_max_m)
-    x = rec.starboard[:, sel] * tvg_gain(rec.time_s[sel], rec.acquisition.sound_speed_m_s, rec.acquisition.alpha_db_per_m)
+    x = rec.starboard[:, sel] * tvg_gain(rec.time_s[sel], rec.acquisition.sound_speed_m_s,
+                                         rec.acquisition.alpha_db_per_m)
     x = block_mean(x, int(np.ceil(x.shape[1] / max_columns)))
     ref = np.percentile(x, 99.5)
     db = 10 * np.log10(np.maximum(x, ref * 1e-12) / ref)

@@ -63,7 +63,8 @@ def ping_panels(se, pings):
     return [{"x": clean.time_s * 1e3, "lines": [("coherent speckle, seed 1", db[1]), ("speckle-free (expected)", db[0])],
              "xlabel": "time after transmission (ms)", "ylabel": "intensity (dB, unit source)",
              "ylim": (top - 70, top + 8), "title": "one starboard ping over the anchor-mine scene",
-             "vlines": [(2 * h / se.Acquisition.of(sonar).sound_speed_m_s * 1e3, f"first bottom return 2h/c (h = {h:.1f} m)")],
+             "vlines": [(2 * h / se.Acquisition.of(sonar).sound_speed_m_s * 1e3,
+                         f"first bottom return 2h/c (h = {h:.1f} m)")],
              "legend_low": True},
             {"x": r, "lines": [("speckle-free", db[0])], "xlabel": "slant range (m)", "ylabel": "dB",
              "ylim": (top - 70, top + 8), "title": "the same ping against slant range R = ct/2"}]

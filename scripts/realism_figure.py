@@ -38,8 +38,9 @@ def _sonar(se, realistic):
     gain = se.TVG(g0_db=20.0, k=30, start_range_m=2.0, max_gain_db=60.0) if realistic else se.TVG(g0_db=20.0, k=30)
     rx = (se.Receiver(sensitivity_db=-180.0, gain=gain, adc_bits=8, encoding="log", log_range_db=60.0,
                       bandwidth_hz=25e3) if realistic else se.Receiver(sensitivity_db=-180.0, gain=gain))
-    return se.Acquisition(se.Sonar.from_beamwidths(0.5, 50.0, frequency_hz=F0, tilt_deg=15.0, max_range_m=RANGE,
-                                    source_level_db=210.0, receiver=rx), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
+    sonar = se.Sonar.from_beamwidths(0.5, 50.0, frequency_hz=F0, tilt_deg=15.0, max_range_m=RANGE,
+                                     source_level_db=210.0, receiver=rx)
+    return se.Acquisition(sonar, se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
 
 
 def _scenes(se, length_m):

@@ -55,7 +55,8 @@ def records(se, pings):
     traj = se.Trajectory.line((-0.5 * pings / 2, 0.0, H), (0.5 * pings / 2, 0.0, H), pings)
     out = {}
     for name, profile in profiles(se).items():
-        sonar = se.Acquisition(se.Sonar(frequency_hz=100e3, length_m=0.76, height_m=0.015, max_range_m=200.0, tilt_deg=10.0,
+        sonar = se.Acquisition(se.Sonar(frequency_hz=100e3, length_m=0.76, height_m=0.015, max_range_m=200.0,
+                                        tilt_deg=10.0,
                          sample_rate_hz=10e3), se.Environment(sound_speed=profile))
         out[name] = se.simulate(_scene(se), traj, sonar, se.Pulse.cw(duration_s=200e-6), start_time="2000-01-01")
     return out

@@ -100,7 +100,8 @@ def measured_sigma(se):
         return se.simulate(scene, line, sonar, pulse, start_time="2000-01-01")
 
     ref = record(se.Material(backscatter_db=0.0))
-    centre = ref.slant_range_m - se.Acquisition.of(sonar).sound_speed_m_s * pulse.duration_s / 4   # middle of each range cell
+    acq = se.Acquisition.of(sonar)
+    centre = ref.slant_range_m - acq.sound_speed_m_s * pulse.duration_s / 4   # middle of each range cell
     ok = centre > ALTITUDE_M * 1.001
     grazing = np.degrees(np.arcsin(ALTITUDE_M / centre[ok]))
     base = ref.starboard.mean(axis=0)[ok]

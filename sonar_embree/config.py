@@ -52,20 +52,22 @@ class Transducer:
         return {}
 
     def along_track_footprint_m(self, sound_speed_m_s: float) -> float | None:
-        """The two-way −3 dB along-track footprint at the window's far end, m, in water of sound speed ``sound_speed_m_s`` (m/s), of
-        a type with an along-track membrane (the side-scan's); None for the others (MSIS, forward-looking, echo
-        sounder)."""
+        """The two-way −3 dB along-track footprint at the window's far end, m, in water of sound speed
+        ``sound_speed_m_s`` (m/s), of a type with an along-track membrane (the side-scan's); None for the others (MSIS,
+        forward-looking, echo sounder)."""
         return None
 
     #: Receive elements per side (:class:`~sonar_embree.ReceiverArray`); a side-scan's field, None for the others.
     receive_array = None
 
     def transducer_in(self, sound_speed_m_s: float) -> Beam:
-        """The beam (:mod:`sonar_embree.instrument.beams`) in water of sound speed ``sound_speed_m_s`` (m/s; λ = c/f0)."""
+        """The beam (:mod:`sonar_embree.instrument.beams`) in water of sound speed ``sound_speed_m_s`` (m/s; λ =
+        c/f0)."""
         raise NotImplementedError(f"{type(self).__name__}.transducer_in")
 
     def directivity_index_in(self, sound_speed_m_s: float) -> float:
-        """Receiving directivity index of the beam at sound speed ``sound_speed_m_s`` (m/s), dB (docs/physics.md §14)."""
+        """Receiving directivity index of the beam at sound speed ``sound_speed_m_s`` (m/s), dB (docs/physics.md
+        §14)."""
         return self.transducer_in(sound_speed_m_s).directivity_index_db
 
     def speckle_cell_in(self, sound_speed_m_s: float) -> float:
@@ -74,7 +76,8 @@ class Transducer:
         return self.transducer_in(sound_speed_m_s).speckle_cell_m
 
     def check_sound_speed(self, sound_speed_m_s: float) -> None:
-        """Refuse what the instrument cannot do in water of sound speed ``sound_speed_m_s`` (m/s); nothing by default."""
+        """Refuse what the instrument cannot do in water of sound speed ``sound_speed_m_s`` (m/s); nothing by
+        default."""
 
     def for_pulse(self, pulse: "Pulse") -> "Sonar":
         """This sonar with ``sample_rate_hz`` filled in for ``pulse`` when it is ``None``.
@@ -207,7 +210,8 @@ class Acquisition:
         return self.sonar.speckle_cell_in(self.sound_speed_m_s)
 
     def along_track_footprint_m(self) -> float | None:
-        """The two-way −3 dB along-track footprint at the far range, m (:meth:`Transducer.along_track_footprint_m`)."""
+        """The two-way −3 dB along-track footprint at the far range, m
+        (:meth:`Transducer.along_track_footprint_m`)."""
         return self.sonar.along_track_footprint_m(self.sound_speed_m_s)
 
     def noise_density(self) -> float:
@@ -312,10 +316,10 @@ class Sonar(Transducer):
         return 0.5 * self.length_m
 
     def along_track_footprint_m(self, sound_speed_m_s: float) -> float:
-        """2·R_max·tan(θ₃/2), θ₃ the full two-way −3 dB along-track width at sound speed ``sound_speed_m_s`` (sinc⁴ = ½,
-        :func:`sonar_embree.instrument.beam.beamwidth_deg`), m."""
-        return self.max_range_m * 2.0 * math.tan(math.radians(0.5 * beamwidth_deg(self.length_m, sound_speed_m_s / self.frequency_hz,
-                                                                                   -3.0, two_way=True)))
+        """2·R_max·tan(θ₃/2), θ₃ the full two-way −3 dB along-track width at sound speed ``sound_speed_m_s``
+        (sinc⁴ = ½, :func:`sonar_embree.instrument.beam.beamwidth_deg`), m."""
+        width = beamwidth_deg(self.length_m, sound_speed_m_s / self.frequency_hz, -3.0, two_way=True)
+        return self.max_range_m * 2.0 * math.tan(math.radians(0.5 * width))
 
     def transducer_in(self, sound_speed_m_s: float) -> Beam:
         """Each side's beam (:mod:`sonar_embree.instrument.beams`): ``beam`` of the aperture lx × ly in water of

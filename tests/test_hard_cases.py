@@ -210,7 +210,8 @@ def test_object_at_the_edge_of_the_fan_echoes_nothing_before_its_nearest_point()
     floor = se.simulate(flat_scene(), traj, sonar, pulse).starboard
     both = se.simulate(flat_scene().add(sphere, material=se.Material(-15.0), label="sphere"), traj, sonar,
                        pulse).starboard
-    r = 0.5 * se.Acquisition.of(sonar).sound_speed_m_s * np.arange(floor.shape[1]) / sonar.for_pulse(pulse).sample_rate_hz
+    acq = se.Acquisition.of(sonar)
+    r = 0.5 * acq.sound_speed_m_s * np.arange(floor.shape[1]) / sonar.for_pulse(pulse).sample_rate_hz
     r_near = np.linalg.norm(traj.positions_m - centre, axis=1) - radius
     assert np.any(both[:, (r > 23.5) & (r < 25.0)] > 3.0 * floor[:, (r > 23.5) & (r < 25.0)])  # it is seen
     for p in range(traj.n_pings):

@@ -107,7 +107,8 @@ class Record:
 
     @property
     def acquisition(self) -> Acquisition:
-        """The sonar in the record's medium: c, λ, k, α, the beam and its DI (:class:`~sonar_embree.config.Acquisition`)."""
+        """The sonar in the record's medium: c, λ, k, α, the beam and its DI
+        (:class:`~sonar_embree.config.Acquisition`)."""
         return Acquisition(self.sonar, self.environment)
 
     @property

@@ -409,7 +409,8 @@ def _build_combo(base_tables, combo, src, keep_complex) -> dict:
         else:
             built[t] = runconfig._build(src, f"[{t}] ({where})", cls, tables[t])
     acquisition = runconfig._build(src, f"[sonar] ({where})", Acquisition,
-                                   {"sonar": built["sonar"].for_pulse(built["pulse"]), "environment": built["environment"]})
+                                   {"sonar": built["sonar"].for_pulse(built["pulse"]),
+                                    "environment": built["environment"]})
     try:
         chain = built["simulation"].resolved(acquisition, built["pulse"])
     except SonarEmbreeError as exc:

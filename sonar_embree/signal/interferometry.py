@@ -181,7 +181,8 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     parts, above = [], 0
     for ch, side in enumerate((-1.0, 1.0)):
         z = np.asarray(record.element_data[:, ch])
-        about = ref if coarse_pair is None else _angles(z, arr, coarse_pair, window, record.acquisition.wavelength_m, ref)[0]
+        about = ref if coarse_pair is None else _angles(z, arr, coarse_pair, window, record.acquisition.wavelength_m,
+                                                        ref)[0]
         theta, coh = _angles(z, arr, pair, window, record.acquisition.wavelength_m, about)
         keep = np.isfinite(theta) & (coh >= min_coherence) & (r[None, :] > 0)
         ping, sample = np.nonzero(keep)

@@ -88,8 +88,9 @@ class EchoSounder(Transducer):
         self._check_levels("EchoSounder")
 
     def transducer_in(self, sound_speed_m_s: float) -> Beam:
-        """The beam (:data:`~sonar_embree.instrument.beams.BEAMS`) with this beamwidth in water of sound speed ``sound_speed_m_s`` (m/s)
-        (m); its speckle cell (the piston's radius a, its near-field resolution) is the default lattice spacing."""
+        """The beam (:data:`~sonar_embree.instrument.beams.BEAMS`) with this beamwidth in water of sound speed
+        ``sound_speed_m_s`` (m/s); its speckle cell (the piston's radius a, its near-field resolution) is the
+        default lattice spacing."""
         return beam_for(self.beam, self.beamwidth_deg, sound_speed_m_s / self.frequency_hz)
 
 

@@ -107,7 +107,8 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         self._check_levels("ForwardLooking")
 
     def check_sound_speed(self, sound_speed_m_s: float) -> None:
-        """Refuse an element spacing that puts grating lobes inside the field of view at sound speed ``sound_speed_m_s`` (m/s)."""
+        """Refuse an element spacing that puts grating lobes inside the field of view at sound speed ``sound_speed_m_s``
+        (m/s)."""
         u_edge = math.sin(math.radians(0.5 * self.field_of_view_deg))
         wavelength_m = sound_speed_m_s / self.frequency_hz
         d = self.spacing_in(sound_speed_m_s)
@@ -118,7 +119,9 @@ class ForwardLooking(SideScanEquivalent, Transducer):
 
     def spacing_in(self, sound_speed_m_s: float) -> float:
         """Element spacing d, m (λ/2 at sound speed ``sound_speed_m_s`` (m/s) unless given)."""
-        return sound_speed_m_s / self.frequency_hz / 2.0 if self.element_spacing_m is None else float(self.element_spacing_m)
+        if self.element_spacing_m is not None:
+            return float(self.element_spacing_m)
+        return sound_speed_m_s / self.frequency_hz / 2.0
 
     @property
     def channels(self) -> tuple:
@@ -150,8 +153,8 @@ class ForwardLooking(SideScanEquivalent, Transducer):
         return af
 
     def as_sidescan(self, sound_speed_m_s: float) -> Sonar:
-        """The side-scan sonar whose starboard fan is one element's (d wide, h high) at sound speed ``sound_speed_m_s`` (m/s), turned
-        to look forward."""
+        """The side-scan sonar whose starboard fan is one element's (d wide, h high) at sound speed ``sound_speed_m_s``
+        (m/s), turned to look forward."""
         return Sonar(frequency_hz=self.frequency_hz, length_m=self.spacing_in(sound_speed_m_s),
                      height_m=beam.membrane_size_for_beamwidth(math.radians(self.vertical_beamwidth_deg),
                                                                sound_speed_m_s / self.frequency_hz),
@@ -189,8 +192,8 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
                               "surface (rms_wave_height_m for roughness)")
         super().__init__(sonar.as_sidescan(), fan, sides=(False, True), elevation_nulls=ELEVATION_NULLS)
         s, ds = array_samples(sonar, fan.resolved().azimuth_oversample)
-        n_lines = max(MIN_PROBE_LINES, int(math.ceil(2.0 * s[-1] * sonar.n_elements
-                                                     * sonar.spacing_in(sonar.sound_speed_m_s) / sonar.wavelength_m)) + 1)
+        aperture = sonar.n_elements * sonar.spacing_in(sonar.sound_speed_m_s)
+        n_lines = max(MIN_PROBE_LINES, int(math.ceil(2.0 * s[-1] * aperture / sonar.wavelength_m)) + 1)
         lines = np.linspace(-s[-1], s[-1], n_lines)
         body = np.concatenate([beam.fan_body(lines, self.plan.probe_beta, side) for side in (-1, +1)])
         # its lines span the field of view, one synthesised channel each: none added under motion (δ ≪ the span)

@@ -39,11 +39,12 @@ ELEVATION_NULLS = 3
 
 
 class SideScanEquivalent:
-    """Mixin of the sonar types cast by a side-scan's fan (``as_sidescan(λ)``): their beam and speckle lattice are
+    """Mixin of the sonar types cast by a side-scan's fan (``as_sidescan(c)``): their beam and speckle lattice are
     the equivalent side-scan's."""
 
     def transducer_in(self, sound_speed_m_s: float):
-        """The beam at sound speed ``sound_speed_m_s`` (m/s), in the equivalent side-scan's frame (:meth:`as_sidescan`)."""
+        """The beam at sound speed ``sound_speed_m_s`` (m/s), in the equivalent side-scan's frame
+        (:meth:`as_sidescan`)."""
         return self.as_sidescan(sound_speed_m_s).transducer_in(sound_speed_m_s)
 
     def speckle_cell_in(self, sound_speed_m_s: float) -> float:
@@ -114,8 +115,8 @@ class MSIS(SideScanEquivalent, Transducer):
         self._check_levels("MSIS")
 
     def as_sidescan(self, sound_speed_m_s: float) -> Sonar:
-        """The side-scan sonar whose starboard beam is this MSIS's beam at sound speed ``sound_speed_m_s`` (m/s) (head frame = its body
-        frame)."""
+        """The side-scan sonar whose starboard beam is this MSIS's beam at sound speed ``sound_speed_m_s`` (m/s) (head
+        frame = its body frame)."""
         lam = sound_speed_m_s / self.frequency_hz
         return Sonar(frequency_hz=self.frequency_hz,
                      length_m=membrane_size_for_beamwidth(math.radians(self.horizontal_beamwidth_deg), lam),

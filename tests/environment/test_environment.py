@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import sonar_embree as se
-from sonar_embree import runconfig
+from sonar_embree import runconfig, sonars
 from sonar_embree.environment import ABSORPTION_MODELS
 from sonar_embree.environment.ainslie_mccolm import ainslie_mccolm_db_per_m
 from sonar_embree.environment.francois_garrison import francois_garrison_db_per_m
@@ -51,7 +51,6 @@ def test_the_medium_is_a_run_input_and_the_acquisition_resolves_c_lambda_alpha_o
     """Issue 51, item 3: no sonar type has an environment field; an Acquisition pairs a sonar with its medium and
     holds c, λ = c/f0, k = 2π f0/c and α(f0) as fields made on construction."""
     env = se.Environment(sound_speed_m_s=1480.0, temperature_c=4.0)
-    from sonar_embree import sonars
     for cls in sonars.SONAR_TYPES:
         assert "environment" not in {f.name for f in dataclasses.fields(cls)}, cls
         with pytest.raises(TypeError, match="environment"):

@@ -23,7 +23,8 @@ def _width_deg(size_m, wavelength_m, two_way=False):
 def test_preset_reproduces_its_cited_beamwidths(name):
     d = se.devices.DEVICES[name]
     s = se.Sonar.preset(name)
-    assert _width_deg(s.length_m, se.Acquisition.of(s).wavelength_m, d.azimuth_two_way) == pytest.approx(d.azimuth_deg, rel=0.05)
+    assert _width_deg(s.length_m, se.Acquisition.of(s).wavelength_m, d.azimuth_two_way) == pytest.approx(d.azimuth_deg,
+                                                                                                         rel=0.05)
     assert _width_deg(s.height_m, se.Acquisition.of(s).wavelength_m) == pytest.approx(d.elevation_deg, rel=0.05)
     assert (s.frequency_hz, s.tilt_deg, s.max_range_m, s.source_level_db) == (d.frequency_hz, d.tilt_deg,
                                                                               d.ranges_m[0], d.source_level_db)

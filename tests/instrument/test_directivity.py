@@ -25,7 +25,8 @@ def test_the_values_the_physics_notes_quote_and_how_far_the_large_aperture_form_
     """28.23 dB (integral) against 28.10 (4π·lx·ly/λ²) for the default membrane; 24.11 against 24.46 dB for
     0.5 m × 10 mm at 100 kHz."""
     assert se.Acquisition(se.Sonar()).directivity_index_db == pytest.approx(28.23, abs=0.01)
-    assert se.Acquisition(se.Sonar(frequency_hz=100e3, length_m=0.5, height_m=0.01)).directivity_index_db == pytest.approx(24.11,
+    assert se.Acquisition(se.Sonar(frequency_hz=100e3, length_m=0.5,
+                                   height_m=0.01)).directivity_index_db == pytest.approx(24.11,
                                                                                                           abs=0.01)
     large = 10 * math.log10(4 * math.pi * 0.19 * 0.0038 / (1500 / 400e3) ** 2)
     assert large == pytest.approx(28.10, abs=0.01)

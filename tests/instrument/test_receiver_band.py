@@ -17,7 +17,8 @@ F0, FS, B, WIND = 400e3, 200e3, 20e3, 10.0
 
 def _sonar(bandwidth_hz, **kw):
     rx = se.Receiver(bandwidth_hz=bandwidth_hz)
-    return se.Acquisition(se.Sonar(max_range_m=30.0, sample_rate_hz=FS, source_level_db=210.0, receiver=rx, **kw), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=WIND)))
+    return se.Acquisition(se.Sonar(max_range_m=30.0, sample_rate_hz=FS, source_level_db=210.0, receiver=rx, **kw),
+                          se.Environment(noise=se.AmbientNoise(wind_speed_m_s=WIND)))
 
 
 def _water(sonar, speckle, keep_complex=False, pings=24):
@@ -79,7 +80,8 @@ def test_tvg_start_range_and_ceiling():
 def test_noise_after_the_ceiling_is_flat_in_gain():
     """A receiver whose TVG hits its ceiling at 10 m: the noise-only codes beyond it keep one mean level."""
     rx = se.Receiver(gain=se.TVG(g0_db=20.0, k=30, max_gain_db=50.0, absorption=False), sensitivity_db=-160.0)
-    sonar = se.Acquisition(se.Sonar(max_range_m=60.0, source_level_db=200.0, receiver=rx), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=WIND)))
+    sonar = se.Acquisition(se.Sonar(max_range_m=60.0, source_level_db=200.0, receiver=rx),
+                           se.Environment(noise=se.AmbientNoise(wind_speed_m_s=WIND)))
     scene = se.Scene().add(se.seafloor.flat((10.0, 10.0)), material=se.Material(backscatter_db=-27.0))
     rec = se.simulate(scene, se.Trajectory.line((0, 0, 55.0), (1, 0, 55.0), 30), sonar, se.Pulse.cw(),
                       speckle=True, seed=2, start_time="2000-01-01")

@@ -53,7 +53,8 @@ def test_channel_info_as_the_spec_defines_it(lines):
             assert ci.UniPolar == 1                   # "0 = data is polar, 1 = data is unipolar": intensities ≥ 0
             # "HorizBeamAngle: typically 1 degree or so" (along track); "BeamWidth: 3dB beam width, typically 50
             # degrees" (the vertical fan); "TiltAngle: typically 30 degrees" (depression)
-            assert ci.HorizBeamAngle == pytest.approx(_width_deg(s.length_m, se.Acquisition.of(s).wavelength_m), rel=1e-5)
+            assert ci.HorizBeamAngle == pytest.approx(_width_deg(s.length_m, se.Acquisition.of(s).wavelength_m),
+                                                      rel=1e-5)
             assert ci.BeamWidth == pytest.approx(_width_deg(s.height_m, se.Acquisition.of(s).wavelength_m), rel=1e-5)
             assert ci.TiltAngle == pytest.approx(s.tilt_deg)
             assert ci.BeamsPerArray == 1              # one beam a side, as devices write it (issue 50)

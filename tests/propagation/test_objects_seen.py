@@ -97,7 +97,8 @@ def test_a_small_sphere_has_the_lambert_sphere_level():
     R = np.linalg.norm(v)
     u = v / R
     g = gamma_membrane(u[0], abs(u[1]), -u[2])
-    ref = g ** 4 * 10 ** (-2 * se.Acquisition.of(sonar).alpha_db_per_m * R / 10) * (2 * np.pi * a * a * 10 ** (MU_DB / 10) / 3) / R ** 4
+    acq = se.Acquisition.of(sonar)
+    ref = g ** 4 * 10 ** (-2 * acq.alpha_db_per_m * R / 10) * (2 * np.pi * a * a * 10 ** (MU_DB / 10) / 3) / R ** 4
     assert abs(10 * np.log10(got / ref)) < 1.0
 
 
@@ -127,7 +128,8 @@ def test_msis_sees_a_small_sphere_at_every_bearing_step():
     bearings = np.radians(sonar.bearings_deg(np.arange(n)))
     psi0, rho, d = np.radians(30.0), 12.0, np.radians(sonar.tilt_deg)
     centre = (rho * np.sin(psi0), rho * np.cos(psi0), H - rho * np.tan(d))
-    lam, k = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m
+    acq = se.Acquisition.of(sonar)
+    lam, k = acq.wavelength_m, acq.wavenumber_rad_m
     x0 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 1e-9, np.pi)
     lx, ly = (x0 * lam / (np.pi * np.sin(np.radians(w) / 2))
               for w in (sonar.horizontal_beamwidth_deg, sonar.vertical_beamwidth_deg))
@@ -216,7 +218,8 @@ def test_a_midwater_box_in_a_profile_starts_at_its_closed_form_arrival(edge, y, 
     exact travel time of a linear gradient T = acosh(1 + g²·|P − S|²/(2·c(P)·c(S)))/g."""
     c_s, g, fs, depth = 1500.0, 0.5, 50e3, 20.0
     profile = se.SoundSpeedProfile.linear(c_s - g * depth, g, depth_m=300.0, surface_z_m=H + depth)
-    sonar = se.Acquisition(se.Sonar(tilt_deg=10.0, max_range_m=40.0, sample_rate_hz=fs), se.Environment(sound_speed=profile))
+    sonar = se.Acquisition(se.Sonar(tilt_deg=10.0, max_range_m=40.0, sample_rate_hz=fs),
+                           se.Environment(sound_speed=profile))
     box = trimesh.creation.box(extents=(edge, edge, edge))
     box.apply_translation((0.0, y, z))
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2).stop_and_hop()
@@ -244,7 +247,8 @@ def _fls_gamma(sonar, k_beam, heading_deg):
     frame per ping: forward (sin ψ, cos ψ, 0), starboard (cos ψ, −sin ψ, 0), down (0, 0, −1)."""
     from scipy.optimize import brentq
 
-    lam, k, d, m = se.Acquisition.of(sonar).wavelength_m, se.Acquisition.of(sonar).wavenumber_rad_m, sonar.spacing_in(se.Acquisition.of(sonar).sound_speed_m_s), sonar.n_elements
+    acq = se.Acquisition.of(sonar)
+    lam, k, d, m = acq.wavelength_m, acq.wavenumber_rad_m, sonar.spacing_in(acq.sound_speed_m_s), sonar.n_elements
     x0 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 1e-9, np.pi)
     h = x0 * lam / (np.pi * np.sin(np.radians(sonar.vertical_beamwidth_deg) / 2))
     tilt, psi = np.radians(sonar.tilt_deg), np.radians(np.atleast_1d(heading_deg))
@@ -361,7 +365,8 @@ def test_echo_sounder_sees_a_small_ball_in_every_ping():
     scene = se.Scene().add(se.seafloor.flat((60, 60)), label="seafloor")
     scene.add(_ball_mesh(a, centre), label="ball", material=se.Material(backscatter_db=MU_DB))
     got = ball_energy(scene, traj, sonar)
-    ref = sphere_quadrature(a, centre, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, n=120, gamma=gamma)
+    ref = sphere_quadrature(a, centre, traj.positions_m, se.Acquisition.of(sonar).alpha_db_per_m, MU_DB, n=120,
+                            gamma=gamma)
     inside = ref >= 0.01 * ref.max()
     assert inside.sum() >= 20
     err = 10 * np.log10(np.maximum(got[inside], 1e-300) / ref[inside])
@@ -481,7 +486,8 @@ def test_the_fan_spans_the_receive_lobe_under_motion():
     s_0, w_0, _, _ = _floor_hits(np.zeros(4))
     assert (s_m @ w_m) / w_m.sum() == pytest.approx(delta / 2, rel=0.01)
     s = np.linspace(-1.0, 1.0, 2_000_001)
-    g2 = np.sinc(sonar.length_m / se.Acquisition.of(sonar).wavelength_m * s) ** 2        # one-way power pattern Γ² along track
+    acq = se.Acquisition.of(sonar)
+    g2 = np.sinc(sonar.length_m / acq.wavelength_m * s) ** 2        # one-way power pattern Γ² along track
     g2_rx = np.sinc(sonar.length_m / se.Acquisition.of(sonar).wavelength_m * (s - delta)) ** 2
     assert w_m.sum() / w_0.sum() == pytest.approx((g2 @ g2_rx) / (g2 @ g2), rel=0.003)
 
@@ -492,7 +498,8 @@ def test_the_lines_each_ping_counts_do_not_depend_on_its_block():
     bit."""
     shifts = np.array([0.0, 0.004, -0.009, 0.013])
     _, w_all, ping_all, blk = _floor_hits(shifts)
-    assert blk.plan.s.size > sonars.front_end(se.Acquisition(se.Sonar()).for_pulse(se.Pulse.cw()), se.FanSettings()).plan.s.size
+    assert blk.plan.s.size > sonars.front_end(se.Acquisition(se.Sonar()).for_pulse(se.Pulse.cw()),
+                                              se.FanSettings()).plan.s.size
     for p in range(4):
         _, w_1, _, one = _floor_hits(shifts, [p])
         np.testing.assert_array_equal(np.sort(w_all[ping_all == p]), np.sort(w_1))

@@ -60,7 +60,8 @@ def _record(monkeypatch, g):
                            label="seafloor")
     traj = se.Trajectory.line((-1, 0, 8), (1, 0, 8), 3)
     env = se.Environment(surface=se.SeaSurface(z_m=11.0))                # 3 m over the sonar
-    rec = se.simulate(scene, traj, se.Acquisition(se.Sonar(max_range_m=60.0, tilt_deg=10.0), env), se.Pulse.cw(), speckle=False,
+    rec = se.simulate(scene, traj, se.Acquisition(se.Sonar(max_range_m=60.0, tilt_deg=10.0), env), se.Pulse.cw(),
+                      speckle=False,
                       labels=False, start_time="2026-01-01")
     return rec.data
 

@@ -32,7 +32,8 @@ def _profile(gradient=GRAD):
 
 
 def _sonar(profile):
-    return se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=RANGE, sample_rate_hz=FS), se.Environment(sound_speed=profile))
+    return se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=RANGE, sample_rate_hz=FS),
+                          se.Environment(sound_speed=profile))
 
 
 def _scene():
@@ -177,7 +178,8 @@ def three_layer_block():
     from sonar_embree import kernels
     from sonar_embree.propagation.fan import probe_rows
     from sonar_embree.propagation.refraction import Buffers, Marching, march
-    sonar = se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS), se.Environment(sound_speed=THREE))
+    sonar = se.Acquisition(se.Sonar(tilt_deg=TILT, max_range_m=40.0, sample_rate_hz=FS),
+                           se.Environment(sound_speed=THREE))
     front = SideScanFrontEnd(se.Acquisition.of(sonar), se.FanSettings())
     compiled = _planes_scene().compiled(np.zeros(3))
     caster = EmbreeCaster(compiled)
@@ -296,9 +298,10 @@ def test_arc_echoes_matches_its_twin(three_layer_block, delta):
     c = b["caster"].compiled
     rx_shift = np.full(b["rot"].shape[0], delta)
     fan = A.Fan(plan.s, plan.ds, np.cos(b["beta"]), np.sin(b["beta"]), b["dbeta"], b["el_start"])
+    acq = se.Acquisition.of(s)
     kernels.arc_echoes(fan, A.Poses(b["rot"], b["pos"], rx_shift), b["hit_prim"], b["hit"], b["ray"],
                        A.scene_arrays(c), A.ArcWeighting(plan.tilt_rad, b["front"].two_way_np_per_m, plan.min_range_m,
-                                                         b["t_max"], plan.slope_cap_m_rad, se.Acquisition.of(s).sound_speed_m_s),
+                                                         b["t_max"], plan.slope_cap_m_rad, acq.sound_speed_m_s),
                        A.EchoOut(*out, np.empty((0, 3))), kernels.NO_LAYOUT)
     weigh_by_beam(plan.pattern, plan.tilt_rad, fan, rx_shift, out[3])
     rng_k, t_k, ext_k, w_k, _ = out
@@ -313,10 +316,11 @@ def test_arc_echoes_matches_its_twin(three_layer_block, delta):
         c_hit[i] = THREE.speed_at(b["z0"] - ref[0][2])
         shift[i] = dtdb * c_hit[i] * cos_i                                 # |n̂·δ⊥| = |∂T/∂β|·c·cos θi
         prim[i], T[i], L[i] = b["hit_prim"][i], ref[1], ref[2]
+    acq = se.Acquisition.of(s)
     w, t, ext, rr = naive.arc_echoes(plan.s, plan.ds, b["beta"], b["dbeta"], b["el_start"], b["rot"], prim, None,
-                                     direction, T, L, area, shift, c_hit, c.face_normals, se.Acquisition.of(s).wavenumber_rad_m,
+                                     direction, T, L, area, shift, c_hit, c.face_normals, acq.wavenumber_rad_m,
                                      s.length_m, s.height_m, s.tilt_rad, b["front"].two_way_np_per_m,
-                                     plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, se.Acquisition.of(s).sound_speed_m_s,
+                                     plan.min_range_m, b["t_max"], plan.slope_cap_m_rad, acq.sound_speed_m_s,
                                      rx_shift)
     idx = np.array([r[0] for r in rays])
     lit = w[idx] > 0
@@ -359,7 +363,8 @@ def test_profile_from_toml_inline_and_from_a_csv_next_to_the_config(tmp_path):
 
 def test_profile_survives_the_record_file(tmp_path):
     line = se.Trajectory.line((-0.05, 0.0, H), (0.05, 0.0, H), 2)
-    rec = se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), se.Environment(sound_speed=_profile())),
+    rec = se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0),
+                                                     se.Environment(sound_speed=_profile())),
                       start_time="2000-01-01")
     rec.save(tmp_path / "r.npz")
     back = se.Record.load(tmp_path / "r.npz").environment.sound_speed
@@ -379,7 +384,8 @@ def test_profile_errors_name_the_problem():
         se.SoundSpeedProfile((0.0,), (1490.0,), surface_z_m=float("inf"))
     env = se.Environment(sound_speed=_profile())
     with pytest.raises(se.ConfigError, match="labels assume straight rays"):
-        se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), env), start_time="2000-01-01", labels=True)
+        se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), env), start_time="2000-01-01",
+                    labels=True)
     shallow = se.Environment(sound_speed=se.SoundSpeedProfile.linear(1500.0, 0.5, surface_z_m=H - 1.0))
     with pytest.raises(se.ConfigError, match="above the sound-speed profile's depth 0"):
         se.simulate(_scene(), line, se.Acquisition(se.Sonar(max_range_m=20.0), shallow), start_time="2000-01-01")
@@ -415,7 +421,8 @@ def test_curved_rays_move_during_the_ping_too():
     still, moving = _record(_profile()), _record(_profile(), moving=True)
     assert moving.attrs["motion_during_ping"] and not still.attrs["motion_during_ping"]
     s = still.sonar
-    a, delta = np.pi * s.frequency_hz * s.length_m / se.Acquisition.of(s).sound_speed_m_s, 2 * 2.0 / se.Acquisition.of(s).sound_speed_m_s
+    acq = se.Acquisition.of(s)
+    a, delta = np.pi * s.frequency_hz * s.length_m / acq.sound_speed_m_s, 2 * 2.0 / acq.sound_speed_m_s
     u = np.linspace(-40 / a, 40 / a, 400_001)
     gamma = np.sinc(a * u / np.pi) ** 2
     want_db = 10 * np.log10(np.trapezoid(gamma * np.sinc(a * (u - delta) / np.pi) ** 2, u) / np.trapezoid(gamma ** 2, u))

@@ -45,7 +45,8 @@ def test_box_shadow_slant_extent():
     assert r_start == pytest.approx(22.361, abs=1e-3) and r_end == pytest.approx(24.369, abs=1e-3)
     bin_m = rec.acquisition.range_bin_m
     # the echo of the last lit floor point lasts a pulse length cτ/2 beyond it
-    assert r[idx[0]] == pytest.approx(r_start + pulse.range_extent_m(se.Acquisition.of(sonar).sound_speed_m_s), abs=2 * bin_m)
+    assert r[idx[0]] == pytest.approx(r_start + pulse.range_extent_m(se.Acquisition.of(sonar).sound_speed_m_s),
+                                      abs=2 * bin_m)
     assert r[idx[-1] + 1] == pytest.approx(r_end, abs=2 * bin_m)
     # the port side sees the plain floor
     np.testing.assert_allclose(rec.port, ref.port, rtol=1e-12)

@@ -80,7 +80,8 @@ def test_floor_snr_at_40_m_matches_the_sonar_equation():
     """Speckle-free, SL 210 dB, ambient noise: SNR of the floor at 40 m slant range within 0.5 dB of the sonar
     equation with the equivalent azimuth width and the elevation pattern at the floor's depression."""
     h, r, tau, sl = 10.0, 40.0, 200e-6, 210.0
-    sonar = se.Acquisition(se.Sonar(max_range_m=45.0, source_level_db=sl, self_noise_db_per_hz=30.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=10.0)))
+    sonar = se.Acquisition(se.Sonar(max_range_m=45.0, source_level_db=sl, self_noise_db_per_hz=30.0),
+                           se.Environment(noise=se.AmbientNoise(wind_speed_m_s=10.0)))
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, h), (0.2, 0, h), 2).stop_and_hop(), sonar,
                       se.Pulse.cw(duration_s=tau, taper=0.0), start_time="2000-01-01")
     fs, c, alpha = rec.sonar.sample_rate_hz, 1500.0, rec.acquisition.alpha_db_per_m
@@ -102,7 +103,8 @@ def test_floor_snr_at_40_m_matches_the_sonar_equation():
 
 def test_levels_survive_the_record_file_and_dataset(tmp_path):
     """SL, self-noise and the ambient noise round-trip through the npz record; the dataset says µPa²."""
-    sonar = se.Acquisition(se.Sonar(source_level_db=212.0, self_noise_db_per_hz=25.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=12.0, shipping=0.2)))
+    sonar = se.Acquisition(se.Sonar(source_level_db=212.0, self_noise_db_per_hz=25.0),
+                           se.Environment(noise=se.AmbientNoise(wind_speed_m_s=12.0, shipping=0.2)))
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, 10.0), (1, 0, 10.0), 2), sonar, se.Pulse.cw(),
                       start_time="2000-01-01")
     rec.save(tmp_path / "r.npz")
@@ -152,7 +154,8 @@ def test_noise_from_toml_and_off(tmp_path):
 def test_echo_sounder_noise_uses_the_circular_piston_di():
     """EchoSounder: the same noise path with the DI of its piston's pattern, ka from the −3 dB width
     (2·J1(x)/x = 1/√2 at x = 1.6163)."""
-    es = se.Acquisition(se.EchoSounder(max_range_m=30.0, source_level_db=200.0), se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
+    es = se.Acquisition(se.EchoSounder(max_range_m=30.0, source_level_db=200.0),
+                        se.Environment(noise=se.AmbientNoise(wind_speed_m_s=8.0)))
     rec = se.simulate(_floor(), se.Trajectory.line((0, 0, 25.0), (1.0, 0, 25.0), 8), es, se.Pulse.cw(),
                       speckle=True, seed=5, start_time="2000-01-01")
     water = rec.time_s < 2 * 24.0 / 1500.0

@@ -76,7 +76,8 @@ def test_a_one_element_array_at_the_transmitter_is_the_side_scan_bit_for_bit(sur
     """Also under a sea surface, whose paths put the element (or its image) on each leg."""
     sc, traj = _floor_scene(), se.Trajectory.line(start=(-1, 0, 8), end=(1, 0, 8), n_pings=3)
     env = se.Environment(surface=None if surface is None else se.SeaSurface(z_m=surface))
-    plain = se.simulate(sc, traj, se.Acquisition(se.Sonar(max_range_m=20), env), speckle=True, seed=1, keep_complex=True)
+    plain = se.simulate(sc, traj, se.Acquisition(se.Sonar(max_range_m=20), env), speckle=True, seed=1,
+                        keep_complex=True)
     one = se.simulate(sc, traj, se.Acquisition(se.Sonar(max_range_m=20, receive_array=se.ReceiverArray()), env),
                       speckle=True, seed=1)
     assert np.abs(plain.data).max() > 0
@@ -144,7 +145,8 @@ def test_an_array_without_coherent_speckle_is_refused(kwargs, match):
 
 
 def test_volume_reverberation_with_an_array_is_refused():
-    sonar = se.Acquisition(se.Sonar(max_range_m=15, receive_array=se.ReceiverArray.vertical(0.01)), se.Environment(volume_backscatter_db=-70))
+    sonar = se.Acquisition(se.Sonar(max_range_m=15, receive_array=se.ReceiverArray.vertical(0.01)),
+                           se.Environment(volume_backscatter_db=-70))
     with pytest.raises(ConfigError, match="volume_backscatter_db"):
         se.simulate(_floor_scene(), se.Trajectory.line(start=(0, 0, 8), end=(1, 0, 8), n_pings=2), sonar,
                     speckle=True)

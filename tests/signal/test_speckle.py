@@ -96,7 +96,8 @@ def test_compressed_fm_speckle_is_rayleigh():
     pulse = se.Pulse.lfm(20e3, duration_s=1e-3)
     chain = se.SignalChain(speckle=True, matched_filter=True).resolved(se.Acquisition(SONAR), pulse)
     assert chain.speckle_cell_m == pytest.approx(se.Acquisition(SONAR).sound_speed_m_s / (2 * 20e3))
-    assert se.SignalChain(speckle=True).resolved(se.Acquisition(SONAR), se.Pulse.cw(duration_s=1e-3)).speckle_cell_m == \
+    assert se.SignalChain(speckle=True).resolved(se.Acquisition(SONAR),
+                                                 se.Pulse.cw(duration_s=1e-3)).speckle_cell_m == \
         pytest.approx(SONAR.length_m / 2)                           # a long CW pulse: along track is finer
     traj = se.Trajectory.line((-40.0, 0.0, H), (40.0, 0.0, H), 41)
     scene = flat_scene()

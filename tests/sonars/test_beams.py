@@ -73,7 +73,8 @@ def test_square_echo_sounder_level_against_quadrature():
         st = np.sin(theta)[:, None]
         return 4 * np.trapezoid(_square_closed_form(st * np.cos(phi), st * np.sin(phi), side, lam) ** 4, phi, axis=1)
     r = rec.slant_range_m
-    want = analytic.down_looking_flat_floor(r, H, b4, se.Acquisition.of(sonar).alpha_db_per_m, se.Acquisition.of(sonar).sound_speed_m_s * 100e-6 / 2)
+    want = analytic.down_looking_flat_floor(r, H, b4, se.Acquisition.of(sonar).alpha_db_per_m,
+                                            se.Acquisition.of(sonar).sound_speed_m_s * 100e-6 / 2)
     got = rec.channel("down").mean(axis=0)
     band = (r > H) & (r < 25.0)
     assert abs(10 * np.log10(got[band].sum() / want[band].sum())) < 0.05

@@ -192,7 +192,8 @@ def test_the_surface_paths_weigh_the_gaussian():
     traj = se.Trajectory.line((-0.01, 0, H), (0.01, 0, H), 2).stop_and_hop()
     energy = {}
     for beam in ("membrane", "gaussian"):
-        sonar = se.Acquisition(se.Sonar(max_range_m=30.0, beam=beam), se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(se.Pulse.cw())
+        sonar = se.Acquisition(se.Sonar(max_range_m=30.0, beam=beam),
+                               se.Environment(surface=se.SeaSurface(z_m=z_s))).for_pulse(se.Pulse.cw())
         front = sonars.front_end(se.Acquisition.of(sonar), se.FanSettings())
         comp = scene.compiled(survey_origin(traj.positions_m))
         run = prepare(RayCaster(comp), front, sonar.frequency_hz, sonar.max_range_m, 0)
