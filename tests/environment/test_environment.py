@@ -2,6 +2,7 @@
 
 import copy
 import dataclasses
+import json
 import pickle
 
 import numpy as np
@@ -96,6 +97,24 @@ def test_a_record_saved_with_the_medium_in_its_sonar_table_loads():
     assert env.sound_speed_m_s == 1480.0 and sonar.max_range_m == 20.0
     nested = {"frequency_hz": 400e3, "environment": {"sound_speed_m_s": 1490.0}}   # the medium inside the sonar
     assert split_medium(nested, "Sonar") == ({"frequency_hz": 400e3}, se.Environment(sound_speed_m_s=1490.0))
+
+
+def test_a_file_written_before_the_medium_left_the_sonar_loads_with_its_medium(tmp_path):
+    """The previous file layout (the environment nested in the sonar's table, no top-level one) loads with that
+    medium, so its slant ranges (c·t/2) are the ones it was simulated with."""
+    water = se.Environment(sound_speed_m_s=1480.0, surface=se.SeaSurface(z_m=30.0))
+    rec = se.simulate(flat_scene(), se.Trajectory.line((0, 0, 10), (0.2, 0, 10), 2), se.Sonar(max_range_m=20.0),
+                      environment=water, start_time="2000-01-01")
+    rec.save(tmp_path / "new.npz")
+    with np.load(tmp_path / "new.npz") as f:
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["meta"]))
+    meta["sonar"]["environment"] = meta.pop("environment")              # as the files before this change hold it
+    arrays["meta"] = np.array(json.dumps(meta))
+    np.savez(tmp_path / "old.npz", **arrays)
+    old = se.Record.load(tmp_path / "old.npz")
+    assert old.environment == water and old.sonar == rec.sonar
+    np.testing.assert_array_equal(old.slant_range_m, 0.5 * 1480.0 * rec.time_s)
 
 
 def test_simulate_uses_the_environment_given():
