@@ -162,8 +162,8 @@ MAX_KERNEL_VALUES = 15
 #: The kernels that still take more, with how many they take now: a ratchet (each count may only fall, no kernel may
 #: join), until issue 51 splits them into stage primitives and this is empty.
 LONG_KERNELS = {"_swell_chunk": 53, "_mixed_chunk": 46, "swell_paths": 46, "fan_echoes": 27, "arc_echoes": 25,
-                "_mixed_one": 25, "label_rows": 23, "visibility_legs": 22, "speckle_block": 20, "hit_terms": 17,
-                "_emit_node": 19, "arc_land": 18, "swell_surface_hits": 16}
+                "_mixed_one": 25, "label_rows": 23, "visibility_legs": 22, "speckle_block": 20,
+                "_emit_node": 19, "arc_land": 18}
 
 
 def _kernel_values(fn: ast.FunctionDef) -> int:

@@ -251,7 +251,7 @@ def ray_cell(i, base, first, n_el, s, ds, cos_beta, sin_beta, dbeta, layout):
 
 
 @njit(cache=True, nogil=True)
-def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, ds, db, consts):
+def hit_terms(dn, num, fn, t_emb, two_sided, ahead, ds, db, consts):
     """The physics of one hit of :func:`fan_echoes`, on scalars only (no array arguments: no reference counting per
     ray; docs/physics.md §2–3).
 
@@ -264,19 +264,20 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, ds, db, consts):
         Embree's float32 distance, m.
     two_sided : bool
         The triangle scatters from both sides.
-    cpsi, cb, sb : float
-        √(1 − s²), cos β and sin β of the ray's body-frame direction (s, ±cψ·cos β, cψ·sin β).
+    ahead : bool
+        The ray leaves the transducer's face, cos(β − δ) > 0 (its caller's direction test; behind the baffle: no
+        echo).
     ds, db : float
         The ray's cell: its along-track width ds and elevation width dβ (rad); solid angle ds·dβ.
     consts : tuple of float
-        cos tilt, sin tilt, two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m).
+        Two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m).
 
     Returns
     -------
     (R (m), cos θi, w, travel-time extent (s)); w = 0: no echo (back face, grazing, beyond R_max, behind the
     baffle).
     """
-    cos_t, sin_t, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = consts
+    two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = consts
     rr = t_emb
     if abs(dn) > REFIT_MIN_COS:
         t64 = num / dn
@@ -287,7 +288,7 @@ def hit_terms(dn, num, fn, t_emb, two_sided, cpsi, cb, sb, ds, db, consts):
         cos_i = dn
     if not (cos_i > 1e-9) or not (rr <= max_range_m):
         return rr, 0.0, 0.0, 0.0
-    if cpsi * (cb * cos_t + sb * sin_t) <= 0.0:  # cos(β − δ): behind the baffle
+    if not ahead:  # behind the baffle
         return rr, 0.0, 0.0, 0.0
     rb = rr if rr > min_range_m else min_range_m
     w = math.exp(-two_way_np_per_m * rr) * ds * db / (rb * rb)
@@ -347,8 +348,8 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
     range_out, time_out, extent_out, weight_out, cos_out, points_out = out
     n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
-    consts = (math.cos(tilt_rad), math.sin(tilt_rad), two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad,
-              time_per_m)
+    cos_t, sin_t = math.cos(tilt_rad), math.sin(tilt_rad)
+    consts = (two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m)
     per_ray = layout.shape[0] > 0
     for r in prange(el_start.shape[0] - 1):
         b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
@@ -378,8 +379,9 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
                 dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
                 num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
                 fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
-            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], cpsi, cb, sb, ds_i,
-                                           db, consts)
+            ahead = cpsi * (cb * cos_t + sb * sin_t) > 0.0          # cos(β − δ) > 0: in front of the baffle
+            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], ahead, ds_i, db,
+                                           consts)
             if cos_i == 0.0:
                 continue
             range_out[i] = rr

@@ -265,7 +265,7 @@ def _strip_hit(a_o, d_a, oz, dz, a0, a_step, z, t_lo, t_hi):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def swell_surface_hits(org, dirs, shift, k, c, a0, a_step, z, b0, b_step, n_b, t_max, prim_out, t_out):
+def swell_surface_hits(org, dirs, shift, k, a0, a_step, z, b0, b_step, n_b, t_max, prim_out, t_out):
     """First hit of every ray on the swell's strip mesh (:meth:`SeaSurface.mesh`), in closed form: the mesh is the
     profile z(a) across the crests (nodes a0 + i·a_step, heights z, linear between), extruded along them over
     b0 … b0 + (n_b − 1)·b_step. Same triangles as the mesh: quad (ia, ib) is faces q and n_q + q,
@@ -278,8 +278,8 @@ def swell_surface_hits(org, dirs, shift, k, c, a0, a_step, z, b0, b_step, n_b, t
         Ray origins (local frame, m) and unit directions.
     shift : (3,) float64
         World position of the local origin (the grid is in world coordinates), m.
-    k, c : (2,) float64
-        Unit vectors across and along the crests (world x, y).
+    k : (2,) float64
+        Unit vector across the crests (world x, y); along them is its left turn (−k_y, k_x).
     a0, a_step : float; z : (na,) float64
         The profile's first node and spacing across the crests (m) and its heights (world z, m).
     b0, b_step : float; n_b : int
@@ -297,7 +297,7 @@ def swell_surface_hits(org, dirs, shift, k, c, a0, a_step, z, b0, b_step, n_b, t
         ox, oy, oz = org[i, 0] + shift[0], org[i, 1] + shift[1], org[i, 2] + shift[2]
         dx, dy, dz = np.float64(dirs[i, 0]), np.float64(dirs[i, 1]), np.float64(dirs[i, 2])
         a_o, d_a = ox * k[0] + oy * k[1], dx * k[0] + dy * k[1]
-        b_o, d_b = ox * c[0] + oy * c[1], dx * c[0] + dy * c[1]
+        b_o, d_b = ox * -k[1] + oy * k[0], dx * -k[1] + dy * k[0]        # along the crests: c = (−k_y, k_x)
         t_lo, t_hi = 0.0, t_max
         for lo, hi, o, d in ((z_lo, z_hi, oz, dz), (b0, b_hi, b_o, d_b)):   # the band of heights and the strips' ends
             if d == 0.0:

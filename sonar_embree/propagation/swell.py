@@ -79,7 +79,7 @@ def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     cast)."""
     n = dirs.shape[0]
     prim, t = buf.take("swell_hit_prim", n, np.int32), buf.take("swell_hit_t", n, np.float32)
-    kernels.swell_surface_hits(org, dirs, origin_m, g.k, g.c, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,
+    kernels.swell_surface_hits(org, dirs, origin_m, g.k, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,
                                float(g.b[0]), float(g.b[1] - g.b[0]), g.b.size, max_range_m, prim, t)
     return prim, t
 

@@ -507,7 +507,7 @@ def test_swell_surface_hits_match_brute_force(rng, direction_deg):
     dirs /= np.linalg.norm(dirs, axis=1)[:, None]
     org32, dirs32 = org.astype(np.float32), dirs.astype(np.float32)
     prim, t = np.empty(n, np.int32), np.empty(n, np.float32)
-    kernels.swell_surface_hits(org32, dirs32, shift, g.k, g.c, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,
+    kernels.swell_surface_hits(org32, dirs32, shift, g.k, float(g.a[0]), float(g.a[1] - g.a[0]), g.z,
                                float(g.b[0]), float(g.b[1] - g.b[0]), g.b.size, 30.0, prim, t)
     ref_prim, ref_t = naive.first_hits(org32.astype(float), dirs32.astype(float), np.asarray(mesh.vertices),
                                        np.asarray(mesh.faces), 30.0)
