@@ -163,7 +163,7 @@ MAX_KERNEL_VALUES = 15
 #: join), until issue 51 splits them into stage primitives and this is empty.
 LONG_KERNELS = {"_swell_chunk": 53, "_mixed_chunk": 46, "swell_paths": 46, "fan_echoes": 27, "arc_echoes": 25,
                 "_mixed_one": 25, "label_rows": 23, "visibility_legs": 22, "speckle_block": 20,
-                "_emit_node": 19, "arc_land": 18}
+                "_emit_node": 19}
 
 
 def _kernel_values(fn: ast.FunctionDef) -> int:

@@ -22,7 +22,8 @@ from ._numba import NO_LAYOUT, REFIT_MIN_COS, REFIT_REL_TOL, max_threads, njit, 
 from .eigenrays import (EIGEN_WIDTH, M_COS_I, M_COS_S, M_EXT, M_PHI, M_T, M_W, M_XUP, MIX_WIDTH, curved_mixed,
                         surface_eigenrays, surface_reach)
 from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_legs
-from .refraction import HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_chord, arc_echoes, arc_land, arc_start
+from .refraction import (HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_advance, arc_chord, arc_echoes, arc_land,
+                         arc_start)
 from .bvh import (DeviceBvh, cuda_available, lbvh_boxes, lbvh_children, morton_codes, traverse_cpu)
 from .rays import (BEAM_GAUSS, BEAM_SINC, _sinc, beam_cosines, beam_factor, factor_rows, cos_sin,
                    elevation_density, fan_echoes, fan_rays, place_rows, probe_rays, sinc_rows, weigh_fan,
@@ -34,7 +35,7 @@ from .swell import (G_HB, G_HS, G_NB, G_NS, G_S0, G_B0, G_STRIP, GLINT_WIDTH, gl
                     swell_paths, swell_surface_hits)
 from .truth import label_rows
 
-__all__ = ["backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
+__all__ = ["backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_advance", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "splat_rows",
            "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
            "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows",

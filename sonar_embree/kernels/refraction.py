@@ -407,22 +407,15 @@ def _refit(st, i, ux, uy, uz, t_emb, tri, vertices, faces, face_normals):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, faces, face_normals, l_max, hit_prim,
-             hit, hit_len, live):
-    """Rays whose chord hit something stop there (``hit``); the others move to the chord's end.
+def arc_advance(idx, prim, state, lay, nxt, nlay, l_max, live):
+    """Rays whose chord missed move to the chord's end; the chord's stage after the cast for them.
 
     Parameters
     ----------
-    idx, state, lay, ray, nxt, nlay, layers, z0, l_max
+    idx, state, lay, nxt, nlay, l_max
         As for :func:`arc_chord` (``state``, ``lay`` updated for the rays that missed).
-    prim : (m,) int32; tfar : (m,) float32
-        Embree's answer for each chord.
-    vertices, faces, face_normals
-        The scene (local frame), for the float64 refit of the hit.
-    hit_prim : (n,) int32; hit : (n, HIT_WIDTH) float64; hit_len : (n,) float32
-        Written for the rays that hit: the triangle, the quantities of :data:`HIT_WIDTH` at the point
-        where the arc meets the triangle's plane (:func:`_onto_arc`), from the closed forms, and the path length
-        there (m, float32).
+    prim : (m,) int32
+        Embree's answer for each chord (−1: missed).
     live : (m,) bool
         Written: whether the ray goes on (missed, and still short of ``l_max``): the next round's rays, without a
         pass over ``nxt`` in NumPy.
@@ -435,6 +428,30 @@ def arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, layers, z0, vertices, 
                 state[i, q] = nxt[j, q]
             lay[i] = nlay[j]
             live[j] = nxt[j, S_L] < l_max
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def arc_land(idx, prim, tfar, state, lay, ray, nxt, layers, z0, vertices, faces, face_normals, hit_prim, hit,
+             hit_len):
+    """Rays whose chord hit something stop there (``hit``); :func:`arc_advance` moves the others on (each ray is
+    one or the other, so the two stages commute).
+
+    Parameters
+    ----------
+    idx, state, lay, ray, nxt, layers, z0
+        As for :func:`arc_chord` (read only here).
+    prim : (m,) int32; tfar : (m,) float32
+        Embree's answer for each chord.
+    vertices, faces, face_normals
+        The scene (local frame), for the float64 refit of the hit.
+    hit_prim : (n,) int32; hit : (n, HIT_WIDTH) float64; hit_len : (n,) float32
+        Written for the rays that hit: the triangle, the quantities of :data:`HIT_WIDTH` at the point
+        where the arc meets the triangle's plane (:func:`_onto_arc`), from the closed forms, and the path length
+        there (m, float32).
+    """
+    for j in prange(idx.shape[0]):
+        i = idx[j]
+        if prim[j] < 0:
             continue
         dx = nxt[j, 0] - state[i, 0]
         dy = nxt[j, 1] - state[i, 1]

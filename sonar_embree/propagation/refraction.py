@@ -87,7 +87,7 @@ class Marching:
 def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
     """Follow every ray chord by chord until it hits or its path could no longer arrive before ``m.t_max``.
 
-    Returns (hit_prim, hit, hit_len) of the block (:func:`~sonar_embree.kernels.refraction.arc_land`; hit_len inf
+    Returns (hit_prim, hit, hit_len) of the block (:func:`~sonar_embree.kernels.refraction.arc_land`, then ``arc_advance``; hit_len inf
     where nothing was hit).
 
     Chords are cast only within ``m.box_z``; outside it rays move in closed form.
@@ -111,8 +111,9 @@ def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
         t = time.perf_counter()
         prim, tfar = caster.cast_segments(org, dirs, seg)
         clock["embree"] = clock.get("embree", 0.0) + time.perf_counter() - t
-        kernels.arc_land(idx, prim, tfar, state, lay, ray, nxt, nlay, m.layers, m.z0, c.vertices, c.faces,
-                         c.face_normals, l_max, hit_prim, hit, hit_len, live)
+        kernels.arc_land(idx, prim, tfar, state, lay, ray, nxt, m.layers, m.z0, c.vertices, c.faces, c.face_normals,
+                         hit_prim, hit, hit_len)
+        kernels.arc_advance(idx, prim, state, lay, nxt, nlay, l_max, live)   # the missed rays on, after the hits
         idx = idx[live]
     raise RuntimeError(f"curved rays still in flight after {MAX_ROUNDS} chords")  # pragma: no cover
 
