@@ -159,11 +159,6 @@ def test_nothing_is_stuffed_into_an_objects_dict():
 #: The most values a kernel takes, counting each named group (:mod:`sonar_embree.kernels.args`) it unpacks or reads
 #: as the fields it uses (issue 51, item 5).
 MAX_KERNEL_VALUES = 15
-#: The kernels that still take more, with how many they take now: a ratchet (each count may only fall, no kernel may
-#: join), until issue 51 splits them into stage primitives and this is empty.
-LONG_KERNELS = {"_swell_chunk": 53, "_mixed_chunk": 46, "swell_paths": 46, "fan_echoes": 27, "arc_echoes": 25,
-                "_mixed_one": 25, "label_rows": 23, "visibility_legs": 22, "speckle_block": 20,
-                "_emit_node": 19}
 
 
 def _kernel_values(fn: ast.FunctionDef) -> int:
@@ -186,9 +181,10 @@ def test_kernel_value_counts_see_unpacked_groups():
     assert _kernel_values(tree.body[0]) == 5
 
 
-def test_no_kernel_takes_more_values_than_it_did():
+def test_no_kernel_takes_more_than_15_values():
+    """Every function in the kernels takes at most :data:`MAX_KERNEL_VALUES` values (the allowlist of long kernels
+    is gone: the surface kernels run as stages over a chunk, issue 51)."""
     counts = {node.name: _kernel_values(node) for name, _, tree in _modules() if name.startswith("sonar_embree.kernels")
               for node in tree.body if isinstance(node, ast.FunctionDef)}
-    long = {k: v for k, v in counts.items() if v > MAX_KERNEL_VALUES}
-    assert set(long) <= set(LONG_KERNELS), set(long) - set(LONG_KERNELS)
-    assert {k: v for k, v in long.items() if v > LONG_KERNELS[k]} == {}
+    assert len(counts) > 100                                     # the kernels were found
+    assert {k: v for k, v in counts.items() if v > MAX_KERNEL_VALUES} == {}

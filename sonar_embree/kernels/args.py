@@ -75,6 +75,16 @@ Medium = namedtuple("Medium", "z c z_s")
 #: What a curved one-bounce echo's weight needs: the beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption
 #: (Np/m), the fan's ds, R_min (m), k·h_w, and whether to write the bistatic azimuth.
 MixedWeighting = namedtuple("MixedWeighting", "beam two_way_np_per_m ds min_range_m wave_kh want_phi")
+#: A swell's bounced rays (kernels.swell_paths): each row's entries ``up_start`` (rows + 1,) into ``up`` (m,) (the image
+#: fan's ray of each entry) and the image fan's rows of rays ``ray_start`` (rows + 1,); per entry the launch direction
+#: u, surface point p and mirrored direction ur (m, 3) float64; per image-fan ray the surface distance t1 (n,)
+#: float32 (m) and facet prim_s (n,) int32; per entry the scene triangle prim (m,) int32 (−1: none), its distance
+#: t2 (m,) float32 (m) from the bounced ray's origin and ``seen`` (m,) (> 0: S → P clear); the surface mesh's normals
+#: (f_s, 3) and the bounced rays' origin offset eps (m) along ur.
+Bounce = namedtuple("Bounce", "up_start up ray_start u p ur t1 prim_s prim t2 seen surface_normals eps")
+#: The swell's paths, one row per entry: X (m, 3) (local, m); one bounce w1, time1, ext1; two bounces w2, time2, ext2;
+#: cos θi, cos θs, φ (m,); the direct leg X → S: unit direction (m, 3) and length r (m,) (m).
+SwellOut = namedtuple("SwellOut", "x w1 time1 ext1 w2 time2 ext2 cos_i cos_s phi leg r")
 #: A kernel's echo outputs, one row per ray: range (m), travel time (s), travel-time extent (s), weight, cos θi,
 #: and the hit points (n, 3) (or (0, 3): not wanted).
 EchoOut = namedtuple("EchoOut", "range time extent weight cos points")

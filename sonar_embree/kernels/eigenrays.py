@@ -252,14 +252,38 @@ def curved_mixed(hits, launch, poses, face_normals, medium, weighting, out):
 
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
 def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
-    """Row i of :func:`curved_mixed` (a lit hit)."""
-    point, prim, arrival, path, time, extent, _ = hits
-    body, dbeta, row = launch
-    rot, pos, rx_shift = poses
-    z, c, z_s = medium
+    """Row i of :func:`curved_mixed` (a lit hit): the surface eigenray (:func:`_surface_leg`), the facet's cosines,
+    the gains (:func:`_mixed_gain`), the weight and extent."""
     beam, two_way, ds, r_min, kh, want_phi = weighting
-    b = row[i] // 2
-    side = 1.0 if row[i] % 2 == 1 else -1.0
+    b = launch.row[i] // 2
+    hx, hy, xi, t2, l2, spread, x_up, s_top2, c_src, s_src, c_dst, s_dst = _surface_leg(i, b, hits, poses, medium,
+                                                                                         r_min)
+    if not xi == xi:                                          # no unturned eigenray
+        return
+    u2 = (hx * xi * c_src, hy * xi * c_src, s_src)              # S → surface, world (z up)
+    v = (-hx * xi * c_dst, -hy * xi * c_dst, s_dst)             # P → where the surface path comes from
+    n0, n1, n2, cos_i, cos_s = _facet_cosines(i, hits, face_normals, v)
+    n = (n0, n1, n2)
+    if not (cos_i > 0.0 and cos_s > 0.0):
+        return
+    g = _mixed_gain(i, b, launch, poses, beam, u2)
+    w = (g * math.exp(-4.0 * kh * kh * s_top2)
+         * math.exp(-0.5 * two_way * (np.float64(hits.path[i]) + l2)) * ds * launch.dbeta[i] / (spread * cos_i))
+    if not w > 0.0:
+        return
+    out[i, M_W], out[i, M_T] = w, 0.5 * hits.time[i] + t2
+    out[i, M_EXT] = _mixed_extent(i, hits, n, hx, hy, v)
+    out[i, M_COS_I], out[i, M_COS_S], out[i, M_XUP] = cos_i, cos_s, x_up
+    if want_phi:
+        out[i, M_PHI] = _mixed_phi(i, hits, n, v)
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _surface_leg(i, b, hits, poses, medium, r_min):
+    """The surface eigenray from ping b's sonar to hit i: (h_x, h_y, ξ (NaN: none), T₂ (s), L₂ (m), max(A₂, R_min²),
+    x_up (m), sin²θ at the surface, c and sin θ at the sonar, c and sin θ at the hit)."""
+    point, pos = hits.point, poses.pos
+    z, c, z_s = medium
     hx, hy = point[i, 0] - pos[b, 0], point[i, 1] - pos[b, 1]
     x = math.sqrt(hx * hx + hy * hy)
     if x > 0.0:
@@ -268,39 +292,55 @@ def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
         hx, hy = 1.0, 0.0
     d_src, d_dst = z_s - pos[b, 2], z_s - point[i, 2]
     xi, t2, l2, spread, x_up, s_src, s_dst, s_top2, c_dst = _eigenray(z, c, d_src, d_dst, x)
-    if not xi == xi:
-        return
-    c_src = _speed(z, c, d_src)
-    spread = max(spread, r_min * r_min)
-    u2 = (hx * xi * c_src, hy * xi * c_src, s_src)              # S → surface, world (z up)
-    v = (-hx * xi * c_dst, -hy * xi * c_dst, s_dst)             # P → where the surface path comes from
-    n0, n1, n2 = face_normals[prim[i], 0], face_normals[prim[i], 1], face_normals[prim[i], 2]
-    a0, a1, a2 = arrival[i, 0], arrival[i, 1], arrival[i, 2]
+    c_src = _speed(z, c, d_src) if xi == xi else math.nan
+    return hx, hy, xi, t2, l2, max(spread, r_min * r_min), x_up, s_top2, c_src, s_src, c_dst, s_dst
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _facet_cosines(i, hits, face_normals, v):
+    """(n₀, n₁, n₂ facing the arrival, cos θi of the direct arrival, cos θs along ``v``) of hit i (scalars: Numba's
+    parfors take a tuple returned by an inlined function for a shape)."""
+    p, a = hits.prim[i], hits.arrival
+    n0, n1, n2 = face_normals[p, 0], face_normals[p, 1], face_normals[p, 2]
+    a0, a1, a2 = a[i, 0], a[i, 1], a[i, 2]
     if n0 * a0 + n1 * a1 + n2 * a2 > 0.0:
         n0, n1, n2 = -n0, -n1, -n2
-    cos_i, cos_s = -(n0 * a0 + n1 * a1 + n2 * a2), n0 * v[0] + n1 * v[1] + n2 * v[2]
-    if not (cos_i > 0.0 and cos_s > 0.0):
-        return
+    return n0, n1, n2, -(n0 * a0 + n1 * a1 + n2 * a2), n0 * v[0] + n1 * v[1] + n2 * v[2]
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _mixed_gain(i, b, launch, poses, beam, u2):
+    """Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁) of ray i: u₁ its launch, u₂ (world) the surface ray's, Γ_rx shifted by the
+    ping's δ (docs/physics.md §2, §16)."""
+    body, rot = launch.body, poses.rot
+    side = 1.0 if launch.row[i] % 2 == 1 else -1.0
     e0 = rot[b, 0, 0] * u2[0] + rot[b, 1, 0] * u2[1] + rot[b, 2, 0] * u2[2]    # body = Rᵀ·u2
     e1 = rot[b, 0, 1] * u2[0] + rot[b, 1, 1] * u2[1] + rot[b, 2, 1] * u2[2]
     e2 = rot[b, 0, 2] * u2[0] + rot[b, 1, 2] * u2[1] + rot[b, 2, 2] * u2[2]
-    delta = rx_shift[b]
+    delta = poses.rx_shift[b]
     g1 = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], 0.0)
     g1r = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], delta)
     g2, g2r = _membrane(beam, side, e0, e1, e2, 0.0), _membrane(beam, side, e0, e1, e2, delta)
-    w = ((g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2) * math.exp(-4.0 * kh * kh * s_top2)
-         * math.exp(-0.5 * two_way * (np.float64(path[i]) + l2)) * ds * dbeta[i] / (spread * cos_i))
-    if not w > 0.0:
-        return
-    out[i, M_W], out[i, M_T] = w, 0.5 * time[i] + t2
+    return g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _mixed_extent(i, hits, n, hx, hy, v):
+    """The one-bounce echo's travel-time extent: the direct echo's ΔT₁ × (1 + min(|p₂·f| / |p₁·f|, 10))."""
+    a = hits.arrival
+    n0, n1, n2 = n
     nf = n0 * hx + n1 * hy
     f0, f1, f2 = hx - n0 * nf, hy - n1 * nf, -n2 * nf              # away from the sonar, in the facet
-    p1 = a0 * f0 + a1 * f1 + a2 * f2
+    p1 = a[i, 0] * f0 + a[i, 1] * f1 + a[i, 2] * f2
     p2 = -(v[0] * f0 + v[1] * f1 + v[2] * f2)
-    out[i, M_EXT] = 0.5 * extent[i] * (1.0 + min(abs(p2) / max(abs(p1), 1e-12), 10.0))
-    out[i, M_COS_I], out[i, M_COS_S], out[i, M_XUP] = cos_i, cos_s, x_up
-    if want_phi:
-        out[i, M_PHI] = _azimuth(n0, n1, n2, a0, a1, a2, v[0], v[1], v[2])
+    return 0.5 * hits.extent[i] * (1.0 + min(abs(p2) / max(abs(p1), 1e-12), 10.0))
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _mixed_phi(i, hits, n, v):
+    """The bistatic azimuth of hit i: between its arrival reversed and ``v``, in the facet of normal ``n``."""
+    a = hits.arrival
+    return _azimuth(n[0], n[1], n[2], a[i, 0], a[i, 1], a[i, 2], v[0], v[1], v[2])
 
 
 @njit(cache=True, nogil=True)

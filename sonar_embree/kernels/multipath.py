@@ -110,7 +110,8 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
         every object has Lambert's law and there are no maps or texture (then σ = μ·cos θi·cos θs is applied
         here: the weight × (μ·cos θi)·cos θs, as ``multipath.apply_bistatic`` would; empty: σ is left to the
         caller) and ``face_object`` (f,); ``want_phi``: whether to write ``out.phi``; ``want_legs``: whether to
-        write ``out.v``, ``out.u2``, ``out.leg1``, ``out.leg2`` (for the visibility legs).
+        write ``out.u2``, ``out.leg1``, ``out.leg2`` (for the visibility legs; ``out.v`` is always written, the
+        stages of a chunk read it).
     out : :data:`~sonar_embree.kernels.args.MixedOut`
         Written: time, extent, weight, cos θi, cos θs, φ (n,), v (n, 3), leg1 (n,), u2 (n, 3), leg2 (n,).
     layout : (n, 5) or (0, 5) float64
@@ -119,7 +120,7 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
     """
     el_start, weight_out = fan.el_start, out.weight
     for row in prange(ray_start.shape[0] - 1):
-        sc = np.empty((8, _CHUNK))   # per echo: the four sincs' arguments (then values), Γ_az, Γ_az,rx, gate, σ_Lambert
+        sc = np.empty((_SC_ROWS, _CHUNK))   # per echo: the sincs' arguments (then values), gains, σ, cell, r'
         carry = ((el_start[row + 1] - el_start[row] - 1 if layout.shape[0] == 0 else 0), -1, 0.0, 0.0, 0.0, math.nan)
         for c0 in range(ray_start[row], ray_start[row + 1], _CHUNK):
             c1 = min(c0 + _CHUNK, ray_start[row + 1])
@@ -132,75 +133,192 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
                 weight_out[c0 + k] = weight_out[c0 + k] * g * sc[7, k]
 
 
+#: Rows of a chunk's scratch ``sc`` (:func:`mixed_legs`): 0–3 the four sincs' arguments (then values), 4, 5 the ray's
+#: Γ_az and Γ_az,rx, 6 the gate along u2, 7 Lambert's σ (or 1); then the ray's cell dβ and ds and r' = |S' − X|.
+_SC_DB, _SC_DS, _SC_R2 = 8, 9, 10
+_SC_ROWS = 11
+
+
 @njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
 def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, bistatic, out, layout, sc):
-    """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`: everything but the gains, whose sinc arguments go to
-    ``sc`` (rows 0–3: Γ_el(u1), Γ_az(u2), Γ_az,rx(u2), Γ_el(u2); 4, 5: the ray's Γ_az, Γ_az,rx; 6: 1 in front
-    of the baffle along u2, else 0; 7: Lambert's σ = μ·cos θi·cos θs, or 1). ``j``, ``az`` (the ray's elevation
-    cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk (``carry`` = (j, az,
-    cos ψ, Γ_az, Γ_az,rx, s_prev)) and are returned; with a per-ray ``layout`` the gains are those of the ray's own
-    s, kept while s repeats (``s_prev``). The other arguments are :func:`mixed_legs`'."""
-    j, az, cpsi, ga, gar, s_prev = carry
-    s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    r, x, prim = hits
-    rot, pos, rx_shift = poses
-    beam, two_way_np_per_m, min_range_m, _, slope_cap_m_rad, time_per_m = weighting
-    z_s, wave_kh, mu_obj, face_object, want_phi, want_legs = bistatic
-    time_out, extent_out, weight_out, cos_i_out, cos_s_out, phi_out, v_out, leg1_out, u2_out, leg2_out = out
-    ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 0.5 * time_per_m
-    b, side, n_el = row // 2, 1.0 if row % 2 == 1 else -1.0, el_start[row + 1] - el_start[row]
-    m = _rotation(rot, b)
-    sx, sy, sz, shift = pos[b, 0], pos[b, 1], pos[b, 2], rx_shift[b]
+    """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`, in stages over the chunk: everything but the gains, whose
+    sinc arguments go to ``sc`` (rows 0–3: Γ_el(u1), Γ_az(u2), Γ_az,rx(u2), Γ_el(u2); 4, 5: the ray's Γ_az, Γ_az,rx;
+    6: 1 in front of the baffle along u2, else 0; 7: Lambert's σ = μ·cos θi·cos θs, or 1). ``j``, ``az`` (the ray's
+    elevation cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk (``carry`` = (j,
+    az, cos ψ, Γ_az, Γ_az,rx, s_prev)) and are returned; with a per-ray ``layout`` the gains are those of the ray's
+    own s, kept while s repeats (``s_prev``). The other arguments are :func:`mixed_legs`'."""
+    b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
+    m, shift = _rotation(poses.rot, b), poses.rx_shift[b]
+    carry = _launch_stage(row, c0, c1, carry, fan, layout, weighting.beam, shift, sc)
+    _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc)
+    _leg_gain_stage(c0, c1, side, m, shift, weighting.beam, hits, out, sc)
+    _lambert_stage(c0, c1, hits, out, bistatic, sc)
+    _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc)
+    _mixed_extent_stage(c0, c1, b, side, m, hits, poses, face_normals, out, weighting, sc)
+    if bistatic.want_phi:
+        _mixed_phi_stage(c0, c1, b, hits, poses, face_normals, out)
+    if bistatic.want_legs:
+        _mixed_leg_stage(c0, c1, b, hits, poses, bistatic, out, sc)
+    return carry
+
+
+@njit(cache=True, nogil=True)
+def _launch_stage(row, c0, c1, carry, fan, layout, beam, shift, sc):
+    """Each ray's cell (dβ, ds into ``sc``) and its launch gains' arguments (sc rows 0, 4, 5), the carry moved on."""
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
     per_ray = layout.shape[0] > 0
     for i in range(c0, c1):
         k = i - c0
         if per_ray:
-            if layout[i, 0] != s_prev:
-                s_prev = layout[i, 0]
-                cpsi = math.sqrt(1.0 - s_prev * s_prev)
-                ga, gar = beam_factor(beam[3], beam[0] * s_prev), beam_factor(beam[3], beam[0] * (s_prev - shift))
-            cb, sbeta, db, ds_i = layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
+            carry, cell = _own_cell(i, carry, layout, beam, shift)
         else:
-            if j == n_el - 1:
-                j, az = 0, az + 1
-                cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
-                ga, gar = beam_factor(beam[3], beam[0] * s_az[az]), beam_factor(beam[3], beam[0] * (s_az[az] - shift))
-            else:
-                j += 1
-            cell = el_start[row] + j
-            cb, sbeta, db, ds_i = cos_beta[cell], sin_beta[cell], dbeta[cell], ds
-        sc[0, k], sc[4, k], sc[5, k] = beam[1] * cpsi * (sbeta * ct - cb * st), ga, gar
+            carry, cell = _grid_cell(row, carry, fan, beam, shift)
+        cpsi, cb, sbeta = carry[2], cell[0], cell[1]
+        sc[0, k], sc[4, k], sc[5, k] = beam[1] * cpsi * (sbeta * ct - cb * st), carry[3], carry[4]
+        sc[_SC_DB, k], sc[_SC_DS, k] = cell[2], cell[3]
+    return carry
+
+
+@njit(cache=True, nogil=True)
+def _grid_cell(row, carry, fan, beam, shift):
+    """(carry, (cos β, sin β, dβ, ds)) of the row's next ray on the fan's grid: the elevation cell counted on, the
+    azimuth (its cos ψ and gains) moved on after the row's last cell."""
+    j, az, cpsi, ga, gar, s_prev = carry
+    s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    if j == el_start[row + 1] - el_start[row] - 1:
+        j, az = 0, az + 1
+        cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
+        ga, gar = beam_factor(beam[3], beam[0] * s_az[az]), beam_factor(beam[3], beam[0] * (s_az[az] - shift))
+    else:
+        j += 1
+    cell = el_start[row] + j
+    return (j, az, cpsi, ga, gar, s_prev), (cos_beta[cell], sin_beta[cell], dbeta[cell], ds)
+
+
+@njit(cache=True, nogil=True)
+def _own_cell(i, carry, layout, beam, shift):
+    """(carry, (cos β, sin β, dβ, ds)) of ray i's own cell (``layout``), cos ψ and the gains kept while s repeats."""
+    j, az, cpsi, ga, gar, s_prev = carry
+    if layout[i, 0] != s_prev:
+        s_prev = layout[i, 0]
+        cpsi = math.sqrt(1.0 - s_prev * s_prev)
+        ga, gar = beam_factor(beam[3], beam[0] * s_prev), beam_factor(beam[3], beam[0] * (s_prev - shift))
+    return (j, az, cpsi, ga, gar, s_prev), (layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _facing(face_normals, p, u):
+    """Triangle p's normal turned to face the ray u (its incidence side)."""
+    flip = -1.0 if face_normals[p, 0] * u[0] + face_normals[p, 1] * u[1] + face_normals[p, 2] * u[2] > 0.0 else 1.0
+    return flip * face_normals[p, 0], flip * face_normals[p, 1], flip * face_normals[p, 2]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _direct_dir(hits, pos, i, b):
+    """u = (X − S)/r of echo i: the direct ray's unit direction."""
+    r, x = hits.range, hits.point
+    ir = 1.0 / r[i]
+    return (x[i, 0] - pos[b, 0]) * ir, (x[i, 1] - pos[b, 1]) * ir, (x[i, 2] - pos[b, 2]) * ir
+
+
+@njit(cache=True, nogil=True)
+def _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc):
+    """Each echo's leg to the image sonar S' (v = X → S', r' into ``sc``) and cos θi, cos θs (facing the sonar)."""
+    r, x, prim, pos, z_s = hits.range, hits.point, hits.prim, poses.pos, bistatic.z_s
+    for i in range(c0, c1):
         if not math.isfinite(r[i]):
-            weight_out[i], time_out[i], extent_out[i] = 0.0, math.inf, 0.0
-            sc[1, k], sc[2, k], sc[3, k], sc[6, k], sc[7, k] = 0.0, 0.0, 0.0, 0.0, 0.0
             continue
-        ir = 1.0 / r[i]
-        u = ((x[i, 0] - sx) * ir, (x[i, 1] - sy) * ir, (x[i, 2] - sz) * ir)
-        vx, vy, vz = sx - x[i, 0], sy - x[i, 1], 2.0 * z_s - sz - x[i, 2]
+        u = _direct_dir(hits, pos, i, b)
+        vx, vy, vz = pos[b, 0] - x[i, 0], pos[b, 1] - x[i, 1], 2.0 * z_s - pos[b, 2] - x[i, 2]
         r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
         ir2 = 1.0 / r2
         v = (vx * ir2, vy * ir2, vz * ir2)          # X → S'; S → P is its mirror (−v_x, −v_y, v_z)
-        p = prim[i]
-        flip = -1.0 if face_normals[p, 0] * u[0] + face_normals[p, 1] * u[1] + face_normals[p, 2] * u[2] > 0.0 else 1.0
-        n = (flip * face_normals[p, 0], flip * face_normals[p, 1], flip * face_normals[p, 2])
-        cos_i, cos_s = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2]), n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
-        sc[1, k], sc[2, k], sc[3, k], sc[6, k] = _gain_args(m, side, -v[0], -v[1], v[2], beam[0], beam[1], ct, st,
-                                                            shift)                                   # along S → P
+        n = _facing(face_normals, prim[i], u)
+        out.cos_i[i], out.cos_s[i] = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2]), n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+        out.v[i, 0], out.v[i, 1], out.v[i, 2] = v
+        sc[_SC_R2, i - c0] = r2
+
+
+@njit(cache=True, nogil=True)
+def _leg_gain_stage(c0, c1, side, m, shift, beam, hits, out, sc):
+    """The gains' arguments along S → P (sc rows 1–3, the gate in 6); 0 for rays without a direct echo."""
+    r, v = hits.range, out.v
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
+    for i in range(c0, c1):
+        k = i - c0
+        if not math.isfinite(r[i]):
+            sc[1, k], sc[2, k], sc[3, k], sc[6, k] = 0.0, 0.0, 0.0, 0.0
+            continue
+        sc[1, k], sc[2, k], sc[3, k], sc[6, k] = _gain_args(m, side, -v[i, 0], -v[i, 1], v[i, 2], beam[0], beam[1],
+                                                            ct, st, shift)                           # along S → P
+
+
+@njit(cache=True, nogil=True)
+def _lambert_stage(c0, c1, hits, out, bistatic, sc):
+    """Lambert's σ = μ·cos θi·cos θs into sc row 7 (1 when σ is left to the caller, 0 without a direct echo)."""
+    r, prim, mu_obj, face_object = hits.range, hits.prim, bistatic.mu_obj, bistatic.face_object
+    for i in range(c0, c1):
+        k = i - c0
+        if not math.isfinite(r[i]):
+            sc[7, k] = 0.0
+            continue
+        sc[7, k] = (mu_obj[face_object[prim[i]]] * max(out.cos_i[i], 0.0) * max(out.cos_s[i], 0.0)
+                    if mu_obj.shape[0] > 0 else 1.0)
+
+
+@njit(cache=True, nogil=True)
+def _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc):
+    """w without the gains and t = (r + r')/c (0 and inf without a direct echo)."""
+    r, weight_out, time_out, v, cos_i = hits.range, out.weight, out.time, out.v, out.cos_i
+    two_way_np_per_m, min_range_m, inv_c = weighting.two_way_np_per_m, weighting.min_range_m, 0.5 * weighting.time_per_m
+    wave_kh = bistatic.wave_kh
+    for i in range(c0, c1):
+        k = i - c0
+        if not math.isfinite(r[i]):
+            weight_out[i], time_out[i] = 0.0, math.inf
+            continue
+        r2 = sc[_SC_R2, k]
         rb2 = max(r2, min_range_m)
-        w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[2] * v[2]) * ds_i * db
-             / (rb2 * rb2 * cos_i))
-        sc[7, k] = mu_obj[face_object[p]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
+        w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[i, 2] * v[i, 2])
+             * sc[_SC_DS, k] * sc[_SC_DB, k] / (rb2 * rb2 * cos_i[i]))
         weight_out[i], time_out[i] = w, (r[i] + r2) * inv_c
-        extent_out[i] = min(_footprint_slope(m, side, u, v, n, r[i]), 2.0 * slope_cap_m_rad) * db * inv_c
-        cos_i_out[i], cos_s_out[i] = cos_i, cos_s
-        if want_phi:
-            phi_out[i] = _azimuth(n, u, v)
-        if want_legs:
-            q = r2 / vz
-            v_out[i, 0], v_out[i, 1], v_out[i, 2] = v[0], v[1], v[2]
-            u2_out[i, 0], u2_out[i, 1], u2_out[i, 2] = -v[0], -v[1], v[2]
-            leg1_out[i], leg2_out[i] = (z_s - x[i, 2]) * q, (z_s - sz) * q   # X → P and S → P (= P → S')
-    return j, az, cpsi, ga, gar, s_prev
+
+
+@njit(cache=True, nogil=True)
+def _mixed_extent_stage(c0, c1, b, side, m, hits, poses, face_normals, out, weighting, sc):
+    """Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c (0 without a direct echo)."""
+    r, prim, pos, v = hits.range, hits.prim, poses.pos, out.v
+    cap, inv_c = 2.0 * weighting.slope_cap_m_rad, 0.5 * weighting.time_per_m
+    for i in range(c0, c1):
+        if not math.isfinite(r[i]):
+            out.extent[i] = 0.0
+            continue
+        u = _direct_dir(hits, pos, i, b)
+        n = _facing(face_normals, prim[i], u)
+        vi = (v[i, 0], v[i, 1], v[i, 2])
+        out.extent[i] = min(_footprint_slope(m, side, u, vi, n, r[i]), cap) * sc[_SC_DB, i - c0] * inv_c
+
+
+@njit(cache=True, nogil=True)
+def _mixed_phi_stage(c0, c1, b, hits, poses, face_normals, out):
+    """φ, the bistatic azimuth between −u1 and v in the plane of n (an arccos per echo)."""
+    r, prim, pos, v = hits.range, hits.prim, poses.pos, out.v
+    for i in range(c0, c1):
+        if math.isfinite(r[i]):
+            u = _direct_dir(hits, pos, i, b)
+            out.phi[i] = _azimuth(_facing(face_normals, prim[i], u), u, (v[i, 0], v[i, 1], v[i, 2]))
+
+
+@njit(cache=True, nogil=True)
+def _mixed_leg_stage(c0, c1, b, hits, poses, bistatic, out, sc):
+    """The legs for the visibility check: u2 (S → P) and the lengths X → P and S → P (= P → S')."""
+    r, x, pos, z_s, v = hits.range, hits.point, poses.pos, bistatic.z_s, out.v
+    for i in range(c0, c1):
+        if not math.isfinite(r[i]):
+            continue
+        q = sc[_SC_R2, i - c0] / (2.0 * z_s - pos[b, 2] - x[i, 2])
+        out.u2[i, 0], out.u2[i, 1], out.u2[i, 2] = -v[i, 0], -v[i, 1], v[i, 2]
+        out.leg1[i], out.leg2[i] = (z_s - x[i, 2]) * q, (z_s - pos[b, 2]) * q   # X → P and S → P (= P → S')
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -311,7 +429,7 @@ def _inverse(d):
     return 1.0 / d if d != 0.0 else math.copysign(math.inf, d)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)
 def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
     """The legs of a block's lit echoes that can be blocked, as float32 rays for an occlusion query.
 
@@ -348,41 +466,75 @@ def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
     k : int
         Legs to cast.
     """
-    x, pos, from_sonar, dirs, dist, weight, prim, free_own, eps = legs
-    box_lo, box_hi, box_obj, box_slope = boxes
-    start_out, end_out, idx_out, org_out, dir_out, len_out = out
     rows = ray_start.shape[0] - 1
     counts = np.zeros(rows + 1, dtype=np.int64)
-    for row in prange(rows):                      # each leg's span (start_out, end_out), legs per row counted
+    _leg_spans(ray_start, legs, boxes, face_object, face_normals, out.start, out.end, counts)
+    for row in range(rows):
+        counts[row + 1] += counts[row]
+    _leg_rays(ray_start, legs, out, counts)
+    return counts[rows]
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _leg_spans(ray_start, legs, boxes, face_object, face_normals, start_out, end_out, counts):
+    """Each lit echo's leg span to cast (start_out, end_out; 0, 0: none) and the legs per row in counts[row + 1]
+    (see :func:`visibility_legs`)."""
+    weight = legs.weight
+    for row in prange(ray_start.shape[0] - 1):
         b = row // 2
         for i in range(ray_start[row], ray_start[row + 1]):
             start_out[i], end_out[i] = 0.0, 0.0
             if not weight[i] > 0.0:
                 continue
-            ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
-            own, above, rise = -1, False, -math.inf                    # rise: tan of the leg's elevation from x[i]
-            if prim.shape[0] > 0:
-                p = prim[i]
-                own = face_object[p]
-                above = free_own and face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (
-                    x[i, 1] - pos[b, 1]) + face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0
-                if not (from_sonar or above):
-                    h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
-                    rise = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
-            ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
-            start, end = math.inf, -math.inf
-            for q in range(box_lo.shape[0]):
-                if box_obj[q] < 0 or box_obj[q] != own or not (above or rise > box_slope[q]):
-                    t0, t1 = _box_span(box_lo, box_hi, q, ox, oy, oz, ix, iy, iz, eps, dist[i] - eps)
-                    if t0 <= t1:
-                        start, end = min(start, t0), max(end, t1)
-            end = min(dist[i] - eps, end + eps)
+            own, above, rise = _leg_owner(i, b, legs, face_object, face_normals)
+            start, end = _leg_span(i, b, legs, boxes, own, above, rise)
             if end - start > 0.0:
                 start_out[i], end_out[i] = start, end
                 counts[row + 1] += 1
-    for row in range(rows):
-        counts[row + 1] += counts[row]
-    for row in prange(rows):                      # the legs with a span, in order
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _leg_owner(i, b, legs, face_object, face_normals):
+    """(object, above, rise) of echo i's leg: the object of its triangle (−1: none given), whether the direct ray
+    reached it from above (with ``free_own``), and tan of a leg's elevation from its hit point (−inf where not
+    needed), the three facts that let :func:`_leg_span` pass over the echo's own height field."""
+    x, pos, dirs, prim = legs.point, legs.pos, legs.dir, legs.prim
+    from_sonar, free_own = legs.from_sonar, legs.free_own
+    own, above, rise = -1, False, -math.inf
+    if prim.shape[0] > 0:
+        p = prim[i]
+        own = face_object[p]
+        above = free_own and face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (
+            x[i, 1] - pos[b, 1]) + face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0
+        if not (from_sonar or above):
+            h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
+            rise = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
+    return own, above, rise
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _leg_span(i, b, legs, boxes, own, above, rise):
+    """(start, end) of echo i's leg over the boxes it crosses (end ≤ start: none), ``eps`` from each end, the
+    boxes of its own height field passed over where :func:`_leg_owner` allows."""
+    x, pos, from_sonar, dirs, dist, eps = legs.point, legs.pos, legs.from_sonar, legs.dir, legs.length, legs.eps
+    box_lo, box_hi, box_obj, box_slope = boxes
+    ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
+    ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
+    start, end = math.inf, -math.inf
+    for q in range(box_lo.shape[0]):
+        if box_obj[q] < 0 or box_obj[q] != own or not (above or rise > box_slope[q]):
+            t0, t1 = _box_span(box_lo, box_hi, q, ox, oy, oz, ix, iy, iz, eps, dist[i] - eps)
+            if t0 <= t1:
+                start, end = min(start, t0), max(end, t1)
+    return start, min(dist[i] - eps, end + eps)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _leg_rays(ray_start, legs, out, counts):
+    """The legs with a span as float32 rays, in order: row r's from counts[r] (see :func:`visibility_legs`)."""
+    x, pos, from_sonar, dirs = legs.point, legs.pos, legs.from_sonar, legs.dir
+    start_out, end_out, idx_out, org_out, dir_out, len_out = out
+    for row in prange(ray_start.shape[0] - 1):
         b, k = row // 2, counts[row]
         for i in range(ray_start[row], ray_start[row + 1]):
             t0, t1 = start_out[i], end_out[i]
@@ -395,4 +547,3 @@ def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
             dir_out[k, 0], dir_out[k, 1], dir_out[k, 2] = dx, dy, dz
             len_out[k] = t1 - t0
             k += 1
-    return counts[rows]

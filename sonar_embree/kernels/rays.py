@@ -250,8 +250,14 @@ def ray_cell(i, base, first, n_el, s, ds, cos_beta, sin_beta, dbeta, layout):
     return s[(i - base) // n_el], cos_beta[e], sin_beta[e], dbeta[e], ds
 
 
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def fan_cell(i, base, first, n_el, fan, layout):
+    """:func:`ray_cell` of a :data:`~sonar_embree.kernels.args.Fan` group."""
+    return ray_cell(i, base, first, n_el, fan.s, fan.ds, fan.cos_beta, fan.sin_beta, fan.dbeta, layout)
+
+
 @njit(cache=True, nogil=True)
-def hit_terms(dn, num, fn, t_emb, two_sided, ahead, ds, db, consts):
+def hit_terms(dn, num, fn, t_emb, two_sided, ahead, ds, db, weighting):
     """The physics of one hit of :func:`fan_echoes`, on scalars only (no array arguments: no reference counting per
     ray; docs/physics.md §2–3).
 
@@ -269,15 +275,15 @@ def hit_terms(dn, num, fn, t_emb, two_sided, ahead, ds, db, consts):
         echo).
     ds, db : float
         The ray's cell: its along-track width ds and elevation width dβ (rad); solid angle ds·dβ.
-    consts : tuple of float
-        Two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m).
+    weighting : :data:`~sonar_embree.kernels.args.DirectWeighting`
+        Two-way absorption (Np/m), R_min, R_max (m), slope cap (m/rad), 2/c (s/m) (its tilt not read: ``ahead``).
 
     Returns
     -------
     (R (m), cos θi, w, travel-time extent (s)); w = 0: no echo (back face, grazing, beyond R_max, behind the
     baffle).
     """
-    two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = consts
+    _, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = weighting
     rr = t_emb
     if abs(dn) > REFIT_MIN_COS:
         t64 = num / dn
@@ -341,18 +347,14 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
         r's rays ``el_start[r] … el_start[r + 1] − 1``; ``s``, ``ds``, ``cos_beta``, ``sin_beta``, ``dbeta`` are then
         not read. No rows (``NO_LAYOUT``): the fan's layout.
     """
-    s, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    rot, pos = poses.rot, poses.pos
-    vertices, faces, face_normals, face_two_sided = scene
-    tilt_rad, two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m = weighting
+    el_start = fan.el_start
+    # the outputs as arrays, not group fields: Numba (0.6x parfors) drops writes through a group's field in a prange
     range_out, time_out, extent_out, weight_out, cos_out, points_out = out
-    n_az = s.shape[0]
     want_points = points_out.shape[0] == range_out.shape[0]
-    cos_t, sin_t = math.cos(tilt_rad), math.sin(tilt_rad)
-    consts = (two_way_np_per_m, min_range_m, max_range_m, slope_cap_m_rad, time_per_m)
+    cos_t, sin_t = math.cos(weighting.tilt_rad), math.sin(weighting.tilt_rad)
     per_ray = layout.shape[0] > 0
     for r in prange(el_start.shape[0] - 1):
-        b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
+        b, side, n_el, base, end = row_rays(r, el_start, fan.s.shape[0], per_ray)
         s_prev, cpsi = math.nan, 0.0
         for i in range(base, end):
             range_out[i] = math.inf
@@ -367,32 +369,52 @@ def fan_echoes(fan, poses, prim, tfar, scene, weighting, out, layout):
             t = prim[i]
             if t < 0:
                 continue
-            sa, cb, sb, db, ds_i = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
+            sa, cb, sb, db, ds_i = fan_cell(i, base, el_start[r], n_el, fan, layout)
             if sa != s_prev:
                 s_prev = sa
                 cpsi = math.sqrt(1.0 - sa * sa)
-            e0, e1, e2 = sa, side * cpsi * cb, cpsi * sb
-            f1, f2 = -side * cpsi * sb, cpsi * cb  # ∂u/∂β in body axes (0, f1, f2)
-            dn, num, fn = 0.0, 0.0, 0.0
-            for q in range(3):
-                nq = face_normals[t, q]
-                dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
-                num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
-                fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
+            e = (sa, side * cpsi * cb, cpsi * sb)
+            f = (-side * cpsi * sb, cpsi * cb)  # ∂u/∂β in body axes (0, f1, f2)
+            dn, num, fn = _plane_terms(poses, scene, b, t, e, f)
             ahead = cpsi * (cb * cos_t + sb * sin_t) > 0.0          # cos(β − δ) > 0: in front of the baffle
-            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), face_two_sided[t], ahead, ds_i, db,
-                                           consts)
+            rr, cos_i, wt, ext = hit_terms(dn, num, fn, np.float64(tfar[i]), scene.face_two_sided[t], ahead, ds_i, db,
+                                           weighting)
             if cos_i == 0.0:
                 continue
             range_out[i] = rr
-            time_out[i] = rr * time_per_m
+            time_out[i] = rr * weighting.time_per_m
             weight_out[i] = wt
             cos_out[i] = cos_i
             extent_out[i] = ext
             if want_points:
-                points_out[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
-                points_out[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
-                points_out[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)
+                _write_point(points_out, i, poses, b, rr, e)
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _plane_terms(poses, scene, b, t, e, f):
+    """(n̂·u, n̂·(v₀ − S), n̂·∂u/∂β) of triangle t for ping b's ray of body direction ``e`` (3-tuple) and
+    ∂e/∂β = (0, f1, f2) (``f``), as :func:`hit_terms` takes them."""
+    rot, pos = poses.rot, poses.pos
+    vertices, faces, face_normals = scene.vertices, scene.faces, scene.face_normals
+    e0, e1, e2 = e
+    f1, f2 = f
+    dn, num, fn = 0.0, 0.0, 0.0
+    for q in range(3):
+        nq = face_normals[t, q]
+        dn += (rot[b, q, 0] * e0 + rot[b, q, 1] * e1 + rot[b, q, 2] * e2) * nq
+        num += (vertices[faces[t, 0], q] - pos[b, q]) * nq
+        fn += (rot[b, q, 1] * f1 + rot[b, q, 2] * f2) * nq
+    return dn, num, fn
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _write_point(points, i, poses, b, rr, e):
+    """points[i] = S + rr·R·e: the hit of ping b's ray of body direction ``e`` at range ``rr``."""
+    rot, pos = poses.rot, poses.pos
+    e0, e1, e2 = e
+    points[i, 0] = pos[b, 0] + rr * (rot[b, 0, 0] * e0 + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2)
+    points[i, 1] = pos[b, 1] + rr * (rot[b, 1, 0] * e0 + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2)
+    points[i, 2] = pos[b, 2] + rr * (rot[b, 2, 0] * e0 + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2)
 
 
 @njit(cache=True, nogil=True, parallel=True)

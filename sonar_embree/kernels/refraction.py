@@ -38,7 +38,7 @@ import math
 import numpy as np
 
 from ._numba import REFIT_MIN_COS, REFIT_REL_TOL, njit, prange
-from .rays import ray_cell, row_rays
+from .rays import fan_cell, row_rays
 
 #: Columns of a ray's marching state (see the module docstring).
 STATE_WIDTH = 14
@@ -554,20 +554,17 @@ def arc_echoes(fan, poses, hit_prim, hit, ray, scene, weighting, out, layout):
     conserved, so the ray reaching the moved receiver leaves X with s − 2v·T/M ≈ s − 2v/c0). With ``layout``
     (:func:`arc_start`) each ray has its own s, β, dβ and ds.
     """
-    s, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    rot = poses.rot
-    face_normals, face_two_sided = scene.face_normals, scene.face_two_sided
-    tilt_rad, two_way_np_per_m, min_range_m, t_max, slope_cap_m_rad, c_nom = weighting
+    el_start, rot = fan.el_start, poses.rot
+    # the outputs as arrays, not group fields: Numba (0.6x parfors) drops writes through a group's field in a prange
     range_out, time_out, extent_out, weight_out, cos_out, points_out = out
-    n_az = s.shape[0]
     per_ray = layout.shape[0] > 0
     want_points = points_out.shape[0] == range_out.shape[0]
-    cos_t = math.cos(tilt_rad)
-    sin_t = math.sin(tilt_rad)
+    cos_t = math.cos(weighting.tilt_rad)
+    sin_t = math.sin(weighting.tilt_rad)
     for r in prange(el_start.shape[0] - 1):
-        b, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
+        b, side, n_el, base, end = row_rays(r, el_start, fan.s.shape[0], per_ray)
         for i in range(base, end):
-            sa, cb, sb, db, ds_i = ray_cell(i, base, el_start[r], n_el, s, ds, cos_beta, sin_beta, dbeta, layout)
+            sa, cb, sb, db, ds_i = fan_cell(i, base, el_start[r], n_el, fan, layout)
             cpsi = math.sqrt(1.0 - sa * sa)
             range_out[i] = math.inf
             time_out[i] = math.inf
@@ -580,27 +577,49 @@ def arc_echoes(fan, poses, hit_prim, hit, ray, scene, weighting, out, layout):
             t = hit_prim[i]
             if t < 0:
                 continue
-            dn = 0.0
-            for q in range(3):
-                dn += hit[i, 3 + q] * face_normals[t, q]
-            cos_i = -dn
-            if cos_i < 0.0 and face_two_sided[t]:
-                cos_i = dn
             behind = cpsi * (cb * cos_t + sb * sin_t) <= 0.0              # cos(β − δ): behind the baffle
-            if not (cos_i > 1e-9) or not (hit[i, 6] <= t_max) or behind:
+            cos_i = _arc_incidence(hit, i, t, scene, weighting, behind)
+            if cos_i == 0.0:
                 continue
-            c0 = ray[i, 4]
-            area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
-            weight_out[i] = (math.exp(-two_way_np_per_m * hit[i, 7]) * ds_i * db
-                             / max(area, min_range_m * min_range_m))
-            range_out[i] = c_nom * hit[i, 6]
-            time_out[i] = 2.0 * hit[i, 6]
+            weight_out[i], range_out[i], time_out[i] = _arc_weight(hit, ray, i, weighting, ds_i, db)
             cos_out[i] = cos_i
-            slope = _tube_shift(rot[b], side, cpsi, cb, sb, sa, hit[i], ray[i], face_normals[t])
-            extent_out[i] = 2.0 * min(slope / cos_i, slope_cap_m_rad) * db / hit[i, 12]
+            slope = _tube_shift(rot[b], side, cpsi, cb, sb, sa, hit[i], ray[i], scene.face_normals[t])
+            extent_out[i] = _arc_extent(slope, cos_i, db, hit, i, weighting)
             if want_points:
                 for q in range(3):
                     points_out[i, q] = hit[i, q]
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _arc_incidence(hit, i, t, scene, weighting, behind):
+    """cos θi of curved ray i's hit on triangle t (two-sided: |n̂·u|), or 0 where it gives no echo (grazing, after
+    ``weighting.t_max``, ``behind`` the baffle)."""
+    face_normals, face_two_sided = scene.face_normals, scene.face_two_sided
+    dn = 0.0
+    for q in range(3):
+        dn += hit[i, 3 + q] * face_normals[t, q]
+    cos_i = -dn
+    if cos_i < 0.0 and face_two_sided[t]:
+        cos_i = dn
+    if not (cos_i > 1e-9) or not (hit[i, 6] <= weighting.t_max) or behind:
+        return 0.0
+    return cos_i
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _arc_weight(hit, ray, i, weighting, ds_i, db):
+    """(w, apparent range c_nom·T (m), two-way time 2T (s)) of curved ray i's hit (see :func:`arc_echoes`)."""
+    c0 = ray[i, 4]
+    area = hit[i, 8] * abs(hit[i, 9]) / (c0 * c0)
+    min_range_m = weighting.min_range_m
+    w = math.exp(-weighting.two_way_np_per_m * hit[i, 7]) * ds_i * db / max(area, min_range_m * min_range_m)
+    return w, weighting.c_nom * hit[i, 6], 2.0 * hit[i, 6]
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _arc_extent(slope, cos_i, db, hit, i, weighting):
+    """The travel-time extent (s) of curved ray i's cell: 2·min(|n̂·δ⊥|/cos θi, cap)·dβ / c_h."""
+    return 2.0 * min(slope / cos_i, weighting.slope_cap_m_rad) * db / hit[i, 12]
 
 
 @njit(cache=True, nogil=True, inline='always')

@@ -248,9 +248,10 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m, slots, epoch
 
 
 @njit(cache=True, nogil=True)
-def _gather_ping(b, n_ch, ray_start, points, origin, weights, times, extents, cell_m, slots, epoch, nodes,
-                 node_key, cache):
-    """:func:`gather_nodes` on ping b's rays, channel by channel (points local + origin); count or −1."""
+def _gather_ping(b, n_ch, echoes, cell_m, slots, epoch, nodes, node_key, cache):
+    """:func:`gather_nodes` on ping b's rays of ``echoes`` (:data:`~sonar_embree.kernels.args.SpeckleEchoes`),
+    channel by channel (points local + origin); count or −1."""
+    ray_start, points, origin, weights, times, extents = echoes
     cache[:] = -1
     count = 0
     for ch in range(n_ch):
@@ -276,17 +277,15 @@ def _distance(ix, iy, iz, cell_m, pos):
 @njit(cache=True, nogil=True, inline='always')
 def _emit_node(nodes, node_key, q, pos_tx, pos_rx, n_rx, vel_rx, rx_ref, time_per_m, lattice, waveform, out):
     """Splat node q's ``n_sub`` frozen scatterers into each of its channel's receivers' rows of ``out`` (see
-    :func:`speckle_block`).
+    :func:`speckle_block`): the node's phase and delay per receiver here, its scatterers by
+    :func:`_splat_scatterers`.
 
     Reads rows by index, never through a row view (kernels/_numba.py: views contend for the reference count).
     """
     seed, cell_m, wavelength_m, n_sub = lattice
-    table, table_start, table_rate, rate_hz, phase_cycles_per_s = waveform
     w = nodes[q, 0]
     t_mean = nodes[q, 1]  # the receiver has moved on by vel_rx·t̄ (0 when stop-and-hop: the same bits)
     sigma = math.sqrt(max(nodes[q, 2] / w, 0.0))
-    t_lo = nodes[q, 3]
-    t_hi = nodes[q, 4]
     ch = node_key[q, 0]
     ix = node_key[q, 1]
     iy = node_key[q, 2]
@@ -305,14 +304,32 @@ def _emit_node(nodes, node_key, q, pos_tx, pos_rx, n_rx, vel_rx, rx_ref, time_pe
         cycles = ((d_tx + d_rx) / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
         base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
         shift = (d_rx - d_ref) * time_per_m if time_per_m != 0.0 else 0.0
-        for sub in range(n_sub):
-            g, v = _frozen(h, sub, n_sub)
-            r_env = min(max(t_mean + spread * (2.0 * v - 1.0), t_lo), t_hi) + shift
-            a = base * g
-            if phase_cycles_per_s != 0.0:
-                ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
-                a = a * complex(math.cos(ph), math.sin(ph))
-            _splat_one(out, j, r_env * rate_hz, a, table, table_start, table_rate)
+        _splat_scatterers(out, j, h, n_sub, base, t_mean, spread, nodes[q, 3], nodes[q, 4], shift, waveform)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _splat_scatterers(out, j, h, n_sub, base, t_mean, spread, t_lo, t_hi, shift, waveform):
+    """Add a node's ``n_sub`` frozen scatterers (hash ``h``) to row ``j`` of ``out``: scatterer k at envelope time
+    clip(t̄ + spread·(2v − 1), t_lo, t_hi) + ``shift`` (s) with amplitude ``base``·g (g, v of :func:`_frozen`), the
+    ``waveform``'s extra carrier phase applied (see :func:`speckle_block`)."""
+    table, table_start, table_rate, rate_hz, phase_cycles_per_s = waveform
+    for sub in range(n_sub):
+        g, v = _frozen(h, sub, n_sub)
+        r_env = min(max(t_mean + spread * (2.0 * v - 1.0), t_lo), t_hi) + shift
+        a = base * g
+        if phase_cycles_per_s != 0.0:
+            ph = 2.0 * math.pi * ((phase_cycles_per_s * r_env) % 1.0)
+            a = a * complex(math.cos(ph), math.sin(ph))
+        _splat_one(out, j, r_env * rate_hz, a, table, table_start, table_rate)
+
+
+@njit(cache=True, nogil=True)
+def _emit_ping(b, count, nodes_t, key_t, ends, n_rx, lattice, waveform, out_b):
+    """Every node 0 … count − 1 of ping b's table into ``out_b`` (:func:`_emit_node`), the ping's ends
+    (:data:`~sonar_embree.kernels.args.PathEnds`) taken once (views made once per ping, not per node)."""
+    tx, rx, v_rx, ref, time_per_m = ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m
+    for q in range(count):
+        _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -365,12 +382,10 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
     out : (pings, channels·n_rx, n_samples) complex128
         Accumulator.
     """
-    ray_start, points, origin, weights, times, extents = echoes
-    pos_world, pos_rx, vel_rx, rx_ref, time_per_m = ends
     cell_m = lattice.cell_m
     slots, epochs, nodes, node_key, caches = tables
-    n_p = pos_world.shape[0]
-    n_ch = (ray_start.shape[0] - 1) // max(n_p, 1)  # the echoes' channels; each heard by n_rx receivers
+    n_p = ends.tx.shape[0]
+    n_ch = (echoes.ray_start.shape[0] - 1) // max(n_p, 1)  # the echoes' channels; each heard by n_rx receivers
     n_rx = out.shape[1] // max(n_ch, 1)
     n_t = slots.shape[0]
     for t in prange(n_t):
@@ -378,13 +393,9 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
             if status[b] != 0:
                 continue
             epochs[t] += 1
-            count = _gather_ping(b, n_ch, ray_start, points, origin, weights, times, extents, cell_m, slots[t],
-                                 epochs[t], nodes[t], node_key[t], caches[t])
+            count = _gather_ping(b, n_ch, echoes, cell_m, slots[t], epochs[t], nodes[t], node_key[t], caches[t])
             if count < 0:
                 status[b] = -1
                 continue
-            nodes_t, key_t, tx, rx, v_rx, ref, out_b = (nodes[t], node_key[t], pos_world[b], pos_rx[b], vel_rx[b],
-                                                        rx_ref[b], out[b])
-            for q in range(count):  # views made once per ping, not per node
-                _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
+            _emit_ping(b, count, nodes[t], node_key[t], ends, n_rx, lattice, waveform, out[b])
             status[b] = 1

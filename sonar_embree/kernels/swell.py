@@ -70,11 +70,7 @@ def _footprint(m, side, cpsi, cb, sb, nx, ny, nz, ur, n_x, cos_i, big_r):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p, ur, t1, prim_s, prim, t2,
-                seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m, two_way_np_per_m,
-                slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj, face_object, x_out,
-                w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, leg_out, r_out,
-                layout):
+def swell_paths(fan, bounce, poses, face_normals, weighting, bistatic, out, layout):
     """The one- and two-bounce paths of every bounced ray, without σ (but Lambert's, see ``mu_obj``), maps or the
     direct leg's visibility.
 
@@ -97,54 +93,39 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
 
     Parameters
     ----------
-    up_start, up : as for :func:`swell_launch`.
-    ray_start, el_start : (rows + 1,) int64
-        The image fan's rows of rays and of elevation cells (azimuth-major rays over a row's cells).
-    s_az : (n_az,) float64; cos_beta, sin_beta, dbeta : (el_start[-1],) float64
-        The fan's azimuth sines, and cos β, sin β and width (rad) of each elevation cell.
-    u, p, ur : (m, 3) float64
-        From :func:`swell_launch`.
-    t1 : (n,) float32; prim_s : (n,) int32
-        The image fan's surface distances (m) and triangles.
-    prim : (m,) int32; t2 : (m,) float32
-        The bounced rays' scene triangles (−1: none) and distances from their origins, m.
-    seen : (m,) float64
-        > 0 where the leg S → P is clear.
-    surface_normals, face_normals : (f, 3) float64
-        The surface mesh's and the scene's normals.
-    rot : (pings, 3, 3) float64; pos : (pings, 3) float64; rx_shift : (pings,) float64
+    fan : :data:`~sonar_embree.kernels.args.Fan`
+        The image fan's azimuth sines and spacing, each elevation cell's cos β, sin β and width (rad), and the rows'
+        elevation cells ``el_start`` (rows + 1,) (azimuth-major rays over a row's cells).
+    bounce : :data:`~sonar_embree.kernels.args.Bounce`
+        The bounced rays (:func:`swell_launch`'s u, p, ur; the scene cast's prim and t2, ``seen``), the surface
+        mesh's normals and the origin offset eps (m).
+    poses : :data:`~sonar_embree.kernels.args.Poses`
         Body-to-world rotations, sonar positions (local frame, m) and δ = 2·v_fwd/c of each ping.
-    beam : (4,) float64
-        k·lx/2, k·ly/2, tilt (rad), 0.
-    ds, min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps : float
-        Azimuth spacing, near-field bound (m), two-way absorption (Np/m), |dR/dβ| cap (m/rad), c (m/s), k·h_w,
-        longest unfolded range R (m) and the bounced rays' origin offset (m).
-    want_phi : bool
-        Whether to write ``phi_out`` (the bistatic azimuth: an arccos per ray).
-    mu_obj : (n_objects,) or (0,) float64; face_object : (f,) int32
-        Lambert's μ per object when every object has Lambert's law and there are no maps or texture: then the
-        one-bounce σ = μ·cos θi·cos θs is applied here, as :func:`sonar_embree.propagation.multipath.apply_bistatic`
-        would (the weight × (μ·cos θi)·cos θs); empty: σ is left to the caller.
-    x_out : (m, 3) float64
-    w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out, phi_out, r_out : (m,) float64
-    leg_out : (m, 3) float64
-        Written; ``leg_out`` = −u_d and ``r_out`` = r are the direct leg X → S for the visibility check.
+    face_normals : (f, 3) float64
+        The scene's normals.
+    weighting : :data:`~sonar_embree.kernels.args.Weighting`
+        The beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), near-field bound R_min (m), the longest
+        unfolded range R (m), the |dR/dβ| cap (m/rad) and 2/c (s/m).
+    bistatic : :data:`~sonar_embree.kernels.args.Bistatic`
+        k·h_w; Lambert's μ per object ``mu_obj`` when every object has Lambert's law and there are no maps or
+        texture (then the one-bounce σ = μ·cos θi·cos θs is applied here, as
+        :func:`sonar_embree.propagation.multipath.apply_bistatic` would: the weight × (μ·cos θi)·cos θs; empty: σ is
+        left to the caller), ``face_object`` (f,) int32 and ``want_phi`` (write φ: an arccos per ray); ``z_s`` and
+        ``want_legs`` not read.
+    out : :data:`~sonar_embree.kernels.args.SwellOut`
+        Written; ``leg`` = −u_d and ``r`` are the direct leg X → S for the visibility check.
     layout : (n, 5) float64 or (0, 5)
         Each launch ray's own s, cos β, sin β, dβ and ds (rays aimed at objects via the swell,
-        :mod:`sonar_embree.propagation.swell`); no rows (``NO_LAYOUT``): the fan's grid (``s_az``, ``cos_beta``, … and
-        ``ds``).
+        :mod:`sonar_embree.propagation.swell`); no rows (``NO_LAYOUT``): the fan's grid.
     """
+    up_start, beam, w1_out, w2_out = bounce.up_start, weighting.beam, out.w1, out.w2
     for row in prange(up_start.shape[0] - 1):
-        sc = np.empty((9, _CHUNK))      # per ray: the four sincs' arguments (then values), Γ_az, Γ_az,rx, two gates, σ
-        a_now, cpsi, ga, gar = -1, 0.0, 0.0, 0.0
+        sc = np.empty((_SW_ROWS, _CHUNK))   # per ray: the sincs' arguments (then values), gains, gates, σ, its terms
+        carry = (-1, 0.0, 0.0, 0.0)         # the launch azimuth, its cos ψ and gains
         for c0 in range(up_start[row], up_start[row + 1], _CHUNK):
             c1 = min(c0 + _CHUNK, up_start[row + 1])
-            a_now, cpsi, ga, gar = _swell_chunk(
-                row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p, ur,
-                t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds, min_range_m,
-                two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi, mu_obj,
-                face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out, cos_s_out,
-                phi_out, leg_out, r_out, sc, layout)
+            carry = _swell_chunk(row, c0, c1, carry, fan, bounce, poses, face_normals, weighting, bistatic, out,
+                                 layout, sc)
             factor_rows(beam[3], sc, 4, c1 - c0)                        # vectorised: 4 factors (sincs) per ray
             for k in range(c1 - c0):
                 g, g_rx = sc[4, k] * sc[0, k] * sc[6, k], sc[5, k] * sc[0, k] * sc[6, k]
@@ -153,85 +134,232 @@ def swell_paths(up_start, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbe
                 w1_out[c0 + k] = w1_out[c0 + k] * (g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * sc[8, k]
 
 
-@njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
-def _swell_chunk(row, c0, c1, a_now, cpsi, ga, gar, up, ray_start, el_start, s_az, cos_beta, sin_beta, dbeta, u, p,
-                 ur, t1, prim_s, prim, t2, seen, surface_normals, face_normals, rot, pos, rx_shift, beam, ds,
-                 min_range_m, two_way_np_per_m, slope_cap_m_rad, sound_speed_m_s, wave_kh, max_range_m, eps, want_phi,
-                 mu_obj, face_object, x_out, w1_out, time1_out, ext1_out, w2_out, time2_out, ext2_out, cos_i_out,
-                 cos_s_out, phi_out, leg_out, r_out, sc, layout):
-    """Bounced rays c0 … c1 − 1 of a row of :func:`swell_paths`: everything but the gains, whose sinc arguments go
-    to ``sc`` (rows 0–3: Γ_el(u), Γ_az(u_d), Γ_az,rx(u_d), Γ_el(u_d); 4, 5: the launch's Γ_az, Γ_az,rx; 6, 7: 1
-    where u, u_d are in front of the baffle and the path lit, else 0; 8: Lambert's one-bounce σ, or 1); w1 and w2
-    are written without the gains. The launch azimuth, its cos ψ and gains carry from chunk to chunk."""
-    ct, st, inv_c = math.cos(beam[2]), math.sin(beam[2]), 1.0 / sound_speed_m_s
-    b, side, n_el = row // 2, 1.0 if row % 2 == 1 else -1.0, el_start[row + 1] - el_start[row]
-    m, shift = _rotation(rot, b), rx_shift[b]
+#: Rows of a chunk's scratch ``sc`` (:func:`swell_paths`): 0–3 the four sincs' arguments (then values), 4, 5 the
+#: launch's Γ_az, Γ_az,rx, 6, 7 the gates along u and u_d, 8 Lambert's σ (or 1); then which paths are lit (0 none,
+#: 1 two bounces, 2 both), R, e^(−α'R/2)·|R_s|², the launch cell's cos ψ, cos β, sin β, dβ, ds and dX/dβ (3).
+_SW_LIT, _SW_R, _SW_HALF, _SW_CPSI, _SW_CB, _SW_SB, _SW_DB, _SW_DS, _SW_DX = 9, 10, 11, 12, 13, 14, 15, 16, 17
+_SW_ROWS = 20
+
+
+@njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its arrays' reference counts amortised
+def _swell_chunk(row, c0, c1, carry, fan, bounce, poses, face_normals, weighting, bistatic, out, layout, sc):
+    """Bounced rays c0 … c1 − 1 of a row of :func:`swell_paths`, in stages over the chunk: everything but the gains,
+    whose sinc arguments go to ``sc`` (rows 0–3: Γ_el(u), Γ_az(u_d), Γ_az,rx(u_d), Γ_el(u_d); 4, 5: the launch's
+    Γ_az, Γ_az,rx; 6, 7: 1 where u, u_d are in front of the baffle and the path lit, else 0; 8: Lambert's one-bounce
+    σ, or 1); w1 and w2 are written without the gains. The launch azimuth, its cos ψ and gains carry from chunk to
+    chunk (``carry``)."""
+    b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
+    m, shift = _rotation(poses.rot, b), poses.rx_shift[b]
+    _swell_init_stage(c0, c1, bounce, out, sc)
+    _swell_hit_stage(c0, c1, bounce, face_normals, weighting, out, sc)
+    carry = _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, weighting.beam, shift, sc)
+    _swell_half_stage(c0, c1, bounce, weighting, bistatic, sc)
+    _swell_footprint_stage(c0, c1, side, m, bounce, face_normals, out, sc)
+    _swell_two_stage(c0, c1, bounce, weighting, out, sc)
+    _swell_leg_stage(c0, c1, b, poses, bounce, face_normals, out, sc)
+    _swell_one_time_stage(c0, c1, bounce, weighting, out, sc)
+    _swell_leg_gain_stage(c0, c1, side, m, shift, weighting.beam, out, sc)
+    _swell_one_weight_stage(c0, c1, bounce, bistatic, weighting, out, sc)
+    if bistatic.want_phi:
+        _swell_phi_stage(c0, c1, bounce, face_normals, out, sc)
+    return carry
+
+
+@njit(cache=True, nogil=True)
+def _swell_init_stage(c0, c1, bounce, out, sc):
+    """A ray that returns nothing: every gain 0, w 0, t inf, cos θi = cos θs = 1, φ = r = 0, X at its surface
+    point."""
+    p = bounce.p
     for k in range(c0, c1):
         c = k - c0
-        for q in range(9):                              # a ray that returns nothing: every gain 0, none unset
+        for q in range(_SW_LIT + 1):
             sc[q, c] = 0.0
-        w1_out[k], w2_out[k], time1_out[k], time2_out[k] = 0.0, 0.0, math.inf, math.inf
-        ext1_out[k], ext2_out[k] = 0.0, 0.0
-        cos_i_out[k], cos_s_out[k], phi_out[k], r_out[k] = 1.0, 1.0, 0.0, 0.0
-        x_out[k, 0], x_out[k, 1], x_out[k, 2] = p[k, 0], p[k, 1], p[k, 2]
+        out.w1[k], out.w2[k], out.time1[k], out.time2[k] = 0.0, 0.0, math.inf, math.inf
+        out.ext1[k], out.ext2[k] = 0.0, 0.0
+        out.cos_i[k], out.cos_s[k], out.phi[k], out.r[k] = 1.0, 1.0, 0.0, 0.0
+        out.x[k, 0], out.x[k, 1], out.x[k, 2] = p[k, 0], p[k, 1], p[k, 2]
+
+
+@njit(cache=True, nogil=True)
+def _swell_hit_stage(c0, c1, bounce, face_normals, weighting, out, sc):
+    """X = P + (eps + t2)·u_r and cos θi = −n·u_r of each ray that reached the scene seen and within the window;
+    lit (two bounces) where cos θi > 1e-9, R = t1 + eps + t2 kept."""
+    up, t1, t2, prim, seen, p, ur = bounce.up, bounce.t1, bounce.t2, bounce.prim, bounce.seen, bounce.p, bounce.ur
+    eps, x_out = bounce.eps, out.x
+    for k in range(c0, c1):
         big_r = np.float64(t1[up[k]]) + eps + np.float64(t2[k])
-        if prim[k] < 0 or not seen[k] > 0.0 or big_r > max_range_m:
+        if prim[k] < 0 or not seen[k] > 0.0 or big_r > weighting.max_range_m:
             continue
-        urk = (ur[k, 0], ur[k, 1], ur[k, 2])
         d = eps + np.float64(t2[k])
-        x = (p[k, 0] + d * urk[0], p[k, 1] + d * urk[1], p[k, 2] + d * urk[2])
-        x_out[k, 0], x_out[k, 1], x_out[k, 2] = x
+        x_out[k, 0], x_out[k, 1], x_out[k, 2] = p[k, 0] + d * ur[k, 0], p[k, 1] + d * ur[k, 1], p[k, 2] + d * ur[k, 2]
         q = prim[k]
-        n_x = (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2])
-        cos_i = -(n_x[0] * urk[0] + n_x[1] * urk[1] + n_x[2] * urk[2])
-        if not cos_i > 1e-9:
+        cos_i = -(face_normals[q, 0] * ur[k, 0] + face_normals[q, 1] * ur[k, 1] + face_normals[q, 2] * ur[k, 2])
+        if cos_i > 1e-9:
+            out.cos_i[k] = cos_i
+            sc[_SW_LIT, k - c0], sc[_SW_R, k - c0] = 1.0, big_r
+
+
+@njit(cache=True, nogil=True)
+def _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, beam, shift, sc):
+    """Each lit ray's launch cell (cos ψ, cos β, sin β, dβ, ds into ``sc``) and its gains' arguments (sc rows 0, 4,
+    5, the gate in 6): Γ(u) from the fan grid, the mirror maps the image ray onto u; the azimuth carried on."""
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
+    up, ray_start = bounce.up, bounce.ray_start
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 0.0:
             continue
-        qs = prim_s[up[k]]
-        nx, ny, nz = surface_normals[qs, 0], surface_normals[qs, 1], surface_normals[qs, 2]
-        sg = u[k, 0] * nx + u[k, 1] * ny + u[k, 2] * nz
-        half = math.exp(-0.5 * two_way_np_per_m * big_r - 4.0 * wave_kh * wave_kh * sg * sg)  # e^(−α'R/2)·|R_s|²
         if layout.shape[0] > 0:                          # a ray aimed at an object: its own cell
-            i = up[k]
-            cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
-            sa = layout[i, 0]
-            ga, gar = beam_factor(beam[3], beam[0] * sa), beam_factor(beam[3], beam[0] * (sa - shift))
-            cb, sb, db, ds = layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
+            cell = _swell_own_cell(up[k], layout, beam, shift)
         else:
-            ray = up[k] - ray_start[row]
-            a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el      # the azimuth, divided when it moves on
-            cell = el_start[row] + ray - a * n_el
-            if a != a_now:
-                a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
-                ga, gar = beam_factor(beam[3], beam[0] * s_az[a]), beam_factor(beam[3], beam[0] * (s_az[a] - shift))
-            cb, sb, db = cos_beta[cell], sin_beta[cell], dbeta[cell]
-        sc[4, c], sc[5, c] = ga, gar                     # Γ(u) from the fan grid: the mirror maps the image ray onto u
+            carry, cell = _swell_grid_cell(row, up[k] - ray_start[row], carry, fan, beam, shift)
+        cpsi, ga, gar, cb, sb, db, ds = cell
+        sc[4, c], sc[5, c] = ga, gar
         sc[0, c] = beam[1] * cpsi * (sb * ct - cb * st)
         sc[6, c] = 1.0 if cb * ct + sb * st > 0.0 else 0.0      # 0 behind the baffle
-        dx = _footprint(m, side, cpsi, cb, sb, nx, ny, nz, urk, n_x, cos_i, big_r)
+        sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], sc[_SW_DB, c], sc[_SW_DS, c] = cpsi, cb, sb, db, ds
+    return carry
+
+
+@njit(cache=True, nogil=True)
+def _swell_own_cell(i, layout, beam, shift):
+    """(cos ψ, Γ_az, Γ_az,rx, cos β, sin β, dβ, ds) of image-fan ray i's own cell."""
+    cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
+    sa = layout[i, 0]
+    ga, gar = beam_factor(beam[3], beam[0] * sa), beam_factor(beam[3], beam[0] * (sa - shift))
+    return cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
+
+
+@njit(cache=True, nogil=True)
+def _swell_grid_cell(row, ray, carry, fan, beam, shift):
+    """(carry, cell as :func:`_swell_own_cell`) of the row's ray ``ray`` on the fan's grid, the azimuth divided only
+    when it moves on."""
+    a_now, cpsi, ga, gar = carry
+    s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
+    n_el = el_start[row + 1] - el_start[row]
+    a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el
+    cell = el_start[row] + ray - a * n_el
+    if a != a_now:
+        a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
+        ga, gar = beam_factor(beam[3], beam[0] * s_az[a]), beam_factor(beam[3], beam[0] * (s_az[a] - shift))
+    return (a_now, cpsi, ga, gar), (cpsi, ga, gar, cos_beta[cell], sin_beta[cell], dbeta[cell], ds)
+
+
+@njit(cache=True, nogil=True)
+def _swell_half_stage(c0, c1, bounce, weighting, bistatic, sc):
+    """e^(−α'R/2)·|R_s|² of each lit ray, |R_s|² = exp(−4(k·h_w)² sin²θg) at its facet."""
+    up, u, prim_s, normals = bounce.up, bounce.u, bounce.prim_s, bounce.surface_normals
+    two_way_np_per_m, wave_kh = weighting.two_way_np_per_m, bistatic.wave_kh
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 0.0:
+            continue
+        qs = prim_s[up[k]]
+        sg = u[k, 0] * normals[qs, 0] + u[k, 1] * normals[qs, 1] + u[k, 2] * normals[qs, 2]
+        sc[_SW_HALF, c] = math.exp(-0.5 * two_way_np_per_m * sc[_SW_R, c] - 4.0 * wave_kh * wave_kh * sg * sg)
+
+
+@njit(cache=True, nogil=True)
+def _swell_footprint_stage(c0, c1, side, m, bounce, face_normals, out, sc):
+    """dX/dβ of each lit ray (:func:`_footprint`) into ``sc``."""
+    up, prim_s, prim, ur, normals = bounce.up, bounce.prim_s, bounce.prim, bounce.ur, bounce.surface_normals
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 0.0:
+            continue
+        qs, q = prim_s[up[k]], prim[k]
+        dx = _footprint(m, side, sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], normals[qs, 0], normals[qs, 1],
+                        normals[qs, 2], (ur[k, 0], ur[k, 1], ur[k, 2]),
+                        (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2]), out.cos_i[k], sc[_SW_R, c])
+        sc[_SW_DX, c], sc[_SW_DX + 1, c], sc[_SW_DX + 2, c] = dx
+
+
+@njit(cache=True, nogil=True)
+def _swell_two_stage(c0, c1, bounce, weighting, out, sc):
+    """The two-bounce path S→P→X→P→S: w2 without the gains, t = 2R/c, Δt = 2·min(|u_r·dX/dβ|, cap)·dβ/c."""
+    ur, inv_c, min_range_m = bounce.ur, 0.5 * weighting.time_per_m, weighting.min_range_m
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 0.0:
+            continue
+        big_r, half, db = sc[_SW_R, c], sc[_SW_HALF, c], sc[_SW_DB, c]
         rb = max(big_r, min_range_m)
-        w2_out[k] = half * half * ds * db / (rb * rb)
-        slope = min(abs(urk[0] * dx[0] + urk[1] * dx[1] + urk[2] * dx[2]), slope_cap_m_rad)
-        time2_out[k], ext2_out[k] = 2.0 * big_r * inv_c, 2.0 * slope * db * inv_c
-        cos_i_out[k] = cos_i
-        vx, vy, vz = x[0] - pos[b, 0], x[1] - pos[b, 1], x[2] - pos[b, 2]
+        out.w2[k] = half * half * sc[_SW_DS, c] * db / (rb * rb)
+        slope = min(abs(ur[k, 0] * sc[_SW_DX, c] + ur[k, 1] * sc[_SW_DX + 1, c] + ur[k, 2] * sc[_SW_DX + 2, c]),
+                    weighting.slope_cap_m_rad)
+        out.time2[k], out.ext2[k] = 2.0 * big_r * inv_c, 2.0 * slope * db * inv_c
+
+
+@njit(cache=True, nogil=True)
+def _swell_leg_stage(c0, c1, b, poses, bounce, face_normals, out, sc):
+    """The direct leg X → S of each lit ray: −u_d, r = |X − S| and cos θs = −n·u_d (the one bounce lit where it
+    exceeds 1e-9)."""
+    pos, prim, x = poses.pos, bounce.prim, out.x
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 0.0:
+            continue
+        vx, vy, vz = x[k, 0] - pos[b, 0], x[k, 1] - pos[b, 1], x[k, 2] - pos[b, 2]
         r = math.sqrt(vx * vx + vy * vy + vz * vz)
         ir = 1.0 / r
         ud = (vx * ir, vy * ir, vz * ir)
-        cos_s = -(n_x[0] * ud[0] + n_x[1] * ud[1] + n_x[2] * ud[2])
-        leg_out[k, 0], leg_out[k, 1], leg_out[k, 2], r_out[k], cos_s_out[k] = -ud[0], -ud[1], -ud[2], r, cos_s
-        time1_out[k] = (big_r + r) * inv_c
-        slope = abs((urk[0] + ud[0]) * dx[0] + (urk[1] + ud[1]) * dx[1] + (urk[2] + ud[2]) * dx[2])
-        ext1_out[k] = min(slope, 2.0 * slope_cap_m_rad) * db * inv_c
-        if not cos_s > 1e-9:
+        q = prim[k]
+        cos_s = -(face_normals[q, 0] * ud[0] + face_normals[q, 1] * ud[1] + face_normals[q, 2] * ud[2])
+        out.leg[k, 0], out.leg[k, 1], out.leg[k, 2], out.r[k], out.cos_s[k] = -ud[0], -ud[1], -ud[2], r, cos_s
+        if cos_s > 1e-9:
+            sc[_SW_LIT, c] = 2.0
+
+
+@njit(cache=True, nogil=True)
+def _swell_one_time_stage(c0, c1, bounce, weighting, out, sc):
+    """The one-bounce echo's t = (R + r)/c and Δt = min(|(u_r + u_d)·dX/dβ|, 2·cap)·dβ/c."""
+    ur, leg, inv_c = bounce.ur, out.leg, 0.5 * weighting.time_per_m
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 0.0:
             continue
-        sc[1, c], sc[2, c], sc[3, c], sc[7, c] = _gain_args(m, side, ud[0], ud[1], ud[2], beam[0], beam[1], ct, st,
-                                                            shift)
-        sc[8, c] = mu_obj[face_object[q]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
+        out.time1[k] = (sc[_SW_R, c] + out.r[k]) * inv_c
+        slope = abs((ur[k, 0] - leg[k, 0]) * sc[_SW_DX, c] + (ur[k, 1] - leg[k, 1]) * sc[_SW_DX + 1, c]
+                    + (ur[k, 2] - leg[k, 2]) * sc[_SW_DX + 2, c])
+        out.ext1[k] = min(slope, 2.0 * weighting.slope_cap_m_rad) * sc[_SW_DB, c] * inv_c
+
+
+@njit(cache=True, nogil=True)
+def _swell_leg_gain_stage(c0, c1, side, m, shift, beam, out, sc):
+    """The gains' arguments along u_d (sc rows 1–3, the gate in 7) where the one bounce is lit."""
+    ct, st, leg = math.cos(beam[2]), math.sin(beam[2]), out.leg
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] == 2.0:
+            sc[1, c], sc[2, c], sc[3, c], sc[7, c] = _gain_args(m, side, -leg[k, 0], -leg[k, 1], -leg[k, 2], beam[0],
+                                                                beam[1], ct, st, shift)
+
+
+@njit(cache=True, nogil=True)
+def _swell_one_weight_stage(c0, c1, bounce, bistatic, weighting, out, sc):
+    """The one-bounce w1 without the gains (Lambert's σ into sc row 8 when it is applied here)."""
+    prim, mu_obj, face_object = bounce.prim, bistatic.mu_obj, bistatic.face_object
+    two_way_np_per_m, min_range_m = weighting.two_way_np_per_m, weighting.min_range_m
+    for k in range(c0, c1):
+        c = k - c0
+        if sc[_SW_LIT, c] != 2.0:
+            continue
+        cos_i, cos_s, r = out.cos_i[k], out.cos_s[k], out.r[k]
+        sc[8, c] = mu_obj[face_object[prim[k]]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
         rb = max(r, min_range_m)
-        w1_out[k] = half * math.exp(-0.5 * two_way_np_per_m * r) * ds * db / (rb * rb * cos_i)
-        if want_phi:
-            phi_out[k] = _azimuth(n_x, urk, (-ud[0], -ud[1], -ud[2]))
-    return a_now, cpsi, ga, gar
+        out.w1[k] = sc[_SW_HALF, c] * math.exp(-0.5 * two_way_np_per_m * r) * sc[_SW_DS, c] * sc[_SW_DB, c] / (
+            rb * rb * cos_i)
+
+
+@njit(cache=True, nogil=True)
+def _swell_phi_stage(c0, c1, bounce, face_normals, out, sc):
+    """φ, the bistatic azimuth between −u_r and −u_d in the plane of n, where the one bounce is lit."""
+    prim, ur, leg = bounce.prim, bounce.ur, out.leg
+    for k in range(c0, c1):
+        if sc[_SW_LIT, k - c0] == 2.0:
+            q = prim[k]
+            out.phi[k] = _azimuth((face_normals[q, 0], face_normals[q, 1], face_normals[q, 2]),
+                                  (ur[k, 0], ur[k, 1], ur[k, 2]), (leg[k, 0], leg[k, 1], leg[k, 2]))
 
 
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py

@@ -42,7 +42,7 @@ def _label_ray(dr, pt, dv, ox, oy, oz, side, half_len, origin_z, height_row, gro
     ground_row[n] = -g if x * side[0] + y * side[1] < 0.0 else g        # past nadir, on the other side: negative
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True)
 def label_rows(el_start, dr, lit, lit_score, hidden, pos, outward, is_seafloor, origin_z, best, out):
     """Per-sample ground truth of a block of pings from its centre-line rays.
 
@@ -86,59 +86,85 @@ def label_rows(el_start, dr, lit, lit_score, hidden, pos, outward, is_seafloor, 
         Written: kind (rows, n_s) int8, object_id and shadow_of (rows, n_s) int32, height and ground (rows, n_s)
         float32.
     """
-    lit_range, lit_extent, lit_object, lit_point, lit_dir = lit
-    hid_range, hid_extent, hid_object, hid_point, hid_dir = hidden
-    kind, object_id, shadow_of, height, ground = out
-    n_s = kind.shape[1]
+    src = np.empty(best.shape, dtype=np.int64)
+    label_kinds(el_start, dr, lit, lit_score, hidden, is_seafloor, best, out, src)
+    label_heights(dr, lit, hidden, pos, outward, origin_z, src, out)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _cells(rr, ext, dr, n_s):
+    """(first, last) sample whose range cell [(n − ½)·dr, (n + ½)·dr) overlaps the footprint [rr − ext/2,
+    rr + ext/2] (last < first: none)."""
+    lo = math.floor((rr - 0.5 * ext) / dr - 0.5) + 1.0
+    hi = math.ceil((rr + 0.5 * ext) / dr + 0.5) - 1.0
+    if hi < 0.0 or lo > n_s - 1.0:
+        return 0, -1
+    return int(max(lo, 0.0)), int(min(hi, n_s - 1.0))
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def label_kinds(el_start, dr, lit, lit_score, hidden, is_seafloor, best, out, src):
+    """The first pass of :func:`label_rows`: each sample's kind, object and occluder, and in ``src`` (rows, n_s)
+    int64 the ray that labels it (j: lit ray j, n + j: hidden footprint j, −1: none) for :func:`label_heights`."""
+    lit_range, lit_extent, lit_object = lit.range, lit.extent, lit.object
+    hid_range, hid_extent, hid_object = hidden.range, hidden.extent, hidden.object
+    kind, object_id, shadow_of = out.kind, out.object_id, out.shadow_of
+    n_s, n = kind.shape[1], lit_range.shape[0]
     for r in prange(el_start.shape[0] - 1):
+        for k in range(n_s):
+            best[r, k] = 0.0
+            kind[r, k] = 0
+            object_id[r, k] = -1
+            shadow_of[r, k] = -1
+            src[r, k] = -1
+        for j in range(el_start[r], el_start[r + 1]):      # the lit rays: the highest score wins
+            if not (lit_score[j] > 0.0):
+                continue
+            n_lo, n_hi = _cells(lit_range[j], lit_extent[j], dr, n_s)
+            for k in range(n_lo, n_hi + 1):
+                score = lit_score[j]
+                if score <= best[r, k]:
+                    continue
+                best[r, k] = score
+                obj = lit_object[j]
+                kind[r, k] = 1 if is_seafloor[obj] else 2
+                object_id[r, k] = obj
+                src[r, k] = j
+        for j in range(el_start[r], el_start[r + 1]):      # then the hidden footprints: shadow where nothing is lit
+            rr = hid_range[j]
+            if not (rr == rr):
+                continue
+            n_lo, n_hi = _cells(rr, hid_extent[j], dr, n_s)
+            for k in range(n_lo, n_hi + 1):
+                if kind[r, k] != 0:
+                    continue
+                kind[r, k] = 3
+                shadow_of[r, k] = hid_object[j]
+                src[r, k] = n + j
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def label_heights(dr, lit, hidden, pos, outward, origin_z, src, out):
+    """The second pass of :func:`label_rows`: each labelled sample's height and ground range from the ray that
+    labels it (``src`` of :func:`label_kinds`), NaN where none does."""
+    height, ground = out.height, out.ground
+    n_s, n = height.shape[1], lit.range.shape[0]
+    for r in prange(src.shape[0]):
         ox = pos[r, 0]
         oy = pos[r, 1]
         oz = pos[r, 2]
         side = outward[r]
-        for n in range(n_s):
-            best[r, n] = 0.0
-            kind[r, n] = 0
-            object_id[r, n] = -1
-            shadow_of[r, n] = -1
-            height[r, n] = np.nan
-            ground[r, n] = np.nan
-        for layer in range(2):
-            for j in range(el_start[r], el_start[r + 1]):
-                if layer == 0:
-                    if not (lit_score[j] > 0.0):
-                        continue
-                    rr = lit_range[j]
-                    ext = lit_extent[j]
-                    pt = lit_point[j]
-                    dv = lit_dir[j]
-                else:
-                    rr = hid_range[j]
-                    if not (rr == rr):
-                        continue
-                    ext = hid_extent[j]
-                    pt = hid_point[j]
-                    dv = hid_dir[j]
-                lo = math.floor((rr - 0.5 * ext) / dr - 0.5) + 1.0
-                hi = math.ceil((rr + 0.5 * ext) / dr + 0.5) - 1.0
-                if hi < 0.0 or lo > n_s - 1.0:
-                    continue
-                n_lo = int(max(lo, 0.0))
-                n_hi = int(min(hi, n_s - 1.0))
-                # |dR/dt| = |d·(P − O)|/R: half the footprint (plus half a cell) in t
-                slope = abs(dv[0] * (pt[0] - ox) + dv[1] * (pt[1] - oy) + dv[2] * (pt[2] - oz)) / rr
-                half_len = (0.5 * ext + dr) / max(slope, 1e-6)
-                for n in range(n_lo, n_hi + 1):
-                    if layer == 0:
-                        score = lit_score[j]
-                        if score <= best[r, n]:
-                            continue
-                        best[r, n] = score
-                        obj = lit_object[j]
-                        kind[r, n] = 1 if is_seafloor[obj] else 2
-                        object_id[r, n] = obj
-                    else:
-                        if kind[r, n] != 0:
-                            continue
-                        kind[r, n] = 3
-                        shadow_of[r, n] = hid_object[j]
-                    _label_ray(dr, pt, dv, ox, oy, oz, side, half_len, origin_z, height[r], ground[r], n)
+        for k in range(n_s):
+            height[r, k] = np.nan
+            ground[r, k] = np.nan
+            j = src[r, k]
+            if j < 0:
+                continue
+            if j < n:
+                rr, ext, pt, dv = lit.range[j], lit.extent[j], lit.point[j], lit.dir[j]
+            else:
+                rr, ext, pt, dv = hidden.range[j - n], hidden.extent[j - n], hidden.point[j - n], hidden.dir[j - n]
+            # |dR/dt| = |d·(P − O)|/R: half the footprint (plus half a cell) in t
+            slope = abs(dv[0] * (pt[0] - ox) + dv[1] * (pt[1] - oy) + dv[2] * (pt[2] - oz)) / rr
+            half_len = (0.5 * ext + dr) / max(slope, 1e-6)
+            _label_ray(dr, pt, dv, ox, oy, oz, side, half_len, origin_z, height[r], ground[r], k)

@@ -27,6 +27,7 @@ from .. import checks, kernels
 from .buffers import Buffers
 from .echoes import Echoes
 from ..kernels import aim as K
+from ..kernels.args import Bistatic, Bounce, Fan, Poses, SwellOut, Weighting
 from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
 from ..laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
@@ -109,15 +110,16 @@ def _paths(front, run, swell, fan, b, rot, pos_local, rx_shift, buf):
     o["x"], o["leg"] = buf.take("swell_x", (m, 3)), buf.take("swell_leg", (m, 3))
     o["mu"] = lambert_mu(c)                                        # Lambert's σ in the kernel
     o["want_phi"] = wants_azimuth(c) and o["mu"].shape[0] == 0
-    kernels.swell_paths(fan["up_start"], fan["up"], fan["ray_start"], fan["el_start"], fan["s"], np.cos(fan["beta"]),
-                        np.sin(fan["beta"]), fan["dbeta"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"], b["prim"],
-                        b["t2"], b["seen"], swell.compiled.face_normals, c.face_normals,
-                        np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift, plan.beam, plan.ds,
-                        plan.min_range_m, front.two_way_np_per_m, plan.slope_cap_m_rad, s.sound_speed_m_s, wave_kh(s),
-                        fan["max_range_m"], LEG_EPSILON_M, o["want_phi"], o["mu"], c.face_object, o["x"], o["w1"],
-                        o["t1"], o["e1"], o["w2"],
-                        o["t2"], o["e2"], o["cos_i"], o["cos_s"], o["phi"], o["leg"], o["r"],
-                        fan.get("layout", kernels.NO_LAYOUT))
+    bounce = Bounce(fan["up_start"], fan["up"], fan["ray_start"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"],
+                    b["prim"], b["t2"], b["seen"], swell.compiled.face_normals, LEG_EPSILON_M)
+    kernels.swell_paths(Fan(fan["s"], plan.ds, np.cos(fan["beta"]), np.sin(fan["beta"]), fan["dbeta"], fan["el_start"]),
+                        bounce, Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift),
+                        c.face_normals,
+                        Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, fan["max_range_m"],
+                                  plan.slope_cap_m_rad, 2.0 / s.sound_speed_m_s),
+                        Bistatic(0.0, wave_kh(s), o["mu"], c.face_object, o["want_phi"], False),
+                        SwellOut(o["x"], o["w1"], o["t1"], o["e1"], o["w2"], o["t2"], o["e2"], o["cos_i"], o["cos_s"],
+                                 o["phi"], o["leg"], o["r"]), fan.get("layout", kernels.NO_LAYOUT))
     return o
 
 

@@ -421,17 +421,17 @@ def test_swell_kernels_match_naive(rng):
     lam = {k: np.full(m, np.nan) for k in keys}
     face_object, mu = np.array([0, 1, 0, 1, 0, 1, 0], np.int32), np.array([0.01, 0.2])
     for want_phi, o, mu_obj in ((True, out, np.zeros(0)), (False, no_phi, np.zeros(0)), (False, lam, mu)):
-        kernels.swell_paths(up_start, up, ray_start, el_start, s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell,
-                            u, p, ur, t1, prim_s, prim, t2, seen, surf, normals, rot, pos, rx_shift, *consts, want_phi,
-                            mu_obj, face_object, x, *[o[k] for k in keys[:-1]], leg, o["r"], kernels.NO_LAYOUT)
+        _swell_paths((s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, el_start),
+                     (up_start, up, ray_start, u, p, ur, t1, prim_s, prim, t2, seen, surf), normals, (rot, pos, rx_shift),
+                     consts, (want_phi, mu_obj, face_object), x, o, leg, kernels.NO_LAYOUT)
     # each ray with its own layout (the rays aimed at objects via the swell): the fan grid's bits
     layout = np.column_stack([s_az[a], np.cos(beta_cell[cell]), np.sin(beta_cell[cell]), dbeta_cell[cell],
                               np.full(n, consts[1])])
     own = {k: np.full(m, np.nan) for k in keys}
     x_own, leg_own = np.full((m, 3), np.nan), np.full((m, 3), np.nan)
-    kernels.swell_paths(up_start, up, ray_start, el_start, np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), u, p,
-                        ur, t1, prim_s, prim, t2, seen, surf, normals, rot, pos, rx_shift, *consts, True, np.zeros(0),
-                        face_object, x_own, *[own[k] for k in keys[:-1]], leg_own, own["r"], layout)
+    _swell_paths((np.zeros(1), np.zeros(0), np.zeros(0), np.zeros(0), el_start),
+                 (up_start, up, ray_start, u, p, ur, t1, prim_s, prim, t2, seen, surf), normals, (rot, pos, rx_shift),
+                 consts, (True, np.zeros(0), face_object), x_own, own, leg_own, layout)
     for k in keys:
         np.testing.assert_array_equal(own[k], out[k], err_msg=k)
     for k in keys:                        # without φ (laws that ignore it): the rest to the bit, φ left at 0
@@ -453,6 +453,23 @@ def test_swell_kernels_match_naive(rng):
     np.testing.assert_allclose(out["phi"][lit1], ref["phi"][lit1], rtol=1e-9, atol=1e-9)
     assert 0 < lit1.sum() < ok.sum() < m and np.count_nonzero(out["w1"]) > m // 4   # every branch is taken
     assert np.count_nonzero((out["w2"] == 0) & ok) > 0 and np.count_nonzero(rx_shift[pu][ok] != 0) > 0
+
+
+def _swell_paths(fan, bounce, normals, poses, consts, law, x, o, leg, layout):
+    """kernels.swell_paths with its arguments in named groups from the twin's flat ones: ``fan`` (s, cos β, sin β,
+    dβ, el_start), ``bounce`` (up_start, up, ray_start, u, p, u_r, t1, prim_s, prim, t2, seen, surface normals),
+    ``consts`` (beam, ds, R_min, α', cap, c, k·h_w, R_max, eps), ``law`` (want_phi, μ, face_object), ``o`` the
+    outputs by name."""
+    from sonar_embree import kernels
+    from sonar_embree.kernels.args import Bistatic, Bounce, Fan, Poses, SwellOut, Weighting
+
+    beam, ds, r_min, two_way, cap, c, kh, r_max, eps = consts
+    want_phi, mu, face_object = law
+    kernels.swell_paths(Fan(fan[0], ds, *fan[1:]), Bounce(*bounce, eps), Poses(*poses), normals,
+                        Weighting(beam, two_way, r_min, r_max, cap, 2.0 / c), Bistatic(0.0, kh, mu, face_object,
+                                                                                      want_phi, False),
+                        SwellOut(x, o["w1"], o["time1"], o["ext1"], o["w2"], o["time2"], o["ext2"], o["cos_i"],
+                                 o["cos_s"], o["phi"], leg, o["r"]), layout)
 
 
 def _block(rng, n_p=3):
