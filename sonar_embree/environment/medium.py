@@ -54,8 +54,8 @@ class Environment:
         c(depth) for curved rays (docs/physics.md §12); None (default) or a uniform profile
         (which must equal ``sound_speed_m_s``): straight rays, today's code path. Its depth 0 is
         its ``surface_z_m`` or the surface's ``z_m`` (which must agree). Under a flat surface the
-        surface's paths follow curved rays too (§12b); a swell or the surface's own backscatter
-        over a profile is refused.
+        surface's paths follow curved rays too (§12b, a swell's §13c); the surface's own
+        backscatter over a profile is refused.
     noise : AmbientNoise or None
         The sea's ambient noise (docs/physics.md §14), heard once the sonar has a source level
         (``Sonar.source_level_db``): default :class:`AmbientNoise` () (5 m/s wind, moderate
@@ -121,9 +121,6 @@ class Environment:
         if p.surface_z_m is not None and abs(p.surface_z_m - self.surface.z_m) > 1e-6:
             raise ConfigError(f"Environment: the profile's depth 0 (surface_z_m = {p.surface_z_m:g} m) and the sea "
                               f"surface (z_m = {self.surface.z_m:g} m) must be at the same height")
-        if not self.surface.is_flat:
-            raise ConfigError("Environment: a swell over a sound-speed profile is not modelled (curved rays reflect "
-                              "off a flat surface only); drop swell_height_m or the profile")
         if self.surface.backscatter is not None:
             raise ConfigError("Environment: the surface's own backscatter over a sound-speed profile is not modelled; "
                               "drop SeaSurface.backscatter or the profile")

@@ -9,6 +9,7 @@
 - :mod:`.swell`: the same paths off a meshed surface, between and after its Embree casts — front end;
 - :mod:`.refraction`: curved rays in a sound-speed profile, chord by chord — front end;
 - :mod:`.eigenrays`: the rays from the sonar by the sea surface to a point, in a profile — front end;
+- :mod:`.curved_swell`: a swell's bounced rays over a profile in closed form, and the direct legs back — front end;
 - :mod:`.sas`: time-domain backprojection of receiver-array records (synthetic aperture) — image formation;
 - :mod:`.args`: named groups of kernel arguments (a block's fan, its poses, the scene's arrays, the outputs).
 
@@ -21,9 +22,10 @@ from . import args
 from ._numba import NO_LAYOUT, REFIT_MIN_COS, REFIT_REL_TOL, max_threads, njit, num_threads, prange, set_num_threads
 from .eigenrays import (EIGEN_WIDTH, M_COS_I, M_COS_S, M_EXT, M_PHI, M_T, M_W, M_XUP, MIX_WIDTH, curved_mixed,
                         surface_eigenrays, surface_reach)
+from .curved_swell import direct_eigenrays, swell_bounce, swell_tubes, swell_up_legs
 from .multipath import count_lit, merge_lit, mixed_legs, two_bounce, visibility_legs
 from .refraction import (HIT_WIDTH, RAY_WIDTH, S_L, STATE_WIDTH, arc_advance, arc_chord, arc_echoes, arc_land,
-                         arc_start)
+                         arc_start, arc_start_at)
 from .bvh import (DeviceBvh, cuda_available, lbvh_boxes, lbvh_children, morton_codes, traverse_cpu)
 from .rays import (BEAM_GAUSS, BEAM_SINC, _sinc, beam_cosines, beam_factor, factor_rows, cos_sin,
                    elevation_density, fan_echoes, fan_rays, place_rows, probe_rays, sinc_rows, weigh_fan,
@@ -35,7 +37,7 @@ from .swell import (G_HB, G_HS, G_NB, G_NS, G_S0, G_B0, G_STRIP, GLINT_WIDTH, gl
                     swell_paths, swell_surface_hits)
 from .truth import label_rows
 
-__all__ = ["backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_advance", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
+__all__ = ["direct_eigenrays", "swell_bounce", "swell_tubes", "swell_up_legs", "arc_start_at", "backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_advance", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "splat_rows",
            "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
            "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows",

@@ -151,8 +151,7 @@ def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, 
     m, shift = _rotation(poses.rot, b), poses.rx_shift[b]
     carry = _launch_stage(row, c0, c1, carry, fan, layout, weighting.beam, shift, sc)
     _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc)
-    _leg_gain_stage(c0, c1, side, m, shift, weighting.beam, hits, out, sc)
-    _lambert_stage(c0, c1, hits, out, bistatic, sc)
+    _leg_gain_stage(c0, c1, side, m, shift, weighting.beam, hits, out, bistatic, sc)
     _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc)
     _mixed_extent_stage(c0, c1, b, side, m, hits, poses, face_normals, out, weighting, sc)
     if bistatic.want_phi:
@@ -179,7 +178,7 @@ def _launch_stage(row, c0, c1, carry, fan, layout, beam, shift, sc):
     return carry
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
 def _grid_cell(row, carry, fan, beam, shift):
     """(carry, (cos β, sin β, dβ, ds)) of the row's next ray on the fan's grid: the elevation cell counted on, the
     azimuth (its cos ψ and gains) moved on after the row's last cell."""
@@ -195,7 +194,7 @@ def _grid_cell(row, carry, fan, beam, shift):
     return (j, az, cpsi, ga, gar, s_prev), (cos_beta[cell], sin_beta[cell], dbeta[cell], ds)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
 def _own_cell(i, carry, layout, beam, shift):
     """(carry, (cos β, sin β, dβ, ds)) of ray i's own cell (``layout``), cos ψ and the gains kept while s repeats."""
     j, az, cpsi, ga, gar, s_prev = carry
@@ -240,28 +239,18 @@ def _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc):
 
 
 @njit(cache=True, nogil=True)
-def _leg_gain_stage(c0, c1, side, m, shift, beam, hits, out, sc):
-    """The gains' arguments along S → P (sc rows 1–3, the gate in 6); 0 for rays without a direct echo."""
-    r, v = hits.range, out.v
+def _leg_gain_stage(c0, c1, side, m, shift, beam, hits, out, bistatic, sc):
+    """The gains' arguments along S → P (sc rows 1–3, the gate in 6) and Lambert's σ = μ·cos θi·cos θs into row 7
+    (1 when σ is left to the caller); 0 for rays without a direct echo."""
+    r, prim, v, mu_obj, face_object = hits.range, hits.prim, out.v, bistatic.mu_obj, bistatic.face_object
     ct, st = math.cos(beam[2]), math.sin(beam[2])
     for i in range(c0, c1):
         k = i - c0
         if not math.isfinite(r[i]):
-            sc[1, k], sc[2, k], sc[3, k], sc[6, k] = 0.0, 0.0, 0.0, 0.0
+            sc[1, k], sc[2, k], sc[3, k], sc[6, k], sc[7, k] = 0.0, 0.0, 0.0, 0.0, 0.0
             continue
         sc[1, k], sc[2, k], sc[3, k], sc[6, k] = _gain_args(m, side, -v[i, 0], -v[i, 1], v[i, 2], beam[0], beam[1],
                                                             ct, st, shift)                           # along S → P
-
-
-@njit(cache=True, nogil=True)
-def _lambert_stage(c0, c1, hits, out, bistatic, sc):
-    """Lambert's σ = μ·cos θi·cos θs into sc row 7 (1 when σ is left to the caller, 0 without a direct echo)."""
-    r, prim, mu_obj, face_object = hits.range, hits.prim, bistatic.mu_obj, bistatic.face_object
-    for i in range(c0, c1):
-        k = i - c0
-        if not math.isfinite(r[i]):
-            sc[7, k] = 0.0
-            continue
         sc[7, k] = (mu_obj[face_object[prim[i]]] * max(out.cos_i[i], 0.0) * max(out.cos_s[i], 0.0)
                     if mu_obj.shape[0] > 0 else 1.0)
 
@@ -429,7 +418,6 @@ def _inverse(d):
     return 1.0 / d if d != 0.0 else math.copysign(math.inf, d)
 
 
-@njit(cache=True, nogil=True)
 def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
     """The legs of a block's lit echoes that can be blocked, as float32 rays for an occlusion query.
 
@@ -466,13 +454,11 @@ def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
     k : int
         Legs to cast.
     """
-    rows = ray_start.shape[0] - 1
-    counts = np.zeros(rows + 1, dtype=np.int64)
+    counts = np.zeros(ray_start.shape[0], dtype=np.int64)
     _leg_spans(ray_start, legs, boxes, face_object, face_normals, out.start, out.end, counts)
-    for row in range(rows):
-        counts[row + 1] += counts[row]
+    np.cumsum(counts, out=counts)
     _leg_rays(ray_start, legs, out, counts)
-    return counts[rows]
+    return int(counts[-1])
 
 
 @njit(cache=True, nogil=True, parallel=True)

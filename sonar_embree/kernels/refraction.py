@@ -151,6 +151,35 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
             lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
 
 
+@njit(cache=True, nogil=True, parallel=True)
+def arc_start_at(origins, dirs, layers, z0, box_z, l_max, state, lay, ray):
+    """Launch state of rays from their own origins (n, 3) (local frame, m) along their own world unit directions
+    (n, 3) (a swell's mirrored rays, :mod:`sonar_embree.propagation.curved_swell`), moved in closed form to the
+    scene's height range as :func:`arc_start`; ``layers``, ``z0``, ``box_z``, ``l_max`` and the outputs as there."""
+    for i in prange(origins.shape[0]):
+        depth = z0 - origins[i, 2]
+        k = _layer_of(layers, depth)
+        c0 = _speed(_layer(layers, k), depth)
+        ux, uy, uz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        hz = math.sqrt(ux * ux + uy * uy)
+        ray[i, 0] = ux / hz if hz > 0.0 else 1.0
+        ray[i, 1] = uy / hz if hz > 0.0 else 0.0
+        ray[i, 2] = hz / c0
+        ray[i, 3] = -uz
+        ray[i, 4] = c0
+        for q in range(3):
+            state[i, q] = origins[i, q]
+        for q in range(S_L, STATE_WIDTH):
+            state[i, q] = 0.0
+        state[i, S_D0] = depth
+        state[i, S_SN0] = -uz
+        state[i, S_XH0] = origins[i, 0] * ray[i, 0] + origins[i, 1] * ray[i, 1]
+        state[i, S_RA] = 1.0
+        state[i, S_CT] = hz
+        state[i, S_ST] = -uz
+        lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
+
+
 @njit(cache=True, nogil=True)
 def _turn(ca, sa, kappa, ds):
     """(Δx, Δdepth, cos θb, sin θb) after an arc length ``ds`` from θa (cos ``ca``, sin ``sa``), θb = θa − κ·ds.

@@ -221,7 +221,7 @@ def _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, beam, shift, sc):
     return carry
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
 def _swell_own_cell(i, layout, beam, shift):
     """(cos ψ, Γ_az, Γ_az,rx, cos β, sin β, dβ, ds) of image-fan ray i's own cell."""
     cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
@@ -230,7 +230,7 @@ def _swell_own_cell(i, layout, beam, shift):
     return cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
 def _swell_grid_cell(row, ray, carry, fan, beam, shift):
     """(carry, cell as :func:`_swell_own_cell`) of the row's ray ``ray`` on the fan's grid, the azimuth divided only
     when it moves on."""

@@ -42,7 +42,6 @@ def _label_ray(dr, pt, dv, ox, oy, oz, side, half_len, origin_z, height_row, gro
     ground_row[n] = -g if x * side[0] + y * side[1] < 0.0 else g        # past nadir, on the other side: negative
 
 
-@njit(cache=True, nogil=True)
 def label_rows(el_start, dr, lit, lit_score, hidden, pos, outward, is_seafloor, origin_z, best, out):
     """Per-sample ground truth of a block of pings from its centre-line rays.
 

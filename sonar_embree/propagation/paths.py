@@ -2,8 +2,9 @@
 
 A front end casts its fan along one **direct model** (straight rays, :class:`Direct`, or curved rays in a
 sound-speed profile, :class:`Refracted`) and adds the paths of each **surface model** the medium has: the flat
-surface's image paths (:class:`FlatSurface`, docs/physics.md §13), the same over a profile (:class:`RefractedFlatSurface`,
-§12b), a swell's meshed bounces (:class:`Swell`, §13b) and the surface's own backscatter (:class:`SurfaceLine`).
+surface's image paths (:class:`FlatSurface`, docs/physics.md §13), the same over a profile
+(:class:`RefractedFlatSurface`, §12b), a swell's meshed bounces (:class:`Swell`, §13b), the same over a profile
+(:class:`RefractedSwell`, §13c) and the surface's own backscatter (:class:`SurfaceLine`).
 :func:`path_models` is the one place that picks them; the front end composes what it gets, so a new path is one
 class here and one line there. Each surface model returns its contributions tagged with their path (0 direct,
 1 one bounce, 2 two bounces) and the echoes of the rays aimed at objects along its paths; the kernels they call are
@@ -16,7 +17,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import curved_surface, multipath, refraction, swell
+from . import curved_surface, curved_swell, multipath, refraction, swell
 from .echoes import Echoes
 from .fan import BlockEchoes, cast_block
 
@@ -127,6 +128,18 @@ class Swell:
 
 
 @dataclasses.dataclass(frozen=True)
+class RefractedSwell:
+    """A swell over a sound-speed profile: each ray climbs the profile, is mirrored in its facet and marched down
+    through the scene (:mod:`~sonar_embree.propagation.curved_swell`, docs/physics.md §13c); the rays aimed at objects
+    give their direct path only."""
+
+    def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
+                      rx_shift):
+        mixed, image = curved_swell.swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift)
+        return [Contribution(mixed, None, 1), Contribution(image, None, 2)], []
+
+
+@dataclasses.dataclass(frozen=True)
 class SurfaceLine:
     """The sea surface's own backscatter, a direct path (:func:`~sonar_embree.propagation.multipath.surface_line`)."""
 
@@ -145,7 +158,10 @@ def path_models(environment) -> tuple:
     surface = environment.surface
     if surface is None:
         return direct, ()
-    bounce = (RefractedFlatSurface() if environment.refracts else FlatSurface() if surface.is_flat else Swell())
+    if environment.refracts:
+        bounce = RefractedFlatSurface() if surface.is_flat else RefractedSwell()
+    else:
+        bounce = FlatSurface() if surface.is_flat else Swell()
     return direct, (bounce,) + ((SurfaceLine(),) if surface.backscatter is not None else ())
 
 

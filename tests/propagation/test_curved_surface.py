@@ -245,7 +245,6 @@ def test_an_object_above_the_sonar_blocks_the_surface_paths():
 
 @pytest.mark.parametrize("surface, needle", [
     (dict(z_m=H + DEPTH + 1.0), "same height"),
-    (dict(z_m=H + DEPTH, swell_height_m=0.5, swell_length_m=20.0), "swell"),
     (dict(z_m=H + DEPTH, backscatter=-30.0), "backscatter"),
 ])
 def test_what_a_surface_over_a_profile_does_not_model_is_refused(surface, needle):

@@ -376,8 +376,6 @@ def test_profile_errors_name_the_problem():
     bent = se.SoundSpeedProfile.linear(1500.0, 0.5)
     with pytest.raises(se.ConfigError, match="depth 0 needs a height"):
         se.Environment(sound_speed=bent)
-    with pytest.raises(se.ConfigError, match="swell over a sound-speed profile is not modelled"):
-        se.Environment(sound_speed=bent, surface=se.SeaSurface(z_m=30.0, swell_height_m=0.5, swell_length_m=20.0))
     with pytest.raises(se.ConfigError, match="uniform sound_speed profile at 1490 m/s disagrees"):
         se.Environment(sound_speed=se.SoundSpeedProfile((0.0,), (1490.0,)))
     with pytest.raises(se.ConfigError, match="surface_z_m must be finite"):
