@@ -6,7 +6,7 @@
 
 Cases: the flat floor (10 m altitude, 60 m range) and the shipwreck pass, each with straight rays and in a linear
 profile (gradient 0.5 s⁻¹, the sonar 20 m deep), and in the profile under a flat surface (its paths along curved
-rays, docs/physics.md §12b); speckle-free. ms per ping, best of three, the stage times, and the rounds of chords
+rays, docs/physics.md §12b) and under a swell (H = 0.4 m, Λ = 8 m: curved rays off its facets, §13c); speckle-free. ms per ping, best of three, the stage times, and the rounds of chords
 the curved rays took. No test reads it.
 """
 import dataclasses
@@ -44,10 +44,13 @@ def main() -> int:
             continue
         wet = se.Acquisition(sonar, se.Environment(sound_speed=profile,
                                                                     surface=se.SeaSurface(z_m=z)))
+        swell = se.Acquisition(sonar, se.Environment(sound_speed=profile, surface=se.SeaSurface(
+            z_m=z, swell_height_m=0.4, swell_length_m=8.0)))
         se.simulate(scene, traj[:2], wet, start_time="2000-01-01")  # compile the surface's curved paths
+        se.simulate(scene, traj[:2], swell, start_time="2000-01-01")
         out[name] = {"straight": _best(scene, traj, sonar), "profile": _best(scene, traj, bent),
-                     "profile_surface": _best(scene, traj, wet)}
-        for k in ("profile", "profile_surface"):
+                     "profile_surface": _best(scene, traj, wet), "profile_swell": _best(scene, traj, swell)}
+        for k in ("profile", "profile_surface", "profile_swell"):
             out[name][f"ratio {k}"] = round(out[name][k]["total"] / out[name]["straight"]["total"], 2)
     print(json.dumps(out))
     return 0

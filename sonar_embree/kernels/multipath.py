@@ -163,46 +163,52 @@ def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, 
 
 @njit(cache=True, nogil=True)
 def _launch_stage(row, c0, c1, carry, fan, layout, beam, shift, sc):
-    """Each ray's cell (dβ, ds into ``sc``) and its launch gains' arguments (sc rows 0, 4, 5), the carry moved on."""
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
-    per_ray = layout.shape[0] > 0
-    for i in range(c0, c1):
-        k = i - c0
-        if per_ray:
-            carry, cell = _own_cell(i, carry, layout, beam, shift)
-        else:
-            carry, cell = _grid_cell(row, carry, fan, beam, shift)
-        cpsi, cb, sbeta = carry[2], cell[0], cell[1]
-        sc[0, k], sc[4, k], sc[5, k] = beam[1] * cpsi * (sbeta * ct - cb * st), carry[3], carry[4]
-        sc[_SC_DB, k], sc[_SC_DS, k] = cell[2], cell[3]
-    return carry
+    """Each ray's cell (dβ, ds into ``sc``) and its launch gains' arguments (sc rows 0, 4, 5), the carry moved on:
+    the fan's grid (:func:`_grid_stage`) or each ray's own cell (:func:`_own_stage`)."""
+    if layout.shape[0] > 0:
+        return _own_stage(c0, c1, carry, layout, beam, shift, sc)
+    return _grid_stage(row, c0, c1, carry, fan, beam, shift, sc)
 
 
-@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
-def _grid_cell(row, carry, fan, beam, shift):
-    """(carry, (cos β, sin β, dβ, ds)) of the row's next ray on the fan's grid: the elevation cell counted on, the
-    azimuth (its cos ψ and gains) moved on after the row's last cell."""
-    j, az, cpsi, ga, gar, s_prev = carry
+@njit(cache=True, nogil=True)
+def _grid_stage(row, c0, c1, carry, fan, beam, shift, sc):
+    """The launch cells of rays c0 … c1 − 1 on the fan's grid: the elevation cell counted on, the azimuth (its cos ψ
+    and gains) moved on after the row's last cell; the fan's arrays taken once per chunk."""
+    j, az, cpsi, ga, gar = carry[0], carry[1], carry[2], carry[3], carry[4]
     s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    if j == el_start[row + 1] - el_start[row] - 1:
-        j, az = 0, az + 1
-        cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
-        ga, gar = beam_factor(beam[3], beam[0] * s_az[az]), beam_factor(beam[3], beam[0] * (s_az[az] - shift))
-    else:
-        j += 1
-    cell = el_start[row] + j
-    return (j, az, cpsi, ga, gar, s_prev), (cos_beta[cell], sin_beta[cell], dbeta[cell], ds)
+    n_el, ct, st = el_start[row + 1] - el_start[row], math.cos(beam[2]), math.sin(beam[2])
+    for i in range(c0, c1):
+        if j == n_el - 1:
+            j, az = 0, az + 1
+            cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
+            ga, gar = beam_factor(beam[3], beam[0] * s_az[az]), beam_factor(beam[3], beam[0] * (s_az[az] - shift))
+        else:
+            j += 1
+        cell = el_start[row] + j
+        _put_cell(sc, i - c0, cpsi, ga, gar, cos_beta[cell], sin_beta[cell], dbeta[cell], ds, beam[1], ct, st)
+    return j, az, cpsi, ga, gar, carry[5]
 
 
-@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
-def _own_cell(i, carry, layout, beam, shift):
-    """(carry, (cos β, sin β, dβ, ds)) of ray i's own cell (``layout``), cos ψ and the gains kept while s repeats."""
-    j, az, cpsi, ga, gar, s_prev = carry
-    if layout[i, 0] != s_prev:
-        s_prev = layout[i, 0]
-        cpsi = math.sqrt(1.0 - s_prev * s_prev)
-        ga, gar = beam_factor(beam[3], beam[0] * s_prev), beam_factor(beam[3], beam[0] * (s_prev - shift))
-    return (j, az, cpsi, ga, gar, s_prev), (layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4])
+@njit(cache=True, nogil=True)
+def _own_stage(c0, c1, carry, layout, beam, shift, sc):
+    """The launch cells of rays c0 … c1 − 1 from each one's own cell (``layout``), cos ψ and the gains kept while s
+    repeats."""
+    cpsi, ga, gar, s_prev = carry[2], carry[3], carry[4], carry[5]
+    ct, st = math.cos(beam[2]), math.sin(beam[2])
+    for i in range(c0, c1):
+        if layout[i, 0] != s_prev:
+            s_prev = layout[i, 0]
+            cpsi = math.sqrt(1.0 - s_prev * s_prev)
+            ga, gar = beam_factor(beam[3], beam[0] * s_prev), beam_factor(beam[3], beam[0] * (s_prev - shift))
+        _put_cell(sc, i - c0, cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4], beam[1], ct, st)
+    return carry[0], carry[1], cpsi, ga, gar, s_prev
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _put_cell(sc, k, cpsi, ga, gar, cb, sbeta, db, ds, k_el, ct, st):
+    """Ray k's launch gains' arguments (sc rows 0, 4, 5: Γ_el's sinc argument, Γ_az, Γ_az,rx) and its cell dβ, ds."""
+    sc[0, k], sc[4, k], sc[5, k] = k_el * cpsi * (sbeta * ct - cb * st), ga, gar
+    sc[_SC_DB, k], sc[_SC_DS, k] = db, ds
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -213,9 +219,8 @@ def _facing(face_normals, p, u):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _direct_dir(hits, pos, i, b):
-    """u = (X − S)/r of echo i: the direct ray's unit direction."""
-    r, x = hits.range, hits.point
+def _direct_dir(r, x, pos, i, b):
+    """u = (X − S)/r of echo i (ranges r, points x): the direct ray's unit direction."""
     ir = 1.0 / r[i]
     return (x[i, 0] - pos[b, 0]) * ir, (x[i, 1] - pos[b, 1]) * ir, (x[i, 2] - pos[b, 2]) * ir
 
@@ -227,7 +232,7 @@ def _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc):
     for i in range(c0, c1):
         if not math.isfinite(r[i]):
             continue
-        u = _direct_dir(hits, pos, i, b)
+        u = _direct_dir(r, x, pos, i, b)
         vx, vy, vz = pos[b, 0] - x[i, 0], pos[b, 1] - x[i, 1], 2.0 * z_s - pos[b, 2] - x[i, 2]
         r2 = math.sqrt(vx * vx + vy * vy + vz * vz)
         ir2 = 1.0 / r2
@@ -276,13 +281,13 @@ def _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc):
 @njit(cache=True, nogil=True)
 def _mixed_extent_stage(c0, c1, b, side, m, hits, poses, face_normals, out, weighting, sc):
     """Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c (0 without a direct echo)."""
-    r, prim, pos, v = hits.range, hits.prim, poses.pos, out.v
+    r, x, prim, pos, v = hits.range, hits.point, hits.prim, poses.pos, out.v
     cap, inv_c = 2.0 * weighting.slope_cap_m_rad, 0.5 * weighting.time_per_m
     for i in range(c0, c1):
         if not math.isfinite(r[i]):
             out.extent[i] = 0.0
             continue
-        u = _direct_dir(hits, pos, i, b)
+        u = _direct_dir(r, x, pos, i, b)
         n = _facing(face_normals, prim[i], u)
         vi = (v[i, 0], v[i, 1], v[i, 2])
         out.extent[i] = min(_footprint_slope(m, side, u, vi, n, r[i]), cap) * sc[_SC_DB, i - c0] * inv_c
@@ -291,10 +296,10 @@ def _mixed_extent_stage(c0, c1, b, side, m, hits, poses, face_normals, out, weig
 @njit(cache=True, nogil=True)
 def _mixed_phi_stage(c0, c1, b, hits, poses, face_normals, out):
     """φ, the bistatic azimuth between −u1 and v in the plane of n (an arccos per echo)."""
-    r, prim, pos, v = hits.range, hits.prim, poses.pos, out.v
+    r, x, prim, pos, v = hits.range, hits.point, hits.prim, poses.pos, out.v
     for i in range(c0, c1):
         if math.isfinite(r[i]):
-            u = _direct_dir(hits, pos, i, b)
+            u = _direct_dir(r, x, pos, i, b)
             out.phi[i] = _azimuth(_facing(face_normals, prim[i], u), u, (v[i, 0], v[i, 1], v[i, 2]))
 
 
@@ -454,65 +459,74 @@ def visibility_legs(ray_start, legs, boxes, face_object, face_normals, out):
     k : int
         Legs to cast.
     """
+    n = legs.weight.shape[0]
+    own, rise, org = np.empty(n, np.int32), np.empty(n), np.empty((n, 3))
     counts = np.zeros(ray_start.shape[0], dtype=np.int64)
-    _leg_spans(ray_start, legs, boxes, face_object, face_normals, out.start, out.end, counts)
+    _leg_spans(ray_start, legs, boxes, face_object, face_normals, own, rise, org, out.start, out.end, counts)
     np.cumsum(counts, out=counts)
     _leg_rays(ray_start, legs, out, counts)
     return int(counts[-1])
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _leg_spans(ray_start, legs, boxes, face_object, face_normals, start_out, end_out, counts):
-    """Each lit echo's leg span to cast (start_out, end_out; 0, 0: none) and the legs per row in counts[row + 1]
-    (see :func:`visibility_legs`)."""
-    weight = legs.weight
+def _leg_spans(ray_start, legs, boxes, face_object, face_normals, own, rise, org, start_out, end_out, counts):
+    """Each lit echo's leg span to cast (start_out, end_out; 0, 0: none) and the legs of row r in counts[r + 1]
+    (see :func:`visibility_legs`), row by row: :func:`_row_owners`, then :func:`_row_spans`."""
     for row in prange(ray_start.shape[0] - 1):
-        b = row // 2
-        for i in range(ray_start[row], ray_start[row + 1]):
-            start_out[i], end_out[i] = 0.0, 0.0
-            if not weight[i] > 0.0:
-                continue
-            own, above, rise = _leg_owner(i, b, legs, face_object, face_normals)
-            start, end = _leg_span(i, b, legs, boxes, own, above, rise)
-            if end - start > 0.0:
-                start_out[i], end_out[i] = start, end
-                counts[row + 1] += 1
+        _row_owners(row, ray_start, legs, face_object, face_normals, own, rise, org)
+        counts[row + 1] = _row_spans(row, ray_start, legs, boxes, own, rise, org, start_out, end_out)
 
 
-@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
-def _leg_owner(i, b, legs, face_object, face_normals):
-    """(object, above, rise) of echo i's leg: the object of its triangle (−1: none given), whether the direct ray
-    reached it from above (with ``free_own``), and tan of a leg's elevation from its hit point (−inf where not
-    needed), the three facts that let :func:`_leg_span` pass over the echo's own height field."""
-    x, pos, dirs, prim = legs.point, legs.pos, legs.dir, legs.prim
-    from_sonar, free_own = legs.from_sonar, legs.free_own
-    own, above, rise = -1, False, -math.inf
-    if prim.shape[0] > 0:
-        p = prim[i]
-        own = face_object[p]
-        above = free_own and face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (
-            x[i, 1] - pos[b, 1]) + face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0
-        if not (from_sonar or above):
-            h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
-            rise = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
-    return own, above, rise
+@njit(cache=True, nogil=True)
+def _row_owners(row, ray_start, legs, face_object, face_normals, own, rise, org):
+    """Per echo of the row: its leg's origin (``org``), the object of its triangle (``own``, −1: none given) and how
+    its own height field may be passed over (``rise``: +inf where the direct ray reached it from above with
+    ``free_own``, tan of the leg's elevation from its hit point, or −inf; NaN: an unlit echo, no leg)."""
+    x, pos, from_sonar, dirs, weight = legs.point, legs.pos, legs.from_sonar, legs.dir, legs.weight
+    prim, free_own = legs.prim, legs.free_own
+    b = row // 2
+    for i in range(ray_start[row], ray_start[row + 1]):
+        if not weight[i] > 0.0:
+            rise[i] = math.nan
+            continue
+        for q in range(3):
+            org[i, q] = pos[b, q] if from_sonar else x[i, q]
+        o, above, r = -1, False, -math.inf
+        if prim.shape[0] > 0:
+            p = prim[i]
+            o = face_object[p]
+            above = free_own and face_normals[p, 0] * (x[i, 0] - pos[b, 0]) + face_normals[p, 1] * (
+                x[i, 1] - pos[b, 1]) + face_normals[p, 2] * (x[i, 2] - pos[b, 2]) < 0.0
+            if not (from_sonar or above):
+                h = math.sqrt(dirs[i, 0] * dirs[i, 0] + dirs[i, 1] * dirs[i, 1])
+                r = dirs[i, 2] / h if h > 0.0 else math.copysign(math.inf, dirs[i, 2])
+        own[i], rise[i] = o, math.inf if above else r
 
 
-@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
-def _leg_span(i, b, legs, boxes, own, above, rise):
-    """(start, end) of echo i's leg over the boxes it crosses (end ≤ start: none), ``eps`` from each end, the
-    boxes of its own height field passed over where :func:`_leg_owner` allows."""
-    x, pos, from_sonar, dirs, dist, eps = legs.point, legs.pos, legs.from_sonar, legs.dir, legs.length, legs.eps
+@njit(cache=True, nogil=True)
+def _row_spans(row, ray_start, legs, boxes, own, rise, org, start_out, end_out):
+    """Per lit echo of the row: its leg's span over the boxes it crosses, ``eps`` from each end, the boxes of its own
+    height field passed over where :func:`_row_owners` allows; the number of legs with a span."""
+    dirs, dist, eps = legs.dir, legs.length, legs.eps
     box_lo, box_hi, box_obj, box_slope = boxes
-    ox, oy, oz = (pos[b, 0], pos[b, 1], pos[b, 2]) if from_sonar else (x[i, 0], x[i, 1], x[i, 2])
-    ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
-    start, end = math.inf, -math.inf
-    for q in range(box_lo.shape[0]):
-        if box_obj[q] < 0 or box_obj[q] != own or not (above or rise > box_slope[q]):
-            t0, t1 = _box_span(box_lo, box_hi, q, ox, oy, oz, ix, iy, iz, eps, dist[i] - eps)
-            if t0 <= t1:
-                start, end = min(start, t0), max(end, t1)
-    return start, min(dist[i] - eps, end + eps)
+    count = 0
+    for i in range(ray_start[row], ray_start[row + 1]):
+        start_out[i], end_out[i] = 0.0, 0.0
+        if not rise[i] == rise[i]:
+            continue
+        ox, oy, oz = org[i, 0], org[i, 1], org[i, 2]
+        ix, iy, iz = _inverse(dirs[i, 0]), _inverse(dirs[i, 1]), _inverse(dirs[i, 2])
+        start, end = math.inf, -math.inf
+        for q in range(box_lo.shape[0]):
+            if box_obj[q] < 0 or box_obj[q] != own[i] or not rise[i] > box_slope[q]:
+                t0, t1 = _box_span(box_lo, box_hi, q, ox, oy, oz, ix, iy, iz, eps, dist[i] - eps)
+                if t0 <= t1:
+                    start, end = min(start, t0), max(end, t1)
+        end = min(dist[i] - eps, end + eps)
+        if end - start > 0.0:
+            start_out[i], end_out[i] = start, end
+            count += 1
+    return count
 
 
 @njit(cache=True, nogil=True, parallel=True)

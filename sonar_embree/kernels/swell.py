@@ -202,47 +202,59 @@ def _swell_hit_stage(c0, c1, bounce, face_normals, weighting, out, sc):
 @njit(cache=True, nogil=True)
 def _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, beam, shift, sc):
     """Each lit ray's launch cell (cos ψ, cos β, sin β, dβ, ds into ``sc``) and its gains' arguments (sc rows 0, 4,
-    5, the gate in 6): Γ(u) from the fan grid, the mirror maps the image ray onto u; the azimuth carried on."""
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
-    up, ray_start = bounce.up, bounce.ray_start
-    for k in range(c0, c1):
-        c = k - c0
-        if sc[_SW_LIT, c] == 0.0:
-            continue
-        if layout.shape[0] > 0:                          # a ray aimed at an object: its own cell
-            cell = _swell_own_cell(up[k], layout, beam, shift)
-        else:
-            carry, cell = _swell_grid_cell(row, up[k] - ray_start[row], carry, fan, beam, shift)
-        cpsi, ga, gar, cb, sb, db, ds = cell
-        sc[4, c], sc[5, c] = ga, gar
-        sc[0, c] = beam[1] * cpsi * (sb * ct - cb * st)
-        sc[6, c] = 1.0 if cb * ct + sb * st > 0.0 else 0.0      # 0 behind the baffle
-        sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], sc[_SW_DB, c], sc[_SW_DS, c] = cpsi, cb, sb, db, ds
-    return carry
+    5, the gate in 6): Γ(u) from the fan grid (the mirror maps the image ray onto u), the azimuth carried on; or
+    from each ray's own cell (``layout``, the rays aimed at objects)."""
+    if layout.shape[0] > 0:
+        _swell_own_stage(c0, c1, bounce, layout, beam, shift, sc)
+        return carry
+    return _swell_grid_stage(row, c0, c1, carry, fan, bounce, beam, shift, sc)
 
 
-@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
-def _swell_own_cell(i, layout, beam, shift):
-    """(cos ψ, Γ_az, Γ_az,rx, cos β, sin β, dβ, ds) of image-fan ray i's own cell."""
-    cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
-    sa = layout[i, 0]
-    ga, gar = beam_factor(beam[3], beam[0] * sa), beam_factor(beam[3], beam[0] * (sa - shift))
-    return cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]
-
-
-@njit(cache=True, nogil=True, inline='always')  # per ray, array arguments: see kernels/_numba.py
-def _swell_grid_cell(row, ray, carry, fan, beam, shift):
-    """(carry, cell as :func:`_swell_own_cell`) of the row's ray ``ray`` on the fan's grid, the azimuth divided only
-    when it moves on."""
-    a_now, cpsi, ga, gar = carry
+@njit(cache=True, nogil=True)
+def _swell_grid_stage(row, c0, c1, carry, fan, bounce, beam, shift, sc):
+    """The launch cells on the fan's grid: the azimuth of each ray, divided only when it moves on; the fan's arrays
+    taken once per chunk."""
+    a_now, cpsi, ga, gar = carry[0], carry[1], carry[2], carry[3]
     s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    n_el = el_start[row + 1] - el_start[row]
-    a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el
-    cell = el_start[row] + ray - a * n_el
-    if a != a_now:
-        a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
-        ga, gar = beam_factor(beam[3], beam[0] * s_az[a]), beam_factor(beam[3], beam[0] * (s_az[a] - shift))
-    return (a_now, cpsi, ga, gar), (cpsi, ga, gar, cos_beta[cell], sin_beta[cell], dbeta[cell], ds)
+    up, ray_start = bounce.up, bounce.ray_start
+    n_el, ct, st = el_start[row + 1] - el_start[row], math.cos(beam[2]), math.sin(beam[2])
+    for k in range(c0, c1):
+        if sc[_SW_LIT, k - c0] == 0.0:
+            continue
+        ray = up[k] - ray_start[row]
+        a = a_now if 0 <= ray - a_now * n_el < n_el else ray // n_el      # the azimuth, divided when it moves on
+        cell = el_start[row] + ray - a * n_el
+        if a != a_now:
+            a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
+            ga, gar = beam_factor(beam[3], beam[0] * s_az[a]), beam_factor(beam[3], beam[0] * (s_az[a] - shift))
+        _put_swell_cell(sc, k - c0, (cpsi, ga, gar, cos_beta[cell], sin_beta[cell], dbeta[cell], ds), beam[1], ct, st)
+    return a_now, cpsi, ga, gar
+
+
+@njit(cache=True, nogil=True)
+def _swell_own_stage(c0, c1, bounce, layout, beam, shift, sc):
+    """The launch cells from each ray's own cell (``layout``)."""
+    up, ct, st = bounce.up, math.cos(beam[2]), math.sin(beam[2])
+    for k in range(c0, c1):
+        if sc[_SW_LIT, k - c0] == 0.0:
+            continue
+        i = up[k]
+        cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
+        sa = layout[i, 0]
+        ga, gar = beam_factor(beam[3], beam[0] * sa), beam_factor(beam[3], beam[0] * (sa - shift))
+        _put_swell_cell(sc, k - c0, (cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]), beam[1],
+                        ct, st)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _put_swell_cell(sc, c, cell, k_el, ct, st):
+    """Ray c's launch cell (cos ψ, Γ_az, Γ_az,rx, cos β, sin β, dβ, ds) into ``sc``: its gains' arguments (rows 0, 4,
+    5), the baffle's gate (row 6) and the cell."""
+    cpsi, ga, gar, cb, sb, db, ds = cell
+    sc[4, c], sc[5, c] = ga, gar
+    sc[0, c] = k_el * cpsi * (sb * ct - cb * st)
+    sc[6, c] = 1.0 if cb * ct + sb * st > 0.0 else 0.0      # 0 behind the baffle
+    sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], sc[_SW_DB, c], sc[_SW_DS, c] = cpsi, cb, sb, db, ds
 
 
 @njit(cache=True, nogil=True)
