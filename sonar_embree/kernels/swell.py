@@ -153,11 +153,9 @@ def _swell_chunk(row, c0, c1, carry, fan, bounce, poses, face_normals, weighting
     _swell_init_stage(c0, c1, bounce, out, sc)
     _swell_hit_stage(c0, c1, bounce, face_normals, weighting, out, sc)
     carry = _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, weighting.beam, shift, sc)
-    _swell_half_stage(c0, c1, bounce, weighting, bistatic, sc)
-    _swell_footprint_stage(c0, c1, side, m, bounce, face_normals, out, sc)
-    _swell_two_stage(c0, c1, bounce, weighting, out, sc)
+    _swell_surface_stage(c0, c1, side, m, bounce, face_normals, weighting, bistatic, out, sc)
     _swell_leg_stage(c0, c1, b, poses, bounce, face_normals, out, sc)
-    _swell_one_time_stage(c0, c1, bounce, weighting, out, sc)
+    _swell_time_stage(c0, c1, bounce, weighting, out, sc)
     _swell_leg_gain_stage(c0, c1, side, m, shift, weighting.beam, out, sc)
     _swell_one_weight_stage(c0, c1, bounce, bistatic, weighting, out, sc)
     if bistatic.want_phi:
@@ -258,48 +256,24 @@ def _put_swell_cell(sc, c, cell, k_el, ct, st):
 
 
 @njit(cache=True, nogil=True)
-def _swell_half_stage(c0, c1, bounce, weighting, bistatic, sc):
-    """e^(−α'R/2)·|R_s|² of each lit ray, |R_s|² = exp(−4(k·h_w)² sin²θg) at its facet."""
-    up, u, prim_s, normals = bounce.up, bounce.u, bounce.prim_s, bounce.surface_normals
+def _swell_surface_stage(c0, c1, side, m, bounce, face_normals, weighting, bistatic, out, sc):
+    """Per lit ray, from its facet: e^(−α'R/2)·|R_s|² (|R_s|² = exp(−4(k·h_w)² sin²θg)) and dX/dβ
+    (:func:`_footprint`) into ``sc``."""
+    up, u, prim_s, prim, ur = bounce.up, bounce.u, bounce.prim_s, bounce.prim, bounce.ur
+    normals = bounce.surface_normals
     two_way_np_per_m, wave_kh = weighting.two_way_np_per_m, bistatic.wave_kh
     for k in range(c0, c1):
         c = k - c0
         if sc[_SW_LIT, c] == 0.0:
             continue
-        qs = prim_s[up[k]]
-        sg = u[k, 0] * normals[qs, 0] + u[k, 1] * normals[qs, 1] + u[k, 2] * normals[qs, 2]
-        sc[_SW_HALF, c] = math.exp(-0.5 * two_way_np_per_m * sc[_SW_R, c] - 4.0 * wave_kh * wave_kh * sg * sg)
-
-
-@njit(cache=True, nogil=True)
-def _swell_footprint_stage(c0, c1, side, m, bounce, face_normals, out, sc):
-    """dX/dβ of each lit ray (:func:`_footprint`) into ``sc``."""
-    up, prim_s, prim, ur, normals = bounce.up, bounce.prim_s, bounce.prim, bounce.ur, bounce.surface_normals
-    for k in range(c0, c1):
-        c = k - c0
-        if sc[_SW_LIT, c] == 0.0:
-            continue
         qs, q = prim_s[up[k]], prim[k]
-        dx = _footprint(m, side, sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], normals[qs, 0], normals[qs, 1],
-                        normals[qs, 2], (ur[k, 0], ur[k, 1], ur[k, 2]),
-                        (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2]), out.cos_i[k], sc[_SW_R, c])
+        nx, ny, nz = normals[qs, 0], normals[qs, 1], normals[qs, 2]
+        sg = u[k, 0] * nx + u[k, 1] * ny + u[k, 2] * nz
+        sc[_SW_HALF, c] = math.exp(-0.5 * two_way_np_per_m * sc[_SW_R, c] - 4.0 * wave_kh * wave_kh * sg * sg)
+        dx = _footprint(m, side, sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], nx, ny, nz,
+                        (ur[k, 0], ur[k, 1], ur[k, 2]), (face_normals[q, 0], face_normals[q, 1], face_normals[q, 2]),
+                        out.cos_i[k], sc[_SW_R, c])
         sc[_SW_DX, c], sc[_SW_DX + 1, c], sc[_SW_DX + 2, c] = dx
-
-
-@njit(cache=True, nogil=True)
-def _swell_two_stage(c0, c1, bounce, weighting, out, sc):
-    """The two-bounce path S→P→X→P→S: w2 without the gains, t = 2R/c, Δt = 2·min(|u_r·dX/dβ|, cap)·dβ/c."""
-    ur, inv_c, min_range_m = bounce.ur, 0.5 * weighting.time_per_m, weighting.min_range_m
-    for k in range(c0, c1):
-        c = k - c0
-        if sc[_SW_LIT, c] == 0.0:
-            continue
-        big_r, half, db = sc[_SW_R, c], sc[_SW_HALF, c], sc[_SW_DB, c]
-        rb = max(big_r, min_range_m)
-        out.w2[k] = half * half * sc[_SW_DS, c] * db / (rb * rb)
-        slope = min(abs(ur[k, 0] * sc[_SW_DX, c] + ur[k, 1] * sc[_SW_DX + 1, c] + ur[k, 2] * sc[_SW_DX + 2, c]),
-                    weighting.slope_cap_m_rad)
-        out.time2[k], out.ext2[k] = 2.0 * big_r * inv_c, 2.0 * slope * db * inv_c
 
 
 @njit(cache=True, nogil=True)
@@ -323,17 +297,24 @@ def _swell_leg_stage(c0, c1, b, poses, bounce, face_normals, out, sc):
 
 
 @njit(cache=True, nogil=True)
-def _swell_one_time_stage(c0, c1, bounce, weighting, out, sc):
-    """The one-bounce echo's t = (R + r)/c and Δt = min(|(u_r + u_d)·dX/dβ|, 2·cap)·dβ/c."""
-    ur, leg, inv_c = bounce.ur, out.leg, 0.5 * weighting.time_per_m
+def _swell_time_stage(c0, c1, bounce, weighting, out, sc):
+    """Per lit ray: the two-bounce path S→P→X→P→S (w2 without the gains, t = 2R/c, Δt = 2·min(|u_r·dX/dβ|, cap)·dβ/c)
+    and the one bounce's t = (R + r)/c and Δt = min(|(u_r + u_d)·dX/dβ|, 2·cap)·dβ/c."""
+    ur, leg, inv_c, min_range_m = bounce.ur, out.leg, 0.5 * weighting.time_per_m, weighting.min_range_m
+    cap = weighting.slope_cap_m_rad
     for k in range(c0, c1):
         c = k - c0
         if sc[_SW_LIT, c] == 0.0:
             continue
-        out.time1[k] = (sc[_SW_R, c] + out.r[k]) * inv_c
-        slope = abs((ur[k, 0] - leg[k, 0]) * sc[_SW_DX, c] + (ur[k, 1] - leg[k, 1]) * sc[_SW_DX + 1, c]
-                    + (ur[k, 2] - leg[k, 2]) * sc[_SW_DX + 2, c])
-        out.ext1[k] = min(slope, 2.0 * weighting.slope_cap_m_rad) * sc[_SW_DB, c] * inv_c
+        big_r, half, db = sc[_SW_R, c], sc[_SW_HALF, c], sc[_SW_DB, c]
+        dx0, dx1, dx2 = sc[_SW_DX, c], sc[_SW_DX + 1, c], sc[_SW_DX + 2, c]
+        rb = max(big_r, min_range_m)
+        out.w2[k] = half * half * sc[_SW_DS, c] * db / (rb * rb)
+        slope = min(abs(ur[k, 0] * dx0 + ur[k, 1] * dx1 + ur[k, 2] * dx2), cap)
+        out.time2[k], out.ext2[k] = 2.0 * big_r * inv_c, 2.0 * slope * db * inv_c
+        out.time1[k] = (big_r + out.r[k]) * inv_c
+        slope = abs((ur[k, 0] - leg[k, 0]) * dx0 + (ur[k, 1] - leg[k, 1]) * dx1 + (ur[k, 2] - leg[k, 2]) * dx2)
+        out.ext1[k] = min(slope, 2.0 * cap) * db * inv_c
 
 
 @njit(cache=True, nogil=True)

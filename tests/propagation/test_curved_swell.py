@@ -306,3 +306,21 @@ def test_a_ray_started_at_its_own_origin_marches_as_a_fans_ray():
     np.testing.assert_allclose(st2, st, rtol=1e-12, atol=1e-12)
     np.testing.assert_allclose(ray2, ray, rtol=1e-12)
     assert lay2[0] == lay[0]
+
+
+def test_msis_takes_a_swell_over_a_profile_and_the_forward_looking_sonar_refuses_it():
+    """The MSIS runs the side-scan's path models, so a swell over a profile adds its paths to its record (energy after
+    the direct arrivals); the forward-looking sonar refuses a swell with a one-line error naming it."""
+    prof = se.SoundSpeedProfile.linear(C_SONAR - GRAD * DEPTH, GRAD, depth_m=300.0, surface_z_m=H + DEPTH)
+    scene = se.Scene().add(se.seafloor.flat((200.0, 200.0), center_m=(0.0, Y0)),
+                           material=se.Material(backscatter_db=MU_DB), label="seafloor")
+    line = se.Trajectory.line((-0.05, Y0, H), (0.05, Y0, H), 2).stop_and_hop()
+    runs = [se.simulate(scene, line, se.Acquisition(se.MSIS(max_range_m=40.0), se.Environment(sound_speed=prof,
+                                                                                              surface=surface)),
+                        start_time="2000-01-01") for surface in (None, _surface(True))]
+    dry, wet = (r.data for r in runs)
+    assert np.all(wet >= dry * (1 - 1e-12)) and wet.sum() > dry.sum() * 1.001
+    with pytest.raises(se.ConfigError, match="swell"):
+        se.simulate(scene, line, se.Acquisition(se.ForwardLooking(max_range_m=40.0),
+                                                se.Environment(sound_speed=prof, surface=_surface(True))),
+                    start_time="2000-01-01")
