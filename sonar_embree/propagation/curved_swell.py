@@ -31,7 +31,7 @@ from .fan import ray_cells
 from .gain import weigh_by_beam
 from .multipath import apply_bistatic, block_legs, wants_azimuth, wave_kh
 from .refraction import SAGITTA_FRACTION, Marching, march
-from .swell import _image_fan, _surface_hits
+from .swell import _image_fan, _surface_hits, up_lines
 from ..kernels.args import Fan
 
 #: The image fan's rays are placed densely out to this many times the window (straight probes stand for the curved
@@ -41,8 +41,8 @@ PLACEMENT_MARGIN = 1.05
 
 def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
     """(one-bounce, two-bounce) Echoes of a block off the swell over the medium's profile, in the rows of the
-    image fan's upward rays; ``ids`` each triangle's object id (None: not wanted), ``rx_shift`` (pings,) δ =
-    2·v_fwd/c (None: stop-and-hop)."""
+    image fan's upward rays, and each ray's azimuth line (:func:`~sonar_embree.propagation.swell.up_lines`); ``ids``
+    each triangle's object id (None: not wanted), ``rx_shift`` (pings,) δ = 2·v_fwd/c (None: stop-and-hop)."""
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     # placed from straight probes: a margin for the curved paths' longer or shorter ranges (the window itself is cut
@@ -58,7 +58,7 @@ def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=N
     obj = [np.zeros(0, np.int32) if ids is None else
            np.where(w > 0, ids[np.maximum(legs["prim"], 0)], -1).astype(np.int32) for w in (one[0], two[0])]
     return (Echoes(2, start, one[1], one[2], one[0], legs["x"], obj[0]),
-            Echoes(2, start, two[1], two[2], two[0], legs["x"], obj[1]))
+            Echoes(2, start, two[1], two[2], two[0], legs["x"], obj[1]), up_lines(fan))
 
 
 def _launch(front, fan, rot):
@@ -264,9 +264,9 @@ def _azimuth(n, u, v):
 def _block(run, start, frm, to, pos_local, w, prim):
     """Zero ``w`` where the chord from ``frm`` to ``to`` (n, 3) is blocked: from the sonar (``prim`` None) or from
     each hit point (its own height field passed over where it cannot block, ``prim``)."""
-    leg = to - frm
-    dist = np.linalg.norm(leg, axis=1)
-    lit = w > 0
-    dirs = np.where(lit[:, None], leg / np.maximum(dist, 1e-300)[:, None], 0.0)
-    block_legs(run, Buffers(), start, frm, pos_local, prim is None, np.ascontiguousarray(dirs),
-               np.where(lit, dist, 0.0), w, prim, False)
+    lit = np.flatnonzero(w > 0)
+    leg = to[lit] - frm[lit]
+    dist, dirs = np.zeros(w.shape[0]), np.zeros((w.shape[0], 3))
+    dist[lit] = np.linalg.norm(leg, axis=1)
+    dirs[lit] = leg / np.maximum(dist[lit], 1e-300)[:, None]
+    block_legs(run, Buffers(), start, np.ascontiguousarray(frm), pos_local, prim is None, dirs, dist, w, prim, False)

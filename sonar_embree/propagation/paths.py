@@ -24,11 +24,20 @@ from .fan import BlockEchoes, cast_block
 
 class Contribution(NamedTuple):
     """A path's echoes in a block: ``echoes`` (Echoes), ``layout`` (the el_start of the fan they are aligned with,
-    or None) and ``path`` (0 direct, 1 one bounce, 2 two bounces)."""
+    or None), ``path`` (0 direct, 1 one bounce, 2 two bounces) and, for echoes not aligned with a fan, each echo's
+    azimuth line (``lines``, (n,) int64; None: not needed)."""
 
     echoes: Echoes
     layout: np.ndarray | None
     path: int
+    lines: np.ndarray | None = None
+
+
+class GlintRays(NamedTuple):
+    """The rays aimed at objects through a swell, as a front end regroups their echoes: each echo's ``layout`` row
+    (s, cos β, sin β, dβ, ds)."""
+
+    layout: np.ndarray
 
 
 class AimedContribution(NamedTuple):
@@ -122,9 +131,9 @@ class Swell:
 
     def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        mixed, image, glints = swell.swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift)
-        return ([Contribution(mixed, None, 1), Contribution(image, None, 2)],  # the swell's paths: its own up rays
-                [AimedContribution(e, None, path) for e, path in glints])
+        mixed, image, glints, lines = swell.swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift)
+        return ([Contribution(mixed, None, 1, lines), Contribution(image, None, 2, lines)],  # the swell's own up rays
+                [AimedContribution(e, GlintRays(layout), path) for e, layout, path in glints])
 
 
 @dataclasses.dataclass(frozen=True)
@@ -135,8 +144,8 @@ class RefractedSwell:
 
     def contributions(self, front, run, blk, direct, rot, pos_local, max_range_m, ids, want_points, clock,
                       rx_shift):
-        mixed, image = curved_swell.swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift)
-        return [Contribution(mixed, None, 1), Contribution(image, None, 2)], []
+        mixed, image, lines = curved_swell.swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift)
+        return [Contribution(mixed, None, 1, lines), Contribution(image, None, 2, lines)], []
 
 
 @dataclasses.dataclass(frozen=True)

@@ -147,8 +147,9 @@ def _echo_pair(fan, b, o, ids):
 
 
 def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=None):
-    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan, and those of the rays
-    aimed at objects through the swell (a list of (Echoes, path): 1 one bounce, 2 two bounces; empty without any);
+    """(one-bounce, two-bounce) Echoes of a block off the swell, in the rows of the image fan's upward rays; those of
+    the rays aimed at objects through the swell (a list of (Echoes, each echo's layout row (s, cos β, sin β, dβ, ds),
+    path): 1 one bounce, 2 two bounces; empty without any); and each upward ray's azimuth line (:func:`up_lines`).
     ``rx_shift`` (pings,) δ = 2·v_fwd/c when moving during the ping (None or zeros: stop-and-hop)."""
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     surface = front.sonar.environment.surface
@@ -162,8 +163,17 @@ def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=N
             for w in (o["w1"], o["w2"]):
                 K.drop_aimed(fan["up_start"], b["prim"], run.compiled.face_object, aim.cand_of_object, glints[2],
                              w)
-            aimed = [(glints[0], 1), (glints[1], 2)]
-    return (*_echo_pair(fan, b, o, ids), aimed)
+            aimed = [(glints[0], glints[3], 1), (glints[1], glints[3], 2)]
+    return (*_echo_pair(fan, b, o, ids), aimed, up_lines(fan))
+
+
+def up_lines(fan) -> np.ndarray:
+    """(m,) int64: the azimuth line of each of the image fan's upward rays ``fan["up"]`` (its rows' rays are
+    azimuth-major over their elevation cells), for the sonar types that keep one channel per line."""
+    up, ray_start = fan["up"], fan["ray_start"]
+    row = np.searchsorted(ray_start, up, side="right") - 1
+    n_el = np.diff(fan["el_start"])[row]
+    return ((up - ray_start[row]) // np.maximum(n_el, 1)).astype(np.int64)
 
 
 #: The most swell strips one object may be seen through from one ping (its glints); more leave it to the fan.
@@ -235,4 +245,4 @@ def _aimed(front, run, swell, g, aim, rot, pos_local, rx_shift, reach_m, ids):
     for w in (o["w1"], o["w2"]):                          # only hits on the aimed object count
         w[~mine | (b["prim"] < 0)] = 0.0
     one, two = _echo_pair(fan, b, o, ids)
-    return one, two, aimed
+    return one, two, aimed, layout[up]

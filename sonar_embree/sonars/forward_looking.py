@@ -187,9 +187,6 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
     supports_labels = True
 
     def __init__(self, sonar: ForwardLooking, fan: FanSettings):
-        if sonar.environment.surface is not None and not sonar.environment.surface.is_flat:
-            raise ConfigError("ForwardLooking: a swell is modelled for side-scan and MSIS sonars; give a flat "
-                              "surface (rms_wave_height_m for roughness)")
         super().__init__(sonar.as_sidescan(), fan, sides=(False, True), elevation_nulls=ELEVATION_NULLS)
         s, ds = array_samples(sonar, fan.resolved().azimuth_oversample)
         aperture = sonar.n_elements * sonar.spacing_in(sonar.sound_speed_m_s)
@@ -214,10 +211,21 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
         """Body-to-world rotations of the side-scan fan whose starboard side looks along the vehicle's forward axis."""
         return np.einsum("pij,jk->pik", np.asarray(rot, dtype=np.float64), HEAD_FROM_SIDESCAN)
 
-    def _rows(self, e: Echoes, el_start: np.ndarray) -> Echoes:
-        """The side-scan layout's echoes (aligned with its rays) as one row per ping and azimuth line."""
-        return dataclasses.replace(e, n_channels=self.n_synth_channels,
-                                   ray_start=azimuth_rows(el_start, self.plan.s.shape[0]))
+    def _rows(self, e: Echoes, el_start: np.ndarray | None, lines: np.ndarray | None = None) -> Echoes:
+        """The side-scan layout's echoes as one row per ping and azimuth line: aligned with its rays (``el_start``),
+        or, for a swell's paths, each echo on its own azimuth line (``lines``)."""
+        if el_start is not None:
+            return dataclasses.replace(e, n_channels=self.n_synth_channels,
+                                       ray_start=azimuth_rows(el_start, self.plan.s.shape[0]))
+        n_az = self.plan.s.shape[0]
+        key = row_of(e.ray_start) // 2 * n_az + lines
+        order = np.argsort(key, kind="stable")
+
+        def part(x):
+            return x[order] if x.shape[0] == e.weight.shape[0] else x
+
+        return Echoes(n_az, row_starts(key[order], n_az * (e.ray_start.shape[0] - 1) // 2), e.travel_time_s[order],
+                      e.extent_s[order], e.weight[order], part(e.point_m), part(e.object_id))
 
     def _aimed_rows(self, aimed, echoes: Echoes | None = None) -> Echoes:
         """The aimed rays' echoes shared between the two azimuth lines around each one's direction, linearly in s

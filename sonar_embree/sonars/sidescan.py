@@ -110,7 +110,7 @@ class SideScanFrontEnd(FrontEnd):
             parts, aimed = parts + more, aimed + more_aimed
         if blk.aimed is not None:                     # the rays aimed at objects: their direct echoes too
             aimed.insert(0, paths.AimedContribution(blk.aimed.echoes, blk.aimed, 0))
-        rows = [self._rows(p.echoes, p.layout) for p in parts]
+        rows = [self._rows(p.echoes, p.layout, p.lines) for p in parts]
         rows += [self._aimed_rows(a.rays, a.echoes) for a in aimed]
         tags = paths.tags(parts + aimed)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there
@@ -122,7 +122,8 @@ class SideScanFrontEnd(FrontEnd):
         those of one of their paths, aligned with them) in this type's rows (the side-scan's: as cast)."""
         return aimed.echoes if echoes is None else echoes
 
-    def _rows(self, e: Echoes, el_start) -> Echoes:
+    def _rows(self, e: Echoes, el_start, lines=None) -> Echoes:
         """A path's echoes in this type's rows (the side-scan's: two per ping, as cast); ``el_start`` the layout
-        of the fan they are aligned with (None: not aligned with one)."""
+        of the fan they are aligned with (None: not aligned with one), ``lines`` each echo's azimuth line where it is
+        not (not needed here)."""
         return e

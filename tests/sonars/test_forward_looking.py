@@ -173,9 +173,6 @@ def test_fan_image_zarr_and_toml(tmp_path):
     np.testing.assert_allclose(ds["beam_angle_deg"].values, rec.sonar.beam_angles_deg())
     with pytest.raises(se.ConfigError, match="coherent"):
         se.simulate(_ball_scene(x, y, H), _still(), _sonar(), speckle=True, detection="incoherent", band="carrier")
-    with pytest.raises(se.ConfigError, match="swell"):
-        swell = se.Environment(surface=se.SeaSurface(z_m=H + 3, swell_height_m=0.2, swell_length_m=8.0))
-        se.simulate(_ball_scene(x, y, H), _still(), se.Acquisition(_sonar(), swell))
     with pytest.raises(se.ConfigError, match="grating lobes"):
         se.Acquisition(se.ForwardLooking(element_spacing_m=0.0015))
     with pytest.raises(se.ConfigError, match="n_beams"):
