@@ -31,7 +31,7 @@ from .fan import ray_cells
 from .gain import weigh_by_beam
 from .multipath import apply_bistatic, block_legs, wants_azimuth, wave_kh
 from .refraction import SAGITTA_FRACTION, Marching, march
-from .swell import _image_fan, _surface_hits, up_lines
+from .swell import image_fan, surface_hits, up_lines
 from ..kernels.args import Fan
 
 #: The image fan's rays are placed densely out to this many times the window (straight probes stand for the curved
@@ -47,9 +47,9 @@ def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=N
     rot = np.ascontiguousarray(rot, dtype=np.float64)
     # placed from straight probes: a margin for the curved paths' longer or shorter ranges (the window itself is cut
     # by their times below)
-    fan = _image_fan(front, run.surface_strips, run.caster, rot, pos_local, PLACEMENT_MARGIN * max_range_m, clock,
+    fan = image_fan(front, run.surface_strips, run.caster, rot, pos_local, PLACEMENT_MARGIN * max_range_m, clock,
                      rx_shift)
-    fan["up"] = np.flatnonzero(fan["dirs"][:, 2] > 0)              # every upward ray: the profile bends them
+    fan["up"] = fan["rising"]                                      # every upward ray: the profile bends them
     fan["up_start"] = np.searchsorted(fan["up"], fan["ray_start"]).astype(np.int64)
     rays = _launch(front, fan, rot)
     legs = _bounce(front, run, rays, pos_local, max_range_m, clock)
@@ -95,7 +95,7 @@ def _bounce(front, run, rays, pos_local, max_range_m, clock):
     ok = np.isfinite(up[:, U_TIME])
     org, dirs = up[:, :3].astype(np.float32), up[:, 3:6].astype(np.float32)
     dirs[~ok] = (0.0, 0.0, -1.0)                                 # turned before the band: meets no facet
-    facet, dist = _surface_hits(Buffers(), run.compiled.origin_m, run.surface_strips, org, dirs, max_range_m)
+    facet, dist = surface_hits(Buffers(), run.compiled.origin_m, run.surface_strips, org, dirs, max_range_m)
     facet = np.where(ok, facet, -1).astype(np.int32)
     p, ur, q2, band = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
     normals = run.surface_caster.compiled.face_normals

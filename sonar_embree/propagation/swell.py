@@ -46,8 +46,9 @@ def _image_rows(caster, plan, rot_i, pos_i, pos_local, window_m, max_range_m):
     return (*elevation_rows(plan, np.concatenate(lines, axis=1)), t_embree)
 
 
-def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shift):
-    """The image fan's rays cast up from the sonar to the swell: a dict of the fan and of the rays that reached it.
+def image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shift):
+    """The image fan's rays cast up from the sonar to the swell: a dict of the fan, of the rays that reached it
+    (``up``) and of every upward ray on the lines each ping counts (``rising``: curved rays may reach it too).
 
     A one-bounce echo at range (R + r)/2 in the window may have travelled R up to twice the range on its bounce
     (r ≤ R): the fan is cast out to that (``max_range_m`` of the result), its rays placed densely only where one of
@@ -66,15 +67,18 @@ def _image_fan(front, strips, caster, rot, pos_local, max_range_m, clock, rx_shi
     dirs, org = buf.take("swell_dirs", (n, 3), np.float32), buf.take("swell_org", (n, 3), np.float32)
     # the real, upward rays from S: the image fan's directions with z negated, i.e. the fan of the real attitude
     kernels.fan_rays(plan.s, np.cos(beta), np.sin(beta), el_start, np.ascontiguousarray(rot), pos_local, dirs, org)
-    prim_s, t1 = _surface_hits(buf, caster.compiled.origin_m, strips, org, dirs, max_range_m)
+    prim_s, t1 = surface_hits(buf, caster.compiled.origin_m, strips, org, dirs, max_range_m)
+    live = np.zeros(n, np.int32)                                       # −1: a line this ping does not count
     if keep is not None:
         drop_lines(prim_s, plan.s, keep, el_start)
+        drop_lines(live, plan.s, keep, el_start)
     up = np.flatnonzero((prim_s >= 0) & (dirs[:, 2] > 0))
     return dict(el_start=el_start, ray_start=ray_start, beta=beta, dbeta=dbeta, dirs=dirs, prim_s=prim_s, t1=t1,
-                up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m, s=plan.s)
+                up=up, up_start=np.searchsorted(up, ray_start).astype(np.int64), max_range_m=max_range_m, s=plan.s,
+                rising=np.flatnonzero((live >= 0) & (dirs[:, 2] > 0)))
 
 
-def _surface_hits(buf, origin_m, g, org, dirs, max_range_m):
+def surface_hits(buf, origin_m, g, org, dirs, max_range_m):
     """(facet, distance) of each ray's first hit on the swell's mesh of grid ``g``, in closed form
     (kernels.swell_surface_hits: the triangles :func:`~sonar_embree.propagation.multipath.surface_mesh` meshes, not
     cast)."""
@@ -154,7 +158,7 @@ def swell_echoes(front, run, rot, pos_local, max_range_m, ids, clock, rx_shift=N
     rx_shift = np.zeros(rot.shape[0]) if rx_shift is None else np.ascontiguousarray(rx_shift, dtype=np.float64)
     surface = front.sonar.environment.surface
     swell, strips = run.surface_caster, run.surface_strips
-    fan = _image_fan(front, strips, run.caster, rot, pos_local, max_range_m, clock, rx_shift)
+    fan = image_fan(front, strips, run.caster, rot, pos_local, max_range_m, clock, rx_shift)
     b, o = _bounced_paths(front, run, swell, fan, rot, pos_local, rx_shift, front.buffers)
     aim, aimed = run.aim, []
     if aim is not None:
@@ -232,7 +236,7 @@ def _aimed(front, run, swell, g, aim, rot, pos_local, rx_shift, reach_m, ids):
     if not aimed.any():
         return None
     buf = Buffers()
-    prim_s, t1 = _surface_hits(buf, c.origin_m, g, org, dirs, reach_m)
+    prim_s, t1 = surface_hits(buf, c.origin_m, g, org, dirs, reach_m)
     na = g.a.size
     n_q = (na - 1) * (g.b.size - 1)
     own_strip = (prim_s % n_q) % (na - 1) == glints[glint, kernels.G_STRIP].astype(np.int64)
