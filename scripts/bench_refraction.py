@@ -6,8 +6,9 @@
 
 Cases: the flat floor (10 m altitude, 60 m range) and the shipwreck pass, each with straight rays and in a linear
 profile (gradient 0.5 s⁻¹, the sonar 20 m deep), and in the profile under a flat surface (its paths along curved
-rays, docs/physics.md §12b) and under a swell (H = 0.4 m, Λ = 8 m: curved rays off its facets, §13c); speckle-free. ms per ping, best of three, the stage times, and the rounds of chords
-the curved rays took. No test reads it.
+rays, docs/physics.md §12b) and under a swell (H = 0.4 m, Λ = 8 m: curved rays off its facets, §13c);
+speckle-free. ms per ping, best of three, the stage times, and the rounds of chords the curved rays took. No test
+reads it.
 """
 import dataclasses
 import json

@@ -1,14 +1,14 @@
 """Front-end kernels, a swell over a sound-speed profile: the bounced rays' legs in closed form (docs/physics.md §13c).
 
 A ray of Snell's invariant ξ climbs from the sonar at depth d_S to the **band** depth d_b (the swell's lowest
-trough) along the profile's closed forms (:mod:`.eigenrays`: x/ξ, ∂x/∂ξ, T, L per linear piece), runs straight
-through the band (c = c(d_b): across a band of a few metres c changes by millimetres per second), meets a facet of the
-swell's mesh, is mirrored there, runs straight back down to d_b and then follows its new invariant ξ' down through
-the scene (marched by :mod:`.refraction`). The same chain, in closed form down to a given depth, gives the bounced ray
-tube: a launch direction moved by δ in s and in β, mirrored in the same facet's plane, lands δ·∂X/∂s and δ·∂X/∂β
-away at the hit's depth; the tube's cross-section per steradian is A = |∂X/∂s × ∂X/∂β|·|sin θ_X| (R² for straight
-rays: the straight swell's mirror image). The direct leg X → S back to the sonar is the profile's unturned eigenray
-between the two depths (:func:`direct_eigenrays`).
+trough) along the profile's closed forms (:mod:`sonar_embree.kernels.eigenrays`: x/ξ, ∂x/∂ξ, T, L per linear
+piece), runs straight through the band (c = c(d_b): across a band of a few decimetres c changes by centimetres per
+second), meets a facet of the swell's mesh, is mirrored there, runs straight back down to d_b and then follows its
+new invariant ξ' down through the scene (marched by :mod:`sonar_embree.kernels.refraction`). The same chain, in
+closed form down to a given depth, gives the bounced ray tube: a launch direction moved by δ in s and in β, mirrored
+in the same facet's plane, lands δ·∂X/∂s and δ·∂X/∂β away at the hit's depth; the tube's cross-section per unit of
+ds·dβ is A = |∂X/∂s × ∂X/∂β|·|sin θ_X| (R² for straight rays: the straight swell's mirror image). The direct leg
+X → S back to the sonar is the profile's unturned eigenray between the two depths (:func:`direct_eigenrays`).
 """
 from __future__ import annotations
 

@@ -94,7 +94,7 @@ def _bounce(front, run, rays, pos_local, max_range_m, clock):
     kernels.swell_up_legs(rays["world"], rays["row"] // 2, pos_local, z, c, z0, d_band, up)
     ok = np.isfinite(up[:, U_TIME])
     org, dirs = up[:, :3].astype(np.float32), up[:, 3:6].astype(np.float32)
-    dirs[~ok] = (0.0, 0.0, -1.0)                                 # turned before the band: meets no facet
+    org[~ok], dirs[~ok] = 0.0, (0.0, 0.0, -1.0)                  # turned before the band: meets no facet
     facet, dist = surface_hits(Buffers(), run.compiled.origin_m, run.surface_strips, org, dirs, max_range_m)
     facet = np.where(ok, facet, -1).astype(np.int32)
     p, ur, q2, band = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
@@ -127,7 +127,7 @@ def _march_down(front, run, origins, dirs, max_range_m, clock):
     state, lay = buffers.take("state", (k, kernels.STATE_WIDTH)), buffers.take("lay", k, np.int64)
     ray = buffers.take("ray", (k, kernels.RAY_WIDTH))
     kernels.arc_start_at(np.ascontiguousarray(origins), np.ascontiguousarray(dirs), m.layers, m.z0, m.box_z, m.l_max,
-                   state, lay, ray)
+                         state, lay, ray)
     hit_prim, hit, _ = march(run.caster, m, state, lay, ray, clock, buffers)
     return hit_prim, hit.copy()
 

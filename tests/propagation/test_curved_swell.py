@@ -19,7 +19,6 @@ import pytest
 
 import analytic
 import sonar_embree as se
-from sonar_embree.propagation import curved_swell
 
 H, DEPTH, C_SONAR, GRAD, MU_DB, TAU, FS, TILT, RANGE = 10.0, 20.0, 1500.0, 0.5, -20.0, 100e-6, 50e3, 0.0, 70.0
 LY = 0.003                     # a membrane lower than λ: no null in elevation, every upward ray is in the fan

@@ -422,8 +422,8 @@ def test_swell_kernels_match_naive(rng):
     face_object, mu = np.array([0, 1, 0, 1, 0, 1, 0], np.int32), np.array([0.01, 0.2])
     for want_phi, o, mu_obj in ((True, out, np.zeros(0)), (False, no_phi, np.zeros(0)), (False, lam, mu)):
         _swell_paths((s_az, np.cos(beta_cell), np.sin(beta_cell), dbeta_cell, el_start),
-                     (up_start, up, ray_start, u, p, ur, t1, prim_s, prim, t2, seen, surf), normals, (rot, pos, rx_shift),
-                     consts, (want_phi, mu_obj, face_object), x, o, leg, kernels.NO_LAYOUT)
+                     (up_start, up, ray_start, u, p, ur, t1, prim_s, prim, t2, seen, surf), normals,
+                     (rot, pos, rx_shift), consts, (want_phi, mu_obj, face_object), x, o, leg, kernels.NO_LAYOUT)
     # each ray with its own layout (the rays aimed at objects via the swell): the fan grid's bits
     layout = np.column_stack([s_az[a], np.cos(beta_cell[cell]), np.sin(beta_cell[cell]), dbeta_cell[cell],
                               np.full(n, consts[1])])
