@@ -15,6 +15,7 @@ H = 10.0  # sonar altitude of the reference cases, m
 #: tier, ``python -m pytest -q -m "not slow"``, leaves them out (README, "Tests").
 SLOW = frozenset({
     "test_curved_swell.py::test_a_swell_over_a_profile_matches_the_ray_shooting_quadrature",
+    "test_curved_swell.py::test_msis_and_the_forward_looking_sonar_take_a_swell",
     "test_replay.py::test_fit_beam_recovers_the_records_elevation_pattern_and_gain",
     "test_replay.py::test_a_long_lines_fit_simulates_runs_across_its_altitudes_and_recovers_the_class_and_gain",
     "test_small_slope.py::test_the_small_slope_integral_against_mpmaths_oscillatory_quadrature",

@@ -14,9 +14,11 @@
 - :mod:`.args`: named groups of kernel arguments (a block's fan, its poses, the scene's arrays, the outputs).
 
 :mod:`._numba` is the only module that imports numba (the scattering laws take ``njit`` and ``prange``
-from here). Kernels read no global state (named constants only), allocate nothing, draw no random
-numbers and skip (never wrap) indices outside the buffer. Each has a naive NumPy twin in
-``tests/naive.py``. Compiled code is cached on disk.
+from here). Kernels read no global state (named constants only), allocate nothing but a chunk's scratch (the
+plain functions ``visibility_legs`` and ``label_rows`` allocate their stages' scratch), draw no random numbers and
+skip (never wrap) indices outside the buffer. Each has a naive NumPy twin in ``tests/naive.py`` or a closed-form
+reference in its tests (the curved swell's: the circular arcs of a linear profile). Compiled code is cached on
+disk.
 """
 from . import args
 from ._numba import NO_LAYOUT, REFIT_MIN_COS, REFIT_REL_TOL, max_threads, njit, num_threads, prange, set_num_threads
