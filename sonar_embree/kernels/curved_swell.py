@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 
 from ._numba import njit, prange
-from .eigenrays import EIGEN_ITERATIONS, EIGEN_TOL_M, _leg, _leg_x, _speed
+from .eigenrays import _leg, _leg_x, _speed, newton_xi
 
 #: Columns of :func:`swell_up_legs`' output: the band point Q (3, local m), the direction there (3, world), the one-way
 #: time (s) and path length (m) from the sonar to Q.
@@ -226,34 +226,10 @@ def _c_between(z, c, d_lo, d_hi):
 
 
 @njit(cache=True, nogil=True)
-def _between_x(z, c, xi, d_lo, d_hi):
-    """(x/ξ, ∂x/∂ξ) of the ray of invariant ξ between depths d_lo < d_hi (NaN where it turns)."""
-    a, b = _leg_x(z, c, xi, d_hi), _leg_x(z, c, xi, d_lo)
-    return a[0] - b[0], a[1] - b[1]
-
-
-@njit(cache=True, nogil=True)
 def _direct_xi(z, c, d_lo, d_hi, x):
-    """ξ of the unturned ray between depths d_lo < d_hi covering x (m), or NaN (a safeguarded Newton search)."""
-    lo, hi = 0.0, (1.0 - 1e-12) / _c_between(z, c, d_lo, d_hi)
-    top = _between_x(z, c, hi, d_lo, d_hi)
-    if not (hi * top[0] >= x):
-        return math.nan
-    xi = x / math.sqrt(x * x + (d_hi - d_lo) ** 2) / _speed(z, c, d_lo)
-    if not xi < hi:
-        xi = 0.5 * hi
-    for _ in range(EIGEN_ITERATIONS):
-        q, dq = _between_x(z, c, xi, d_lo, d_hi)
-        f = xi * q - x
-        if abs(f) < EIGEN_TOL_M:
-            return xi
-        if f < 0.0:
-            lo = xi
-        else:
-            hi = xi
-        step = xi - f / dq
-        xi = step if lo < step < hi else 0.5 * (lo + hi)
-    return xi
+    """ξ of the unturned ray between depths d_lo < d_hi covering x (m), or NaN (:func:`newton_xi`)."""
+    start = x / math.sqrt(x * x + (d_hi - d_lo) ** 2) / _speed(z, c, d_lo)
+    return newton_xi(z, c, (d_hi, d_lo, -1.0), x, start, (1.0 - 1e-12) / _c_between(z, c, d_lo, d_hi))
 
 
 @njit(cache=True, nogil=True, parallel=True)

@@ -112,23 +112,39 @@ def _leg_x(z, c, xi, d_end):
 @njit(cache=True, nogil=True)
 def _solve(z, c, d_src, d_dst, x, c_max):
     """ξ of the surface ray from depth d_src to d_dst covering x, or NaN when no unturned ray reaches it."""
-    lo, hi = 0.0, (1.0 - 1e-12) / c_max
-    uh, dh = _leg_x(z, c, hi, d_src), _leg_x(z, c, hi, d_dst)
-    if not (hi * (uh[0] + dh[0]) >= x):
+    start = x / math.sqrt(x * x + (d_src + d_dst) ** 2) / _speed(z, c, d_src)      # the straight ray's, to start
+    return newton_xi(z, c, (d_src, d_dst, 1.0), x, start, (1.0 - 1e-12) / c_max)
+
+
+@njit(cache=True, nogil=True)
+def _pair_x(z, c, xi, legs):
+    """(x/ξ, ∂x/∂ξ) of the path ``legs`` = (d_a, d_b, sign): the ray of invariant ξ from depth 0 to d_a plus
+    (sign +1: up to the surface and down again) or less (−1: between two depths) the one from 0 to d_b."""
+    d_a, d_b, sign = legs
+    a, b = _leg_x(z, c, xi, d_a), _leg_x(z, c, xi, d_b)
+    return a[0] + sign * b[0], a[1] + sign * b[1]
+
+
+@njit(cache=True, nogil=True)
+def newton_xi(z, c, legs, x, start, hi):
+    """ξ in (0, hi) of the path ``legs`` (:func:`_pair_x`) that covers the horizontal distance x, or NaN when even
+    ξ = hi falls short: a safeguarded Newton search from ``start`` (bisection where Newton leaves the bracket)."""
+    top = _pair_x(z, c, hi, legs)
+    if not (hi * top[0] >= x):
         return math.nan
-    xi = x / math.sqrt(x * x + (d_src + d_dst) ** 2) / _speed(z, c, d_src)      # the straight ray's, to start
+    lo, xi = 0.0, start
     if not xi < hi:
         xi = 0.5 * hi
     for _ in range(EIGEN_ITERATIONS):
-        up, down = _leg_x(z, c, xi, d_src), _leg_x(z, c, xi, d_dst)
-        f = xi * (up[0] + down[0]) - x
+        q, dq = _pair_x(z, c, xi, legs)
+        f = xi * q - x
         if abs(f) < EIGEN_TOL_M:
             return xi
         if f < 0.0:
             lo = xi
         else:
             hi = xi
-        step = xi - f / (up[1] + down[1])
+        step = xi - f / dq
         xi = step if lo < step < hi else 0.5 * (lo + hi)
     return xi
 

@@ -131,23 +131,7 @@ def arc_start(s, cos_beta, sin_beta, el_start, rot, pos, layers, z0, box_z, l_ma
             ux = rot[b, 0, 0] * sa + rot[b, 0, 1] * e1 + rot[b, 0, 2] * e2
             uy = rot[b, 1, 0] * sa + rot[b, 1, 1] * e1 + rot[b, 1, 2] * e2
             uz = rot[b, 2, 0] * sa + rot[b, 2, 1] * e1 + rot[b, 2, 2] * e2
-            hz = math.sqrt(ux * ux + uy * uy)
-            ray[i, 0] = ux / hz if hz > 0.0 else 1.0
-            ray[i, 1] = uy / hz if hz > 0.0 else 0.0
-            ray[i, 2] = hz / c0
-            ray[i, 3] = -uz
-            ray[i, 4] = c0
-            state[i, 0] = pos[b, 0]
-            state[i, 1] = pos[b, 1]
-            state[i, 2] = pos[b, 2]
-            for q in range(S_L, STATE_WIDTH):
-                state[i, q] = 0.0
-            state[i, S_D0] = depth
-            state[i, S_SN0] = -uz
-            state[i, S_XH0] = pos[b, 0] * ray[i, 0] + pos[b, 1] * ray[i, 1]
-            state[i, S_RA] = 1.0
-            state[i, S_CT] = hz
-            state[i, S_ST] = -uz
+            _start_ray(state, ray, i, (pos[b, 0], pos[b, 1], pos[b, 2]), (ux, uy, uz), depth, c0)
             lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
 
 
@@ -160,24 +144,34 @@ def arc_start_at(origins, dirs, layers, z0, box_z, l_max, state, lay, ray):
         depth = z0 - origins[i, 2]
         k = _layer_of(layers, depth)
         c0 = _speed(_layer(layers, k), depth)
-        ux, uy, uz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
-        hz = math.sqrt(ux * ux + uy * uy)
-        ray[i, 0] = ux / hz if hz > 0.0 else 1.0
-        ray[i, 1] = uy / hz if hz > 0.0 else 0.0
-        ray[i, 2] = hz / c0
-        ray[i, 3] = -uz
-        ray[i, 4] = c0
-        for q in range(3):
-            state[i, q] = origins[i, q]
-        for q in range(S_L, STATE_WIDTH):
-            state[i, q] = 0.0
-        state[i, S_D0] = depth
-        state[i, S_SN0] = -uz
-        state[i, S_XH0] = origins[i, 0] * ray[i, 0] + origins[i, 1] * ray[i, 1]
-        state[i, S_RA] = 1.0
-        state[i, S_CT] = hz
-        state[i, S_ST] = -uz
+        _start_ray(state, ray, i, (origins[i, 0], origins[i, 1], origins[i, 2]), (dirs[i, 0], dirs[i, 1], dirs[i, 2]),
+                   depth, c0)
         lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
+
+
+@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
+def _start_ray(state, ray, i, o, u, depth, c0):
+    """Ray i's constants and marching state leaving point ``o`` (local, m) along the world unit direction ``u`` at
+    ``depth`` (m), where c is ``c0`` (see the module docstring's columns)."""
+    ox, oy, oz = o
+    ux, uy, uz = u
+    hz = math.sqrt(ux * ux + uy * uy)
+    ray[i, 0] = ux / hz if hz > 0.0 else 1.0
+    ray[i, 1] = uy / hz if hz > 0.0 else 0.0
+    ray[i, 2] = hz / c0
+    ray[i, 3] = -uz
+    ray[i, 4] = c0
+    state[i, 0] = ox
+    state[i, 1] = oy
+    state[i, 2] = oz
+    for q in range(S_L, STATE_WIDTH):
+        state[i, q] = 0.0
+    state[i, S_D0] = depth
+    state[i, S_SN0] = -uz
+    state[i, S_XH0] = ox * ray[i, 0] + oy * ray[i, 1]
+    state[i, S_RA] = 1.0
+    state[i, S_CT] = hz
+    state[i, S_ST] = -uz
 
 
 @njit(cache=True, nogil=True)
