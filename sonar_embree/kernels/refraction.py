@@ -144,8 +144,8 @@ def arc_start_at(origins, dirs, layers, z0, box_z, l_max, state, lay, ray):
         depth = z0 - origins[i, 2]
         k = _layer_of(layers, depth)
         c0 = _speed(_layer(layers, k), depth)
-        _start_ray(state, ray, i, (origins[i, 0], origins[i, 1], origins[i, 2]), (dirs[i, 0], dirs[i, 1], dirs[i, 2]),
-                   depth, c0)
+        o, u = (origins[i, 0], origins[i, 1], origins[i, 2]), (dirs[i, 0], dirs[i, 1], dirs[i, 2])
+        _start_ray(state, ray, i, o, u, depth, c0)
         lay[i] = _skip_outside(state, i, k, ray, layers, z0, box_z[0], box_z[1], l_max)
 
 
