@@ -893,3 +893,30 @@ def weigh_fan(s, cos_beta, sin_beta, el_start, tilt_rad, across, line_gain, weig
     v = beam_cosines(s, cos_beta, sin_beta, el_start, tilt_rad)
     gain = np.where(weight > 0, across(v) ** 4, 1.0)
     return weigh_lines(el_start, len(s), line_gain, gain, weight)
+
+
+def weigh_pairs(ray_start, body, leg, rot, rx_shift, tilt_rad, along, across, w_pair, w_mono):
+    """Copies of ``w_pair`` × (Γ²(u)·Γ_rx²(d) + Γ²(d)·Γ_rx²(u)) and ``w_mono`` × Γ²(u)·Γ_rx²(u) where they are > 0
+    (kernels.weigh_pairs), echo by echo: u = body[i], d = Rᵀ·leg[i] in the body frame of the row's ping; each
+    direction's angle off the side's boresight plane gives Γ = along(s)·across(v)·[in front of the baffle], the
+    boresight on side ±1 being (0, ±cos δ, sin δ) and the elevation axis (0, ∓sin δ, cos δ); ``along`` and
+    ``across`` NumPy functions."""
+    w_pair, w_mono = np.array(w_pair, dtype=float), np.array(w_mono, dtype=float)
+    for r in range(len(ray_start) - 1):
+        b, side = r // 2, (1.0 if r % 2 == 1 else -1.0)
+        boresight = np.array([0.0, side * np.cos(tilt_rad), np.sin(tilt_rad)])
+        elevation = np.array([0.0, -side * np.sin(tilt_rad), np.cos(tilt_rad)])
+
+        def gains(e):
+            front = float(e @ boresight > 0)
+            return (along(e[0]) * across(e @ elevation) * front,
+                    along(e[0] - rx_shift[b]) * across(e @ elevation) * front)
+
+        for i in range(ray_start[r], ray_start[r + 1]):
+            g1, g1r = gains(np.asarray(body[i], float))
+            if len(w_mono) and w_mono[i] > 0:
+                w_mono[i] *= g1 ** 2 * g1r ** 2
+            if w_pair[i] > 0:
+                g2, g2r = gains(rot[b].T @ leg[i])
+                w_pair[i] *= g1 ** 2 * g2r ** 2 + g2 ** 2 * g1r ** 2
+    return w_pair, w_mono

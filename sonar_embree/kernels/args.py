@@ -16,10 +16,9 @@ Poses = namedtuple("Poses", "rot pos rx_shift")
 #: The scene's arrays in its local frame: vertices (v, 3) float64, faces (f, 3) int32, face_normals (f, 3),
 #: face_two_sided (f,) bool.
 SceneArrays = namedtuple("SceneArrays", "vertices faces face_normals face_two_sided")
-#: What a sea-surface path's weight needs: the membrane its kernel weighs (k·lx/2, k·ly/2, tilt rad, 0), two-way
-#: absorption (Np/m), the near-field range bound and range window (m), the cap on |dR/dβ| (m/rad) and the two-way
-#: time per metre 2/c (s/m).
-Weighting = namedtuple("Weighting", "beam two_way_np_per_m min_range_m max_range_m slope_cap_m_rad time_per_m")
+#: What a sea-surface path's weight needs (the beam's gains come after its kernel): two-way absorption (Np/m), the
+#: near-field range bound and range window (m), the cap on |dR/dβ| (m/rad) and the two-way time per metre 2/c (s/m).
+Weighting = namedtuple("Weighting", "two_way_np_per_m min_range_m max_range_m slope_cap_m_rad time_per_m")
 #: What a direct hit's weight needs (its beam is applied after the kernel): the baffle's tilt (rad), then as
 #: :data:`Weighting`; for curved rays the one-way time window t_max (s) and the sonar's sound speed c_nom (m/s)
 #: in place of the range window and 2/c.
@@ -68,13 +67,13 @@ LabelOut = namedtuple("LabelOut", "kind object_id shadow_of height ground")
 #: A curved fan's direct hits for the surface's paths: point (n, 3) (local, m), triangle (n,) int32, unit direction of
 #: arrival (n, 3), path length (n,) float32 (m), two-way time and extent (n,) (s), lit (n,) bool.
 CurvedHits = namedtuple("CurvedHits", "point prim arrival path time extent lit")
-#: Each ray's body-frame launch direction (n, 3), its cell's dβ (n,) (rad) and its row (n,) int64.
-Launch = namedtuple("Launch", "body dbeta row")
+#: Each ray's cell dβ (n,) (rad) and its row (n,) int64 (2·ping + side).
+Launch = namedtuple("Launch", "dbeta row")
 #: A profile as the eigenray kernels read it: knots from depth 0 (m), speeds (m/s), and the surface's local z (m).
 Medium = namedtuple("Medium", "z c z_s")
-#: What a curved one-bounce echo's weight needs: the beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption
-#: (Np/m), the fan's ds, R_min (m), k·h_w, and whether to write the bistatic azimuth.
-MixedWeighting = namedtuple("MixedWeighting", "beam two_way_np_per_m ds min_range_m wave_kh want_phi")
+#: What a curved one-bounce echo's weight needs (the beam's gains come after it): two-way absorption (Np/m), the
+#: fan's ds, R_min (m), k·h_w, and whether to write the bistatic azimuth.
+MixedWeighting = namedtuple("MixedWeighting", "two_way_np_per_m ds min_range_m wave_kh want_phi")
 #: A swell's bounced rays (kernels.swell_paths): each row's entries ``up_start`` (rows + 1,) into ``up`` (m,) (the image
 #: fan's ray of each entry) and the image fan's rows of rays ``ray_start`` (rows + 1,); per entry the launch direction
 #: u, surface point p and mirrored direction ur (m, 3) float64; per image-fan ray the surface distance t1 (n,)

@@ -21,7 +21,6 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .rays import beam_factor
 
 #: Columns of :func:`surface_eigenrays`' output: ξ (s/m), one-way time (s), path length (m), tube area per steradian
 #: at P (m²), horizontal distance from S to the surface point (m), sin θ at S, at P and at the surface, c at P (m/s).
@@ -198,10 +197,11 @@ def surface_reach(z, c, xi, d_src, out):
         out[i] = xi[i] * _leg(z, c, xi[i], d_src[i])[0]
 
 
-#: Columns of :func:`curved_mixed`'s output: weight (without σ), travel time (s), its extent (s), cos θi, cos θs, the
-#: bistatic azimuth φ (rad; 0 unless asked for) and the horizontal distance from the sonar to the surface point (m).
-M_W, M_T, M_EXT, M_COS_I, M_COS_S, M_PHI, M_XUP = range(7)
-MIX_WIDTH = 7
+#: Columns of :func:`curved_mixed`'s output: weight (without the beam's gains and σ), travel time (s), its extent (s),
+#: cos θi, cos θs, the bistatic azimuth φ (rad; 0 unless asked for), the horizontal distance from the sonar to the
+#: surface point (m) and the surface ray's launch direction u₂ (3 columns from ``M_U2``, world, z up).
+M_W, M_T, M_EXT, M_COS_I, M_COS_S, M_PHI, M_XUP, M_U2 = range(8)
+MIX_WIDTH = 10
 
 
 @njit(cache=True, nogil=True)
@@ -215,28 +215,20 @@ def _c_max(z, c, d_src, d_dst):
     return out
 
 
-@njit(cache=True, nogil=True)
-def _membrane(beam, side, u0, u1, u2, delta):
-    """Γ of the baffled membrane (k·lx/2, k·ly/2, tilt) along body direction u on a side, its along-track cosine
-    shifted by δ (docs/physics.md §2, §16)."""
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
-    if not side * u1 * ct + u2 * st > 0.0:
-        return 0.0
-    return beam_factor(beam[3], beam[0] * (u0 - delta)) * beam_factor(beam[3], beam[1] * (u2 * ct - side * u1 * st))
-
-
 @njit(cache=True, nogil=True, parallel=True)
 def curved_mixed(hits, launch, poses, face_normals, medium, weighting, out):
-    """The one-bounce paths (S → P → surface → S and back) of a curved fan's direct hits, without σ or blocking
-    (docs/physics.md §12b).
+    """The one-bounce paths (S → P → surface → S and back) of a curved fan's direct hits, without the beam's gains, σ
+    or blocking (docs/physics.md §12b).
 
     Per lit hit P: the surface eigenray from the sonar to P (:func:`surface_eigenrays`), and
 
-        w = (Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁))·|R_s|²·e^(−α'(L₁ + L₂))·ds·dβ / (max(A₂, R_min²)·cos θi),
+        w = |R_s|²·e^(−α'(L₁ + L₂))·ds·dβ / (max(A₂, R_min²)·cos θi),
 
-    at T₁ + T₂ (one-way times), with |R_s|² = exp(−4(k·h_w)²·sin²θg), u₁ the direct ray's launch and u₂ the surface
-    ray's (ξ·c_S horizontally towards P, upwards), θi from the direct ray's arrival and θs from the surface ray's
-    (its direction back from P); zero where no unturned eigenray exists, or either cosine is not positive. The
+    at T₁ + T₂ (one-way times), with |R_s|² = exp(−4(k·h_w)²·sin²θg), θi from the direct ray's arrival and θs from
+    the surface ray's (its direction back from P); zero where no unturned eigenray exists, or either cosine is not
+    positive. The beam's gains Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁) (u₁ the direct ray's launch, u₂ the surface ray's:
+    ξ·c_S horizontally towards P, upwards, written to ``M_U2``) are multiplied in after this kernel
+    (:func:`~sonar_embree.kernels.rays.weigh_pairs`). The
     extent is the direct echo's ΔT₁ (half its two-way extent) times 1 + (p₂·f)/(p₁·f) (at most 11), p the rays'
     directions at P and f the horizontal direction away from the sonar in the facet's plane.
 
@@ -246,14 +238,13 @@ def curved_mixed(hits, launch, poses, face_normals, medium, weighting, out):
         Per ray of the fan (n,): hit point (n, 3) (local, m), triangle (int32), unit direction of arrival (n, 3),
         path length L₁ (float32, m), two-way time 2T₁ (s), two-way extent (s), whether it is lit (bool).
     launch : :data:`~sonar_embree.kernels.args.Launch`
-        Each ray's body-frame launch direction (n, 3), its cell's dβ (n,) (rad) and row (n,) int64 (2·ping + side).
+        Each ray's cell dβ (n,) (rad) and row (n,) int64 (2·ping + side).
     poses : :data:`~sonar_embree.kernels.args.Poses`
     face_normals : (f, 3) float64
     medium : :data:`~sonar_embree.kernels.args.Medium`
         The profile's knots ``z`` (from depth 0, m) and speeds ``c`` (m/s), and the surface's local height (m).
     weighting : :data:`~sonar_embree.kernels.args.MixedWeighting`
-        The beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), the fan's ds, R_min (m), k·h_w and
-        whether to write φ.
+        Two-way absorption (Np/m), the fan's ds, R_min (m), k·h_w and whether to write φ.
     out : (n, MIX_WIDTH) float64
         Written, the columns ``M_*``.
     """
@@ -269,8 +260,8 @@ def curved_mixed(hits, launch, poses, face_normals, medium, weighting, out):
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
 def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
     """Row i of :func:`curved_mixed` (a lit hit): the surface eigenray (:func:`_surface_leg`), the facet's cosines,
-    the gains (:func:`_mixed_gain`), the weight and extent."""
-    beam, two_way, ds, r_min, kh, want_phi = weighting
+    the weight and extent."""
+    two_way, ds, r_min, kh, want_phi = weighting
     b = launch.row[i] // 2
     hx, hy, xi, t2, l2, spread, x_up, s_top2, c_src, s_src, c_dst, s_dst = _surface_leg(i, b, hits, poses, medium,
                                                                                          r_min)
@@ -282,12 +273,12 @@ def _mixed_one(i, hits, launch, poses, face_normals, medium, weighting, out):
     n = (n0, n1, n2)
     if not (cos_i > 0.0 and cos_s > 0.0):
         return
-    g = _mixed_gain(i, b, launch, poses, beam, u2)
-    w = (g * math.exp(-4.0 * kh * kh * s_top2)
+    w = (math.exp(-4.0 * kh * kh * s_top2)
          * math.exp(-0.5 * two_way * (np.float64(hits.path[i]) + l2)) * ds * launch.dbeta[i] / (spread * cos_i))
     if not w > 0.0:
         return
     out[i, M_W], out[i, M_T] = w, 0.5 * hits.time[i] + t2
+    out[i, M_U2], out[i, M_U2 + 1], out[i, M_U2 + 2] = u2
     out[i, M_EXT] = _mixed_extent(i, hits, n, hx, hy, v)
     out[i, M_COS_I], out[i, M_COS_S], out[i, M_XUP] = cos_i, cos_s, x_up
     if want_phi:
@@ -322,22 +313,6 @@ def _facet_cosines(i, hits, face_normals, v):
     if n0 * a0 + n1 * a1 + n2 * a2 > 0.0:
         n0, n1, n2 = -n0, -n1, -n2
     return n0, n1, n2, -(n0 * a0 + n1 * a1 + n2 * a2), n0 * v[0] + n1 * v[1] + n2 * v[2]
-
-
-@njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py
-def _mixed_gain(i, b, launch, poses, beam, u2):
-    """Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁) of ray i: u₁ its launch, u₂ (world) the surface ray's, Γ_rx shifted by the
-    ping's δ (docs/physics.md §2, §16)."""
-    body, rot = launch.body, poses.rot
-    side = 1.0 if launch.row[i] % 2 == 1 else -1.0
-    e0 = rot[b, 0, 0] * u2[0] + rot[b, 1, 0] * u2[1] + rot[b, 2, 0] * u2[2]    # body = Rᵀ·u2
-    e1 = rot[b, 0, 1] * u2[0] + rot[b, 1, 1] * u2[1] + rot[b, 2, 1] * u2[2]
-    e2 = rot[b, 0, 2] * u2[0] + rot[b, 1, 2] * u2[1] + rot[b, 2, 2] * u2[2]
-    delta = poses.rx_shift[b]
-    g1 = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], 0.0)
-    g1r = _membrane(beam, side, body[i, 0], body[i, 1], body[i, 2], delta)
-    g2, g2r = _membrane(beam, side, e0, e1, e2, 0.0), _membrane(beam, side, e0, e1, e2, delta)
-    return g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2
 
 
 @njit(cache=True, nogil=True, inline='always')  # array arguments: see kernels/_numba.py

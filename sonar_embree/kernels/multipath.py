@@ -6,7 +6,6 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .rays import beam_factor, factor_rows
 
 #: Rays per pass of :func:`mixed_legs` (and the swell's paths): their sinc arguments are gathered, then evaluated in one
 #: vectorised loop. 1024 rather than 256: a chunk's call passes ~40 arrays (reference counts), −7 % per kernel.
@@ -18,19 +17,6 @@ def _rotation(rot, b):
     """The 3×3 body-to-world rotation of ping b as a 9-tuple (row-major): scalars, no array view per echo."""
     return (rot[b, 0, 0], rot[b, 0, 1], rot[b, 0, 2], rot[b, 1, 0], rot[b, 1, 1], rot[b, 1, 2],
             rot[b, 2, 0], rot[b, 2, 1], rot[b, 2, 2])
-
-
-@njit(cache=True, nogil=True)
-def _gain_args(m, side, ux, uy, uz, k_az, k_el, c, s, shift):
-    """The membrane's gains along the world direction u as sinc arguments, (along-track, along-track of the receive
-    beam turned by ``shift``, elevation, gate): Γ = sinc(along)·sinc(elevation)·gate, Γ_rx with the second; the gate
-    is 0 behind the baffle. m the body → world rotation (9-tuple, row-major), side −1 port, +1 starboard, k_az and
-    k_el the beam's k·lx/2 and k·ly/2, c and s the cosine and sine of the tilt (docs/physics.md §2, §16)."""
-    e0 = m[0] * ux + m[3] * uy + m[6] * uz                    # body = mᵀ·u: forward, starboard, down
-    e1 = m[1] * ux + m[4] * uy + m[7] * uz
-    e2 = m[2] * ux + m[5] * uy + m[8] * uz
-    gate = 1.0 if side * e1 * c + e2 * s > 0.0 else 0.0       # cos ψ · cos(β − δ) > 0: in front of the baffle
-    return k_az * e0, k_az * (e0 - shift), k_el * (e2 * c - side * e1 * s), gate
 
 
 @njit(cache=True, nogil=True)
@@ -66,26 +52,22 @@ def _azimuth(n, u, v):
 
 @njit(cache=True, nogil=True, parallel=True)
 def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, out, layout):
-    """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without σ, maps or visibility.
+    """The S→X→S' and S'→X→S paths of every direct echo of a side-scan block, without the beam's gains, σ (but
+    Lambert's, see ``bistatic``), maps or visibility.
 
     S' is the sonar mirrored in the surface z = ``z_s``, v the unit vector X → S'
     (r' = |S' − X|), P = X + leg1·v the surface point and u2 the unit vector S → P
     (leg2 = |P − S|). Per echo:
 
-        w = (Γ²(u1)·Γ_rx²(u2) + Γ²(u2)·Γ_rx²(u1))·|R_s|²·e^(−α'(r + r'))·ds·dβ / (max(r', R_min)²·cos θi),
+        w = |R_s|²·e^(−α'(r + r'))·ds·dβ / (max(r', R_min)²·cos θi),
         |R_s|² = exp(−4·(k·h_w)²·sin²θg)  (sin θg = v_z at the surface),
         t = (r + r')/c,  Δt = min(|d(r + r')/dβ|, 2·cap)·dβ/c,
 
     cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
     and v in the plane of n (the bistatic azimuth; 0 for backscatter; computed only when ``want_phi``, for a
-    law that depends on it, else left unwritten: an arccos per echo). Γ(u1) and Γ_rx(u1) are the fan ray's
-    own, from its grid direction (azimuth sine s, depression β) as :func:`fan_echoes` computes them (a ray
-    behind the baffle has no direct echo: fan_echoes left its r = inf). Rays without a direct echo (r = inf)
-    get w = 0, t = inf. Γ_rx is Γ with the along-track cosine shifted by the ping's ``rx_shift``
-    δ = 2·v_fwd/c (motion during the ping, docs/physics.md §16); with δ = 0 the weight is 2·Γ²(u1)·Γ²(u2) to
-    the bit. The rays go in chunks of :data:`_CHUNK`: the geometry ray by ray, then the chunk's four sincs per
-    ray in one vectorised loop (:func:`sinc_rows`, within 3 ulp of ``math.sin``; fan_echoes' Γ(u1) may differ
-    from this one in its last bits), then the weights.
+    law that depends on it, else left unwritten: an arccos per echo). The beam's gains Γ²(u1)·Γ_rx²(u2) +
+    Γ²(u2)·Γ_rx²(u1) are multiplied in after this kernel (:func:`weigh_pairs`, from u2). Rays
+    without a direct echo (r = inf) get w = 0, t = inf. The rays go in chunks of :data:`_CHUNK`, stage by stage.
 
     Parameters
     ----------
@@ -93,8 +75,8 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
         The block's rows (row = 2·ping + side, port 0) of rays; a row's rays are azimuth-major over its elevation
         cells, as :func:`fan_rays` casts them.
     fan : :data:`~sonar_embree.kernels.args.Fan`
-        The fan's azimuth sines ``s`` (n_az,) and spacing ``ds``, each elevation cell's cos β, sin β (as passed to
-        :func:`fan_echoes`) and width dβ (rad), and the rows' elevation cells ``el_start`` (rows + 1,).
+        The fan's azimuth spacing ``ds``, each elevation cell's width dβ (rad), and the rows' elevation cells
+        ``el_start`` (rows + 1,) (its ``s``, cos β and sin β not read).
     hits : :data:`~sonar_embree.kernels.args.Hits`
         Direct slant ranges (n,) (m, inf: none), hit points (n, 3) (local frame, m) and triangles (n,) int32 of the
         block's rays.
@@ -103,55 +85,47 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
     face_normals : (f, 3) float64
         Scene normals.
     weighting : :data:`~sonar_embree.kernels.args.Weighting`
-        The beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), near-field bound (m), the range window
-        (not read), |dR/dβ| cap (m/rad) and 2/c (s/m).
+        Two-way absorption (Np/m), near-field bound (m), the range window (not read), |dR/dβ| cap (m/rad) and 2/c
+        (s/m).
     bistatic : :data:`~sonar_embree.kernels.args.Bistatic`
         The surface height ``z_s`` (local, m) and k·h_w (0: a mirror); Lambert's μ per object ``mu_obj`` when
         every object has Lambert's law and there are no maps or texture (then σ = μ·cos θi·cos θs is applied
         here: the weight × (μ·cos θi)·cos θs, as ``multipath.apply_bistatic`` would; empty: σ is left to the
         caller) and ``face_object`` (f,); ``want_phi``: whether to write ``out.phi``; ``want_legs``: whether to
-        write ``out.u2``, ``out.leg1``, ``out.leg2`` (for the visibility legs; ``out.v`` is always written, the
-        stages of a chunk read it).
+        write ``out.leg1``, ``out.leg2`` (for the visibility legs; ``out.v`` and ``out.u2`` are always written: the
+        stages of a chunk and the beam after the kernel read them).
     out : :data:`~sonar_embree.kernels.args.MixedOut`
         Written: time, extent, weight, cos θi, cos θs, φ (n,), v (n, 3), leg1 (n,), u2 (n, 3), leg2 (n,).
     layout : (n, 5) or (0, 5) float64
         Each ray's own s, cos β, sin β, dβ and ds (rays aimed at objects, :mod:`sonar_embree.propagation.aim`); then
         ``fan`` is not read (but for ``fan.el_start``'s length). No rows (``NO_LAYOUT``): the fan's layout.
     """
-    el_start, weight_out = fan.el_start, out.weight
+    el_start = fan.el_start
     for row in prange(ray_start.shape[0] - 1):
-        sc = np.empty((_SC_ROWS, _CHUNK))   # per echo: the sincs' arguments (then values), gains, σ, cell, r'
-        carry = ((el_start[row + 1] - el_start[row] - 1 if layout.shape[0] == 0 else 0), -1, 0.0, 0.0, 0.0, math.nan)
+        sc = np.empty((_SC_ROWS, _CHUNK))   # per echo: Lambert's σ, its cell, r'
+        carry = ((el_start[row + 1] - el_start[row] - 1 if layout.shape[0] == 0 else 0), -1)
         for c0 in range(ray_start[row], ray_start[row + 1], _CHUNK):
             c1 = min(c0 + _CHUNK, ray_start[row + 1])
             carry = _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, bistatic, out, layout,
                                  sc)
-            factor_rows(weighting.beam[3], sc, 4, c1 - c0)              # vectorised: 4 factors (sincs) per echo
-            for k in range(c1 - c0):                                    # = 2·g1²·g2², bit for bit, when δ = 0
-                g1, g1r, g2, g2r = sc[4, k] * sc[0, k], sc[5, k] * sc[0, k], sc[1, k] * sc[3, k], sc[2, k] * sc[3, k]
-                g = (g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2) * sc[6, k]
-                weight_out[c0 + k] = weight_out[c0 + k] * g * sc[7, k]
 
 
-#: Rows of a chunk's scratch ``sc`` (:func:`mixed_legs`): 0–3 the four sincs' arguments (then values), 4, 5 the ray's
-#: Γ_az and Γ_az,rx, 6 the gate along u2, 7 Lambert's σ (or 1); then the ray's cell dβ and ds and r' = |S' − X|.
-_SC_DB, _SC_DS, _SC_R2 = 8, 9, 10
-_SC_ROWS = 11
+#: Rows of a chunk's scratch ``sc`` (:func:`mixed_legs`): Lambert's σ (or 1), the ray's cell dβ and ds, and
+#: r' = |S' − X|.
+_SC_SIGMA, _SC_DB, _SC_DS, _SC_R2 = 0, 1, 2, 3
+_SC_ROWS = 4
 
 
-@njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its ~40 arrays' reference counts amortised
+@njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its arrays' reference counts amortised
 def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, bistatic, out, layout, sc):
-    """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`, in stages over the chunk: everything but the gains, whose
-    sinc arguments go to ``sc`` (rows 0–3: Γ_el(u1), Γ_az(u2), Γ_az,rx(u2), Γ_el(u2); 4, 5: the ray's Γ_az, Γ_az,rx;
-    6: 1 in front of the baffle along u2, else 0; 7: Lambert's σ = μ·cos θi·cos θs, or 1). ``j``, ``az`` (the ray's
-    elevation cell and azimuth, counted), cos ψ and the azimuth's gains carry from chunk to chunk (``carry`` = (j,
-    az, cos ψ, Γ_az, Γ_az,rx, s_prev)) and are returned; with a per-ray ``layout`` the gains are those of the ray's
-    own s, kept while s repeats (``s_prev``). The other arguments are :func:`mixed_legs`'."""
+    """Rays c0 … c1 − 1 of a row of :func:`mixed_legs`, in stages over the chunk. ``j``, ``az`` (the ray's elevation
+    cell and azimuth on the fan's grid, counted) carry from chunk to chunk (``carry``) and are returned. The other
+    arguments are :func:`mixed_legs`'."""
     b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
-    m, shift = _rotation(poses.rot, b), poses.rx_shift[b]
-    carry = _launch_stage(row, c0, c1, carry, fan, layout, weighting.beam, shift, sc)
+    m = _rotation(poses.rot, b)
+    carry = _launch_stage(row, c0, c1, carry, fan, layout, sc)
     _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc)
-    _leg_gain_stage(c0, c1, side, m, shift, weighting.beam, hits, out, bistatic, sc)
+    _sigma_stage(c0, c1, hits, out, bistatic, sc)
     _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc)
     _mixed_extent_stage(c0, c1, b, side, m, hits, poses, face_normals, out, weighting, sc)
     if bistatic.want_phi:
@@ -162,53 +136,23 @@ def _mixed_chunk(row, c0, c1, carry, fan, hits, poses, face_normals, weighting, 
 
 
 @njit(cache=True, nogil=True)
-def _launch_stage(row, c0, c1, carry, fan, layout, beam, shift, sc):
-    """Each ray's cell (dβ, ds into ``sc``) and its launch gains' arguments (sc rows 0, 4, 5), the carry moved on:
-    the fan's grid (:func:`_grid_stage`) or each ray's own cell (:func:`_own_stage`)."""
+def _launch_stage(row, c0, c1, carry, fan, layout, sc):
+    """Each ray's cell dβ, ds (into ``sc``), the carry moved on: the fan's grid, the elevation cell counted on and the
+    azimuth moved on after the row's last cell, or each ray's own cell (``layout``)."""
     if layout.shape[0] > 0:
-        return _own_stage(c0, c1, carry, layout, beam, shift, sc)
-    return _grid_stage(row, c0, c1, carry, fan, beam, shift, sc)
-
-
-@njit(cache=True, nogil=True)
-def _grid_stage(row, c0, c1, carry, fan, beam, shift, sc):
-    """The launch cells of rays c0 … c1 − 1 on the fan's grid: the elevation cell counted on, the azimuth (its cos ψ
-    and gains) moved on after the row's last cell; the fan's arrays taken once per chunk."""
-    j, az, cpsi, ga, gar = carry[0], carry[1], carry[2], carry[3], carry[4]
-    s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
-    n_el, ct, st = el_start[row + 1] - el_start[row], math.cos(beam[2]), math.sin(beam[2])
+        for i in range(c0, c1):
+            sc[_SC_DB, i - c0], sc[_SC_DS, i - c0] = layout[i, 3], layout[i, 4]
+        return carry
+    j, az = carry
+    ds, dbeta, el_start = fan.ds, fan.dbeta, fan.el_start
+    n_el = el_start[row + 1] - el_start[row]
     for i in range(c0, c1):
         if j == n_el - 1:
             j, az = 0, az + 1
-            cpsi = math.sqrt(1.0 - s_az[az] * s_az[az])
-            ga, gar = beam_factor(beam[3], beam[0] * s_az[az]), beam_factor(beam[3], beam[0] * (s_az[az] - shift))
         else:
             j += 1
-        cell = el_start[row] + j
-        _put_cell(sc, i - c0, cpsi, ga, gar, cos_beta[cell], sin_beta[cell], dbeta[cell], ds, beam[1], ct, st)
-    return j, az, cpsi, ga, gar, carry[5]
-
-
-@njit(cache=True, nogil=True)
-def _own_stage(c0, c1, carry, layout, beam, shift, sc):
-    """The launch cells of rays c0 … c1 − 1 from each one's own cell (``layout``), cos ψ and the gains kept while s
-    repeats."""
-    cpsi, ga, gar, s_prev = carry[2], carry[3], carry[4], carry[5]
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
-    for i in range(c0, c1):
-        if layout[i, 0] != s_prev:
-            s_prev = layout[i, 0]
-            cpsi = math.sqrt(1.0 - s_prev * s_prev)
-            ga, gar = beam_factor(beam[3], beam[0] * s_prev), beam_factor(beam[3], beam[0] * (s_prev - shift))
-        _put_cell(sc, i - c0, cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4], beam[1], ct, st)
-    return carry[0], carry[1], cpsi, ga, gar, s_prev
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _put_cell(sc, k, cpsi, ga, gar, cb, sbeta, db, ds, k_el, ct, st):
-    """Ray k's launch gains' arguments (sc rows 0, 4, 5: Γ_el's sinc argument, Γ_az, Γ_az,rx) and its cell dβ, ds."""
-    sc[0, k], sc[4, k], sc[5, k] = k_el * cpsi * (sbeta * ct - cb * st), ga, gar
-    sc[_SC_DB, k], sc[_SC_DS, k] = db, ds
+        sc[_SC_DB, i - c0], sc[_SC_DS, i - c0] = dbeta[el_start[row] + j], ds
+    return j, az
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -227,7 +171,8 @@ def _direct_dir(r, x, pos, i, b):
 
 @njit(cache=True, nogil=True)
 def _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc):
-    """Each echo's leg to the image sonar S' (v = X → S', r' into ``sc``) and cos θi, cos θs (facing the sonar)."""
+    """Each echo's leg to the image sonar S' (v = X → S', r' into ``sc``), its mirror u2 = S → P and cos θi, cos θs
+    (facing the sonar)."""
     r, x, prim, pos, z_s = hits.range, hits.point, hits.prim, poses.pos, bistatic.z_s
     for i in range(c0, c1):
         if not math.isfinite(r[i]):
@@ -240,29 +185,26 @@ def _mirror_stage(c0, c1, b, hits, poses, bistatic, face_normals, out, sc):
         n = _facing(face_normals, prim[i], u)
         out.cos_i[i], out.cos_s[i] = -(n[0] * u[0] + n[1] * u[1] + n[2] * u[2]), n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
         out.v[i, 0], out.v[i, 1], out.v[i, 2] = v
+        out.u2[i, 0], out.u2[i, 1], out.u2[i, 2] = -v[0], -v[1], v[2]
         sc[_SC_R2, i - c0] = r2
 
 
 @njit(cache=True, nogil=True)
-def _leg_gain_stage(c0, c1, side, m, shift, beam, hits, out, bistatic, sc):
-    """The gains' arguments along S → P (sc rows 1–3, the gate in 6) and Lambert's σ = μ·cos θi·cos θs into row 7
-    (1 when σ is left to the caller); 0 for rays without a direct echo."""
-    r, prim, v, mu_obj, face_object = hits.range, hits.prim, out.v, bistatic.mu_obj, bistatic.face_object
-    ct, st = math.cos(beam[2]), math.sin(beam[2])
+def _sigma_stage(c0, c1, hits, out, bistatic, sc):
+    """Lambert's σ = μ·cos θi·cos θs into ``sc`` (1 when σ is left to the caller, 0 without a direct echo)."""
+    r, prim, mu_obj, face_object = hits.range, hits.prim, bistatic.mu_obj, bistatic.face_object
     for i in range(c0, c1):
         k = i - c0
         if not math.isfinite(r[i]):
-            sc[1, k], sc[2, k], sc[3, k], sc[6, k], sc[7, k] = 0.0, 0.0, 0.0, 0.0, 0.0
+            sc[_SC_SIGMA, k] = 0.0
             continue
-        sc[1, k], sc[2, k], sc[3, k], sc[6, k] = _gain_args(m, side, -v[i, 0], -v[i, 1], v[i, 2], beam[0], beam[1],
-                                                            ct, st, shift)                           # along S → P
-        sc[7, k] = (mu_obj[face_object[prim[i]]] * max(out.cos_i[i], 0.0) * max(out.cos_s[i], 0.0)
-                    if mu_obj.shape[0] > 0 else 1.0)
+        sc[_SC_SIGMA, k] = (mu_obj[face_object[prim[i]]] * max(out.cos_i[i], 0.0) * max(out.cos_s[i], 0.0)
+                            if mu_obj.shape[0] > 0 else 1.0)
 
 
 @njit(cache=True, nogil=True)
 def _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc):
-    """w without the gains and t = (r + r')/c (0 and inf without a direct echo)."""
+    """w without the gains (× Lambert's σ) and t = (r + r')/c (0 and inf without a direct echo)."""
     r, weight_out, time_out, v, cos_i = hits.range, out.weight, out.time, out.v, out.cos_i
     two_way_np_per_m, min_range_m, inv_c = weighting.two_way_np_per_m, weighting.min_range_m, 0.5 * weighting.time_per_m
     wave_kh = bistatic.wave_kh
@@ -275,7 +217,7 @@ def _mixed_weight_stage(c0, c1, hits, out, weighting, bistatic, sc):
         rb2 = max(r2, min_range_m)
         w = (math.exp(-0.5 * two_way_np_per_m * (r[i] + r2) - 4.0 * wave_kh * wave_kh * v[i, 2] * v[i, 2])
              * sc[_SC_DS, k] * sc[_SC_DB, k] / (rb2 * rb2 * cos_i[i]))
-        weight_out[i], time_out[i] = w, (r[i] + r2) * inv_c
+        weight_out[i], time_out[i] = w * sc[_SC_SIGMA, k], (r[i] + r2) * inv_c
 
 
 @njit(cache=True, nogil=True)
@@ -305,13 +247,12 @@ def _mixed_phi_stage(c0, c1, b, hits, poses, face_normals, out):
 
 @njit(cache=True, nogil=True)
 def _mixed_leg_stage(c0, c1, b, hits, poses, bistatic, out, sc):
-    """The legs for the visibility check: u2 (S → P) and the lengths X → P and S → P (= P → S')."""
+    """The legs' lengths for the visibility check: X → P and S → P (= P → S')."""
     r, x, pos, z_s, v = hits.range, hits.point, poses.pos, bistatic.z_s, out.v
     for i in range(c0, c1):
         if not math.isfinite(r[i]):
             continue
         q = sc[_SC_R2, i - c0] / (2.0 * z_s - pos[b, 2] - x[i, 2])
-        out.u2[i, 0], out.u2[i, 1], out.u2[i, 2] = -v[i, 0], -v[i, 1], v[i, 2]
         out.leg1[i], out.leg2[i] = (z_s - x[i, 2]) * q, (z_s - pos[b, 2]) * q   # X → P and S → P (= P → S')
 
 

@@ -514,3 +514,113 @@ def weigh_rays(layout, ray_start, rx_shift, tilt_rad, kind, p_along, p_across, w
                 e = _across(kind, p_across, math.sqrt(1.0 - sa * sa), layout[i, 2] * cos_t - layout[i, 1] * sin_t)
                 g, g_rx = beam_factor(kind, p_along * sa) * e, beam_factor(kind, p_along * (sa - shift)) * e
                 weight[i] *= g * g * (g_rx * g_rx)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def launch_body(fan, layout, out):
+    """Each ray's body-frame launch direction (s, side·cos ψ·cos β, cos ψ·sin β) into ``out`` (n, 3) (forward,
+    starboard, down; side −1 on port rows, even): ``fan`` and ``layout`` as for :func:`beam_cosines` (the rows of
+    ``fan.el_start``, azimuth-major over their elevation cells, or each ray's own cell, ``layout`` (n, 5), with the
+    rows' rays in ``fan.el_start``)."""
+    s, cos_beta, sin_beta, el_start = fan.s, fan.cos_beta, fan.sin_beta, fan.el_start
+    n_az, per_ray = s.shape[0], layout.shape[0] > 0
+    for r in prange(el_start.shape[0] - 1):
+        _, side, n_el, base, end = row_rays(r, el_start, n_az, per_ray)
+        if per_ray:
+            for i in range(base, end):
+                cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
+                out[i, 0], out[i, 1], out[i, 2] = layout[i, 0], side * cpsi * layout[i, 1], cpsi * layout[i, 2]
+            continue
+        for a in range(n_az):                           # the grid line by line: no division per ray
+            sa, first, i0 = s[a], el_start[r], base + a * n_el
+            cpsi = math.sqrt(1.0 - sa * sa)
+            for j in range(n_el):
+                out[i0 + j, 0], out[i0 + j, 1] = sa, side * cpsi * cos_beta[first + j]
+                out[i0 + j, 2] = cpsi * sin_beta[first + j]
+
+
+#: Rows of :func:`weigh_pairs`' scratch: the arguments (then values) of the four factors it evaluates per echo (across
+#: of u, across, along and along_rx of d), the launch's along and along_rx (kept while s repeats) and the two gates.
+_PAIR_ROWS = 8
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def weigh_pairs(ray_start, body, leg, rot, rx_shift, tilt_rad, kind, p_along, p_across, w_pair, w_mono):
+    """The gains of paths that leave the sonar along one direction and return along another, after the path kernels
+    (issue 51, item 2; docs/physics.md §2, §13, §16), in place, for every echo i of rows 2·ping + side:
+
+        w_pair[i] ×= Γ²(u)·Γ_rx²(d) + Γ²(d)·Γ_rx²(u)   (where w_pair[i] > 0)
+        w_mono[i] ×= Γ²(u)·Γ_rx²(u)                    (where w_mono has rows and w_mono[i] > 0)
+
+    u = ``body[i]`` the launch direction in the body frame (forward, starboard, down), d = Rᵀ·``leg[i]`` the other
+    leg's world direction at the sonar turned into it (R = ``rot`` of the row's ping). Γ = along(s)·across(v)·gate of
+    the beam form ``kind`` (:data:`BEAM_SINC`, :data:`BEAM_GAUSS`) with ``p_along``, ``p_across``, v = e₂·cos δ −
+    side·e₁·sin δ (δ = ``tilt_rad``), 0 behind the baffle (side·e₁·cos δ + e₂·sin δ ≤ 0); Γ_rx with s shifted by the
+    ping's ``rx_shift``. The echoes go in chunks: the arguments of their four factors, which then go in one vectorised
+    loop (:func:`factor_rows`), and the launch's two along-track factors, kept while its s repeats (a fan's
+    elevation cells share their line's); then the weights. Its NumPy twins: ``tests/naive.py`` and, for any separable
+    beam, :func:`sonar_embree.propagation.gain.weigh_pairs`."""
+    form = (math.cos(tilt_rad), math.sin(tilt_rad), p_along, p_across, kind)
+    for r in prange(ray_start.shape[0] - 1):
+        sc = np.empty((_PAIR_ROWS, _PAIR_CHUNK))
+        b, side = r // 2, 1.0 if r % 2 == 1 else -1.0
+        carry = (math.nan, 0.0, 0.0)                    # the launch's s and its along-track factors
+        for c0 in range(ray_start[r], ray_start[r + 1], _PAIR_CHUNK):
+            c1 = min(c0 + _PAIR_CHUNK, ray_start[r + 1])
+            carry = _pair_launch(c0, c1, body, side, rx_shift[b], form, carry, sc)
+            _pair_leg(c0, c1, leg, rot, b, side, rx_shift[b], form, w_pair, sc)
+            factor_rows(kind, sc, 4, c1 - c0)
+            _pair_apply(c0, c1, w_pair, w_mono, sc)
+
+
+#: Echoes per pass of :func:`weigh_pairs`.
+_PAIR_CHUNK = 1024
+
+
+@njit(cache=True, nogil=True)
+def _pair_launch(c0, c1, body, side, shift, form, carry, sc):
+    """The launch's across-track argument (sc row 0), its along-track factors (rows 4, 5) and gate (row 6) of echoes
+    c0 … c1 − 1 on a ``side`` with the ping's receive shift; ``form`` = (cos and sin of the tilt, p_along,
+    p_across, kind), ``carry`` = (s, along(s), along_rx(s)) of the last launch, returned moved on."""
+    cos_t, sin_t, p_along, p_across, kind = form
+    s_prev, ga, gar = carry
+    for i in range(c0, c1):
+        k = i - c0
+        e0, e1, e2 = body[i, 0], body[i, 1], body[i, 2]
+        if e0 != s_prev:
+            s_prev, ga, gar = e0, beam_factor(kind, p_along * e0), beam_factor(kind, p_along * (e0 - shift))
+        sc[0, k], sc[4, k], sc[5, k] = p_across * (e2 * cos_t - side * e1 * sin_t), ga, gar
+        sc[6, k] = 1.0 if side * e1 * cos_t + e2 * sin_t > 0.0 else 0.0
+    return s_prev, ga, gar
+
+
+@njit(cache=True, nogil=True)
+def _pair_leg(c0, c1, leg, rot, b, side, shift, form, w_pair, sc):
+    """The other leg's three factors' arguments (sc rows 1–3) and gate (row 7) of echoes c0 … c1 − 1 of ping ``b``:
+    d = Rᵀ·leg in the body frame; 0 where ``w_pair`` is not lit."""
+    cos_t, sin_t, p_along, p_across, _ = form
+    for i in range(c0, c1):
+        k = i - c0
+        sc[1, k], sc[2, k], sc[3, k], sc[7, k] = 0.0, 0.0, 0.0, 0.0
+        if not w_pair[i] > 0.0:
+            continue
+        d0, d1, d2 = leg[i, 0], leg[i, 1], leg[i, 2]
+        e0 = rot[b, 0, 0] * d0 + rot[b, 1, 0] * d1 + rot[b, 2, 0] * d2         # Rᵀ·d
+        e1 = rot[b, 0, 1] * d0 + rot[b, 1, 1] * d1 + rot[b, 2, 1] * d2
+        e2 = rot[b, 0, 2] * d0 + rot[b, 1, 2] * d1 + rot[b, 2, 2] * d2
+        sc[1, k], sc[2, k], sc[3, k] = p_across * (e2 * cos_t - side * e1 * sin_t), p_along * e0, p_along * (e0 - shift)
+        sc[7, k] = 1.0 if side * e1 * cos_t + e2 * sin_t > 0.0 else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _pair_apply(c0, c1, w_pair, w_mono, sc):
+    """The gains of echoes c0 … c1 − 1 from the factors in ``sc`` into their lit weights."""
+    mono = w_mono.shape[0] > 0
+    for i in range(c0, c1):
+        k = i - c0
+        g1, g1r = sc[4, k] * sc[0, k] * sc[6, k], sc[5, k] * sc[0, k] * sc[6, k]
+        if mono and w_mono[i] > 0.0:
+            w_mono[i] *= g1 * g1 * (g1r * g1r)
+        if w_pair[i] > 0.0:
+            g2, g2r = sc[2, k] * sc[1, k] * sc[7, k], sc[3, k] * sc[1, k] * sc[7, k]
+            w_pair[i] *= g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2

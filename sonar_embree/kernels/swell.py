@@ -10,8 +10,7 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .multipath import _CHUNK, _azimuth, _gain_args, _rotation
-from .rays import beam_factor, factor_rows
+from .multipath import _CHUNK, _azimuth, _rotation
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -71,25 +70,24 @@ def _footprint(m, side, cpsi, cb, sb, nx, ny, nz, ur, n_x, cos_i, big_r):
 
 @njit(cache=True, nogil=True, parallel=True)
 def swell_paths(fan, bounce, poses, face_normals, weighting, bistatic, out, layout):
-    """The one- and two-bounce paths of every bounced ray, without σ (but Lambert's, see ``mu_obj``), maps or the
-    direct leg's visibility.
+    """The one- and two-bounce paths of every bounced ray, without the beam's gains, σ (but Lambert's, see ``mu_obj``),
+    maps or the direct leg's visibility.
 
     A ray reached the scene at X = P + (eps + t2)·u_r (triangle ``prim``, normal n): unfolded range
     R = t1 + eps + t2 (the facet is a mirror: a straight ray from S's image), r = |X − S|, u_d = (X − S)/r,
     cos θi = −n·u_r, cos θs = −n·u_d, sin θg = |u·n_P| at the surface, |R_s|² = exp(−4(k·h_w)² sin²θg):
 
-        S→P→X→P→S:  w2 = Γ²(u)·Γ_rx²(u)·|R_s|⁴·e^(−α'R)·ds·dβ / max(R, R_min)²       (× σ(θi)/cos θi by the law)
+        S→P→X→P→S:  w2 = |R_s|⁴·e^(−α'R)·ds·dβ / max(R, R_min)²       (× σ(θi)/cos θi by the law)
                     t = 2R/c,  Δt = 2·min(|u_r·dX/dβ|, cap)·dβ/c
         S→P→X→S and S→X→P→S (one echo):
-                    w1 = (Γ²(u)·Γ_rx²(u_d) + Γ²(u_d)·Γ_rx²(u))·|R_s|²·e^(−α'(R + r)/2)·ds·dβ / (max(r, R_min)²·cos θi)
+                    w1 = |R_s|²·e^(−α'(R + r)/2)·ds·dβ / (max(r, R_min)²·cos θi)
                     (× σ(θi, θs, φ) afterwards), t = (R + r)/c,  Δt = min(|(u_r + u_d)·dX/dβ|, 2·cap)·dβ/c
 
-    with Γ(u) of the launch direction from its fan grid direction, Γ(u_d) of the direct leg, Γ_rx the receive
-    beam turned by the ping's δ (motion during the ping, docs/physics.md §16; δ = 0: Γ_rx = Γ and the one-bounce
-    gain is 2·Γ²(u)·Γ²(u_d) to the bit). w2 = 0 unless cos θi > 1e-9, w1 = 0 unless cos θs > 1e-9 too; rays not
-    ``seen`` (S→P blocked), missing the scene or with R beyond ``max_range_m`` get w1 = w2 = 0, t = inf. As in
-    :func:`~sonar_embree.kernels.multipath.mixed_legs`, the rays go in chunks: the geometry, then the chunk's
-    four sincs per ray in one vectorised loop (:func:`~sonar_embree.kernels.rays.sinc_rows`), then the weights.
+    The beam's gains (w2 × Γ²(u)·Γ_rx²(u), w1 × Γ²(u)·Γ_rx²(u_d) + Γ²(u_d)·Γ_rx²(u), u the launch direction from its
+    fan cell) are multiplied in after this kernel (:func:`~sonar_embree.kernels.rays.weigh_pairs`, from u_d =
+    −``out.leg``). w2 = 0 unless cos θi > 1e-9, w1 = 0 unless cos θs > 1e-9 too; rays not ``seen`` (S→P blocked),
+    missing the scene or with R beyond ``max_range_m`` get w1 = w2 = 0, t = inf. As in
+    :func:`~sonar_embree.kernels.multipath.mixed_legs`, the rays go in chunks, stage by stage.
 
     Parameters
     ----------
@@ -104,8 +102,8 @@ def swell_paths(fan, bounce, poses, face_normals, weighting, bistatic, out, layo
     face_normals : (f, 3) float64
         The scene's normals.
     weighting : :data:`~sonar_embree.kernels.args.Weighting`
-        The beam (k·lx/2, k·ly/2, tilt rad, 0), two-way absorption (Np/m), near-field bound R_min (m), the longest
-        unfolded range R (m), the |dR/dβ| cap (m/rad) and 2/c (s/m).
+        Two-way absorption (Np/m), near-field bound R_min (m), the longest unfolded range R (m), the |dR/dβ| cap
+        (m/rad) and 2/c (s/m).
     bistatic : :data:`~sonar_embree.kernels.args.Bistatic`
         k·h_w; Lambert's μ per object ``mu_obj`` when every object has Lambert's law and there are no maps or
         texture (then the one-bounce σ = μ·cos θi·cos θs is applied here, as
@@ -118,45 +116,34 @@ def swell_paths(fan, bounce, poses, face_normals, weighting, bistatic, out, layo
         Each launch ray's own s, cos β, sin β, dβ and ds (rays aimed at objects via the swell,
         :mod:`sonar_embree.propagation.swell`); no rows (``NO_LAYOUT``): the fan's grid.
     """
-    up_start, beam, w1_out, w2_out = bounce.up_start, weighting.beam, out.w1, out.w2
+    up_start = bounce.up_start
     for row in prange(up_start.shape[0] - 1):
-        sc = np.empty((_SW_ROWS, _CHUNK))   # per ray: the sincs' arguments (then values), gains, gates, σ, its terms
-        carry = (-1, 0.0, 0.0, 0.0)         # the launch azimuth, its cos ψ and gains
+        sc = np.empty((_SW_ROWS, _CHUNK))   # per ray: which paths are lit and the terms of its weights
+        carry = (-1, 0.0)                   # the launch azimuth and its cos ψ
         for c0 in range(up_start[row], up_start[row + 1], _CHUNK):
             c1 = min(c0 + _CHUNK, up_start[row + 1])
             carry = _swell_chunk(row, c0, c1, carry, fan, bounce, poses, face_normals, weighting, bistatic, out,
                                  layout, sc)
-            factor_rows(beam[3], sc, 4, c1 - c0)                        # vectorised: 4 factors (sincs) per ray
-            for k in range(c1 - c0):
-                g, g_rx = sc[4, k] * sc[0, k] * sc[6, k], sc[5, k] * sc[0, k] * sc[6, k]
-                gd, gd_rx = sc[1, k] * sc[3, k] * sc[7, k], sc[2, k] * sc[3, k] * sc[7, k]
-                w2_out[c0 + k] = w2_out[c0 + k] * (g * g * g_rx * g_rx)
-                w1_out[c0 + k] = w1_out[c0 + k] * (g * g * gd_rx * gd_rx + g_rx * g_rx * gd * gd) * sc[8, k]
 
 
-#: Rows of a chunk's scratch ``sc`` (:func:`swell_paths`): 0–3 the four sincs' arguments (then values), 4, 5 the
-#: launch's Γ_az, Γ_az,rx, 6, 7 the gates along u and u_d, 8 Lambert's σ (or 1); then which paths are lit (0 none,
-#: 1 two bounces, 2 both), R, e^(−α'R/2)·|R_s|², the launch cell's cos ψ, cos β, sin β, dβ, ds and dX/dβ (3).
-_SW_LIT, _SW_R, _SW_HALF, _SW_CPSI, _SW_CB, _SW_SB, _SW_DB, _SW_DS, _SW_DX = 9, 10, 11, 12, 13, 14, 15, 16, 17
-_SW_ROWS = 20
+#: Rows of a chunk's scratch ``sc`` (:func:`swell_paths`): which paths are lit (0 none, 1 two bounces, 2 both), R,
+#: e^(−α'R/2)·|R_s|², the launch cell's cos ψ, cos β, sin β, dβ, ds and dX/dβ (3).
+_SW_LIT, _SW_R, _SW_HALF, _SW_CPSI, _SW_CB, _SW_SB, _SW_DB, _SW_DS, _SW_DX = 0, 1, 2, 3, 4, 5, 6, 7, 8
+_SW_ROWS = 11
 
 
 @njit(cache=True, nogil=True)  # one call per chunk of _CHUNK rays: its arrays' reference counts amortised
 def _swell_chunk(row, c0, c1, carry, fan, bounce, poses, face_normals, weighting, bistatic, out, layout, sc):
-    """Bounced rays c0 … c1 − 1 of a row of :func:`swell_paths`, in stages over the chunk: everything but the gains,
-    whose sinc arguments go to ``sc`` (rows 0–3: Γ_el(u), Γ_az(u_d), Γ_az,rx(u_d), Γ_el(u_d); 4, 5: the launch's
-    Γ_az, Γ_az,rx; 6, 7: 1 where u, u_d are in front of the baffle and the path lit, else 0; 8: Lambert's one-bounce
-    σ, or 1); w1 and w2 are written without the gains. The launch azimuth, its cos ψ and gains carry from chunk to
-    chunk (``carry``)."""
+    """Bounced rays c0 … c1 − 1 of a row of :func:`swell_paths`, in stages over the chunk; w1 and w2 are written
+    without the beam's gains. The launch azimuth and its cos ψ carry from chunk to chunk (``carry``)."""
     b, side = row // 2, 1.0 if row % 2 == 1 else -1.0
-    m, shift = _rotation(poses.rot, b), poses.rx_shift[b]
+    m = _rotation(poses.rot, b)
     _swell_init_stage(c0, c1, bounce, out, sc)
     _swell_hit_stage(c0, c1, bounce, face_normals, weighting, out, sc)
-    carry = _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, weighting.beam, shift, sc)
+    carry = _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, sc)
     _swell_surface_stage(c0, c1, side, m, bounce, face_normals, weighting, bistatic, out, sc)
     _swell_leg_stage(c0, c1, b, poses, bounce, face_normals, out, sc)
     _swell_time_stage(c0, c1, bounce, weighting, out, sc)
-    _swell_leg_gain_stage(c0, c1, side, m, shift, weighting.beam, out, sc)
     _swell_one_weight_stage(c0, c1, bounce, bistatic, weighting, out, sc)
     if bistatic.want_phi:
         _swell_phi_stage(c0, c1, bounce, face_normals, out, sc)
@@ -165,7 +152,7 @@ def _swell_chunk(row, c0, c1, carry, fan, bounce, poses, face_normals, weighting
 
 @njit(cache=True, nogil=True)
 def _swell_init_stage(c0, c1, bounce, out, sc):
-    """A ray that returns nothing: every gain 0, w 0, t inf, cos θi = cos θs = 1, φ = r = 0, X at its surface
+    """A ray that returns nothing: unlit, w 0, t inf, cos θi = cos θs = 1, φ = r = 0, X at its surface
     point."""
     p = bounce.p
     for k in range(c0, c1):
@@ -198,24 +185,28 @@ def _swell_hit_stage(c0, c1, bounce, face_normals, weighting, out, sc):
 
 
 @njit(cache=True, nogil=True)
-def _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, beam, shift, sc):
-    """Each lit ray's launch cell (cos ψ, cos β, sin β, dβ, ds into ``sc``) and its gains' arguments (sc rows 0, 4,
-    5, the gate in 6): Γ(u) from the fan grid (the mirror maps the image ray onto u), the azimuth carried on; or
-    from each ray's own cell (``layout``, the rays aimed at objects)."""
+def _swell_cell_stage(row, c0, c1, carry, fan, bounce, layout, sc):
+    """Each lit ray's launch cell (cos ψ, cos β, sin β, dβ, ds into ``sc``): from the fan grid (the mirror maps the
+    image ray onto u), the azimuth carried on; or from each ray's own cell (``layout``, the rays aimed at objects)."""
     if layout.shape[0] > 0:
-        _swell_own_stage(c0, c1, bounce, layout, beam, shift, sc)
+        up = bounce.up
+        for k in range(c0, c1):
+            if sc[_SW_LIT, k - c0] != 0.0:
+                i = up[k]
+                _put_swell_cell(sc, k - c0, (math.sqrt(1.0 - layout[i, 0] * layout[i, 0]), layout[i, 1], layout[i, 2],
+                                             layout[i, 3], layout[i, 4]))
         return carry
-    return _swell_grid_stage(row, c0, c1, carry, fan, bounce, beam, shift, sc)
+    return _swell_grid_stage(row, c0, c1, carry, fan, bounce, sc)
 
 
 @njit(cache=True, nogil=True)
-def _swell_grid_stage(row, c0, c1, carry, fan, bounce, beam, shift, sc):
+def _swell_grid_stage(row, c0, c1, carry, fan, bounce, sc):
     """The launch cells on the fan's grid: the azimuth of each ray, divided only when it moves on; the fan's arrays
     taken once per chunk."""
-    a_now, cpsi, ga, gar = carry[0], carry[1], carry[2], carry[3]
+    a_now, cpsi = carry
     s_az, ds, cos_beta, sin_beta, dbeta, el_start = fan
     up, ray_start = bounce.up, bounce.ray_start
-    n_el, ct, st = el_start[row + 1] - el_start[row], math.cos(beam[2]), math.sin(beam[2])
+    n_el = el_start[row + 1] - el_start[row]
     for k in range(c0, c1):
         if sc[_SW_LIT, k - c0] == 0.0:
             continue
@@ -224,35 +215,14 @@ def _swell_grid_stage(row, c0, c1, carry, fan, bounce, beam, shift, sc):
         cell = el_start[row] + ray - a * n_el
         if a != a_now:
             a_now, cpsi = a, math.sqrt(1.0 - s_az[a] * s_az[a])
-            ga, gar = beam_factor(beam[3], beam[0] * s_az[a]), beam_factor(beam[3], beam[0] * (s_az[a] - shift))
-        _put_swell_cell(sc, k - c0, (cpsi, ga, gar, cos_beta[cell], sin_beta[cell], dbeta[cell], ds), beam[1], ct, st)
-    return a_now, cpsi, ga, gar
-
-
-@njit(cache=True, nogil=True)
-def _swell_own_stage(c0, c1, bounce, layout, beam, shift, sc):
-    """The launch cells from each ray's own cell (``layout``)."""
-    up, ct, st = bounce.up, math.cos(beam[2]), math.sin(beam[2])
-    for k in range(c0, c1):
-        if sc[_SW_LIT, k - c0] == 0.0:
-            continue
-        i = up[k]
-        cpsi = math.sqrt(1.0 - layout[i, 0] * layout[i, 0])
-        sa = layout[i, 0]
-        ga, gar = beam_factor(beam[3], beam[0] * sa), beam_factor(beam[3], beam[0] * (sa - shift))
-        _put_swell_cell(sc, k - c0, (cpsi, ga, gar, layout[i, 1], layout[i, 2], layout[i, 3], layout[i, 4]), beam[1],
-                        ct, st)
+        _put_swell_cell(sc, k - c0, (cpsi, cos_beta[cell], sin_beta[cell], dbeta[cell], ds))
+    return a_now, cpsi
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _put_swell_cell(sc, c, cell, k_el, ct, st):
-    """Ray c's launch cell (cos ψ, Γ_az, Γ_az,rx, cos β, sin β, dβ, ds) into ``sc``: its gains' arguments (rows 0, 4,
-    5), the baffle's gate (row 6) and the cell."""
-    cpsi, ga, gar, cb, sb, db, ds = cell
-    sc[4, c], sc[5, c] = ga, gar
-    sc[0, c] = k_el * cpsi * (sb * ct - cb * st)
-    sc[6, c] = 1.0 if cb * ct + sb * st > 0.0 else 0.0      # 0 behind the baffle
-    sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], sc[_SW_DB, c], sc[_SW_DS, c] = cpsi, cb, sb, db, ds
+def _put_swell_cell(sc, c, cell):
+    """Ray c's launch cell (cos ψ, cos β, sin β, dβ, ds) into ``sc``."""
+    sc[_SW_CPSI, c], sc[_SW_CB, c], sc[_SW_SB, c], sc[_SW_DB, c], sc[_SW_DS, c] = cell
 
 
 @njit(cache=True, nogil=True)
@@ -318,19 +288,8 @@ def _swell_time_stage(c0, c1, bounce, weighting, out, sc):
 
 
 @njit(cache=True, nogil=True)
-def _swell_leg_gain_stage(c0, c1, side, m, shift, beam, out, sc):
-    """The gains' arguments along u_d (sc rows 1–3, the gate in 7) where the one bounce is lit."""
-    ct, st, leg = math.cos(beam[2]), math.sin(beam[2]), out.leg
-    for k in range(c0, c1):
-        c = k - c0
-        if sc[_SW_LIT, c] == 2.0:
-            sc[1, c], sc[2, c], sc[3, c], sc[7, c] = _gain_args(m, side, -leg[k, 0], -leg[k, 1], -leg[k, 2], beam[0],
-                                                                beam[1], ct, st, shift)
-
-
-@njit(cache=True, nogil=True)
 def _swell_one_weight_stage(c0, c1, bounce, bistatic, weighting, out, sc):
-    """The one-bounce w1 without the gains (Lambert's σ into sc row 8 when it is applied here)."""
+    """The one-bounce w1 without the gains (× Lambert's σ when it is applied here)."""
     prim, mu_obj, face_object = bounce.prim, bistatic.mu_obj, bistatic.face_object
     two_way_np_per_m, min_range_m = weighting.two_way_np_per_m, weighting.min_range_m
     for k in range(c0, c1):
@@ -338,10 +297,10 @@ def _swell_one_weight_stage(c0, c1, bounce, bistatic, weighting, out, sc):
         if sc[_SW_LIT, c] != 2.0:
             continue
         cos_i, cos_s, r = out.cos_i[k], out.cos_s[k], out.r[k]
-        sc[8, c] = mu_obj[face_object[prim[k]]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
+        sigma = mu_obj[face_object[prim[k]]] * max(cos_i, 0.0) * max(cos_s, 0.0) if mu_obj.shape[0] > 0 else 1.0
         rb = max(r, min_range_m)
         out.w1[k] = sc[_SW_HALF, c] * math.exp(-0.5 * two_way_np_per_m * r) * sc[_SW_DS, c] * sc[_SW_DB, c] / (
-            rb * rb * cos_i)
+            rb * rb * cos_i) * sigma
 
 
 @njit(cache=True, nogil=True)

@@ -26,6 +26,7 @@ import numpy as np
 
 from .. import kernels
 from ..kernels.args import CurvedHits, Launch, Medium, MixedWeighting, Poses
+from .gain import weigh_pairs
 from ..environment import SoundSpeedProfile
 from .buffers import Buffers
 from .echoes import Echoes
@@ -151,24 +152,28 @@ def _block_upward(run, ray_start, ping, lit, h, x_up, pos_local, z_s_local, w, p
 
 def mixed_echoes(front, run, blk: BlockEchoes, rot, pos_local, z_s_local: float, rx_shift=None) -> Echoes:
     """S → P → surface → S and back the other way, for every direct echo of the curved fan ``blk`` (cast with
-    ``keep_arrival``), aligned with its rays: the surface eigenray from S to each hit point P, the membrane's gains
-    at both launch directions (:func:`kernels.curved_mixed`), σ(θi, θs, φ), both upward chords checked
-    (docs/physics.md §12b). Every hit of the fan counts, those on objects its rows aim rays at too (the aimed rays
-    give their direct echoes only)."""
+    ``keep_arrival``), aligned with its rays: the surface eigenray from S to each hit point P
+    (:func:`kernels.curved_mixed`), the beam's gains at both launch directions after it
+    (:func:`~sonar_embree.propagation.gain.weigh_pairs`), σ(θi, θs, φ), both upward chords checked (docs/physics.md
+    §12b). Every hit of the fan counts, those on objects its rows aim rays at too (the aimed rays give their direct
+    echoes only)."""
     c, sonar = run.compiled, front.sonar
     n = blk.weight.shape[0]
     body, row, dbeta = ray_cells(blk.plan.s, blk.el_start, blk.beta, blk.dbeta)
     shift = np.zeros(rot.shape[0]) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
+    rot = np.ascontiguousarray(rot, dtype=np.float64)
     kh = wave_kh(sonar)
     want_phi = wants_azimuth(c)
     out = np.empty((n, kernels.MIX_WIDTH))
     kernels.curved_mixed(CurvedHits(blk.point_m, blk.prim, blk.arrival, blk.tfar, blk.time_s, blk.extent_s,
                                     (blk.prim >= 0) & (blk.weight > 0)),
-                         Launch(body, dbeta, row), Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, shift),
-                         c.face_normals, Medium(*knots(sonar.environment.sound_speed), float(z_s_local)),
-                         MixedWeighting(front.plan.beam, front.two_way_np_per_m, float(blk.plan.ds),
-                                        front.plan.min_range_m, kh, want_phi), out)
+                         Launch(dbeta, row), Poses(rot, pos_local, shift), c.face_normals,
+                         Medium(*knots(sonar.environment.sound_speed), float(z_s_local)),
+                         MixedWeighting(front.two_way_np_per_m, float(blk.plan.ds), front.plan.min_range_m, kh,
+                                        want_phi), out)
     w = np.ascontiguousarray(out[:, kernels.M_W])
+    u2 = out[:, kernels.M_U2:kernels.M_U2 + 3]                # the beam after the kernel: u₁ out, u₂ back, and
+    weigh_pairs(front.plan.pattern, front.plan.tilt_rad, blk.ray_start, body, u2, rot, shift, w)   # the other way
     apply_bistatic(c, run.laws, blk.prim, blk.point_m, w, np.ascontiguousarray(out[:, kernels.M_COS_I]),
                    np.ascontiguousarray(out[:, kernels.M_COS_S]), out[:, kernels.M_PHI] if want_phi else None)
     lit = np.flatnonzero(w > 0)

@@ -28,7 +28,7 @@ from .buffers import Buffers
 from .curved_surface import knots
 from .echoes import Echoes
 from .fan import ray_cells
-from .gain import weigh_by_beam
+from .gain import weigh_by_beam, weigh_pairs
 from .multipath import apply_bistatic, block_legs, wants_azimuth, wave_kh
 from .refraction import SAGITTA_FRACTION, Marching, march
 from .swell import image_fan, surface_hits, up_lines
@@ -226,9 +226,8 @@ def _one_bounce(front, run, rays, legs, direct, lit, n_f, cos_i, cell, d_f, cap,
     w[ok] = (np.exp(-0.5 * front.two_way_np_per_m * (legs["path_m"][ok] + direct["path_m"][ok])
                     - 4.0 * kh * kh * sg[ok] ** 2) * cell[ok]
              / (np.maximum(direct["spread"][ok], r_min * r_min) * cos_i[ok]))
-    ping = rays["row"] // 2
-    body_d = np.einsum("nji,nj->ni", rot[ping], direct["u"])            # Rᵀ·u: the direct leg in the body frame
-    w *= _pair_gain(front.plan, rays["body"], body_d, np.where(rays["row"] % 2 == 1, 1.0, -1.0), rx_shift[ping])
+    weigh_pairs(front.plan.pattern, front.plan.tilt_rad, rays["start"], rays["body"], direct["u"],
+                np.ascontiguousarray(rot, dtype=np.float64), rx_shift, w)   # out along one leg, back the other
     phi = _azimuth(n_f, legs["arrival"], -direct["a"]) if wants_azimuth(cmp) else None
     apply_bistatic(cmp, run.laws, legs["prim"], legs["x"], w, cos_i, cos_s, phi)
     a = legs["arrival"] + direct["a"]
@@ -236,20 +235,6 @@ def _one_bounce(front, run, rays, legs, direct, lit, n_f, cos_i, cell, d_f, cap,
     ext = np.where(w > 0, np.minimum(np.abs(np.einsum("ij,ij->i", a, d_f)) / legs["c_x"], 2.0 * cap)
                    * rays["layout"][:, 3], 0.0)
     return w, t, ext
-
-
-def _pair_gain(plan, body1, body2, side, shift):
-    """Γ²(u₁)·Γ²_rx(u₂) + Γ²(u₂)·Γ²_rx(u₁) of body directions (n, 3) on their sides: Γ = along(s)·across(v)·gate, v
-    = cos ψ·sin(β − δ), Γ_rx with s shifted by the ping's δ (docs/physics.md §2, §16)."""
-    def gains(e):
-        c, s = np.cos(plan.tilt_rad), np.sin(plan.tilt_rad)
-        gate = (side * e[:, 1] * c + e[:, 2] * s > 0.0)
-        across = plan.pattern.across(e[:, 2] * c - side * e[:, 1] * s) * gate
-        return plan.pattern.along(e[:, 0]) * across, plan.pattern.along(e[:, 0] - shift) * across
-
-    g1, g1r = gains(body1)
-    g2, g2r = gains(body2)
-    return g1 * g1 * g2r * g2r + g1r * g1r * g2 * g2
 
 
 def _azimuth(n, u, v):

@@ -49,12 +49,12 @@ class FanPlan:
     max_step_rad: float
     slope_cap_m_rad: float
     max_rays: int
-    beam: np.ndarray         # (4,) q_along, q_across, tilt (rad), form: the beam the surface paths' kernels weigh
+    tilt_rad: float          # the boresight's depression δ, rad: the baffle the path kernels keep (no pattern in them)
     min_range_m: float       # near-field bound on R in the weights
     footprint: bool          # spread echoes over their cells' range intervals (else point echoes)
     sides: tuple = (True, True)  # which sides get rays (port, starboard); a side without has empty rows
     spans_motion: bool = True    # lines added for the receive beam's turn under motion (moving_lines)
-    pattern: object = None       # each side's Beam (instrument.beams), weighed after the direct paths' kernels
+    pattern: object = None       # each side's Beam (instrument.beams), weighed after the path kernels (gain.py)
 
     @classmethod
     def build(cls, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1) -> "FanPlan":
@@ -70,17 +70,9 @@ class FanPlan:
         probe = np.linspace(lo, hi, m)
         lines = PROBE_LINES * np.abs(s).max()
         body = np.concatenate([beam.fan_body(lines, probe, -1), beam.fan_body(lines, probe, +1)])
-        kind, q_along, q_across = pattern.kernel_form or (kernels.BEAM_SINC, 0.0, 0.0)   # (unit: no kernel form)
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
-                   10.0 * sonar.max_range_m, fan.max_rays_per_side,
-                   np.array([q_along, q_across, sonar.tilt_rad, float(kind)]),
-                   sonar.wavelength_m, fan.footprint, tuple(bool(x) for x in sides), pattern=pattern)
-
-    @property
-    def tilt_rad(self) -> float:
-        """The boresight's depression δ, rad: the baffle the direct paths' kernels keep (their weights carry no
-        pattern; :func:`~sonar_embree.propagation.gain.weigh_by_beam` applies it after them)."""
-        return float(self.beam[2])
+                   10.0 * sonar.max_range_m, fan.max_rays_per_side, float(sonar.tilt_rad), sonar.wavelength_m,
+                   fan.footprint, tuple(bool(x) for x in sides), pattern=pattern)
 
     @property
     def n_probe(self) -> int:
@@ -167,15 +159,35 @@ def ray_cells(s: np.ndarray, el_start: np.ndarray, beta: np.ndarray, dbeta: np.n
     row : (n,) int64
     dbeta : (n,) float64
     """
-    n_el, n_az = np.diff(el_start), s.shape[0]
+    row, az, e = _grid(s.shape[0], el_start)
+    return _body(s[az], np.cos(beta[e]), np.sin(beta[e]), row), row, dbeta[e]
+
+
+def _grid(n_az: int, el_start: np.ndarray):
+    """(row, azimuth line, elevation cell) (n,) int64 of each ray of a fan grid (rows of ``el_start``, each
+    azimuth-major over its cells)."""
+    n_el = np.diff(el_start)
     row = np.repeat(np.arange(n_el.shape[0]), n_az * n_el)
     j = np.arange(row.shape[0]) - n_az * el_start[row]
     per = np.maximum(n_el[row], 1)
-    e = el_start[row] + j % per
-    sa = s[j // per]
+    return row, j // per, el_start[row] + j % per
+
+
+def _body(sa, cos_beta, sin_beta, row):
+    """(s, ±√(1 − s²)·cos β, √(1 − s²)·sin β) (n, 3): forward, starboard (− on port rows, even), down."""
     cpsi, side = np.sqrt(1.0 - sa * sa), np.where(row % 2 == 1, 1.0, -1.0)
-    body = np.stack([sa, side * cpsi * np.cos(beta[e]), cpsi * np.sin(beta[e])], axis=1)
-    return body, row, dbeta[e]
+    return np.stack([sa, side * cpsi * cos_beta, cpsi * sin_beta], axis=1)
+
+
+def launch_body(fan, ray_start: np.ndarray, layout: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """The body-frame launch direction (n, 3) of each ray of a block (rows 2·ping + side of ``ray_start``):
+    (s, ±cos ψ·cos β, cos ψ·sin β) from the grid of ``fan`` (:data:`~sonar_embree.kernels.args.Fan`: its ``s``,
+    cos β, sin β and ``el_start``, each row azimuth-major over its cells), or from each ray's own cell where
+    ``layout`` (n, 5: s, cos β, sin β, dβ, ds) has rows (:func:`kernels.launch_body`); into ``out`` (n, 3) when
+    given (a block's working array)."""
+    out = np.empty((int(ray_start[-1]), 3)) if out is None else out
+    kernels.launch_body(fan if layout.shape[0] == 0 else fan._replace(el_start=ray_start), layout, out)
+    return out
 
 
 def rays_per_ping(plan: FanPlan, keep, el_start: np.ndarray) -> np.ndarray:

@@ -28,7 +28,8 @@ from ..kernels import aim as aim_kernels
 from ..kernels.args import Bistatic, Boxes, Fan, Hits, LegOut, Legs, MixedOut, Poses, Weighting
 from .buffers import Buffers
 from .echoes import Echoes
-from .fan import BlockEchoes, cast_block
+from .fan import BlockEchoes, cast_block, launch_body
+from .gain import weigh_pairs
 from ..config import Material
 from ..raycast import RayCaster
 from ..scene import Scene
@@ -276,12 +277,14 @@ def _mixed(front, run, buf, ray_start, el_start, s_az, cos_b, sin_b, dbeta, ds, 
     lambert = mu.shape[0] > 0
     want_phi = wants_azimuth(c) and not lambert
     legs = (can_block(run.caster, False, pos_local), can_block(run.caster, True, pos_local))
-    kernels.mixed_legs(ray_start, Fan(s_az, ds, cos_b, sin_b, dbeta, el_start), Hits(r, x, prim),
-                       Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift), c.face_normals,
-                       Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, np.inf, plan.slope_cap_m_rad,
+    fan, rot = Fan(s_az, ds, cos_b, sin_b, dbeta, el_start), np.ascontiguousarray(rot, dtype=np.float64)
+    kernels.mixed_legs(ray_start, fan, Hits(r, x, prim), Poses(rot, pos_local, rx_shift), c.face_normals,
+                       Weighting(front.two_way_np_per_m, plan.min_range_m, np.inf, plan.slope_cap_m_rad,
                                  2.0 / s.sound_speed_m_s),
                        Bistatic(z_s_local, wave_kh(s), mu, c.face_object, want_phi, any(legs)),
                        MixedOut(t, ext, w, cos_i, cos_s, phi, v, leg1, u2, leg2), layout)
+    body = launch_body(fan, ray_start, layout, buf.take("body", (n, 3)))
+    weigh_pairs(plan.pattern, plan.tilt_rad, ray_start, body, u2, rot, rx_shift, w)   # the beam: u1 out, S → P back
     if not lambert:
         apply_bistatic(c, run.laws, prim, x, w, cos_i, cos_s, phi if want_phi else None)
     if legs[0]:

@@ -28,7 +28,8 @@ from .buffers import Buffers
 from .echoes import Echoes
 from ..kernels import aim as K
 from ..kernels.args import Bistatic, Bounce, Fan, Poses, SwellOut, Weighting
-from .fan import drop_lines, elevation_rows, moving_lines, probe_ranges
+from .fan import drop_lines, elevation_rows, launch_body, moving_lines, probe_ranges
+from .gain import weigh_pairs
 from ..laws import apply_laws
 from .multipath import (LEG_EPSILON_M, _below_top, wave_kh, apply_bistatic, block_legs, lambert_mu, mirror_pose,
                         wants_azimuth)
@@ -116,15 +117,26 @@ def _paths(front, run, swell, fan, b, rot, pos_local, rx_shift, buf):
     o["want_phi"] = wants_azimuth(c) and o["mu"].shape[0] == 0
     bounce = Bounce(fan["up_start"], fan["up"], fan["ray_start"], b["u"], b["p"], b["ur"], fan["t1"], fan["prim_s"],
                     b["prim"], b["t2"], b["seen"], swell.compiled.face_normals, LEG_EPSILON_M)
-    kernels.swell_paths(Fan(fan["s"], plan.ds, np.cos(fan["beta"]), np.sin(fan["beta"]), fan["dbeta"], fan["el_start"]),
-                        bounce, Poses(np.ascontiguousarray(rot, dtype=np.float64), pos_local, rx_shift),
-                        c.face_normals,
-                        Weighting(plan.beam, front.two_way_np_per_m, plan.min_range_m, fan["max_range_m"],
+    grid, rot = Fan(fan["s"], plan.ds, np.cos(fan["beta"]), np.sin(fan["beta"]), fan["dbeta"], fan["el_start"]), \
+        np.ascontiguousarray(rot, dtype=np.float64)
+    kernels.swell_paths(grid, bounce, Poses(rot, pos_local, rx_shift), c.face_normals,
+                        Weighting(front.two_way_np_per_m, plan.min_range_m, fan["max_range_m"],
                                   plan.slope_cap_m_rad, 2.0 / s.sound_speed_m_s),
                         Bistatic(0.0, wave_kh(s), o["mu"], c.face_object, o["want_phi"], False),
                         SwellOut(o["x"], o["w1"], o["t1"], o["e1"], o["w2"], o["t2"], o["e2"], o["cos_i"], o["cos_s"],
                                  o["phi"], o["leg"], o["r"]), fan.get("layout", kernels.NO_LAYOUT))
+    _beam(front, fan, grid, rot, rx_shift, o, buf)
     return o
+
+
+def _beam(front, fan, grid, rot, rx_shift, o, buf):
+    """The beam after the kernel (:func:`~sonar_embree.propagation.gain.weigh_pairs`): the two bounces × Γ²(u)·Γ_rx²(u),
+    the one bounce × Γ²(u)·Γ_rx²(u_d) + Γ²(u_d)·Γ_rx²(u), u the launch from its image-fan cell (the mirror maps the
+    image ray onto it), u_d = −leg towards the hit."""
+    body = launch_body(grid, fan["ray_start"], fan.get("layout", kernels.NO_LAYOUT),
+                       buf.take("swell_body", (int(fan["ray_start"][-1]), 3)))[fan["up"]]
+    weigh_pairs(front.plan.pattern, front.plan.tilt_rad, fan["up_start"], body, -o["leg"], rot, rx_shift, o["w1"],
+                o["w2"])
 
 
 def _bounced_paths(front, run, swell, fan, rot, pos_local, rx_shift, buf):

@@ -294,25 +294,20 @@ class EchoSounderFrontEnd(FrontEnd):
 
 @dataclass(frozen=True, eq=False)
 class _Cone:
-    """What the curved-ray kernels read of a fan for the rings (:meth:`EchoSounderFrontEnd._curved`): a membrane of
-    zero size tilted 90° (unit gain below the horizontal), the near-field bound λ, the slope cap 10·R_max."""
+    """What the curved-ray kernels read of a fan for the rings (:meth:`EchoSounderFrontEnd._curved`): the baffle
+    tilted 90° (its rings look down: everything below the horizontal; the beam's gain is applied after), the
+    near-field bound λ, the slope cap 10·R_max."""
 
     s: np.ndarray
     ds: float
-    beam: np.ndarray
+    tilt_rad: float
     min_range_m: float
     slope_cap_m_rad: float
     footprint: bool = True
 
-    @property
-    def tilt_rad(self) -> float:
-        """The baffle the curved-ray kernels keep: 90° (its rings look down; the piston's gain is applied after)."""
-        return float(self.beam[2])
-
     @classmethod
     def of(cls, sonar: EchoSounder) -> "_Cone":
-        return cls(np.zeros(1), 0.0, np.array([0.0, 0.0, 0.5 * math.pi, 0.0]), sonar.wavelength_m,
-                   10.0 * sonar.max_range_m)
+        return cls(np.zeros(1), 0.0, 0.5 * math.pi, sonar.wavelength_m, 10.0 * sonar.max_range_m)
 
 
 @dataclass(frozen=True, eq=False)

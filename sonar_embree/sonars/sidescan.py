@@ -15,7 +15,6 @@ from ..propagation import multipath, paths
 from ..propagation.aim import AimPlan
 from ..propagation.buffers import Buffers
 from ..config import FanSettings, Sonar
-from ..errors import ConfigError
 from ..propagation.echoes import Echoes
 from ..propagation.fan import FanPlan
 from ..propagation.paths import echoes_of
@@ -38,9 +37,6 @@ class SideScanFrontEnd(FrontEnd):
         env = sonar.environment
         self.buffers = Buffers() if env.refracts or env.surface is not None else None  # per-block temporaries
         self.direct_path, self.surface_paths = paths.path_models(env)     # the paths this medium makes, once
-        if self.surface_paths and self.plan.pattern.kernel_form is None:
-            raise ConfigError(f"beam = {sonar.beam!r} under a sea surface: the surface's paths weigh only beams of a "
-                              "form their kernels know (membrane, gaussian) so far (issue 51)")
         self.quality, self.aims = fan.quality, self.aims and fan.aim_objects
         self.array = sonar.receive_array
         if self.array is not None:  # each side's elements are synthesised as channels of their own

@@ -284,14 +284,18 @@ def _mixed_legs(ray_start, fan, hits, rest, law, o, v, u2, layout):
     μ, face_object, want_legs), ``o`` the outputs by name."""
     from sonar_embree import kernels
     from sonar_embree.kernels.args import Bistatic, Fan, Hits, MixedOut, Poses, Weighting
+    from sonar_embree.propagation.fan import launch_body
 
     rot, pos, rx_shift, z_s, normals, beam, ds, r_min, two_way, cap, c, kh = rest
     want_phi, mu, face_object, legs = law
     kernels.mixed_legs(ray_start, Fan(fan[0], ds, *fan[1:]), Hits(*hits), Poses(rot, pos, rx_shift), normals,
-                       Weighting(beam, two_way, r_min, np.inf, cap, 2.0 / c), Bistatic(z_s, kh, mu, face_object,
+                       Weighting(two_way, r_min, np.inf, cap, 2.0 / c), Bistatic(z_s, kh, mu, face_object,
                                                                                      want_phi, legs),
                        MixedOut(o["time"], o["extent"], o["weight"], o["cos_i"], o["cos_s"], o["phi"], v, o["leg1"],
                                 u2, o["leg2"]), layout)
+    f = Fan(fan[0], ds, *fan[1:])                   # the beam after the kernel, as the front end applies it
+    kernels.weigh_pairs(ray_start, launch_body(f, ray_start, layout), u2, rot, rx_shift, beam[2], int(beam[3]),
+                        beam[0], beam[1], o["weight"], np.zeros(0))
 
 
 def test_mixed_legs_kernel_matches_naive(rng):
@@ -350,12 +354,13 @@ def test_mixed_legs_kernel_matches_naive(rng):
         if k not in ("leg1", "leg2", "phi"):   # without the legs: none written, the rest to the bit
             np.testing.assert_array_equal(no_legs[k], out[k], err_msg=k)
     assert np.all(np.isnan(no_legs["leg1"])) and np.all(np.isnan(no_legs["leg2"]))
-    # Lambert in the kernel: the weight × (μ·cos θi)·cos θs (cosines clipped at 0) to the bit, as apply_bistatic does
+    # Lambert in the kernel: the weight × (μ·cos θi)·cos θs (cosines clipped at 0), as apply_bistatic does (the beam's
+    # gains multiplied in after it: the same product in another order, within a few ulp)
     lit = out["weight"] > 0
     want = out["weight"].copy()
     want[lit] = out["weight"][lit] * (mu[face_object[prim[lit]]] * np.clip(out["cos_i"][lit], 0, None)
                                       * np.clip(out["cos_s"][lit], 0, None))
-    np.testing.assert_array_equal(lam["weight"], want)
+    np.testing.assert_allclose(lam["weight"], want, rtol=1e-15, atol=0)
     np.testing.assert_array_equal(v_lam, v)
     hit = ~miss
     ref = naive.mixed_legs(x[hit], r[hit], ping[hit], side[hit], dbeta[hit], prim[hit], *rest)
@@ -437,7 +442,8 @@ def test_swell_kernels_match_naive(rng):
     for k in keys:                        # without φ (laws that ignore it): the rest to the bit, φ left at 0
         np.testing.assert_array_equal(no_phi[k], out[k] if k != "phi" else np.zeros(m), err_msg=k)
     sigma = mu[face_object[np.maximum(prim, 0)]] * np.maximum(out["cos_i"], 0) * np.maximum(out["cos_s"], 0)
-    np.testing.assert_array_equal(lam["w1"], np.where(out["w1"] > 0, out["w1"] * sigma, out["w1"]))  # Lambert's σ
+    np.testing.assert_allclose(lam["w1"], np.where(out["w1"] > 0, out["w1"] * sigma, out["w1"]), rtol=1e-15,
+                               atol=0)                          # Lambert's σ (the gains multiplied in after it)
     for k in keys[1:]:
         np.testing.assert_array_equal(lam[k], no_phi[k], err_msg=k)
     pu, cu = ping[up], cell[up]
@@ -462,14 +468,19 @@ def _swell_paths(fan, bounce, normals, poses, consts, law, x, o, leg, layout):
     outputs by name."""
     from sonar_embree import kernels
     from sonar_embree.kernels.args import Bistatic, Bounce, Fan, Poses, SwellOut, Weighting
+    from sonar_embree.propagation.fan import launch_body
 
     beam, ds, r_min, two_way, cap, c, kh, r_max, eps = consts
     want_phi, mu, face_object = law
     kernels.swell_paths(Fan(fan[0], ds, *fan[1:]), Bounce(*bounce, eps), Poses(*poses), normals,
-                        Weighting(beam, two_way, r_min, r_max, cap, 2.0 / c), Bistatic(0.0, kh, mu, face_object,
+                        Weighting(two_way, r_min, r_max, cap, 2.0 / c), Bistatic(0.0, kh, mu, face_object,
                                                                                       want_phi, False),
                         SwellOut(x, o["w1"], o["time1"], o["ext1"], o["w2"], o["time2"], o["ext2"], o["cos_i"],
                                  o["cos_s"], o["phi"], leg, o["r"]), layout)
+    up_start, up, ray_start = bounce[:3]                # the beam after the kernel, as the front end applies it
+    body = launch_body(Fan(fan[0], ds, *fan[1:]), ray_start, layout)[up]
+    kernels.weigh_pairs(up_start, body, -leg, poses[0], poses[2], beam[2], int(beam[3]), beam[0], beam[1], o["w1"],
+                        o["w2"])
 
 
 def _block(rng, n_p=3):

@@ -31,9 +31,9 @@ class Beam:
     wavelength_m: float
     separable = False
     #: (kind, q_along, q_across) of a separable beam whose one-way factors are f(q·x) of a form the kernels know
-    #: (:data:`sonar_embree.kernels.BEAM_SINC`, ``BEAM_GAUSS``): the beam stage evaluates it in one kernel pass, and
-    #: the sea surface's path kernels, which still weigh the beam themselves (issue 51), can take it. None: the beam
-    #: stage takes :meth:`along` and :meth:`across` in NumPy, and a sea surface is refused.
+    #: (:data:`sonar_embree.kernels.BEAM_SINC`, ``BEAM_GAUSS``): the beam stages (:mod:`sonar_embree.propagation.gain`)
+    #: then evaluate it in one kernel pass. None: they take :meth:`along` and :meth:`across` in NumPy (slower, the
+    #: same physics); no path kernel weighs a beam itself.
     kernel_form = None
 
     def one_way(self, u_fwd, u_side, u_down) -> np.ndarray:
