@@ -44,6 +44,7 @@ from ..io.owner import OutputFolder
 from ..io.xtf import NAV_UNITS_LATLON, decimate, read_navigation, read_sonar, write_like
 from ..laws import sediments
 from ..laws.clutter import Clutter
+from ..laws.texture import KTexture
 from ..scene import Scene, seafloor
 from ..simulate import simulate
 from ..trajectory import Trajectory
@@ -111,6 +112,10 @@ def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
 #: evenly spaced quantiles of the line's altitudes (its geometries, not its length, decide the fit); the replay
 #: that follows simulates every ping once.
 FIT_RUNS, FIT_RUN_PINGS = 6, 16
+#: The correlation length (m) of the K-distributed texture a --fit-texture replay puts on its floor: long against the
+#: resolution cell, so that its bands' scintillation index is (1 + SI₀)(1 + 1/ν) − 1 (:func:`texture_fit`); the record
+#: does not say its texture's own length.
+TEXTURE_CORRELATION_M = 2.0
 
 
 def fit_pings(line: Line, runs: int = FIT_RUNS, run_pings: int = FIT_RUN_PINGS) -> np.ndarray:
@@ -198,11 +203,12 @@ def usable_pings(path, altitude_m: np.ndarray, need_altitude: bool = True) -> np
 
 def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | None = None, seed: int = 0,
                   gain_db: float = 0.0, clutter=None, scene: Scene | None = None,
-                  elevation: tuple | None = None) -> np.ndarray:
-    """The line simulated over a flat floor of ``law`` (a sediment name or law), or over ``scene`` as it is, in the
-    file's layout: (pings, 2, samples) values as the file stores them (intensity, or amplitude for integer formats),
-    ``gain_db`` added. Without a ``device``, ``elevation`` = (tilt, degrees; membrane height, m) sets the beam's
-    elevation pattern (default the :class:`~sonar_embree.Sonar`'s)."""
+                  elevation: tuple | None = None, texture: KTexture | None = None) -> np.ndarray:
+    """The line simulated over a flat floor of ``law`` (a sediment name or law) with ``clutter`` and ``texture`` (a
+    :class:`~sonar_embree.laws.texture.KTexture`, or none), or over ``scene`` as it is, in the file's layout:
+    (pings, 2, samples) values as the file stores them (intensity, or amplitude for integer formats), ``gain_db``
+    added. Without a ``device``, ``elevation`` = (tilt, degrees; membrane height, m) sets the beam's elevation
+    pattern (default the :class:`~sonar_embree.Sonar`'s)."""
     s, traj = line.settings, line.trajectory
     pulse = pulse or (Pulse.preset(device) if device else Pulse.cw(duration_s=100e-6))
     factor = max(1, math.ceil(4.0 / pulse.duration_s / s["sample_rate_hz"]))
@@ -217,7 +223,8 @@ def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | 
         xy = traj.positions_m[:, :2]
         size = np.ptp(xy, axis=0) + 2.2 * s["slant_range_m"]
         floor = seafloor.flat(tuple(size), center_m=tuple(xy.mean(axis=0)))
-        scene = Scene().add(floor, material=Material(scattering=law, clutter=clutter), label="seafloor")
+        scene = Scene().add(floor, material=Material(scattering=law, clutter=clutter, texture=texture),
+                            label="seafloor")
     rec = simulate(scene, traj, sonar, pulse, speckle=True, seed=seed, start_time=traj.start_time or "2000-01-01",
                    environment=water)
     n = s["samples_per_channel"]
@@ -329,8 +336,24 @@ def scintillation_error_db(real: dict, sim: dict) -> float:
     return float(np.sqrt(np.mean(d ** 2))) if d.size else math.inf
 
 
+def texture_fit(real: dict, sim: dict) -> float:
+    """The K-distribution shape ν that brings the simulated bands' scintillation index to the recorded one: a texture
+    G ~ Gamma(ν, mean 1) on the simulated intensity I₀ (independent, correlated over many resolution cells) makes
+    SI = (1 + SI₀)·(1 + 1/ν) − 1 (E[G²] = 1 + 1/ν), so per band 1/ν = (1 + SI_recorded)/(1 + SI_simulated) − 1; the
+    median over the bands (Jakeman and Pusey 1976; Abraham and Lyons 2002, cited in
+    :mod:`sonar_embree.laws.texture`). inf: the record is no heavier-tailed than the simulation (no texture)."""
+    a = np.array([np.nan if v is None else v for v in real["scintillation_index"]], float)
+    b = np.array([np.nan if v is None else v for v in sim["scintillation_index"]], float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = (1.0 + a) / (1.0 + b) - 1.0
+    inv = inv[np.isfinite(inv)]
+    if inv.size == 0 or np.median(inv) <= 0.0:
+        return math.inf
+    return float(1.0 / np.median(inv))
+
+
 def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress: bool = False,
-        fit_beam: bool = False, **kw) -> dict:
+        fit_beam: bool = False, fit_texture: bool = False, **kw) -> dict:
     """The class of ``classes``, the clutter density of ``densities`` (per m², None: no clutter; the clutter's
     strength law :class:`~sonar_embree.laws.clutter.Clutter`'s defaults) and the gain offset (dB) that bring the
     simulation closest to ``real`` (:func:`measures` of the recorded values). The error of a candidate is the RMS
@@ -342,13 +365,14 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
     dict
         ``sediment``, ``clutter_density_per_m2``, ``gain_offset_db`` and ``errors_db`` {"class" or
         "class @ density": error, dB}; with ``fit_beam`` also ``elevation`` (:func:`elevation_fit`'s tilt, width and
-        membrane height). ``progress``: a bar over the candidates.
+        membrane height); with ``fit_texture`` also ``texture_shape`` (ν, :func:`texture_fit` against the chosen
+        candidate; inf: none). ``progress``: a bar over the candidates.
 
     ``fit_beam`` (no device preset): each candidate is simulated with the calibration beam and the record's elevation
     pattern is fitted as well (:func:`elevation_fit`). The pattern's tilt trades off against the shape of σ(θ), so
     with the beam free the class is poorly determined; fit the beam with the class known, or name a device.
     """
-    errors, offsets, beams = {}, {}, {}
+    errors, offsets, beams, sims = {}, {}, {}, {}
     s = line.settings
     wavelength = s["sound_speed_m_s"] / s["frequency_hz"]
     cal = (CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * wavelength) if fit_beam else None
@@ -356,8 +380,8 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
     for name in classes:
         for n in densities:
             clutter = None if n is None else Clutter(float(n))
-            sim = measures(simulate_line(line, name, clutter=clutter, elevation=cal, **kw), line)
             key = (name, n)
+            sim = sims[key] = measures(simulate_line(line, name, clutter=clutter, elevation=cal, **kw), line)
             if cal is None:                                       # a device's beam: only the gain and the class
                 offsets[key] = gain_offset_db(real, sim)
                 errors[key] = shape_error_db(real, sim, offsets[key])
@@ -375,6 +399,8 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
            "errors_db": {label(k): v for k, v in errors.items()}}
     if best in beams:
         out["elevation"] = {k: beams[best][k] for k in ("tilt_deg", "vertical_beamwidth_deg", "height_m")}
+    if fit_texture:
+        out["texture_shape"] = texture_fit(real, sims[best])
     return out
 
 
@@ -389,7 +415,8 @@ def candidates_bar(progress: bool, n: int):
 
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
            device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
-           fit_densities=(None,), inputs=(), progress: bool = False, fit_beam: bool = False) -> dict:
+           fit_densities=(None,), inputs=(), progress: bool = False, fit_beam: bool = False,
+           fit_texture: bool = False) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -413,12 +440,15 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     fit_beam : bool
         With ``fit_classes`` and no ``device``: fit the record's elevation pattern too (tilt and vertical width,
         :func:`elevation_fit`), and replay with it.
+    fit_texture : bool
+        With ``fit_classes``: fit the K-distribution shape ν of the floor's texture from the bands' scintillation
+        index (:func:`texture_fit`), and replay with it (correlation length :data:`TEXTURE_CORRELATION_M`).
     scene : Scene, optional
         The seabed to replay the line over (a DEM's, a TOML's), where the file's navigation puts the sonar; its own
         materials hold (no ``sediment``, no fit). Default: a flat floor at each ping's altitude. The grazing angles
         of the report take the altitude over a level floor either way.
     """
-    _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam, device)
+    _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam, device, fit_texture)
     OutputFolder.check(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs])
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
@@ -426,20 +456,22 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     if fit_classes:
         sub = line.subset(fit_pings(line))
         chosen = fit(sub, measures(sub.settings["data"], sub), fit_classes, fit_densities, device=device, seed=seed,
-                     progress=progress, fit_beam=fit_beam)
+                     progress=progress, fit_beam=fit_beam, fit_texture=fit_texture)
         chosen["pings_simulated"] = int(sub.settings["data"].shape[0])
     name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
     density = chosen["clutter_density_per_m2"] if chosen else None
     beam = chosen.get("elevation") if chosen else None
+    nu = chosen.get("texture_shape", math.inf) if chosen else math.inf
     base = simulate_line(line, name, device=device, seed=seed, scene=scene,
                          clutter=None if density is None else Clutter(float(density)),
-                         elevation=None if beam is None else (beam["tilt_deg"], beam["height_m"]))
+                         elevation=None if beam is None else (beam["tilt_deg"], beam["height_m"]),
+                         texture=None if math.isinf(nu) else KTexture(nu, TEXTURE_CORRELATION_M, seed))
     offset = gain_db if gain_db is not None else gain_offset_db(real, measures(base, line))   # over the whole line
     values = _clip_warned(base * 10.0 ** (offset / (20.0 if line.settings["integer"] else 10.0)), line.settings)
     sim = measures(values, line)
     out = OutputFolder.claim(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs], command="replay")
     report = {"source": os.path.abspath(os.fspath(path)), "sediment": name, "clutter_density_per_m2": density,
-              "gain_offset_db": offset,
+              "gain_offset_db": offset, "texture_shape": nu,
               "fit": chosen, "shape_error_db": shape_error_db(real, sim, 0.0),
               "pings_taken_out": int(np.sum(~line.settings["kept"])),
               "settings": {k: v for k, v in line.settings.items() if k not in ("data", "altitude_m", "kept")},
@@ -450,8 +482,11 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     return report
 
 
-def _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam=False, device=None) -> None:
+def _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam=False, device=None,
+                   fit_texture=False) -> None:
     """The options, before any work: one line naming a value that cannot mean anything."""
+    if fit_texture and not fit_classes:
+        raise ConfigError("replay: --fit-texture fits the floor's texture with --fit (it needs the fitted class)")
     if fit_beam and (not fit_classes or device):
         raise ConfigError("replay: --fit-beam fits the elevation pattern with --fit and without --device (a device "
                           "preset brings its own beam)")
