@@ -3,13 +3,18 @@
     python scripts/seafloor_gallery.py [-o docs/seafloors] [--pings 300]
 
 - presets.png   the same scene (a steel box and a concrete pipe on a flat floor, 10 m altitude,
-                coherent speckle, 400 kHz) over mud, sandy mud, fine sand, coarse sand, gravel and rock,
-                then fine sand with K texture (ν = 1, L = 1 m) and a patchwork of three sediments;
-                one common grey scale (display TVG, 50 dB), so the brightness between panels is
-                the sediments' backscatter difference, not a per-image stretch
+                coherent speckle, 400 kHz) over mud, sandy mud, fine sand, coarse sand, gravel and rock
+                (the bare names: each class's physical model, issue 52), then fine sand with K texture
+                (ν = 1, L = 1 m) and a patchwork of three sediments; one common grey scale (display TVG,
+                50 dB), so the brightness between panels is the sediments' backscatter difference, not a
+                per-image stretch. Where two classes' σ lie within 1 dB over the waterfall's grazing
+                angles, the physics makes them look alike, and gallery.json says so (``look_alike``)
 - sigma.png     σ(θ) measured from speckle-free flat-floor records against each preset's curve
-- gallery.json  the largest |measured − curve| (dB) per preset from 15° to 75° grazing, and the median
-                displayed level (dB) of each waterfall
+- migration.png each bare name's σ(θ) at 400 kHz now (its physical model) and before issue 52 (the
+                Lambert + Kirchhoff preset, kept as "lambert-kirchhoff <name>")
+- gallery.json  the largest |measured − curve| (dB) per preset from 15° to 75° grazing, the median
+                displayed level (dB) of each waterfall, each floor's mean σ over 15°–45° (dB) and the
+                pairs of floors within 1 dB of each other there
 
 σ is measured as the record over the preset divided by the record over a Lambert floor of μ = 1 under the same
 sonar, path and pulse, times that floor's cos²θ: spreading, absorption, beam and footprint cancel in the ratio.
@@ -110,20 +115,47 @@ def measured_sigma(se):
         rec = record(se.Material(scattering=se.sediments.preset(name)))
         with np.errstate(divide="ignore", invalid="ignore"):
             out[name] = 10 * np.log10(rec.starboard.mean(axis=0)[ok] / base * np.sin(np.radians(grazing)) ** 2)
-    return grazing, out
+    return grazing, out, acq.frequency_hz
 
 
-def sigma_panels(se, grazing, measured):
+def curve_db(se, name, grazing_deg, frequency_hz):
+    """10·log10 σ(θ, θ) of the preset ``name`` at the carrier (a physical model is taken at it)."""
+    s = np.sin(np.radians(grazing_deg))
+    return 10 * np.log10(se.sediments.preset(name).at_frequency(frequency_hz).sigma(s, s))
+
+
+def look_alike(se, frequency_hz):
+    """Each floor's mean σ over 15°–45° grazing (dB; the waterfalls' floor) and the pairs within 1 dB there."""
+    g = np.linspace(15.0, 45.0, 31)
+    mean = {n: float(10 * np.log10(np.mean(10 ** (curve_db(se, n, g, frequency_hz) / 10)))) for n in FLOORS}
+    pairs = [[a, b] for i, a in enumerate(FLOORS) for b in FLOORS[i + 1:] if abs(mean[a] - mean[b]) < 1.0]
+    return mean, pairs
+
+
+def migration_panels(se, frequency_hz):
+    """Each bare name's σ(θ) now (its physical model, solid) and before issue 52 (Lambert + Kirchhoff, dashed)."""
+    g = np.linspace(2.0, 88.0, 173)
+    panels = []
+    for names, title in ((FLOORS[:3], "mud, sandy mud, fine sand"), (FLOORS[3:], "coarse sand, gravel, rock")):
+        lines = []
+        for k, name in enumerate(names):
+            lines += [(f"{name}: now", curve_db(se, name, g, frequency_hz), f"C{k}-"),
+                      (f"{name}: before", curve_db(se, f"lambert-kirchhoff {name}", g, frequency_hz), f"C{k}--")]
+        panels.append({"x": g, "lines": lines, "xlabel": "grazing angle (°)", "title": title, "ylim": (-70, 10),
+                       "ylabel": f"10 log σ at {frequency_hz / 1e3:g} kHz (dB)"})
+    return panels
+
+
+def sigma_panels(se, grazing, measured, frequency_hz):
     """Measured σ (dots) against each preset's closed-form curve (line); and the errors (dB) from 15° to 75°."""
     pick = np.flatnonzero(np.isfinite(grazing))[::25]
-    s = np.sin(np.radians(grazing[pick]))
     band = (grazing[pick] >= 15) & (grazing[pick] <= 75)
     panels, errors = [], {}
     for names, title in ((FLOORS[:3], "mud to fine sand"), (FLOORS[3:], "coarse sand to rock"),
                          (("concrete", "steel"), "man-made surfaces")):
         lines = []
         for k, name in enumerate(names):
-            curve = 10 * np.log10(se.sediments.preset(name).sigma(s, s))
+            curve = curve_db(se, name, grazing[pick], frequency_hz)
             lines += [(f"{name}: curve", curve, f"C{k}-"), (f"{name}: measured", measured[name][pick], f"C{k}.")]
             errors[name] = float(np.max(np.abs(measured[name][pick][band] - curve[band])))
         panels.append({"x": grazing[pick], "lines": lines, "xlabel": "grazing angle (°)",
@@ -146,13 +178,17 @@ def main(argv=None) -> int:
     os.makedirs(args.output, exist_ok=True)
     images, titles, medians = preset_panels(se, args.pings)
     plotting.mosaic_png(images, titles, os.path.join(args.output, "presets.png"), columns=4)
-    grazing, measured = measured_sigma(se)
-    panels, errors = sigma_panels(se, grazing, measured)
+    grazing, measured, f = measured_sigma(se)
+    panels, errors = sigma_panels(se, grazing, measured, f)
     plotting.line_panels_png(panels, os.path.join(args.output, "sigma.png"),
                              "σ(θ) measured from speckle-free flat-floor records (dots) against each preset's curve")
-    text = json.dumps({"sigma_error_db": errors, "floor_median_db": medians}, indent=1) + "\n"
+    plotting.line_panels_png(migration_panels(se, f), os.path.join(args.output, "migration.png"),
+                             "the bare sediment names: their physical models now, Lambert + Kirchhoff before")
+    mean, pairs = look_alike(se, f)
+    text = json.dumps({"sigma_error_db": errors, "floor_median_db": medians, "floor_sigma_15_45_db": mean,
+                       "look_alike": pairs}, indent=1) + "\n"
     atomic_write(os.path.join(args.output, "gallery.json"), lambda tmp: open(tmp, "w").write(text))
-    for name in ("presets.png", "sigma.png", "gallery.json"):
+    for name in ("presets.png", "sigma.png", "migration.png", "gallery.json"):
         print(os.path.join(args.output, name))
     return 0
 

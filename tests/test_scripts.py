@@ -131,17 +131,35 @@ def test_shipwreck_script_shows_highlight_shadow_texture_and_the_bend(tmp_path):
 
 
 def test_seafloor_gallery_orders_the_presets_and_draws_sigma(tmp_path):
-    """Issue 14's figure: every floor drawn on one scale, mud darkest to rock brightest; σ(θ) on its curves."""
+    """Issue 14's figure, following the physics (issue 52): every floor drawn on one scale, the waterfalls' levels
+    in the order of the floors' σ over the waterfalls' grazing angles (15°–45°) wherever the models set them 3 dB
+    or more apart, and the pairs within 1 dB named as looking alike; σ(θ) on its curves; the migration figure."""
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "seafloor_gallery.py"), "-o", str(tmp_path),
                            "--pings", "4"], capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    assert sorted(os.listdir(tmp_path)) == ["gallery.json", "presets.png", "sigma.png"]
-    for name in ("presets.png", "sigma.png"):
+    assert sorted(os.listdir(tmp_path)) == ["gallery.json", "migration.png", "presets.png", "sigma.png"]
+    for name in ("presets.png", "sigma.png", "migration.png"):
         img = iio.imread(tmp_path / name)
         assert img.ndim == 3 and img.shape[1] > 800 and img.std() > 10
     info = json.loads((tmp_path / "gallery.json").read_text())
-    levels = [info["floor_median_db"][n] for n in ("mud", "sandy mud", "fine sand", "coarse sand", "gravel", "rock")]
-    assert np.all(np.diff(levels) > 2.0), levels                 # μ steps of 5–7 dB between neighbouring classes
+    from sonar_embree.laws import sediments
+
+    floors = ("mud", "sandy mud", "fine sand", "coarse sand", "gravel", "rock")
+    sigma, level = info["floor_sigma_15_45_db"], info["floor_median_db"]
+    g = np.linspace(15.0, 45.0, 31)                             # the models' σ, written here from their laws
+    want = {n: 10 * np.log10(np.mean(10 ** (sediments.preset(n).backscatter_strength_db(g, 400e3) / 10)))
+            for n in floors}
+    for n in floors:
+        assert sigma[n] == pytest.approx(want[n], abs=0.05), n
+    checked = 0
+    for i, a in enumerate(floors):
+        for b in floors[i + 1:]:
+            if abs(want[a] - want[b]) >= 3.0:
+                assert (level[a] - level[b]) * (want[a] - want[b]) > 0, (a, b, level, want)
+                checked += 1
+    assert checked >= 8
+    alike = {tuple(p) for p in info["look_alike"]}
+    assert alike == {(a, b) for i, a in enumerate(floors) for b in floors[i + 1:] if abs(want[a] - want[b]) < 1.0}
     assert sorted(info["sigma_error_db"]) == sorted(["mud", "sandy mud", "fine sand", "coarse sand", "gravel",
                                                       "rock", "concrete", "steel"])
     assert max(info["sigma_error_db"].values()) < 0.3

@@ -1,6 +1,15 @@
-"""Sediment presets: a diffuse (Lambert) plus a specular (Kirchhoff) term per seafloor class (docs/physics.md §10).
+"""Sediment presets (docs/physics.md §10, §10b, §10b′).
 
-Each preset is the two-component engineering model σ = μ·cos θi·cos θs + σ_K (Jackson,
+**The bare names are the physical models** (issue 52): ``"fine sand"``, ``"coarse sand"``, ``"gravel"`` and
+``"rock"`` are the elastic small-slope model's sediments (fine sand, coarse sand, sandy gravel, rock:
+:func:`sonar_embree.laws.small_slope.small_slope_sediment`, Jackson & Richardson 2007 ch. 13, APL-UW TM 2-00), and
+``"mud"`` and ``"sandy mud"``, which the small-slope set does not hold, the APL-UW model at their grain sizes
+(8 φ and 5.5 φ: :class:`sonar_embree.laws.apl_uw.AplUw`, APL-UW TR 9407); both fall off towards low grazing as
+real records do. ``"concrete"`` and ``"steel"`` (man-made surfaces, no seabed model) stay the engineering presets.
+The engineering presets of every class are kept under ``"lambert-kirchhoff <name>"`` and as the constants below
+(:data:`FINE_SAND`, …): before issue 52 the bare names gave them.
+
+Each engineering preset is the two-component model σ = μ·cos θi·cos θs + σ_K (Jackson,
 Winebrenner and Ishimaru 1986; APL-UW TR 9407, 1994):
 
 - the Kirchhoff term's normal-incidence reflection coefficient R0 = (ρν − 1)/(ρν + 1)
@@ -33,7 +42,7 @@ import numpy as np
 
 from ..errors import ConfigError
 from . import Composite, Kirchhoff, Lambert
-from .apl_uw import apl_class, apl_density_ratio, apl_sound_speed_ratio
+from .apl_uw import AplUw, apl_class, apl_density_ratio, apl_sound_speed_ratio
 from .small_slope import small_slope_sediment
 from .composite import Summable
 
@@ -112,19 +121,41 @@ CONCRETE = Sediment("concrete", -30.0, 2.4 / 1.026, 3700.0 / 1500.0, 0.03,
 STEEL = Sediment("steel", -30.0, 7.7 / 1.026, 5900.0 / 1500.0, 0.02,
                  source="ρ, c of steel: Kinsler et al. 2000 App. C; s, μ chosen for a smooth hull plate")
 
-#: The presets by name (TOML ``scattering = "fine sand"``).
-PRESETS = {s.name: s for s in (MUD, SANDY_MUD, FINE_SAND, COARSE_SAND, GRAVEL, ROCK, CONCRETE, STEEL)}
+#: The engineering (Lambert + Kirchhoff) presets by name: ``"lambert-kirchhoff <name>"`` (the bare names before
+#: issue 52).
+LAMBERT_KIRCHHOFF = {s.name: s for s in (MUD, SANDY_MUD, FINE_SAND, COARSE_SAND, GRAVEL, ROCK, CONCRETE, STEEL)}
+
+#: What each bare name is (TOML ``scattering = "fine sand"``): the physical model of the class (the module
+#: docstring), or for the man-made surfaces their engineering preset.
+PHYSICAL = {"mud": ("apl-uw", MUD.mean_grain_size_phi), "sandy mud": ("apl-uw", SANDY_MUD.mean_grain_size_phi),
+            "fine sand": ("small-slope", "fine sand"), "coarse sand": ("small-slope", "coarse sand"),
+            "gravel": ("small-slope", "sandy gravel"), "rock": ("small-slope", "rock"),
+            "concrete": ("lambert-kirchhoff", "concrete"), "steel": ("lambert-kirchhoff", "steel")}
+
+#: The bare names (every one of :data:`PHYSICAL`).
+PRESETS = tuple(PHYSICAL)
 
 
 def preset(name: str):
-    """The preset called ``name`` (spaces or underscores), a one-line error naming the choices otherwise;
-    ``"apl-uw <class>"`` is the APL-UW model's class (:func:`sonar_embree.laws.apl_uw.apl_class`),
-    ``"small-slope <sediment>"`` the small-slope model's (:func:`sonar_embree.laws.small_slope.small_slope_sediment`)."""
-    key = str(name).replace("_", " ").strip().lower()
+    """The preset called ``name`` (spaces or underscores), a one-line error naming the choices otherwise: a bare
+    name is its class's physical model (:data:`PHYSICAL`), ``"lambert-kirchhoff <name>"`` the engineering preset,
+    ``"apl-uw <class>"`` the APL-UW model's class (:func:`sonar_embree.laws.apl_uw.apl_class`), ``"small-slope
+    <sediment>"`` the small-slope model's (:func:`sonar_embree.laws.small_slope.small_slope_sediment`)."""
+    key = " ".join(str(name).replace("_", " ").strip().lower().split())
     if key.startswith("apl-uw "):
         return apl_class(key[len("apl-uw "):])
     if key.startswith("small-slope "):
         return small_slope_sediment(key[len("small-slope "):])
-    if key not in PRESETS:
-        raise ConfigError(f"unknown sediment {name!r}; one of {sorted(PRESETS)}")
-    return PRESETS[key]
+    if key.startswith("lambert-kirchhoff "):
+        rest = key[len("lambert-kirchhoff "):]
+        if rest not in LAMBERT_KIRCHHOFF:
+            raise ConfigError(f"unknown sediment {name!r}; the Lambert + Kirchhoff presets are "
+                              f"{sorted(LAMBERT_KIRCHHOFF)}")
+        return LAMBERT_KIRCHHOFF[rest]
+    if key not in PHYSICAL:
+        raise ConfigError(f"unknown sediment {name!r}; one of {sorted(PHYSICAL)}, or 'lambert-kirchhoff', "
+                          "'apl-uw' or 'small-slope' and a class")
+    model, what = PHYSICAL[key]
+    if model == "apl-uw":
+        return AplUw.from_grain_size(what)
+    return small_slope_sediment(what) if model == "small-slope" else LAMBERT_KIRCHHOFF[what]

@@ -33,6 +33,9 @@ side-scan frequencies above); one warning per process outside that range.
 """
 from __future__ import annotations
 
+import ast
+import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -232,12 +235,18 @@ class SmallSlope(Summable):
     def at_frequency(self, frequency_hz: float) -> Tabulated:
         """The law at one carrier: a table of its strengths from :data:`TABLE_GRAZING_DEG`, refined until linear
         interpolation in dB is within :data:`TABLE_TOLERANCE_DB` of the model at every interval's middle (one warning
-        per process outside :data:`VALID_FREQUENCY_HZ`)."""
+        per process outside :data:`VALID_FREQUENCY_HZ`). The same law at the same carrier is tabulated once per
+        process (:func:`_table`, keyed by the law's numbers): a default seabed in every block of a streamed line costs
+        one table, not one per block."""
         check_number("SmallSlope", "frequency_hz", frequency_hz, positive=True)
         lo, hi = VALID_FREQUENCY_HZ
         if not lo <= frequency_hz <= hi:
             warn_once(f"SmallSlope at {frequency_hz / 1e3:g} kHz: the small-slope seabed model is stated here for "
                       f"{lo / 1e3:g}–{hi / 1e3:g} kHz; beyond it its power-law spectra are extrapolated")
+        return _table(repr(dataclasses.astuple(self)), float(frequency_hz))
+
+    def tabulate(self, frequency_hz: float) -> Tabulated:
+        """The table of :meth:`at_frequency`, built (no cache, no warning)."""
         g = TABLE_GRAZING_DEG
         db = self.backscatter_strength_db(g, frequency_hz)
         for _ in range(8):                                  # halve the intervals where the line misses the model
@@ -285,6 +294,13 @@ def small_slope_sediment(name: str) -> SmallSlope:
         raise ConfigError(f"unknown small-slope sediment {name!r}; one of {sorted(SEDIMENTS)}")
     v = SEDIMENTS[key]
     return SmallSlope(*v, correlation=ROCK_CORRELATION if key.endswith("rock") else DENSITY_ONLY)
+
+
+@functools.lru_cache(maxsize=32)
+def _table(fields: str, frequency_hz: float) -> Tabulated:
+    """:meth:`SmallSlope.tabulate` of the law whose fields' ``repr`` is ``fields``: a pure function of numbers (the
+    table depends on nothing else), so it is kept."""
+    return SmallSlope(*ast.literal_eval(fields)).tabulate(frequency_hz)
 
 
 __all__ = ["SEDIMENTS", "SmallSlope", "TABLE_GRAZING_DEG", "VALID_FREQUENCY_HZ", "small_slope_sediment"]

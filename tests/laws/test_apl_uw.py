@@ -122,4 +122,5 @@ def test_toml_names_and_tables_select_the_model(tmp_path):
     assert law.volume_parameter == 0.004 and law.density_ratio == pytest.approx(_handbook_params(3.0)[0])
     with pytest.raises(ConfigError, match="x.toml"):
         parse_law({"kind": "apl-uw", "sediment": "clay", "bogus": 1}, "x.toml", "m")
-    assert parse_law("fine sand", "x.toml", "m") == se.laws.sediments.FINE_SAND  # the simple presets stay
+    assert parse_law("lambert-kirchhoff fine sand", "x.toml", "m") == se.laws.sediments.FINE_SAND  # kept by name
+    assert parse_law("mud", "x.toml", "m") == AplUw.from_grain_size(8.0)             # a bare name: the model

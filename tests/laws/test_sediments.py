@@ -1,4 +1,5 @@
-"""Sediment presets and sediment patches (docs/physics.md §10), against the APL-UW regressions written here."""
+"""Sediment presets and sediment patches (docs/physics.md §10), against the APL-UW regressions written here; the bare
+names are the physical models (issue 52), the engineering presets ``lambert-kirchhoff <name>``."""
 import math
 
 import numpy as np
@@ -37,7 +38,7 @@ def test_each_preset_matches_its_cited_numbers(name):
     mz, rho_nu, mu_db, s = CITED[name]
     rho, nu = _apl_rho_nu(mz) if rho_nu is None else rho_nu
     r0 = (rho * nu - 1) / (rho * nu + 1)
-    preset = sediments.preset(name)
+    preset = sediments.preset(f"lambert-kirchhoff {name}")
     theta_i = np.radians(90 - np.array([preset.reference_grazing_deg, 60.0, 85.0, 89.9]))
     c = np.cos(theta_i)
     want = 10 ** (mu_db / 10) * c ** 2 + analytic.kirchhoff_monostatic(theta_i, r0, s)
@@ -48,13 +49,40 @@ def test_each_preset_matches_its_cited_numbers(name):
 
 def test_presets_order_by_grain_and_errors():
     order = ["mud", "sandy mud", "fine sand", "coarse sand", "gravel", "rock"]
-    levels = [sediments.preset(n).reference_db for n in order]
+    levels = [sediments.preset(f"lambert-kirchhoff {n}").reference_db for n in order]
     assert np.all(np.diff(levels) > 0)                     # coarser is brighter at 30°
-    nadir = [sediments.preset(n).sigma(1.0, 1.0) for n in ("mud", "steel")]
+    nadir = [sediments.preset(n).sigma(1.0, 1.0) for n in ("lambert-kirchhoff mud", "steel")]
     assert nadir[1] > 1000 * nadir[0]                      # a steel glint outshines mud at normal incidence
-    assert sediments.preset("fine_sand") is sediments.FINE_SAND
+    assert sediments.preset("lambert-kirchhoff fine_sand") is sediments.FINE_SAND
     with pytest.raises(se.ConfigError, match="unknown sediment 'sand'; one of"):
         sediments.preset("sand")
+    with pytest.raises(se.ConfigError, match="unknown sediment 'lambert-kirchhoff silt'; the Lambert"):
+        sediments.preset("lambert-kirchhoff silt")
+
+
+def test_the_bare_names_are_the_physical_models():
+    """Issue 52's decision: a bare name is its class's physical model, the small-slope sediment where the model's
+    published set has it (fine and coarse sand, sandy gravel for gravel, rock) and APL-UW at the class's grain size
+    where it does not (mud 8 φ, sandy mud 5.5 φ); the man-made surfaces stay the engineering presets. Against the
+    models' own constructors and the APL-UW regressions written here. What changes for fine sand at 600 kHz (the
+    migration, issue 52: a real AUV record fell 12.5 dB more towards low grazing than the engineering preset): σ
+    falls 18.0 dB from 30° to 6° against the engineering preset's 13.6 dB, and stands 13.6 dB higher at 30°."""
+    from sonar_embree.laws import AplUw
+    from sonar_embree.laws.small_slope import small_slope_sediment
+
+    for name, ss in (("fine sand", "fine sand"), ("coarse sand", "coarse sand"), ("gravel", "sandy gravel"),
+                     ("rock", "rock")):
+        assert sediments.preset(name) == small_slope_sediment(ss), name
+    for name, mz in (("mud", 8.0), ("sandy mud", 5.5)):
+        law = sediments.preset(name)
+        assert isinstance(law, AplUw) and law.density_ratio == pytest.approx(_apl_rho_nu(mz)[0], rel=1e-3)
+    assert sediments.preset("steel") is sediments.STEEL and sediments.preset("concrete") is sediments.CONCRETE
+    assert se.Material(scattering=sediments.preset("Fine_Sand")).scattering == small_slope_sediment("fine sand")
+    g = np.array([6.0, 30.0])
+    new = sediments.preset("fine sand").backscatter_strength_db(g, 600e3)
+    s = np.sin(np.radians(g))
+    old = 10 * np.log10(sediments.FINE_SAND.sigma(s, s))
+    assert new[1] - new[0] > old[1] - old[0] + 4.0 and new[1] > old[1] + 10.0, (new, old)
 
 
 def test_sediment_patches_shares_and_labels():
@@ -89,12 +117,14 @@ def test_toml_scattering_texture_map_and_sediments(tmp_path):
     (tmp_path / "curve.csv").write_text("grazing_deg,backscatter_db\n10,-40\n80,-10\n")
     mat = runconfig.parse_material({"scattering": "coarse sand", "texture": {"shape": 2.0, "correlation_m": 3.0}},
                                    "x.toml", "object #1")
-    assert mat.scattering is sediments.COARSE_SAND and mat.texture == se.KTexture(2.0, 3.0)
+    assert mat.scattering == sediments.preset("coarse sand") and mat.texture == se.KTexture(2.0, 3.0)
+    old = runconfig.parse_material({"scattering": "lambert-kirchhoff coarse sand"}, "x.toml", "object #1")
+    assert old.scattering is sediments.COARSE_SAND
     tab = runconfig.parse_law({"kind": "tabulated", "csv": "curve.csv"}, "x.toml", "law", str(tmp_path))
     assert tab.backscatter_strength_db(45.0) == pytest.approx(-25.0)
     comp = runconfig.parse_law({"kind": "composite", "terms": [{"kind": "lambert", "backscatter_db": -30},
                                                                "rock"]}, "x.toml", "law")
-    assert len(comp.terms()) == 3
+    assert len(comp.terms()) == 2 and comp.terms()[1] == sediments.preset("rock")     # "rock": the small-slope law
     with pytest.raises(se.ConfigError, match="x.toml: object #1 material texture: KTexture.shape"):
         runconfig.parse_material({"texture": {"shape": -1}}, "x.toml", "object #1")
     with pytest.raises(se.ConfigError, match="unknown key 'nu' in object #1 material texture"):

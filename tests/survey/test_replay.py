@@ -159,8 +159,8 @@ def test_replay_over_a_dem_from_the_command_line(tmp_path):
     rec = se.simulate(scene, traj, se.Sonar(max_range_m=25.0), PULSE, speckle=True, seed=1,
                       start_time="2026-05-01T12:00:00Z")
     rec.to_xtf(tmp_path / "geo.xtf", scale=1.0)
-    assert main(["replay", str(tmp_path / "geo.xtf"), "--dem", str(tmp_path / "dem.tif"), "--sediment", "fine sand",
-                 "-o", str(tmp_path / "out")]) == 0
+    assert main(["replay", str(tmp_path / "geo.xtf"), "--dem", str(tmp_path / "dem.tif"), "--sediment",
+                 "lambert-kirchhoff fine sand", "-o", str(tmp_path / "out")]) == 0    # the record's own law
     _, a = pyxtf.xtf_read(str(tmp_path / "out" / "replay.xtf"))
     first = lambda x: int(np.flatnonzero(np.asarray(x) > 0)[0])              # noqa: E731
     for ping in a[pyxtf.XTFHeaderType.sonar][::5]:
