@@ -195,6 +195,8 @@ def _add_replay_parser(sub) -> None:
                                      "sand, coarse silt and clay)")
     p.add_argument("--fit-beam", action="store_true", help="with --fit and no --device: fit the record's elevation "
                                                            "pattern too (tilt, vertical width); best with one class")
+    p.add_argument("--fit-pulse", action="store_true", help="with --fit and no --device: fit the CW pulse length "
+                                                            "from the correlation along range")
     p.add_argument("--fit-texture", action="store_true", help="with --fit: fit the floor's K-distributed texture "
                                                               "(shape ν) from the record's scintillation index")
     p.add_argument("--clutter-densities", metavar="N,N,…", help="with --fit: clutter densities per m² to try too "

@@ -119,7 +119,7 @@ def run(args) -> list:
         replay(args.xtf, args.output, sediment=args.sediment, fit_classes=classes, gain_db=args.gain_db,
                device=args.device, seed=args.seed, overwrite=args.overwrite, scene=_replay_scene(args),
                fit_densities=densities, inputs=[args.dem, args.scene], progress=not args.no_progress,
-               fit_beam=args.fit_beam, fit_texture=args.fit_texture)
+               fit_beam=args.fit_beam, fit_texture=args.fit_texture, fit_pulse=args.fit_pulse)
         return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png")
                 if os.path.exists(os.path.join(args.output, f))]
     if args.command == "demo":

@@ -116,6 +116,8 @@ FIT_RUNS, FIT_RUN_PINGS = 6, 16
 #: resolution cell, so that its bands' scintillation index is (1 + SI₀)(1 + 1/ν) − 1 (:func:`texture_fit`); the record
 #: does not say its texture's own length.
 TEXTURE_CORRELATION_M = 2.0
+#: The CW pulse lengths ``--fit-pulse`` tries, s (a replay without a device otherwise takes 100 µs).
+FIT_PULSES_S = (20e-6, 50e-6, 100e-6, 200e-6, 400e-6)
 
 
 def fit_pings(line: Line, runs: int = FIT_RUNS, run_pings: int = FIT_RUN_PINGS) -> np.ndarray:
@@ -352,6 +354,27 @@ def texture_fit(real: dict, sim: dict) -> float:
     return float(1.0 / np.median(inv))
 
 
+def _band_mean(values) -> float:
+    """The mean of a measure's bands that hold a value (NaN: none)."""
+    v = np.array([np.nan if x is None else x for x in values], float)
+    return float(np.nanmean(v)) if np.isfinite(v).any() else math.nan
+
+
+def pulse_fit(line: Line, real: dict, law, *, clutter=None, elevation=None, seed: int = 0) -> dict:
+    """The CW pulse length of :data:`FIT_PULSES_S` whose simulation over ``law`` brings the correlation of neighbouring
+    samples along range (the bands' mean, :func:`measures`) closest to the record's: the longer the pulse, the more
+    samples share each scatterer and the more that correlation grows. ``{"pulse_s": s, "correlation_errors": {"… µs":
+    |simulated − recorded|}}``."""
+    want = _band_mean(real["correlation_range_lag1"])
+    errors = {}
+    for d in FIT_PULSES_S:
+        sim = measures(simulate_line(line, law, pulse=Pulse.cw(duration_s=d), clutter=clutter, elevation=elevation,
+                                     seed=seed), line)
+        errors[d] = abs(_band_mean(sim["correlation_range_lag1"]) - want)
+    best = min(errors, key=lambda d: (not math.isfinite(errors[d]), errors[d]))
+    return {"pulse_s": best, "correlation_errors": {f"{d * 1e6:g} us": e for d, e in errors.items()}}
+
+
 def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress: bool = False,
         fit_beam: bool = False, fit_texture: bool = False, **kw) -> dict:
     """The class of ``classes``, the clutter density of ``densities`` (per m², None: no clutter; the clutter's
@@ -416,7 +439,7 @@ def candidates_bar(progress: bool, n: int):
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
            device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
            fit_densities=(None,), inputs=(), progress: bool = False, fit_beam: bool = False,
-           fit_texture: bool = False) -> dict:
+           fit_texture: bool = False, fit_pulse: bool = False) -> dict:
     """Replay the XTF line ``path`` into ``out_dir``: ``replay.xtf`` (the file's layout, the simulated samples),
     ``report.json`` (both files' :func:`measures`, the sediment, the gain offset, the fit) and ``report.png``.
 
@@ -440,6 +463,9 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     fit_beam : bool
         With ``fit_classes`` and no ``device``: fit the record's elevation pattern too (tilt and vertical width,
         :func:`elevation_fit`), and replay with it.
+    fit_pulse : bool
+        With ``fit_classes`` and no ``device``: fit the CW pulse length from the correlation along range
+        (:func:`pulse_fit`, on the fit's pings with the chosen class), and replay with it.
     fit_texture : bool
         With ``fit_classes``: fit the K-distribution shape ν of the floor's texture from the bands' scintillation
         index (:func:`texture_fit`), and replay with it (correlation length :data:`TEXTURE_CORRELATION_M`).
@@ -448,7 +474,7 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         materials hold (no ``sediment``, no fit). Default: a flat floor at each ping's altitude. The grazing angles
         of the report take the altitude over a level floor either way.
     """
-    _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam, device, fit_texture)
+    _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam, device, fit_texture, fit_pulse)
     OutputFolder.check(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs])
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
@@ -458,11 +484,18 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         chosen = fit(sub, measures(sub.settings["data"], sub), fit_classes, fit_densities, device=device, seed=seed,
                      progress=progress, fit_beam=fit_beam, fit_texture=fit_texture)
         chosen["pings_simulated"] = int(sub.settings["data"].shape[0])
+        if fit_pulse:
+            el = chosen.get("elevation")
+            chosen.update(pulse_fit(sub, measures(sub.settings["data"], sub), chosen["sediment"], seed=seed,
+                                    clutter=None if chosen["clutter_density_per_m2"] is None
+                                    else Clutter(float(chosen["clutter_density_per_m2"])),
+                                    elevation=None if el is None else (el["tilt_deg"], el["height_m"])))
     name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
     density = chosen["clutter_density_per_m2"] if chosen else None
     beam = chosen.get("elevation") if chosen else None
     nu = chosen.get("texture_shape", math.inf) if chosen else math.inf
-    base = simulate_line(line, name, device=device, seed=seed, scene=scene,
+    pulse = Pulse.cw(duration_s=chosen["pulse_s"]) if chosen and "pulse_s" in chosen else None
+    base = simulate_line(line, name, device=device, seed=seed, scene=scene, pulse=pulse,
                          clutter=None if density is None else Clutter(float(density)),
                          elevation=None if beam is None else (beam["tilt_deg"], beam["height_m"]),
                          texture=None if math.isinf(nu) else KTexture(nu, TEXTURE_CORRELATION_M, seed))
@@ -483,8 +516,11 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
 
 
 def _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam=False, device=None,
-                   fit_texture=False) -> None:
+                   fit_texture=False, fit_pulse=False) -> None:
     """The options, before any work: one line naming a value that cannot mean anything."""
+    if fit_pulse and (not fit_classes or device):
+        raise ConfigError("replay: --fit-pulse fits the pulse length with --fit and without --device (a device "
+                          "preset brings its own pulse)")
     if fit_texture and not fit_classes:
         raise ConfigError("replay: --fit-texture fits the floor's texture with --fit (it needs the fitted class)")
     if fit_beam and (not fit_classes or device):
