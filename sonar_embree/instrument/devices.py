@@ -14,7 +14,10 @@ should override them (``Sonar.preset(name, source_level_db=…)``).
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+import os
+import tomllib
 from dataclasses import dataclass
 
 from ..errors import ConfigError
@@ -209,12 +212,79 @@ DEVICES = {d.name: d for d in (
 )}
 
 
-def device(name: str) -> Device:
-    """The preset ``name`` (a key of :data:`DEVICES`); one-line error naming the known ones otherwise."""
+def device(name) -> Device:
+    """The preset ``name``: a key of :data:`DEVICES`, or a device file (a path ending in ``.toml``,
+    :func:`load_device`: e.g. what ``replay --fit`` writes); one-line error naming the known ones otherwise."""
+    if isinstance(name, (str, os.PathLike)) and os.fspath(name).endswith(".toml"):
+        return load_device(name)
     try:
         return DEVICES[name]
     except (KeyError, TypeError):
-        raise ConfigError(f"unknown device preset {name!r}; one of {', '.join(sorted(DEVICES))}") from None
+        raise ConfigError(f"unknown device preset {name!r}; one of {', '.join(sorted(DEVICES))}, or a device "
+                          "file (.toml)") from None
 
 
-__all__ = ["DEVICES", "Device", "device"]
+#: The fields a device file must give (the rest take :class:`Device`'s defaults).
+REQUIRED_FIELDS = ("name", "source", "platform", "frequency_hz", "azimuth_deg", "elevation_deg", "tilt_deg",
+                   "ranges_m", "pulse", "source_level_db")
+
+
+def load_device(path) -> Device:
+    """The :class:`Device` of a device file: a TOML ``[device]`` table of :class:`Device`'s fields (lists for its
+    tuples; ``pulse = ["cw", 5e-05]`` or ``["lfm", duration_s, bandwidth_hz]``), as :func:`device_toml` writes it.
+    One-line errors naming the file and the key."""
+    source = os.fspath(path)
+    try:
+        with open(source, "rb") as fh:
+            table = tomllib.load(fh)
+    except OSError as exc:
+        raise ConfigError(f"{source}: cannot read the device file ({exc.strerror or exc})") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"{source}: invalid TOML ({exc})") from None
+    d = table.get("device")
+    if set(table) != {"device"} or not isinstance(d, dict):
+        raise ConfigError(f"{source}: a device file holds one [device] table, got {sorted(table)}")
+    fields = {f.name for f in dataclasses.fields(Device)}
+    unknown, missing = sorted(set(d) - fields), [k for k in REQUIRED_FIELDS if k not in d]
+    if unknown or missing:
+        raise ConfigError(f"{source}: [device] " + (f"unknown key {unknown[0]!r}" if unknown else
+                                                    f"needs {missing[0]!r}"))
+    kw = {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+    _check_device(source, kw)
+    return Device(**kw)
+
+
+def _check_device(source: str, kw: dict) -> None:
+    """A device file's numbers: one line naming the file and the key of one that cannot be."""
+    for key, lo, hi in (("frequency_hz", 1e3, 1e7), ("azimuth_deg", 0.0, 179.0), ("elevation_deg", 0.0, 179.0),
+                        ("tilt_deg", -90.0, 90.0), ("source_level_db", 150.0, 250.0)):
+        v = kw[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo < v <= hi if lo >= 0 else lo <= v <= hi):
+            raise ConfigError(f"{source}: [device] {key} must be a number in ({lo:g}, {hi:g}], got {v!r}")
+    if not kw["ranges_m"] or not all(isinstance(r, (int, float)) and r > 0 for r in kw["ranges_m"]):
+        raise ConfigError(f"{source}: [device] ranges_m must be a list of ranges > 0 m, got {list(kw['ranges_m'])!r}")
+    p = kw["pulse"]
+    ok = (len(p) == 2 and p[0] == "cw") or (len(p) == 3 and p[0] == "lfm" and isinstance(p[2], (int, float))
+                                            and p[2] > 0)
+    if not ok or not isinstance(p[1], (int, float)) or not 0 < p[1] < 1:
+        raise ConfigError(f"{source}: [device] pulse must be [\"cw\", duration_s] or [\"lfm\", duration_s, "
+                          f"bandwidth_hz], got {list(p)!r}")
+
+
+def device_toml(d: Device) -> str:
+    """The device file of ``d`` (:func:`load_device` reads it back to an equal :class:`Device`)."""
+    def value(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, (int, float)):
+            return repr(v)
+        if isinstance(v, str):
+            return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        return "[" + ", ".join(value(x) for x in v) + "]"
+
+    lines = ["[device]"] + [f"{f.name} = {value(getattr(d, f.name))}" for f in dataclasses.fields(Device)
+                            if getattr(d, f.name) is not None]
+    return "\n".join(lines) + "\n"
+
+
+__all__ = ["DEVICES", "Device", "device", "device_toml", "load_device"]

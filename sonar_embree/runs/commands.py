@@ -120,7 +120,7 @@ def run(args) -> list:
                device=args.device, seed=args.seed, overwrite=args.overwrite, scene=_replay_scene(args),
                fit_densities=densities, inputs=[args.dem, args.scene], progress=not args.no_progress,
                fit_beam=args.fit_beam, fit_texture=args.fit_texture, fit_pulse=args.fit_pulse)
-        return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png")
+        return [os.path.join(args.output, f) for f in ("replay.xtf", "report.json", "report.png", "device.toml")
                 if os.path.exists(os.path.join(args.output, f))]
     if args.command == "demo":
         return _demo(args)

@@ -231,6 +231,8 @@ def load_run_config(path) -> RunConfig:
         profile["csv"] = _resolve(base, profile["csv"])
     environment = _dataclass_table(data, "environment", Environment, source)
     sonar_table = data.get("sonar", {})
+    if isinstance(sonar_table.get("preset"), str) and sonar_table["preset"].endswith(".toml"):
+        sonar_table = {**sonar_table, "preset": _resolve(base, sonar_table["preset"])}   # a device file by it
     sonar, environment = build_sonar(source, "[sonar]", sonar_table, environment)
     pulse = _dataclass_table(data, "pulse", Pulse, source)
     if "preset" in sonar_table and "pulse" not in data:  # the device's own pulse

@@ -39,7 +39,8 @@ from ..config import Material, Pulse, Sonar
 from ..display import plotting
 from ..environment import Environment
 from ..errors import ConfigError
-from ..instrument.beam import membrane_size_for_beamwidth, sinc as beam_sinc
+from ..instrument.beam import beamwidth_deg, membrane_size_for_beamwidth, sinc as beam_sinc
+from ..instrument.devices import Device, device_toml
 from ..io.owner import OutputFolder
 from ..io.xtf import NAV_UNITS_LATLON, decimate, read_navigation, read_sonar, write_like
 from ..laws import sediments
@@ -509,10 +510,38 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
               "pings_taken_out": int(np.sum(~line.settings["kept"])),
               "settings": {k: v for k, v in line.settings.items() if k not in ("data", "altitude_m", "kept")},
               "recorded": real, "simulated": sim}
-    out.write_set([("replay.xtf", lambda p: write_like(path, p, line.full(values))),
-                   ("report.json", lambda p: _write_json(report, p)),
-                   ("report.png", lambda p: _report_png(report, p))])      # left out without matplotlib
+    writers = [("replay.xtf", lambda p: write_like(path, p, line.full(values))),
+               ("report.json", lambda p: _write_json(report, p)),
+               ("report.png", lambda p: _report_png(report, p))]           # left out without matplotlib
+    if chosen and not device:                                              # the fit as a reusable device file
+        text = device_toml(fitted_device(line, chosen, path, offset))
+        writers.append(("device.toml", lambda p: open(p, "w", encoding="utf-8").write(text)))
+    out.write_set(writers)
     return report
+
+
+def fitted_device(line: Line, chosen: dict, path, gain_offset_db: float) -> Device:
+    """The :class:`~sonar_embree.instrument.devices.Device` a fit found (``replay --fit`` writes it as device.toml,
+    which ``render``, ``survey`` and ``replay --device`` take): the file's carrier, range and samples; the replay's
+    beam at the file's sound speed, with the fitted elevation pattern when ``--fit-beam`` ran; the fitted CW pulse
+    (``--fit-pulse``, else the replay's 100 µs). A source level is not fitted (:data:`FITTED_SOURCE_LEVEL_DB`,
+    assumed); the seabed's class, gain offset and texture are not the device's and go to its ``note``."""
+    s = line.settings
+    plain, lam = Sonar(frequency_hz=s["frequency_hz"]), s["sound_speed_m_s"] / s["frequency_hz"]
+    el = chosen.get("elevation")
+    width = el["vertical_beamwidth_deg"] if el else min(beamwidth_deg(plain.height_m, lam), 179.0)
+    name = os.path.basename(os.fspath(path))
+    nu = chosen.get("texture_shape")
+    note = (f"fitted by sonar-embree replay --fit: seabed {chosen['sediment']}, gain offset {gain_offset_db:.2f} dB"
+            + ("" if nu is None or math.isinf(nu) else f", K texture shape {nu:.3g}")
+            + ("" if el else "; the elevation pattern is the replay's default membrane's (not fitted)"))
+    return Device(name=f"fitted {name}", source=f"sonar-embree replay --fit of {name}", platform="towfish",
+                  frequency_hz=float(s["frequency_hz"]), azimuth_deg=beamwidth_deg(plain.length_m, lam),
+                  elevation_deg=float(width), tilt_deg=float(el["tilt_deg"] if el else plain.tilt_deg),
+                  ranges_m=(float(s["slant_range_m"]),), pulse=("cw", float(chosen.get("pulse_s", 100e-6))),
+                  source_level_db=FITTED_SOURCE_LEVEL_DB,
+                  assumed=("source_level_db", "azimuth_deg") + (() if el else ("elevation_deg", "tilt_deg")),
+                  samples_per_channel=int(s["samples_per_channel"]), note=note)
 
 
 def _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam=False, device=None,
@@ -555,7 +584,10 @@ def _clip_warned(values: np.ndarray, settings: dict) -> np.ndarray:
 
 
 #: What a replay writes into its folder.
-OUTPUTS = ("replay.xtf", "report.json", "report.png")
+OUTPUTS = ("replay.xtf", "report.json", "report.png", "device.toml")
+#: The source level a fitted device file states, dB re 1 µPa at 1 m (assumed: a replay fits a gain offset, not a
+#: source level; the middle of the 200–230 dB of 100 kHz–1 MHz side-scans, Lurton 2010, §8.2).
+FITTED_SOURCE_LEVEL_DB = 215.0
 
 
 def _write_json(obj, path) -> None:

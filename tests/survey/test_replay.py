@@ -106,6 +106,41 @@ def test_fit_pulse_recovers_a_hidden_pulse_length(tmp_path, duration_s):
     assert report["fit"]["correlation_errors"]["100 us"] > abs(corr[0] - corr[1])
 
 
+def test_a_fit_is_saved_as_a_device_file_that_render_survey_and_replay_take(tmp_path):
+    """``replay --fit --fit-beam --fit-pulse`` writes device.toml: the file's carrier, range and samples, the fitted
+    elevation pattern and pulse. ``replay --device device.toml`` with the fitted class reproduces the fit's replay
+    (level against grazing within 0.5 dB of it, the gain offset within 1 dB), a run configuration takes it as its
+    sonar's preset (relative to the configuration), and a broken device file is a one-line error naming it."""
+    from sonar_embree.instrument.devices import load_device
+    from sonar_embree.runs.runconfig import load_run_config
+
+    _line(tmp_path, sediment="apl-uw fine sand", gain_db=6.0, pulse=se.Pulse.cw(duration_s=50e-6))
+    fit = tmp_path / "fit"
+    assert main(["replay", str(tmp_path / "line.xtf"), "--fit", "--fit-beam", "--fit-pulse", "--classes",
+                 "apl-uw fine sand", "-o", str(fit), "--seed", "2", "--no-progress"]) == 0
+    report = json.loads((fit / "report.json").read_text())
+    dev = load_device(fit / "device.toml")
+    el = report["fit"]["elevation"]
+    assert dev.frequency_hz == report["settings"]["frequency_hz"] and dev.ranges_m[0] == pytest.approx(30.0, 0.05)
+    assert dev.tilt_deg == el["tilt_deg"] and dev.elevation_deg == el["vertical_beamwidth_deg"]
+    assert dev.pulse == ("cw", report["fit"]["pulse_s"]) and "apl-uw fine sand" in dev.note
+    again = tmp_path / "again"
+    assert main(["replay", str(tmp_path / "line.xtf"), "--device", str(fit / "device.toml"), "--sediment",
+                 "apl-uw fine sand", "-o", str(again), "--seed", "2", "--no-progress"]) == 0
+    second = json.loads((again / "report.json").read_text())
+    assert abs(second["shape_error_db"] - report["shape_error_db"]) < 0.5
+    assert second["gain_offset_db"] - report["gain_offset_db"] == pytest.approx(
+        -se.Sonar.preset(str(fit / "device.toml")).source_level_db, abs=1.0)      # the stated source level
+    (tmp_path / "run.toml").write_text('[sonar]\npreset = "fit/device.toml"\n[trajectory]\nkind = "line"\n'
+                                       'start = [0.0, 0.0, 10.0]\nend = [5.0, 0.0, 10.0]\nn_pings = 3\n'
+                                       '[[objects]]\nseafloor = "flat"\nsize_m = [50.0, 50.0]\n')
+    cfg = load_run_config(tmp_path / "run.toml")
+    assert cfg.sonar.frequency_hz == dev.frequency_hz and cfg.pulse.duration_s == dev.pulse[1]
+    (tmp_path / "bad.toml").write_text((fit / "device.toml").read_text().replace("tilt_deg", "tilt"))
+    with pytest.raises(ConfigError, match=r"bad.toml: \[device\] unknown key 'tilt'"):
+        se.Sonar.preset(str(tmp_path / "bad.toml"))
+
+
 def test_measures_against_closed_forms():
     """On Rayleigh speckle of a known mean: scintillation index 1, lag correlation 0, the level curve flat."""
     rng = np.random.default_rng(0)

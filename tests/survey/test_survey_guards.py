@@ -211,6 +211,38 @@ def test_common_column_names_are_taken_and_a_clash_is_named(tmp_path):
         Trajectory.from_csv(tmp_path / "b.csv")
 
 
+def test_every_preset_round_trips_through_a_device_file(tmp_path):
+    """devices.device_toml then devices.device(path) gives back each shipped preset, field for field."""
+    from sonar_embree.instrument.devices import DEVICES, device, device_toml
+
+    for name, d in DEVICES.items():
+        (tmp_path / f"{name}.toml").write_text(device_toml(d))
+        assert device(str(tmp_path / f"{name}.toml")) == d, name
+
+
+def test_a_device_file_is_a_survey_device(tmp_path):
+    """``survey --device FILE.toml`` takes a device file (what ``replay --fit`` writes): the same line as the preset
+    it was written from, to the bit."""
+    import dataclasses
+
+    import xarray as xr
+
+    from sonar_embree.instrument.devices import device, device_toml
+
+    (tmp_path / "cm2.toml").write_text(device_toml(dataclasses.replace(device("cmax-cm2-325"), name="mine")))
+    _dem(tmp_path / "dem.tif")
+    _gps_log(tmp_path / "gps.csv")
+    lines = {}
+    for dev in ("cmax-cm2-325", str(tmp_path / "cm2.toml")):
+        out = tmp_path / ("file" if dev.endswith(".toml") else "preset")
+        assert main(["survey", "--dem", str(tmp_path / "dem.tif"), "--nav", str(tmp_path / "gps.csv"), "--device", dev,
+                     "--ping-rate", "2", "--pixel", "1", "--depth-m", "4", "--no-progress", "--no-labels", "-o",
+                     str(out)]) == 0
+        lines[dev] = xr.open_zarr(out / "line_00" / "line.zarr")["starboard"].values
+    a, b = lines.values()
+    assert a.shape == b.shape and np.array_equal(a, b) and a.max() > 0
+
+
 def test_labels_can_be_left_out_and_the_sediment_chosen(tmp_path, caplog):
     """Issue 50, item 6: --no-labels writes lines without ground truth (and, said in one line, no mosaic);
     --sediment sets the seabed's preset (a harder floor records brighter in floats); truth.tif's band has a
