@@ -291,11 +291,13 @@ def _finite_median(values: np.ndarray):
 
 def _patches(inten, lev, r, alt, r_max) -> dict:
     """Per range band of the floor: scintillation index (of the intensity, each range column divided by its mean
-    over pings and sides), level histogram about the median, correlations."""
+    over pings and sides), the share of deep fades (below :data:`DEEP_FADE` of that mean) and the skewness of
+    10·log10 of it (Rayleigh speckle: 1 − e^(−0.1) = 9.5 % and −1.14), level histogram about the median,
+    correlations."""
     lo = float(np.nanmax(alt)) * 1.05
     edges = np.linspace(lo, r_max, N_BANDS + 1)
     hist_edges = np.arange(-20.0, 16.0, 1.0)
-    si, hists, c1, c2, ca = [], [], [], [], []
+    si, hists, c1, c2, ca, fades, skews = [], [], [], [], [], [], []
     for a, b in zip(edges[:-1], edges[1:]):
         cols = (r >= a) & (r < b)
         i = np.concatenate([inten[:, 0][:, cols], inten[:, 1][:, cols]], axis=0)
@@ -303,13 +305,27 @@ def _patches(inten, lev, r, alt, r_max) -> dict:
         good = np.isfinite(d)
         norm = i / np.maximum(i.mean(axis=0), 1e-300)                   # each range column about its mean
         si.append(float(norm.var()) if i.size else None)
+        fades.append(float(np.mean(norm < DEEP_FADE)) if i.size else None)
+        skews.append(_skew_db(norm))
         hists.append(np.histogram(d[good] - np.median(d[good]), hist_edges)[0].tolist() if good.any() else [])
         c1.append(_correlation(i, 1, 1) if i.shape[1] > 2 else None)
         c2.append(_correlation(i, 1, 2) if i.shape[1] > 3 else None)
         ca.append(_correlation(inten[:, 1][:, cols], 0, 1) if inten.shape[0] > 2 and cols.any() else None)
     return {"band_edges_m": edges.tolist(), "scintillation_index": si, "histogram_edges_db": hist_edges.tolist(),
             "histograms": hists, "correlation_range_lag1": c1, "correlation_range_lag2": c2,
-            "correlation_along_lag1": ca}
+            "correlation_along_lag1": ca, "deep_fade_share": fades, "skew_db": skews}
+
+
+#: A deep fade: an intensity below this share of its range column's mean (the texture statistics of issue 52).
+DEEP_FADE = 0.1
+
+
+def _skew_db(norm: np.ndarray):
+    """The skewness of 10·log10 of the positive normalised intensities (None: fewer than 3)."""
+    x = 10.0 * np.log10(norm[norm > 0])
+    if x.size < 3 or not np.std(x) > 0:
+        return None
+    return float(np.mean((x - x.mean()) ** 3) / np.std(x) ** 3)
 
 
 def gain_offset_db(real: dict, sim: dict) -> float:
