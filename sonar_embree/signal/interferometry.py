@@ -176,6 +176,7 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
         raise ConfigError("interferometric soundings: the record has no element data (simulate a Sonar with a "
                           "receive_array)")
     check_number("interferometric_points", "min_coherence", min_coherence, lo=0.0, hi=1.0)
+    _check_baseline(arr, pair, coarse_pair, record.acquisition.wavelength_m)
     ref = math.radians(record.sonar.tilt_deg if reference_deg is None else float(reference_deg))
     rot, r = record.trajectory.rotations(), record.slant_range_m
     parts, above = [], 0
@@ -198,6 +199,20 @@ def interferometric_points(record, pair=(0, 1), window=(5, 11), min_coherence: f
     cols = [np.concatenate(c) for c in zip(*parts)]
     return PointCloud(cols[0].reshape(-1, 3), cols[1].astype(np.int64), cols[2].astype(np.int64),
                       cols[3].astype(np.int64), cols[4], record.trajectory.crs)
+
+
+def _check_baseline(arr, pair, coarse_pair, wavelength_m: float) -> None:
+    """One warning when ``pair``'s baseline is longer than λ/2 and no ``coarse_pair`` unwraps it: its phase repeats
+    within the half-space (a sector of λ/(2|b|) in cos(θ + β)), so soundings outside the sector about the reference
+    land at wrong angles (issue 53)."""
+    i, j = (int(v) for v in pair)
+    if coarse_pair is not None or not (0 <= i < arr.n_elements and 0 <= j < arr.n_elements and i != j):
+        return                                                        # (a bad pair is refused by _angles)
+    b = float(np.hypot(*(np.asarray(arr.positions_m[j], float) - np.asarray(arr.positions_m[i], float))[1:]))
+    if b > 0.5 * wavelength_m * (1.0 + 1e-9):
+        warn_once(f"interferometric soundings: the pair {(i, j)} is {b * 1e3:.3g} mm apart, longer than λ/2 = "
+                  f"{0.5e3 * wavelength_m:.3g} mm, and no coarse_pair unwraps it: its phase is ambiguous, so "
+                  "soundings away from the tilt land at wrong angles (those above the sonar are dropped)")
 
 
 def _angles(z, arr, pair, window, wavelength_m: float, reference_rad):

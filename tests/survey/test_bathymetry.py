@@ -3,6 +3,7 @@ The phase difference against the closed form Δφ = −(2π/λ)(|X − p_b| − 
 sample's slant range in the across-track plane (a quadratic's root, written here); the soundings' depth error
 below 1 % of the slant range where the SNR (the speckle-free record over the noise) is above 20 dB; the gridded
 GeoTIFF beside the scene's truth, read back with rasterio."""
+import dataclasses
 import math
 
 import numpy as np
@@ -225,5 +226,14 @@ def test_soundings_above_the_sonar_are_left_out_and_said(caplog):
         cloud = interferometric_points(rec)
     assert cloud.xyz_m.shape[0] > 1000 and np.all(cloud.xyz_m[:, 2] < H)
     assert "lie above the sonar" in caplog.text
+    assert "is 5.33 mm apart, longer than λ/2 = 2.5 mm, and no coarse_pair unwraps it" in caplog.text   # issue 53
+    caplog.clear()
+    with caplog.at_level("WARNING"):                     # a pair within λ/2, or a long one unwrapped: no warning
+        short = se.ReceiverArray(((0.0, 0.0, 0.0), (0.0, 0.0, 0.4 * LAM), (0.0, 0.0, 1.0667 * LAM)))
+        rec2 = se.simulate(_scene(0.0), traj, dataclasses.replace(sonar, receive_array=short),
+                           se.Pulse.cw(duration_s=50e-6), speckle=True, seed=1)
+        interferometric_points(rec2, pair=(0, 1))
+        interferometric_points(rec2, pair=(0, 2), coarse_pair=(0, 1))
+    assert "longer than λ/2" not in caplog.text
     with pytest.raises(ConfigError, match="min_coherence must be finite"):
         interferometric_points(rec, min_coherence=float("nan"))
