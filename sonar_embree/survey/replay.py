@@ -347,8 +347,7 @@ def shape_error_db(real: dict, sim: dict, offset_db: float) -> float:
 
 def scintillation_error_db(real: dict, sim: dict) -> float:
     """RMS over the range bands of 10·log10 of the recorded over the simulated scintillation index, dB."""
-    a = np.array([np.nan if v is None else v for v in real["scintillation_index"]], float)
-    b = np.array([np.nan if v is None else v for v in sim["scintillation_index"]], float)
+    a, b = _bands(real["scintillation_index"]), _bands(sim["scintillation_index"])
     with np.errstate(divide="ignore", invalid="ignore"):
         d = 10.0 * np.log10(a / b)
     d = d[np.isfinite(d)]
@@ -361,8 +360,7 @@ def texture_fit(real: dict, sim: dict) -> float:
     SI = (1 + SI₀)·(1 + 1/ν) − 1 (E[G²] = 1 + 1/ν), so per band 1/ν = (1 + SI_recorded)/(1 + SI_simulated) − 1; the
     median over the bands (Jakeman and Pusey 1976; Abraham and Lyons 2002, cited in
     :mod:`sonar_embree.laws.texture`). inf: the record is no heavier-tailed than the simulation (no texture)."""
-    a = np.array([np.nan if v is None else v for v in real["scintillation_index"]], float)
-    b = np.array([np.nan if v is None else v for v in sim["scintillation_index"]], float)
+    a, b = _bands(real["scintillation_index"]), _bands(sim["scintillation_index"])
     with np.errstate(divide="ignore", invalid="ignore"):
         inv = (1.0 + a) / (1.0 + b) - 1.0
     inv = inv[np.isfinite(inv)]
@@ -371,23 +369,34 @@ def texture_fit(real: dict, sim: dict) -> float:
     return float(1.0 / np.median(inv))
 
 
+def _bands(values) -> np.ndarray:
+    """A measure's per-band values as floats, NaN for a band without one (None in the report)."""
+    return np.array([np.nan if x is None else x for x in values], float)
+
+
 def _band_mean(values) -> float:
     """The mean of a measure's bands that hold a value (NaN: none)."""
-    v = np.array([np.nan if x is None else x for x in values], float)
+    v = _bands(values)
     return float(np.nanmean(v)) if np.isfinite(v).any() else math.nan
 
 
-def pulse_fit(line: Line, real: dict, law, *, clutter=None, elevation=None, seed: int = 0) -> dict:
+def pulse_fit(line: Line, real: dict, law, *, clutter=None, elevation=None, seed: int = 0,
+              progress: bool = False) -> dict:
     """The CW pulse length of :data:`FIT_PULSES_S` whose simulation over ``law`` brings the correlation of neighbouring
     samples along range (the bands' mean, :func:`measures`) closest to the record's: the longer the pulse, the more
     samples share each scatterer and the more that correlation grows. ``{"pulse_s": s, "correlation_errors": {"… µs":
-    |simulated − recorded|}}``."""
+    |simulated − recorded|}}``; ``progress``: a bar over the lengths."""
     want = _band_mean(real["correlation_range_lag1"])
     errors = {}
+    bar = candidates_bar(progress, len(FIT_PULSES_S))
     for d in FIT_PULSES_S:
         sim = measures(simulate_line(line, law, pulse=Pulse.cw(duration_s=d), clutter=clutter, elevation=elevation,
                                      seed=seed), line)
         errors[d] = abs(_band_mean(sim["correlation_range_lag1"]) - want)
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
     best = min(errors, key=lambda d: (not math.isfinite(errors[d]), errors[d]))
     return {"pulse_s": best, "correlation_errors": {f"{d * 1e6:g} us": e for d, e in errors.items()}}
 
@@ -504,6 +513,7 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
         if fit_pulse:
             el = chosen.get("elevation")
             chosen.update(pulse_fit(sub, measures(sub.settings["data"], sub), chosen["sediment"], seed=seed,
+                                    progress=progress,
                                     clutter=None if chosen["clutter_density_per_m2"] is None
                                     else Clutter(float(chosen["clutter_density_per_m2"])),
                                     elevation=None if el is None else (el["tilt_deg"], el["height_m"])))
@@ -531,7 +541,7 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
                ("report.png", lambda p: _report_png(report, p))]           # left out without matplotlib
     if chosen and not device:                                              # the fit as a reusable device file
         text = device_toml(fitted_device(line, chosen, path, offset))
-        writers.append(("device.toml", lambda p: open(p, "w", encoding="utf-8").write(text)))
+        writers.append(("device.toml", lambda p: _write_text(text, p)))
     out.write_set(writers)
     return report
 
@@ -604,6 +614,12 @@ OUTPUTS = ("replay.xtf", "report.json", "report.png", "device.toml")
 #: The source level a fitted device file states, dB re 1 µPa at 1 m (assumed: a replay fits a gain offset, not a
 #: source level; the middle of the 200–230 dB of 100 kHz–1 MHz side-scans, Lurton 2010, §8.2).
 FITTED_SOURCE_LEVEL_DB = 215.0
+
+
+def _write_text(text: str, path) -> None:
+    """``text`` into the file ``path`` (UTF-8)."""
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write(text)
 
 
 def _write_json(obj, path) -> None:
