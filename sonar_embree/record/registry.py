@@ -10,6 +10,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Callable
 
+import numpy as np
+
 from ..errors import ConfigError
 from ..io.owner import OutputFolder
 from ..signal.interferometry import interferometric_points
@@ -32,6 +34,10 @@ class WriteOptions:
         COCO image id.
     bathymetry_pixel_m : float
         The soundings grid's pixel, m (the bathymetry GeoTIFF).
+    sas_grid : dict, optional
+        The SAS image's grid (the ``sas`` output): ``x_m`` and ``y_m`` ([min, max] world m), ``pixel_m`` and
+        optionally ``z_m`` (the grid's world height, default 0) and ``channel`` ("port" or "starboard", default
+        starboard); :func:`check_sas_grid`.
     cache : dict
         What one record's writers share (its soundings, made once for both outputs that need them).
     """
@@ -40,6 +46,7 @@ class WriteOptions:
     categories: tuple | None = None
     image_id: int = 0
     bathymetry_pixel_m: float = 0.5
+    sas_grid: dict | None = None
     cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @property
@@ -106,6 +113,66 @@ def _bathymetry(rec, path, o):
     _soundings(rec, o).to_geotiff(path, o.bathymetry_pixel_m)
 
 
+#: The most pixels a SAS image may have (a backprojection costs pings × elements per pixel).
+MAX_SAS_PIXELS = 4_000_000
+#: The keys of ``[output] sas_grid`` and whether each is needed.
+SAS_GRID_KEYS = {"x_m": True, "y_m": True, "pixel_m": True, "z_m": False, "channel": False}
+
+
+def check_sas_grid(grid, where: str = "[output] sas_grid") -> dict:
+    """``grid`` (:attr:`WriteOptions.sas_grid`) with its defaults, or a one-line error naming the key."""
+    if not isinstance(grid, dict):
+        raise ConfigError(f"{where} must be a table with x_m = [min, max], y_m = [min, max] and pixel_m, got {grid!r}")
+    unknown = [k for k in grid if k not in SAS_GRID_KEYS]
+    missing = [k for k, need in SAS_GRID_KEYS.items() if need and k not in grid]
+    if unknown or missing:
+        raise ConfigError(f"{where}: " + (f"unknown key {unknown[0]!r}" if unknown else f"needs {missing[0]!r}"))
+    out = {"z_m": 0.0, "channel": "starboard", **grid}
+    for k in ("x_m", "y_m"):
+        v = out[k]
+        if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(_number(x) for x in v) and v[0] < v[1]):
+            raise ConfigError(f"{where}: {k} must be [min, max] in metres with min < max, got {v!r}")
+    if not (_number(out["pixel_m"]) and out["pixel_m"] > 0) or not _number(out["z_m"]):
+        raise ConfigError(f"{where}: pixel_m must be a number > 0 and z_m a number, got {out['pixel_m']!r}, "
+                          f"{out['z_m']!r}")
+    if out["channel"] not in ("port", "starboard"):
+        raise ConfigError(f"{where}: channel must be 'port' or 'starboard', got {out['channel']!r}")
+    n = _sas_axes(out)
+    if n[0].size * n[1].size > MAX_SAS_PIXELS:
+        raise ConfigError(f"{where}: {n[0].size} × {n[1].size} pixels; at most {MAX_SAS_PIXELS} (a larger pixel_m "
+                          "or a smaller area)")
+    return out
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and bool(np.isfinite(v))
+
+
+def _sas_axes(grid: dict):
+    """(x, y) pixel centres of a checked grid, each from its min by pixel_m (world m)."""
+    p = float(grid["pixel_m"])
+    return tuple(lo + p * (0.5 + np.arange(max(int(np.floor((hi - lo) / p + 1e-9)), 1))) for lo, hi in
+                 (grid["x_m"], grid["y_m"]))
+
+
+def _sas(rec, path, o):
+    """The backprojected SAS image (:func:`sonar_embree.signal.sas.record_image`) of a receiver-array record on
+    ``o.sas_grid``: a north-up GeoTIFF in the record's CRS, bands intensity (|image|²) and its level in dB."""
+    from ..io.geotiff import write_grid
+    from ..signal.sas import record_image
+
+    if o.sas_grid is None:
+        raise ConfigError("output 'sas' needs [output] sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … }")
+    g = check_sas_grid(o.sas_grid)
+    x, y = _sas_axes(g)
+    intensity = np.abs(record_image(rec, x, y, float(g["z_m"]), g["channel"])) ** 2       # (ny, nx), y ascending
+    with np.errstate(divide="ignore"):
+        db = 10.0 * np.log10(intensity)
+    p = float(g["pixel_m"])
+    write_grid(path, np.stack([intensity, np.where(np.isfinite(db), db, np.nan)])[:, ::-1], float(x[0] - p / 2),
+               float(y[-1] + p / 2), p, rec.trajectory.crs, names=("intensity", "level_db"), units=("1", "dB"))
+
+
 @dataclass(frozen=True)
 class OutputFormat:
     """One output format: its name (the key in configs), its file name and its writer."""
@@ -131,6 +198,8 @@ FORMATS = {f.name: f for f in (
                  description="interferometric soundings, x y z (a receive_array's elements 0 and 1)"),
     OutputFormat("bathymetry", "bathymetry.tif", _bathymetry,
                  description="the soundings gridded: height, coherence, count (GeoTIFF)"),
+    OutputFormat("sas", "sas.tif", _sas,
+                 description="the backprojected SAS image of a receive_array record on [output] sas_grid (GeoTIFF)"),
 )}
 
 

@@ -52,7 +52,9 @@ dataclasses (units in the key names):
   [output]      formats, each true/false: png (default true), npz (true), zarr, xtf,
                 labels, coco, polar (MSIS), fan (forward-looking), soundings and
                 bathymetry (a receive_array's interferometric soundings, soundings.xyz, and
-                their grid, bathymetry.tif, at bathymetry_pixel_m = 0.5 m);
+                their grid, bathymetry.tif, at bathymetry_pixel_m = 0.5 m), sas (the
+                backprojected SAS image of an along-track receive_array, sas.tif, on
+                sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … });
                 display: scale ("db"|"gamma"), dynamic_range_db (35), gamma,
                 ground_range, tvg (display only; default true), reference_percentile
                 (99.99: the level shown white), floor_headroom_db (12: white at least

@@ -51,7 +51,7 @@ TRAJECTORY_KINDS = {
 }
 TOP_KEYS = ("sonar", "environment", "pulse", "fan", "simulation", "trajectory", "objects", "output")
 OUTPUT_KEYS = tuple(registry.FORMATS) + ("scale", "dynamic_range_db", "gamma", "ground_range", "tvg", "reference_percentile",
-               "floor_headroom_db", "max_columns", "geo_origin_deg", "bathymetry_pixel_m")
+               "floor_headroom_db", "max_columns", "geo_origin_deg", "bathymetry_pixel_m", "sas_grid")
 
 
 @dataclass(frozen=True)
@@ -71,6 +71,8 @@ class OutputOptions:
     soundings: bool = False
     bathymetry: bool = False
     bathymetry_pixel_m: float = 0.5
+    sas: bool = False
+    sas_grid: dict | None = None  # the SAS image's grid (registry.check_sas_grid): needed with sas = true
     scale: str = DISPLAY_DEFAULTS["scale"]
     dynamic_range_db: float = DISPLAY_DEFAULTS["dynamic_range_db"]
     gamma: float = DISPLAY_DEFAULTS["gamma"]
@@ -88,6 +90,10 @@ class OutputOptions:
         check_display(self.scale, self.dynamic_range_db, self.gamma, self.reference_percentile, self.max_columns,
                       self.floor_headroom_db)
         check_number("[output]", "bathymetry_pixel_m", self.bathymetry_pixel_m, positive=True)
+        if self.sas_grid is not None:
+            registry.check_sas_grid(self.sas_grid)
+        elif self.sas:
+            raise ConfigError("[output] sas = true needs sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … }")
         g = self.geo_origin_deg
         if g is not None and not (isinstance(g, (list, tuple)) and len(g) == 2
                                   and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in g)
@@ -106,7 +112,8 @@ class OutputOptions:
 
     def write_options(self) -> "registry.WriteOptions":
         """What the writers need: the display keywords and the soundings grid's pixel."""
-        return registry.WriteOptions(self.png_kwargs(), bathymetry_pixel_m=self.bathymetry_pixel_m)
+        return registry.WriteOptions(self.png_kwargs(), bathymetry_pixel_m=self.bathymetry_pixel_m,
+                                     sas_grid=self.sas_grid)
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,7 +6,9 @@ developed speckle (contrast std/mean of intensity = 1); an alternating sway of D
 lowers the point's image by the closed form |Σ w·χ(δτ)·e^(j2πf0·δτ)|/Σ w (δτ the path error of each ping and
 element, χ the compressed LFM's zero-Doppler cut, w the two-way pattern's amplitude) and, compensated with the true
 navigation, refocuses within 10 %."""
+import dataclasses
 import math
+import os
 
 import numpy as np
 import pytest
@@ -237,3 +239,41 @@ def test_record_image_refuses_what_cannot_form_an_image(point):
             record_image(rec, args.pop("x_m"), args.pop("y_m"), **args)
         assert "\n" not in str(exc.value)
     assert abs(record_image(rec, x, y, target[2], pings=np.ones(n, bool))[0, 0]) > 0
+
+
+def test_the_sas_image_is_an_output_in_the_records_crs(point, tmp_path):
+    """Issue 53: ``[output] sas = true`` with a ``sas_grid`` writes sas.tif, a north-up GeoTIFF whose pixels are
+    record_image's intensity at their centres (read back with rasterio: the first band is |image|², the second its
+    dB, the transform puts the brightest pixel on the scatterer); a missing or broken grid is a one-line error."""
+    import rasterio
+
+    from sonar_embree.record import registry
+    from sonar_embree.runs.runconfig import OutputOptions
+
+    sc, target, rec = point
+    rec = dataclasses.replace(rec, trajectory=dataclasses.replace(rec.trajectory, crs="EPSG:32631"))
+    grid = {"x_m": [target[0] - 0.5, target[0] + 0.5], "y_m": [target[1] - 0.4, target[1] + 0.4], "pixel_m": 0.02,
+            "z_m": float(target[2])}
+    opts = OutputOptions(png=False, npz=False, sas=True, sas_grid=grid)
+    assert opts.formats() == ("sas",)
+    paths = registry.write_each(rec, str(tmp_path), opts.formats(), opts.write_options())
+    assert [os.path.basename(p) for p in paths] == ["sas.tif"]
+    x = target[0] - 0.5 + 0.02 * (0.5 + np.arange(50))
+    y = target[1] - 0.4 + 0.02 * (0.5 + np.arange(40))
+    want = np.abs(record_image(rec, x, y, float(target[2]))) ** 2
+    with rasterio.open(tmp_path / "sas.tif") as f:
+        assert f.crs.to_epsg() == 32631 and f.descriptions == ("intensity", "level_db") and f.count == 2
+        band = f.read(1)
+        np.testing.assert_allclose(band, want[::-1].astype(np.float32), rtol=1e-6)
+        r, c = np.unravel_index(np.argmax(band), band.shape)
+        cx, cy = f.xy(r, c)                                          # the pixel's centre, world m
+        assert abs(cx - target[0]) < 0.05 and abs(cy - target[1]) < 0.05
+        np.testing.assert_allclose(f.read(2), 10 * np.log10(band), atol=1e-4)
+    with pytest.raises(se.ConfigError, match="sas = true needs sas_grid"):
+        OutputOptions(sas=True)
+    with pytest.raises(se.ConfigError, match=r"sas_grid: x_m must be \[min, max\]"):
+        OutputOptions(sas=True, sas_grid={**grid, "x_m": [1.0, 0.0]})
+    with pytest.raises(se.ConfigError, match="sas_grid: unknown key 'pixel'"):
+        OutputOptions(sas=True, sas_grid={"x_m": [0, 1], "y_m": [0, 1], "pixel": 0.1})
+    with pytest.raises(se.ConfigError, match="at most 4000000"):
+        OutputOptions(sas=True, sas_grid={**grid, "pixel_m": 1e-4})
