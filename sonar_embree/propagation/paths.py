@@ -70,6 +70,10 @@ class Direct:
                           2.0 / s.sound_speed_m_s, want_points=want_points or surface, timings=clock,
                           laws=run.law_table, rx_shift=rx_shift, aim=run.aim)
 
+    def rings(self, front, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift):
+        """An echo sounder's rings as straight rays (its front end's ``_straight``)."""
+        return front._straight(run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
+
 
 @dataclasses.dataclass(frozen=True)
 class Refracted:
@@ -82,6 +86,10 @@ class Refracted:
         return refraction.cast_refracted(run, front.plan, rot, pos_local, s.environment, front.two_way_np_per_m,
                                          max_range_m, s, want_points or surface, clock, front.buffers, rx_shift,
                                          run.aim, keep_arrival=surface)
+
+    def rings(self, front, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift):
+        """An echo sounder's rings as curved rays (its front end's ``_curved``)."""
+        return front._curved(run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
 
 
 def _surface_z_local(front, run) -> float:

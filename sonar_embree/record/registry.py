@@ -13,8 +13,10 @@ from typing import Callable
 import numpy as np
 
 from ..errors import ConfigError
+from ..io.geotiff import write_grid
 from ..io.owner import OutputFolder
 from ..signal.interferometry import interferometric_points
+from ..signal.sas import record_image
 from ..sonars.forward_looking import save_fan_png
 from ..sonars.msis import save_polar_png
 
@@ -158,9 +160,6 @@ def _sas_axes(grid: dict):
 def _sas(rec, path, o):
     """The backprojected SAS image (:func:`sonar_embree.signal.sas.record_image`) of a receiver-array record on
     ``o.sas_grid``: a north-up GeoTIFF in the record's CRS, bands intensity (|image|²) and its level in dB."""
-    from ..io.geotiff import write_grid
-    from ..signal.sas import record_image
-
     if o.sas_grid is None:
         raise ConfigError("output 'sas' needs [output] sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … }")
     g = check_sas_grid(o.sas_grid)

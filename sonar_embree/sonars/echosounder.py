@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ConfigError
-from ..propagation import multipath, refraction
+from ..propagation import multipath, paths, refraction
 from ..propagation.buffers import Buffers
 from ..propagation.aim import AimPlan, lattice_rays
 from ..config import FanSettings, Transducer
@@ -138,6 +138,7 @@ class EchoSounderFrontEnd(FrontEnd):
         self.sonar = sonar
         self.two_way_np_per_m = absorption_np_per_m(sonar.alpha_db_per_m)
         self.span_rad, self.quality, self.aims = span, fan.quality, fan.aim_objects
+        self.direct_path = paths.path_models(sonar.environment)[0]     # straight or curved rings, picked once
 
     def aim_plan(self, compiled) -> AimPlan | None:
         """The objects of ``compiled`` to aim rays at (docs/physics.md §7b), in the side-scan's coordinates about
@@ -174,8 +175,10 @@ class EchoSounderFrontEnd(FrontEnd):
         sound-speed profile the rings are curved rays (:meth:`_curved`). A sea surface adds nothing: every path
         by it leaves or reaches the sonar upwards, where the baffled piston has no gain (:meth:`check_tilt`)."""
         self.check_tilt(rot)
-        if self.sonar.environment.refracts:
-            return self._curved(run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
+        return self.direct_path.rings(self, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
+
+    def _straight(self, run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift):
+        """The rings as straight rays (:meth:`cast` without a sound-speed profile), with the rays aimed at objects."""
         n_p, n, caster = rot.shape[0], self.body.shape[0], run.caster
         u = np.einsum("pij,nj->pni", rot, self.body).reshape(-1, 3)
         f = np.einsum("pij,nj->pni", rot, self.body_dtheta).reshape(-1, 3)
