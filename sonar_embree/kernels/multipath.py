@@ -66,8 +66,9 @@ def mixed_legs(ray_start, fan, hits, poses, face_normals, weighting, bistatic, o
     cos θi = −n·u1 and cos θs = n·v with n facing the sonar, φ the angle between −u1
     and v in the plane of n (the bistatic azimuth; 0 for backscatter; computed only when ``want_phi``, for a
     law that depends on it, else left unwritten: an arccos per echo). The beam's gains Γ²(u1)·Γ_rx²(u2) +
-    Γ²(u2)·Γ_rx²(u1) are multiplied in after this kernel (:func:`weigh_pairs`, from u2). Rays
-    without a direct echo (r = inf) get w = 0, t = inf. The rays go in chunks of :data:`_CHUNK`, stage by stage.
+    Γ²(u2)·Γ_rx²(u1) are multiplied in after this kernel (:func:`~sonar_embree.kernels.rays.weigh_pairs`, from
+    u2). Rays without a direct echo (r = inf) get w = 0, t = inf. The rays go in chunks of :data:`_CHUNK`, stage by
+    stage.
 
     Parameters
     ----------
