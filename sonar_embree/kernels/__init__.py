@@ -43,5 +43,6 @@ __all__ = ["direct_eigenrays", "swell_bounce", "swell_tubes", "swell_up_legs", "
            "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "splat_rows",
            "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
            "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows",
-           "beam_cosines", "weigh_lines", "weigh_fan", "weigh_rays", "weigh_pairs", "launch_body", "BEAM_SINC", "BEAM_GAUSS",
+           "beam_cosines", "weigh_lines", "weigh_fan", "weigh_rays", "weigh_pairs", "launch_body",
+           "BEAM_SINC", "BEAM_GAUSS",
            "beam_factor", "factor_rows"]

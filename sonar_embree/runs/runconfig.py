@@ -93,7 +93,8 @@ class OutputOptions:
         if self.sas_grid is not None:
             registry.check_sas_grid(self.sas_grid)
         elif self.sas:
-            raise ConfigError("[output] sas = true needs sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … }")
+            raise ConfigError("[output] sas = true needs sas_grid = { x_m = [min, max], y_m = [min, max], "
+                              "pixel_m = … }")
         g = self.geo_origin_deg
         if g is not None and not (isinstance(g, (list, tuple)) and len(g) == 2
                                   and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in g)
