@@ -29,7 +29,9 @@ to the recorded ones, so a user calibrates the simulator to their own sonar:
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
+import logging
 import math
 import os
 
@@ -462,6 +464,28 @@ def candidates_bar(progress: bool, n: int):
     return tqdm(total=n, desc="fit candidates", unit="candidate")
 
 
+def _each_warning_once(fn):
+    """``fn`` with each warning of the set-up checks logged once per call: a replay simulates its line once per fit
+    candidate, and the line's own warnings (its navigation's gaps, say) would repeat for each."""
+    @functools.wraps(fn)
+    def wrapped(*args, **kwargs):
+        seen = set()
+
+        def once(record) -> bool:
+            new = record.getMessage() not in seen
+            seen.add(record.getMessage())
+            return new
+
+        log = logging.getLogger("sonar_embree.checks")
+        log.addFilter(once)
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            log.removeFilter(once)
+    return wrapped
+
+
+@_each_warning_once
 def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=None, gain_db: float | None = None,
            device: str | None = None, seed: int = 0, overwrite: bool = False, scene: Scene | None = None,
            fit_densities=(None,), inputs=(), progress: bool = False, fit_beam: bool = False,
