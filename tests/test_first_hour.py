@@ -696,3 +696,34 @@ def test_toml_values_of_the_wrong_type_give_one_line(tmp_path, capsys, old, new,
     assert cli.main(["render", str(cfg), "-o", str(tmp_path / "out"), "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert what in err and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+def test_a_lost_ctrl_c_still_leaves_nothing(tmp_path, monkeypatch):
+    """A KeyboardInterrupt raised inside a finaliser (as Numba's compiler runs some) is printed and lost, and the
+    command would go on to write its outputs. The Ctrl-C handler remembers the interrupt: no output set is written
+    once it is set, and the command ends with the interrupt's one line and status 130."""
+    import signal
+
+    from sonar_embree.io import owner
+
+    cfg = tmp_path / "run.toml"
+    cfg.write_text(RENDER)
+    calls = []
+
+    def lost(*args, **kwargs):                 # the handler ran, its KeyboardInterrupt was swallowed
+        handler = signal.getsignal(signal.SIGINT)
+        try:
+            handler(signal.SIGINT, None)
+        except KeyboardInterrupt:
+            calls.append("swallowed")
+        return real(*args, **kwargs)
+
+    from sonar_embree.runs import commands
+    real = commands.simulate
+    monkeypatch.setattr("sonar_embree.runs.commands.simulate", lost)
+    out = tmp_path / "out"
+    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress"]) == 130
+    assert calls == ["swallowed"] and (not out.exists() or not [n for n in os.listdir(out) if n != MANIFEST])
+    assert not owner.INTERRUPTED.is_set()                       # cleared for the next command in this process
+    monkeypatch.setattr(commands, "simulate", real)
+    assert cli.main(["render", str(cfg), "-o", str(tmp_path / "next"), "--no-progress"]) == 0

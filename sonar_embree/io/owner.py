@@ -17,12 +17,18 @@ import hashlib
 import json
 import os
 import shutil
+import threading
 import uuid
 
 from ..errors import ConfigError
 from .files import LOCK_NAME
 
 #: The manifest's name inside an output folder.
+#: Set by the command line's Ctrl-C handler (:func:`sonar_embree.runs.cli.main`): a KeyboardInterrupt can be lost
+#: (raised inside a finaliser, as Numba's compiler runs some, Python prints it and goes on), so no output set is written
+#: once it is set (:meth:`OutputFolder.write_set` raises KeyboardInterrupt instead).
+INTERRUPTED = threading.Event()
+
 MANIFEST = ".sonar-embree-manifest.json"
 #: The manifest's ``format`` value: a file of that name without it is not ours and is refused.
 FORMAT = "sonar_embree output manifest 1"
@@ -250,8 +256,10 @@ class OutputFolder:
         ``names_and_writers``: (name, ``write(path)``) pairs; ``write`` makes a file or a folder at ``path``, a
         name in a private folder of this run (listed in the manifest before it exists); a writer that makes
         nothing leaves its entry out. Each target is checked again (ours and unchanged) before the renames.
-        Returns the paths written.
+        Returns the paths written. Nothing is written once :data:`INTERRUPTED` is set (a Ctrl-C that was lost).
         """
+        if INTERRUPTED.is_set():
+            raise KeyboardInterrupt
         pairs = list(names_and_writers)
         tmp_name = f".sonar-embree-{self.run_id}"
         self._man["pending"].append(tmp_name)

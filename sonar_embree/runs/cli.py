@@ -7,9 +7,12 @@ from __future__ import annotations
 
 import argparse
 import logging
+import signal
 import sys
+import threading
 
 from ..errors import SonarEmbreeError
+from ..io.owner import INTERRUPTED
 
 log = logging.getLogger(__name__)
 
@@ -302,14 +305,34 @@ def _configure_logging(verbose: bool) -> None:
         logging.getLogger(name).setLevel(logging.INFO if verbose else logging.ERROR)
 
 
+def _on_interrupt(signum, frame):
+    """Ctrl-C: remembered (:data:`sonar_embree.io.owner.INTERRUPTED`), then raised as KeyboardInterrupt."""
+    INTERRUPTED.set()
+    raise KeyboardInterrupt
+
+
 def main(argv=None) -> int:
     """Entry point of ``sonar-embree``; returns the exit status."""
     args = _parser().parse_args(argv)
     _configure_logging(args.verbose)
+    here = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, _on_interrupt) if here else None
+    try:
+        return _run(args)
+    finally:
+        if here:
+            signal.signal(signal.SIGINT, previous)
+        INTERRUPTED.clear()
+
+
+def _run(args) -> int:
+    """Run the parsed command; its exit status (one line on stderr for an error or an interrupt)."""
     try:
         from . import commands                       # the simulator: imported only when a command runs
 
         written = commands.run(args)
+        if INTERRUPTED.is_set():                     # a Ctrl-C swallowed on the way: the outputs were not written
+            raise KeyboardInterrupt
     except KeyboardInterrupt:
         print("sonar-embree: interrupted; no output was left half-written", file=sys.stderr)
         return 130
