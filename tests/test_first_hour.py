@@ -241,7 +241,9 @@ def test_ctrl_c_prints_one_line_and_leaves_nothing(tmp_path):
                    .replace("[40.0, 40.0]", "[100.0, 100.0]") + "[simulation]\nspeckle = true\n")
     out = tmp_path / "out"
     proc = subprocess.Popen([sys.executable, "-m", "sonar_embree.runs.cli", "render", str(cfg), "-o", str(out),
-                             "--no-progress"], stderr=subprocess.PIPE, text=True)
+                             "--no-progress"], stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))  # as at a terminal
+    # (a test run started in the background by a shell inherits SIGINT ignored; a user's terminal does not)
     time.sleep(6.0)
     for _ in range(20):       # an interrupt that lands while Numba compiles (a cold cache) can be lost: send again
         proc.send_signal(signal.SIGINT)

@@ -315,7 +315,8 @@ def main(argv=None) -> int:
     """Entry point of ``sonar-embree``; returns the exit status."""
     args = _parser().parse_args(argv)
     _configure_logging(args.verbose)
-    here = threading.current_thread() is threading.main_thread()
+    here = threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGINT) is not \
+        signal.SIG_IGN                               # (a shell's background job ignores Ctrl-C: so do we)
     previous = signal.signal(signal.SIGINT, _on_interrupt) if here else None
     try:
         return _run(args)

@@ -76,6 +76,8 @@ def _config(group: str, folder) -> str:
     else:
         text = SIDESCAN
     text += "[output]\n" + "".join(f"{f} = {'true' if f in fmts else 'false'}\n" for f in registry.FORMATS)
+    if "sas" in fmts:                                 # its grid: a patch of the starboard floor beside the track
+        text += "sas_grid = { x_m = [-1.0, 1.0], y_m = [-12.0, -10.0], pixel_m = 0.25 }\n"
     path = os.path.join(folder, f"{group}.toml")
     with open(path, "w", encoding="utf-8") as fh:
         fh.write(text)
