@@ -16,6 +16,7 @@ H = 10.0  # sonar altitude of the reference cases, m
 SLOW = frozenset({
     "test_replay.py::test_a_calibrated_replay_has_the_records_texture_statistics",
     "test_replay.py::test_fit_pulse_recovers_a_hidden_pulse_length",
+    "test_replay.py::test_fit_pulse_says_when_the_record_lies_beyond_its_pulses",
     "test_replay.py::test_a_fit_is_saved_as_a_device_file_that_render_survey_and_replay_take",
     "test_replay.py::test_fit_texture_recovers_a_hidden_k_distribution_shape",
     "test_curved_swell.py::test_a_swell_over_a_profile_matches_the_ray_shooting_quadrature",

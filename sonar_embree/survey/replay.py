@@ -121,6 +121,9 @@ FIT_RUNS, FIT_RUN_PINGS = 6, 16
 TEXTURE_CORRELATION_M = 2.0
 #: The CW pulse lengths ``--fit-pulse`` tries, s (a replay without a device otherwise takes 100 µs).
 FIT_PULSES_S = (20e-6, 50e-6, 100e-6, 200e-6, 400e-6)
+#: A fitted pulse at either end of :data:`FIT_PULSES_S` that misses the record's correlation by this much or more is
+#: said in one line (the record lies outside what the candidates give: speckle-free, or smoothed along range).
+PULSE_EDGE_ERROR = 0.05
 
 
 def fit_pings(line: Line, runs: int = FIT_RUNS, run_pings: int = FIT_RUN_PINGS) -> np.ndarray:
@@ -400,6 +403,10 @@ def pulse_fit(line: Line, real: dict, law, *, clutter=None, elevation=None, seed
     if bar is not None:
         bar.close()
     best = min(errors, key=lambda d: (not math.isfinite(errors[d]), errors[d]))
+    if best in (FIT_PULSES_S[0], FIT_PULSES_S[-1]) and not errors[best] < PULSE_EDGE_ERROR:
+        warn_once(f"replay --fit-pulse: the record's correlation along range ({want:.2f}) lies beyond what "
+                  f"{FIT_PULSES_S[0] * 1e6:g}–{FIT_PULSES_S[-1] * 1e6:g} µs pulses give (closest: "
+                  f"{best * 1e6:g} µs, {errors[best]:.2f} off); is the record speckle-free, or filtered along range?")
     return {"pulse_s": best, "correlation_errors": {f"{d * 1e6:g} us": e for d, e in errors.items()}}
 
 

@@ -95,6 +95,17 @@ def test_fit_texture_recovers_a_hidden_k_distribution_shape(tmp_path, nu):
     np.testing.assert_allclose(np.median(sim), np.median(real), rtol=0.25)
 
 
+def test_fit_pulse_says_when_the_record_lies_beyond_its_pulses(tmp_path, caplog):
+    """A speckle-free record (the demo's default) correlates along range more than any speckled pulse: the fit takes
+    its longest pulse and says in one line that the record lies beyond them."""
+    assert main(["demo", "-o", str(tmp_path / "demo"), "--pings", "40", "--no-progress"]) == 0
+    with caplog.at_level("WARNING"):
+        assert main(["replay", str(tmp_path / "demo" / "record.xtf"), "--fit", "--fit-pulse", "--classes",
+                     "apl-uw fine sand", "-o", str(tmp_path / "fit"), "--no-progress"]) == 0
+    assert "lies beyond what 20–400 µs pulses give (closest: 400 µs" in caplog.text
+    assert json.loads((tmp_path / "fit" / "report.json").read_text())["fit"]["pulse_s"] == pytest.approx(400e-6)
+
+
 @pytest.mark.parametrize("duration_s", [20e-6, 200e-6])
 def test_fit_pulse_recovers_a_hidden_pulse_length(tmp_path, duration_s):
     """A line recorded with a CW pulse of ``duration_s`` (not the replay's default 100 µs): ``--fit-pulse`` picks that
