@@ -535,6 +535,7 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     OutputFolder.check(out_dir, OUTPUTS, overwrite=overwrite, inputs=[path, *inputs])
     line = Line.read(path, scene)
     real = measures(line.settings["data"], line)
+    _check_speckled(path, real)
     chosen = None
     if fit_classes:
         sub = line.subset(fit_pings(line))
@@ -599,6 +600,21 @@ def fitted_device(line: Line, chosen: dict, path, gain_offset_db: float) -> Devi
                   source_level_db=FITTED_SOURCE_LEVEL_DB,
                   assumed=("source_level_db", "azimuth_deg") + (() if el else ("elevation_deg", "tilt_deg")),
                   samples_per_channel=int(s["samples_per_channel"]), note=note)
+
+
+#: A record with a band whose scintillation index is below this is said to look speckle-free (Rayleigh speckle: 1; a
+#: band of a few hundred samples of speckle is within 0.2 of it, an object only raises it).
+SPECKLE_FREE_SI = 0.1
+
+
+def _check_speckled(path, real: dict) -> None:
+    """One line when the record looks speckle-free (a band's scintillation index far below Rayleigh's 1): a replay
+    simulates speckle, so its texture and correlation measures cannot match such a record."""
+    si = _bands(real["scintillation_index"])
+    if np.isfinite(si).any() and np.nanmin(si) < SPECKLE_FREE_SI:
+        warn_once(f"replay: {os.fspath(path)}: its scintillation index is {np.nanmin(si):.2g} in a range band, far "
+                  "below the 1 of speckle; it looks speckle-free (a simulation without speckle?), and the replay "
+                  "simulates speckle")
 
 
 def _check_options(fit_classes, fit_densities, gain_db, scene, fit_beam=False, device=None,

@@ -97,12 +97,14 @@ def test_fit_texture_recovers_a_hidden_k_distribution_shape(tmp_path, nu):
 
 def test_fit_pulse_says_when_the_record_lies_beyond_its_pulses(tmp_path, caplog):
     """A speckle-free record (the demo's default) correlates along range more than any speckled pulse: the fit takes
-    its longest pulse and says in one line that the record lies beyond them."""
+    its longest pulse and says in one line that the record lies beyond them; the replay says the record looks
+    speckle-free (its scintillation index far below 1)."""
     assert main(["demo", "-o", str(tmp_path / "demo"), "--pings", "40", "--no-progress"]) == 0
     with caplog.at_level("WARNING"):
         assert main(["replay", str(tmp_path / "demo" / "record.xtf"), "--fit", "--fit-pulse", "--classes",
                      "apl-uw fine sand", "-o", str(tmp_path / "fit"), "--no-progress"]) == 0
     assert "lies beyond what 20–400 µs pulses give (closest: 400 µs" in caplog.text
+    assert "it looks speckle-free (a simulation without speckle?)" in caplog.text
     assert json.loads((tmp_path / "fit" / "report.json").read_text())["fit"]["pulse_s"] == pytest.approx(400e-6)
 
 
