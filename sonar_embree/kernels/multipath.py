@@ -249,7 +249,7 @@ def _mixed_phi_stage(c0, c1, b, hits, poses, face_normals, out):
 @njit(cache=True, nogil=True)
 def _mixed_leg_stage(c0, c1, b, hits, poses, bistatic, out, sc):
     """The legs' lengths for the visibility check: X → P and S → P (= P → S')."""
-    r, x, pos, z_s, v = hits.range, hits.point, poses.pos, bistatic.z_s, out.v
+    r, x, pos, z_s = hits.range, hits.point, poses.pos, bistatic.z_s
     for i in range(c0, c1):
         if not math.isfinite(r[i]):
             continue
