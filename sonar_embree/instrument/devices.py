@@ -260,7 +260,8 @@ def _check_device(source: str, kw: dict) -> None:
                         ("tilt_deg", -90.0, 90.0), ("source_level_db", 150.0, 250.0)):
         v = kw[key]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo < v <= hi if lo >= 0 else lo <= v <= hi):
-            raise ConfigError(f"{source}: [device] {key} must be a number in ({lo:g}, {hi:g}], got {v!r}")
+            raise ConfigError(f"{source}: [device] {key} must be a number in {'[' if lo < 0 else '('}{lo:g}, {hi:g}], "
+                              f"got {v!r}")
     if not kw["ranges_m"] or not all(isinstance(r, (int, float)) and r > 0 for r in kw["ranges_m"]):
         raise ConfigError(f"{source}: [device] ranges_m must be a list of ranges > 0 m, got {list(kw['ranges_m'])!r}")
     p = kw["pulse"]

@@ -23,12 +23,12 @@ import uuid
 from ..errors import ConfigError
 from .files import LOCK_NAME
 
-#: The manifest's name inside an output folder.
 #: Set by the command line's Ctrl-C handler (:func:`sonar_embree.runs.cli.main`): a KeyboardInterrupt can be lost
 #: (raised inside a finaliser, as Numba's compiler runs some, Python prints it and goes on), so no output set is written
 #: once it is set (:meth:`OutputFolder.write_set` raises KeyboardInterrupt instead).
 INTERRUPTED = threading.Event()
 
+#: The manifest's name inside an output folder.
 MANIFEST = ".sonar-embree-manifest.json"
 #: The manifest's ``format`` value: a file of that name without it is not ours and is refused.
 FORMAT = "sonar_embree output manifest 1"

@@ -218,6 +218,13 @@ def test_every_preset_round_trips_through_a_device_file(tmp_path):
     for name, d in DEVICES.items():
         (tmp_path / f"{name}.toml").write_text(device_toml(d))
         assert device(str(tmp_path / f"{name}.toml")) == d, name
+    text = device_toml(DEVICES["klein-3000-100"])                 # and a broken one is one line naming file and key
+    for old, new, message in (("tilt_deg = ", "tilt_deg = 120.0 # ", r"\[device\] tilt_deg must be a number in \[-90"),
+                              ('pulse = ["cw"', 'pulse = ["am"', r"\[device\] pulse must be"),
+                              ("source_level_db", "# source_level_db", r"\[device\] needs 'source_level_db'")):
+        (tmp_path / "bad.toml").write_text(text.replace(old, new))
+        with pytest.raises(se.ConfigError, match="bad.toml: " + message):
+            device(str(tmp_path / "bad.toml"))
 
 
 def test_a_device_file_is_a_survey_device(tmp_path):
