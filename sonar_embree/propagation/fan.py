@@ -159,8 +159,9 @@ def ray_cells(s: np.ndarray, el_start: np.ndarray, beta: np.ndarray, dbeta: np.n
     row : (n,) int64
     dbeta : (n,) float64
     """
-    row, az, e = _grid(s.shape[0], el_start)
-    return _body(s[az], np.cos(beta[e]), np.sin(beta[e]), row), row, dbeta[e]
+    row, _, e = _grid(s.shape[0], el_start)
+    grid = Fan(s, 0.0, np.cos(beta), np.sin(beta), dbeta, el_start)
+    return launch_body(grid, s.shape[0] * el_start, kernels.NO_LAYOUT), row, dbeta[e]
 
 
 def _grid(n_az: int, el_start: np.ndarray):
@@ -171,12 +172,6 @@ def _grid(n_az: int, el_start: np.ndarray):
     j = np.arange(row.shape[0]) - n_az * el_start[row]
     per = np.maximum(n_el[row], 1)
     return row, j // per, el_start[row] + j % per
-
-
-def _body(sa, cos_beta, sin_beta, row):
-    """(s, ±√(1 − s²)·cos β, √(1 − s²)·sin β) (n, 3): forward, starboard (− on port rows, even), down."""
-    cpsi, side = np.sqrt(1.0 - sa * sa), np.where(row % 2 == 1, 1.0, -1.0)
-    return np.stack([sa, side * cpsi * cos_beta, cpsi * sin_beta], axis=1)
 
 
 def launch_body(fan, ray_start: np.ndarray, layout: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
