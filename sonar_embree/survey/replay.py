@@ -67,6 +67,11 @@ CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS = 45.0, 0.25
 FIT_TILTS_DEG, FIT_WIDTHS_DEG = np.arange(0.0, 50.5, 0.5), np.arange(10.0, 101.0, 1.0)
 #: Grazing angles the elevation fit compares, degrees.
 FIT_ELEVATION_GRAZING_DEG = (4.0, 80.0)
+#: The elevation fit leaves out the grazing bins where the recorded level, less the calibration simulation's, lies more
+#: than this far below its highest, dB: towards a null of the record's pattern a bin's level is set by how steeply
+#: the pattern falls across the bin, not by the pattern at its centre (a 40° beam's: 2.5–5 dB deeper than at the
+#: centre from 45° to 60°), and those bins had pulled the tilt 7° off (issue 52).
+FIT_ELEVATION_DEPTH_DB = 15.0
 
 
 def _elevation_db(grazing_deg: np.ndarray, tilt_deg, height_wavelengths) -> np.ndarray:
@@ -84,7 +89,8 @@ def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
     Over a flat floor an echo at grazing angle θ left and came back at depression θ, so the level curves differ by
     the two patterns' ratio at θ alone: level(θ) = level_cal(θ) + G(θ; δ, ly) − G_cal(θ), G = 40·log10|sinc|. Every
     candidate of :data:`FIT_TILTS_DEG` × :data:`FIT_WIDTHS_DEG` is scored by the RMS of the recorded minus the
-    candidate's levels within :data:`FIT_ELEVATION_GRAZING_DEG` after their median difference (the gain).
+    candidate's levels within :data:`FIT_ELEVATION_GRAZING_DEG` after their median difference (the gain), over the
+    bins within :data:`FIT_ELEVATION_DEPTH_DB` of the record's highest (the same bins for every candidate).
 
     Returns
     -------
@@ -97,6 +103,7 @@ def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
     d = np.array(real["level_vs_grazing_db"], float)[keep] - np.array(sim["level_vs_grazing_db"], float)[keep]
     d += _elevation_db(g[keep], CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS)
     ok = np.isfinite(d)
+    ok[ok] = d[ok] >= d[ok].max() - FIT_ELEVATION_DEPTH_DB if ok.any() else ok[ok]
     if ok.sum() < 4:
         raise ConfigError("replay: fewer than four grazing-angle bins hold both files' floor; no beam to fit")
     heights = np.array([membrane_size_for_beamwidth(math.radians(w), 1.0) for w in FIT_WIDTHS_DEG])

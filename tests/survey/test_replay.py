@@ -457,8 +457,9 @@ def test_a_short_line_is_fitted_whole():
 def test_fit_beam_recovers_the_records_elevation_pattern_and_gain(tmp_path):
     """A line recorded with a beam 40° wide tilted 12° down (the default replay beam is 20° and about 56°), fine
     sand and +9 dB: with --fit-beam and the class given, the width within 10 %, the tilt within 2°, the gain
-    within 1 dB, and the level against grazing within 1 dB RMS, where the default beam misses it by more than
-    twice as much."""
+    within 1 dB, and the level against grazing within 1 dB RMS where it is within 15 dB of its highest (towards the
+    beam's null a bin's level hangs on the null's exact place); the default beam misses the whole curve by more
+    than twice the fitted one's error."""
     import shutil
 
     from sonar_embree.instrument.beam import membrane_size_for_beamwidth
@@ -479,7 +480,11 @@ def test_fit_beam_recovers_the_records_elevation_pattern_and_gain(tmp_path):
     assert beam["vertical_beamwidth_deg"] == pytest.approx(40.0, rel=0.1)
     assert beam["tilt_deg"] == pytest.approx(12.0, abs=2.0)
     assert got["gain_offset_db"] == pytest.approx(9.0, abs=1.0)
-    assert got["shape_error_db"] < 1.0 and plain["shape_error_db"] > 2.0 * got["shape_error_db"]
+    assert plain["shape_error_db"] > 2.0 * got["shape_error_db"]
+    real, sim = (np.array(got[k]["level_vs_grazing_db"], float) for k in ("recorded", "simulated"))
+    lit = np.isfinite(real) & np.isfinite(sim) & (real >= np.nanmax(real) - R.FIT_ELEVATION_DEPTH_DB)
+    assert lit.sum() >= 8                           # towards the null a bin's level hangs on the null's exact place
+    assert np.sqrt(np.mean((real[lit] - sim[lit]) ** 2)) < 1.0
     with pytest.raises(ConfigError, match="--fit-beam"):
         R.replay(tmp_path / "beam.xtf", tmp_path / "dev", fit_classes=("apl-uw fine sand",), fit_beam=True,
                  device="cmax-cm2-325")
