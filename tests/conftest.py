@@ -38,6 +38,8 @@ SLOW = frozenset({
     "test_scripts.py::test_bench_chirp_script_reports_the_chirp_beside_cw",
     "test_scripts.py::test_realism_figure_shows_heavier_tails_than_todays_line",
     "test_scripts.py::test_sas_figure_resolves_the_mine_that_the_side_scan_blurs",
+    "test_speckle_coherence.py::test_adjacent_pings_are_as_coherent_as_a_displaced_aperture",
+    "test_scripts.py::test_bench_speckle_coherence_script_reports_the_correlation_against_its_closed_form",
     "test_sas_records.py::test_object_masks_sit_where_the_sas_image_shows_the_object",
     "test_sas_records.py::test_a_flat_floors_image_is_fully_developed_speckle",
     "test_sas_records.py::test_a_hole_in_the_floor_is_imaged_darker_than_the_floor",

@@ -75,13 +75,16 @@ def frozen_scatterers(seed, ijk, n_sub):
     return gain, position
 
 
-def gather_nodes(channel, points, weights, ranges, extents, cell_m):
+def gather_nodes(channel, points, weights, ranges, extents, cell_m, moments=None):
     """Trilinear sharing of each ray's weight among 8 lattice nodes, reduced with np.unique.
 
-    Each ray's echo is uniform over R ± ΔR/2: second moment R² + ΔR²/12, support [R − ΔR/2, R + ΔR/2].
+    Each ray's echo is uniform over R ± ΔR/2: second moment R² + ΔR²/12, support [R − ΔR/2, R + ΔR/2]; or, with
+    ``moments`` = (variance, least, greatest) (n,) each, spread with that variance over those bounds.
 
     Returns a dict {(ch, i, j, k): (W, mean R, centred second moment M2, Rmin, Rmax)}.
     """
+    var, lo, hi = ((extents ** 2 / 12, ranges - extents / 2, ranges + extents / 2) if moments is None
+                   else moments)
     f = np.asarray(points) / cell_m
     base = np.floor(f)
     t = f - base
@@ -91,12 +94,12 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m):
         b = np.prod(np.where(d == 1, t, 1 - t), axis=1)
         ok = (b > 0) & (weights > 0)
         ijk = base[ok].astype(np.int64) + d
-        rows.append((channel[ok], ijk, (weights * b)[ok], ranges[ok], extents[ok]))
+        rows.append((channel[ok], ijk, (weights * b)[ok], ranges[ok], var[ok], lo[ok], hi[ok]))
     ch = np.concatenate([r[0] for r in rows])
     ijk = np.concatenate([r[1] for r in rows])
     wb = np.concatenate([r[2] for r in rows])
     rr = np.concatenate([r[3] for r in rows])
-    ee = np.concatenate([r[4] for r in rows])
+    vv, ll, hh = (np.concatenate([r[k] for r in rows]) for k in (4, 5, 6))
     keys = np.column_stack([ch, ijk])
     uniq, inv = np.unique(keys, axis=0, return_inverse=True)
     inv = inv.ravel()
@@ -104,11 +107,11 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m):
     w = np.bincount(inv, wb)
     wr = np.bincount(inv, wb * rr)
     mean = wr / w  # two-pass centred second moment
-    m2 = np.bincount(inv, wb * ((rr - mean[inv]) ** 2 + ee * ee / 12))
+    m2 = np.bincount(inv, wb * ((rr - mean[inv]) ** 2 + vv))
     rmin = np.full(len(uniq), np.inf)
     rmax = np.full(len(uniq), -np.inf)
-    np.minimum.at(rmin, inv, rr - ee / 2)
-    np.maximum.at(rmax, inv, rr + ee / 2)
+    np.minimum.at(rmin, inv, ll)
+    np.maximum.at(rmax, inv, hh)
     for n, key in enumerate(map(tuple, uniq)):
         out[key] = (w[n], mean[n], m2[n], rmin[n], rmax[n])
     return out
@@ -235,24 +238,90 @@ def splat_rows(ray_start, delay, width, weights, out, sub=4001):
     return out
 
 
+def _along_s(axis_row, d):
+    """The along-track cosine of offsets d (n, 3) in a row of strips ``axis_row`` (3,) = |a|·x̂."""
+    return d @ axis_row / (np.linalg.norm(axis_row) * np.linalg.norm(d, axis=1))
+
+
+def _pattern(strips, row, s):
+    """The row's tabulated along-track pattern at s, linear between samples, 0 outside (np.interp)."""
+    axis, gain, s0, step, _ = strips
+    grid = s0 + step * np.arange(gain.shape[1])
+    return np.interp(s, grid, gain[row], left=0.0, right=0.0)
+
+
+def strip_points(row, points, weights, ranges, extents, strips, tx, cell_m):
+    """The echoes of one row (ping b, channel ch: strips row ``row``) as the lattice takes them: each weight w
+    divided by the pattern P(s) at its own along-track cosine (0 where P is), the echoes on the strips taken
+    together in runs of one lattice cell (weighted centre about the first point, time mean, variance and bounds,
+    two-pass), each run cut
+    into m = ⌈R·|a|/cell⌉ points along x̂, R its centre's distance from ``tx``; the others at their points.
+    Returns points, weights, ranges and moments (variance, least, greatest), for :func:`gather_nodes`."""
+    axis, gain, s0, step, on = strips
+    a = axis[row]
+    p_s = _pattern(strips, row, _along_s(a, points - tx))
+    w = np.where(p_s > 0, weights / np.where(p_s > 0, p_s, 1.0), 0.0)
+    keep = w > 0
+    on = keep if on.shape[0] == 0 else keep & on
+    lone = keep & ~on
+    out = [(points[lone], w[lone], ranges[lone], extents[lone] ** 2 / 12, ranges[lone] - extents[lone] / 2,
+            ranges[lone] + extents[lone] / 2)]
+    idx = np.flatnonzero(on)
+    cells = np.floor(points[idx] / cell_m)
+    starts = np.flatnonzero(np.r_[True, np.any(np.diff(cells, axis=0) != 0, axis=1)]) if idx.size else []
+    for g0, g1 in zip(starts, list(starts[1:]) + [idx.size]):
+        j = idx[g0:g1]
+        ww = w[j]
+        W = ww.sum()
+        c = points[j[0]] + (ww[:, None] * (points[j] - points[j[0]])).sum(0) / W
+        mean = (ww * ranges[j]).sum() / W
+        var = (ww * ((ranges[j] - mean) ** 2 + extents[j] ** 2 / 12)).sum() / W
+        lo, hi = (ranges[j] - extents[j] / 2).min(), (ranges[j] + extents[j] / 2).max()
+        length = np.linalg.norm(c - tx) * np.linalg.norm(a)
+        m = max(int(np.ceil(length / cell_m)), 1)
+        o = (np.arange(m) - (m - 1) / 2) * (length / m)
+        out.append((c + o[:, None] * a / np.linalg.norm(a), np.full(m, W / m), np.full(m, mean), np.full(m, var),
+                    np.full(m, lo), np.full(m, hi)))
+    return [np.concatenate([x[k] for x in out]) for k in range(6)]
+
+
+def _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, strips, tx):
+    """The lattice nodes of ping b (both channels): plain trilinear sharing, or through :func:`strip_points`."""
+    lo, mid, hi = ray_start[2 * b], ray_start[2 * b + 1], ray_start[2 * b + 2]
+    if strips is None:
+        ch = np.where(np.arange(lo, hi) < mid, 0, 1)
+        return gather_nodes(ch, points_world[lo:hi], weights[lo:hi], ranges[lo:hi], extents[lo:hi], cell_m)
+    parts = []
+    for c, (a, z) in enumerate(((lo, mid), (mid, hi))):
+        on = strips[4][a:z] if strips[4].shape[0] else strips[4]
+        p, w, r, v, l, h = strip_points(2 * b + c, points_world[a:z], weights[a:z], ranges[a:z], extents[a:z],
+                                        strips[:4] + (on,), tx, cell_m)
+        parts.append((np.full(w.size, c), p, w, r, v, l, h))
+    ch, p, w, r, v, l, h = (np.concatenate([x[k] for x in parts]) for k in range(7))
+    return gather_nodes(ch, p, w, r, np.zeros_like(r), cell_m, moments=(v, l, h))
+
+
 def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
                   delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out, pos_rx=None,
-                  vel_rx=None, receivers=None, time_per_m=0.0):
+                  vel_rx=None, receivers=None, time_per_m=0.0, strips=None):
     """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table
     (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in).
     ``receivers`` (pings, 2·n_rx, 3): n_rx receivers per channel, receiver k of channel ch writing row ch·n_rx + k,
-    each delayed by (|X − rx_k| − |X − rx|)·time_per_m."""
+    each delayed by (|X − rx_k| − |X − rx|)·time_per_m. ``strips`` (axis, gain, s0, step, on_strip): the echoes
+    taken through :func:`strip_points`, and every node's weight times the pattern at its own along-track cosine."""
     n_rx = out.shape[1] // 2
     for b in range(pos_world.shape[0]):
-        lo, mid, hi = ray_start[2 * b], ray_start[2 * b + 1], ray_start[2 * b + 2]
-        ch = np.where(np.arange(lo, hi) < mid, 0, 1)
-        nodes = gather_nodes(ch, points_world[lo:hi], weights[lo:hi], ranges[lo:hi], extents[lo:hi], cell_m)
+        nodes = _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, strips, pos_world[b])
         if not nodes:
             continue
         keys = np.array(list(nodes.keys()))
         vals = np.array(list(nodes.values()))
         w, r_mean, m2, rmin, rmax = vals.T
         sigma = np.sqrt(m2 / w)
+        if strips is not None:
+            w = w * np.array([_pattern(strips, 2 * b + k[0], _along_s(strips[0][2 * b + k[0]],
+                                                                     (k[1:] * cell_m - pos_world[b])[None])[0])
+                              for k in keys])
         g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
         move = 0.0 if vel_rx is None else vel_rx[b] * r_mean[:, None]
         ref = (pos_world[b] if pos_rx is None else pos_rx[b]) + move             # (nodes, 3)

@@ -272,6 +272,18 @@ def test_bench_chirp_script_reports_the_chirp_beside_cw():
     assert len(rows) == 3 and all(float(r.split("|")[2]) > 0 for r in rows)
 
 
+def test_bench_speckle_coherence_script_reports_the_correlation_against_its_closed_form():
+    """scripts/bench_speckle_coherence.py --quick: one JSON line, the adjacent pings' correlation within 0.1 of the
+    closed form (40 pings: a looser estimate than the test's) and positive times."""
+    import json
+
+    proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_speckle_coherence.py"), "--quick"],
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    rows = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    assert len(rows) == 1 and abs(rows[0]["error"]) < 0.1 and rows[0]["synthesis_ms_per_ping"] > 0
+
+
 def test_realism_figure_shows_heavier_tails_than_todays_line(tmp_path):
     """Issue 38's figure: today's line and the realistic one side by side; the realistic line's far band has the
     heavier tail (scintillation index) that clutter and the APL-UW fall-off give."""

@@ -91,8 +91,12 @@ _K3 = np.uint64(0x165667B19E3779F9)
 
 #: Columns of a node row: W, R̄, M2, min R, max R.
 NODE_WIDTH = 5
-#: Entries of a last-cell cache: cell (ch, i, j, k) and its 8 node indices.
-CACHE_WIDTH = 12
+#: Slots of the small direct-mapped node cache behind the last-cell cache (a power of two): the strips of
+#: neighbouring echoes cross the same few columns of nodes.
+NODE_CACHE = 512
+#: Entries of a cache: the last cell (ch, i, j, k) and its 8 node indices, then NODE_CACHE slots of (ch, i, j, k,
+#: node index).
+CACHE_WIDTH = 12 + 5 * NODE_CACHE
 
 
 @njit(cache=True, nogil=True)
@@ -145,12 +149,34 @@ def _add_to_node(nodes, n, wb, rr, e2, r_lo, r_hi):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slots, epoch, nodes, node_key, count, cache):
+def _uniform_spread(rr, ext):
+    """(R, ΔR²/12, R − ΔR/2, R + ΔR/2): an echo spread uniformly over the extent ΔR about R."""
+    return rr, ext * ext / 12.0, rr - 0.5 * ext, rr + 0.5 * ext
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _cached_node(cache, ch, ix, iy, iz, slots, epoch, nodes, node_key, count):
+    """:func:`_node_index` through the cache's direct-mapped node slots (``cache[12:]``, :data:`NODE_CACHE` rows of
+    (ch, i, j, k, index); the slot from the node's low coordinate bits): (index, count), the same as without."""
+    k = 12 + 5 * ((ix & 7) | ((iy & 7) << 3) | ((iz & 1) << 6) | ((ch & 3) << 7))
+    if cache[k + 4] >= 0 and cache[k] == ch and cache[k + 1] == ix and cache[k + 2] == iy and cache[k + 3] == iz:
+        return cache[k + 4], count
+    n, count = _node_index(slots, epoch, ch, ix, iy, iz, nodes, node_key, count)
+    if n >= 0:
+        cache[k], cache[k + 1], cache[k + 2], cache[k + 3], cache[k + 4] = ch, ix, iy, iz, n
+    return n, count
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _insert_ray(ch, px, py, pz, w, spread, cell_m, slots, epoch, nodes, node_key, count, cache):
     """Add one ray to the 8 nodes around its hit point (see :func:`gather_nodes`); the new node count or −1.
 
+    ``spread`` = (R, variance, least, greatest) of the range (or time) its echo covers (:func:`_uniform_spread`).
+
     ``cache`` (CACHE_WIDTH,) int64 holds the last cell (ch, i, j, k) and its 8 node
-    indices (−1: not looked up): about two in three consecutive rays share a cell, and
-    the cache only skips table lookups, so the sums and their order are unchanged.
+    indices (−1: not looked up): about two in three consecutive rays share a cell; behind
+    it, recently used nodes (:func:`_cached_node`). The caches only skip table lookups, so
+    the sums and their order are unchanged.
     """
     if not (w > 0.0):
         return count
@@ -171,8 +197,7 @@ def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slots, epoch, nodes, node_ke
         cache[1] = ix0
         cache[2] = iy0
         cache[3] = iz0
-        cache[4:] = -1
-    e2 = ext * ext / 12.0  # variance of a uniform spread over the footprint
+        cache[4:12] = -1
     for c in range(8):
         dx = c & 1
         dy = (c >> 1) & 1
@@ -182,11 +207,11 @@ def _insert_ray(ch, px, py, pz, w, rr, ext, cell_m, slots, epoch, nodes, node_ke
             continue
         n = cache[4 + c]
         if n < 0:
-            n, count = _node_index(slots, epoch, ch, ix0 + dx, iy0 + dy, iz0 + dz, nodes, node_key, count)
+            n, count = _cached_node(cache, ch, ix0 + dx, iy0 + dy, iz0 + dz, slots, epoch, nodes, node_key, count)
             if n < 0:
                 return -1
             cache[4 + c] = n
-        _add_to_node(nodes, n, w * b, rr, e2, rr - 0.5 * ext, rr + 0.5 * ext)
+        _add_to_node(nodes, n, w * b, spread[0], spread[1], spread[2], spread[3])
     return count
 
 
@@ -240,29 +265,167 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m, slots, epoch
     cache[:] = -1
     count = 0
     for r in range(points.shape[0]):
-        count = _insert_ray(channel[r], points[r, 0], points[r, 1], points[r, 2], weights[r], ranges[r],
-                            extents[r], cell_m, slots, epoch, nodes, node_key, count, cache)
+        count = _insert_ray(channel[r], points[r, 0], points[r, 1], points[r, 2], weights[r],
+                            _uniform_spread(ranges[r], extents[r]), cell_m, slots, epoch, nodes, node_key, count,
+                            cache)
         if count < 0:
             return -1
     return count
 
 
+#: Most points a strip is cut into (a guard against a runaway R·|a|/cell, far above any fan's).
+MAX_SPREAD = 4096
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _pattern_at(echoes, r, s):
+    """Row r's along-track pattern P(s) (``gain``, ``s0``, ``step`` of
+    :data:`~sonar_embree.kernels.args.SpeckleEchoes`), linear between its samples, 0 outside the table."""
+    gain = echoes.gain
+    x = (s - echoes.s0) / echoes.step
+    n = gain.shape[1]
+    if not (x >= 0.0 and x <= n - 1):
+        return 0.0
+    k = min(int(x), n - 2)
+    t = x - k
+    return gain[r, k] * (1.0 - t) + gain[r, k + 1] * t
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _along_s(axis, r, dx, dy, dz):
+    """(s, |a|, R): the along-track direction cosine s = d·x̂/|d| of the offset d = (dx, dy, dz) from the transmitter
+    in row r (``axis`` a·x̂ per row), |a| and R = |d|; s = 2 (outside every table) where a or d is 0."""
+    ax, ay, az = axis[r, 0], axis[r, 1], axis[r, 2]
+    a = math.sqrt(ax * ax + ay * ay + az * az)
+    rng = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if not (a > 0.0 and rng > 0.0):
+        return 2.0, a, rng
+    return (dx * ax + dy * ay + dz * az) / (a * rng), a, rng
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _strip_of(echoes, r, px, py, pz, tx, cell_m):
+    """How ping row r's strip through (px, py, pz) is cut: (m, step, p_s), m = ⌈R·|a|/cell⌉ parts ``step`` =
+    R·|a|/m m apart along x̂ (:func:`_gather_ping`) and p_s = P(s) there; (1, 0, 1) without strips (``axis`` (0, 3))."""
+    axis = echoes.axis
+    if axis.shape[0] == 0:
+        return 1, 0.0, 1.0
+    s, a, rng = _along_s(axis, r, px - tx[0], py - tx[1], pz - tx[2])
+    m = min(max(int(math.ceil(rng * a / cell_m)), 1), MAX_SPREAD)
+    return m, rng * a / m, _pattern_at(echoes, r, s)
+
+
+#: Columns of a strip group (:func:`_gather_ping`): W, Σ w·(p − p₀) (3), mean time, M2, least and greatest time,
+#: the lattice cell (i, j, k) of its first echo and that echo's point p₀ (3).
+GROUP_WIDTH = 14
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _group_add(grp, w, px, py, pz, rr, ext):
+    """Add an echo of weight w at (px, py, pz), time rr spread over ext, to the group ``grp`` (weighted Welford; the
+    points' sum taken about the first one's, so that the centre keeps its bits far from the origin)."""
+    t, e2, lo, hi = _uniform_spread(rr, ext)
+    w_new = grp[0] + w
+    delta = t - grp[4]
+    grp[4] += delta * (w / w_new)
+    grp[5] += w * (delta * (t - grp[4]) + e2)
+    grp[0] = w_new
+    grp[1] += w * (px - grp[11])
+    grp[2] += w * (py - grp[12])
+    grp[3] += w * (pz - grp[13])
+    grp[6] = min(grp[6], lo)
+    grp[7] = max(grp[7], hi)
+
+
 @njit(cache=True, nogil=True)
-def _gather_ping(b, n_ch, echoes, cell_m, slots, epoch, nodes, node_key, cache):
+def _group_flush(grp, echoes, r, ch, tx, cell_m, slots, epoch, nodes, node_key, count, cache):
+    """Spread the group's echoes, taken together at their weighted centre, over its strip (:func:`_gather_ping`)
+    and empty it; the new node count or −1."""
+    w = grp[0]
+    if not (w > 0.0):
+        return count
+    px, py, pz = grp[11] + grp[1] / w, grp[12] + grp[2] / w, grp[13] + grp[3] / w
+    m, step, _ = _strip_of(echoes, r, px, py, pz, tx, cell_m)
+    a = echoes.axis
+    n = math.sqrt(a[r, 0] * a[r, 0] + a[r, 1] * a[r, 1] + a[r, 2] * a[r, 2])
+    ux, uy, uz = a[r, 0] / n * step, a[r, 1] / n * step, a[r, 2] / n * step
+    spread = (grp[4], grp[5] / w, grp[6], grp[7])
+    for j in range(m):
+        o = j - 0.5 * (m - 1)
+        count = _insert_ray(ch, px + o * ux, py + o * uy, pz + o * uz, w / m, spread, cell_m, slots, epoch, nodes,
+                            node_key, count, cache)
+        if count < 0:
+            return -1
+    grp[:6] = 0.0
+    grp[6], grp[7] = math.inf, -math.inf
+    return count
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _same_cell(grp, px, py, pz, cell_m):
+    """Whether (px, py, pz) lies in the lattice cell of the group's first echo (and makes it the first echo of an
+    empty group)."""
+    i, j, k = math.floor(px / cell_m), math.floor(py / cell_m), math.floor(pz / cell_m)
+    if grp[0] > 0.0:
+        return grp[8] == i and grp[9] == j and grp[10] == k
+    grp[8], grp[9], grp[10], grp[11], grp[12], grp[13] = i, j, k, px, py, pz
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _gather_ping(b, n_ch, echoes, tx, cell_m, slots, epoch, nodes, node_key, cache):
     """:func:`gather_nodes` on ping b's rays of ``echoes`` (:data:`~sonar_embree.kernels.args.SpeckleEchoes`),
-    channel by channel (points local + origin); count or −1."""
-    ray_start, points, origin, weights, times, extents = echoes
+    channel by channel (points local + origin); count or −1.
+
+    Where the rows have strips (``axis`` a·x̂ and the pattern P), an echo of weight w at range R from ``tx`` (the
+    ping's transmitter, world m) and along-track cosine s stands for a strip R·|a| long along x̂, and weighs
+    w' = w/P(s): its own line's beam factor taken out (an echo where P(s) = 0 carries nothing). Consecutive such
+    echoes in one lattice cell (a line's neighbours across track) are taken together at their w'-weighted centre,
+    with their times' moments and bounds (:func:`_group_add`); the group then becomes m = ⌈R·|a|/cell⌉ points
+    evenly over its strip, j − (m − 1)/2 steps of R·|a|/m along x̂, each of weight ΣW'/m (:func:`_group_flush`).
+    The node weights then hold what varies slowly along track (area, elevation pattern, scattering), every node
+    under the strips is lit in every ping, and :func:`_emit_ping` puts the beam back at each node's own s. An echo
+    not ``on_strip`` (of a ray aimed at an object, whose spacing is its own) stays at its point with weight w'.
+    """
+    ray_start, points, origin, weights, times, extents = echoes[:6]
     cache[:] = -1
     count = 0
+    grp = np.zeros(GROUP_WIDTH)
+    grp[6], grp[7] = math.inf, -math.inf
+    strips = echoes.axis.shape[0] > 0
     for ch in range(n_ch):
         r = n_ch * b + ch
         for i in range(ray_start[r], ray_start[r + 1]):
-            count = _insert_ray(ch, points[i, 0] + origin[0], points[i, 1] + origin[1], points[i, 2] + origin[2],
-                                weights[i], times[i], extents[i], cell_m, slots, epoch, nodes, node_key, count,
-                                cache)
+            px, py, pz = points[i, 0] + origin[0], points[i, 1] + origin[1], points[i, 2] + origin[2]
+            w, on_strip = weights[i], False
+            if strips:
+                p_s = _pattern_at(echoes, r, _along_s(echoes.axis, r, px - tx[0], py - tx[1], pz - tx[2])[0])
+                w = w / p_s if p_s > 0.0 else 0.0
+                on_strip = w > 0.0 and (echoes.on_strip.shape[0] == 0 or echoes.on_strip[i])
+            if on_strip and not _same_cell(grp, px, py, pz, cell_m):
+                count = _group_flush(grp, echoes, r, ch, tx, cell_m, slots, epoch, nodes, node_key, count, cache)
+                _same_cell(grp, px, py, pz, cell_m)
+            if on_strip:
+                _group_add(grp, w, px, py, pz, times[i], extents[i])
+            elif count >= 0:
+                count = _insert_ray(ch, px, py, pz, w, _uniform_spread(times[i], extents[i]), cell_m, slots, epoch,
+                                    nodes, node_key, count, cache)
             if count < 0:
                 return -1
+        count = _group_flush(grp, echoes, r, ch, tx, cell_m, slots, epoch, nodes, node_key, count, cache)
+        if count < 0:
+            return -1
     return count
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _node_beam(echoes, r, ix, iy, iz, cell_m, tx):
+    """The along-track beam factor P(s) at node (i, j, k) of row r (1 without strips, :func:`_gather_ping`)."""
+    axis = echoes.axis
+    if axis.shape[0] == 0:
+        return 1.0
+    s = _along_s(axis, r, ix * cell_m - tx[0], iy * cell_m - tx[1], iz * cell_m - tx[2])[0]
+    return _pattern_at(echoes, r, s)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -324,19 +487,27 @@ def _splat_scatterers(out, j, h, n_sub, base, t_mean, spread, t_lo, t_hi, shift,
 
 
 @njit(cache=True, nogil=True)
-def _emit_ping(b, count, nodes_t, key_t, ends, n_rx, lattice, waveform, out_b):
-    """Every node 0 … count − 1 of ping b's table into ``out_b`` (:func:`_emit_node`), the ping's ends
+def _emit_ping(b, n_ch, count, nodes_t, key_t, echoes, ends, n_rx, lattice, waveform, out_b):
+    """Every node 0 … count − 1 of ping b's table into ``out_b`` (:func:`_emit_node`), each with the along-track
+    beam at its own s where the echoes have strips (:func:`_node_beam`), the ping's ends
     (:data:`~sonar_embree.kernels.args.PathEnds`) taken once (views made once per ping, not per node)."""
     tx, rx, v_rx, ref, time_per_m = ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m
+    cell_m = lattice.cell_m
     for q in range(count):
-        _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
+        beam = _node_beam(echoes, n_ch * b + key_t[q, 0], key_t[q, 1], key_t[q, 2], key_t[q, 3], cell_m, tx)
+        if beam != 1.0:                      # W and M2 scaled alike: the weight takes the beam, σ² = M2/W stays
+            nodes_t[q, 0] *= beam
+            nodes_t[q, 2] *= beam
+        if beam > 0.0:
+            _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
 
-    For each ping: :func:`gather_nodes` on the ping's echoes (channel by channel),
+    For each ping: :func:`gather_nodes` on the ping's echoes (channel by channel; each
+    spread over its along-track strip where an ``axis`` is given, :func:`_gather_ping`),
     then every node's ``n_sub`` scatterers, with the reflectivity g and stratified
     position v of :func:`frozen_scatterers`, at envelope travel time
 
@@ -356,7 +527,10 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         ``ray_start`` (channels·pings + 1,) int64, the row offsets of the block (row channels·b + ch: channel ch of
         ping b); ``points`` (n, 3) float64, hit points in the scene's local frame (m), ``origin`` (3,) float64
         making them world; ``weights``, ``times``, ``extents`` (n,) float64: expected intensity, two-way travel time
-        (s) and its extent (s) of every echo.
+        (s) and its extent (s) of every echo; ``axis`` (rows, 3), ``gain`` (rows, n_tab), ``s0``, ``step``:
+        each row's forward axis times the fan's line spacing and its along-track pattern on s0 + k·step, every echo
+        ``on_strip`` ((n,) bool; (0,): all) then spread over its strip, the along-track beam taken out and put back
+        at every node (:func:`_gather_ping`, :func:`_emit_ping`); an empty ``axis`` (0, 3): each echo at its point.
     ends : :data:`~sonar_embree.kernels.args.PathEnds`
         ``tx`` (pings, 3) float64: the transmitting position per ping, world m; ``rx`` (pings, channels·n_rx, 3)
         float64: the receiving positions, n_rx per channel of the echoes (receiver k of channel ch writes row
@@ -393,9 +567,10 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
             if status[b] != 0:
                 continue
             epochs[t] += 1
-            count = _gather_ping(b, n_ch, echoes, cell_m, slots[t], epochs[t], nodes[t], node_key[t], caches[t])
+            count = _gather_ping(b, n_ch, echoes, ends.tx[b], cell_m, slots[t], epochs[t], nodes[t], node_key[t],
+                                 caches[t])
             if count < 0:
                 status[b] = -1
                 continue
-            _emit_ping(b, count, nodes[t], node_key[t], ends, n_rx, lattice, waveform, out[b])
+            _emit_ping(b, n_ch, count, nodes[t], node_key[t], echoes, ends, n_rx, lattice, waveform, out[b])
             status[b] = 1

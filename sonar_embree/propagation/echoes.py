@@ -18,6 +18,32 @@ PATHS = ("direct", "one bounce", "two bounces")
 
 
 @dataclass(frozen=True, eq=False)
+class AlongTrack:
+    """Where a fan's echoes lie along track, row by row: the back end's speckle spreads each echo over its strip
+    (docs/physics.md §4, "Along-track footprints").
+
+    A fan's azimuth lines follow one another along the body's forward axis x̂, ``ds`` apart in the along-track
+    direction cosine s, so an echo at range R stands for a strip R·ds long along x̂. Its weight holds the two-way
+    along-track beam factor P(s) of its own line; spread over the strip, each part takes P at its own s instead
+    (the pattern tabulated here), so that the lattice's node weights follow the beam itself, not the lines' steps.
+
+    Attributes
+    ----------
+    axis_rad : (rows, 3) float64
+        x̂ (world, unit) times the lines' spacing ds (rad), per row.
+    gain : (rows, n_tab) float64
+        P(s) = Γ²(s)·Γ_rx²(s − δ) per row (δ the ping's receive-beam turn) at s = s0 + k·step; 0 outside.
+    s0, step : float
+        The table's first s and its spacing.
+    """
+
+    axis_rad: np.ndarray
+    gain: np.ndarray
+    s0: float
+    step: float
+
+
+@dataclass(frozen=True, eq=False)
 class Echoes:
     """Every echo of a block of pings, flat arrays in rows of (ping, channel).
 
@@ -42,6 +68,12 @@ class Echoes:
         Scene object of each echo, −1 for none (when ground truth needs it).
     path : (n,) int8 or (0,)
         Sea-surface path of each echo (:data:`PATHS`), or empty when every echo is direct.
+    along : AlongTrack or None
+        Each row's along-track strips (speckle spreads the echoes of the fan's lines over them, :class:`AlongTrack`);
+        None: each echo at its point.
+    on_strip : (n,) bool or (0,)
+        Which echoes stand for a strip of the fan's lines (those of rays aimed at objects have their own, finer
+        spacing and stay at their points); empty: every echo does.
     """
 
     n_channels: int
@@ -52,6 +84,8 @@ class Echoes:
     point_m: np.ndarray
     object_id: np.ndarray
     path: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
+    along: AlongTrack | None = None
+    on_strip: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
 
     @property
     def n_pings(self) -> int:
@@ -91,4 +125,4 @@ def select(e: Echoes, keep: np.ndarray) -> Echoes:
         return a[keep] if a.shape[0] == keep.shape[0] else a
 
     return Echoes(e.n_channels, start, e.travel_time_s[keep], e.extent_s[keep], e.weight[keep], part(e.point_m),
-                  part(e.object_id), part(e.path))
+                  part(e.object_id), part(e.path), e.along, part(e.on_strip))

@@ -25,6 +25,7 @@ from .gain import weigh_by_beam
 from ..config import FanSettings, Sonar
 from ..laws import apply_laws
 from ..raycast import Caster
+from .echoes import AlongTrack
 
 #: A probe cell with nothing within range on both ends and both neighbours gets this
 #: many times the largest step: next to no rays, yet no blind spot.
@@ -83,6 +84,30 @@ class FanPlan:
     def edge_s(self) -> float:
         """sin ψ of the transmit span's outermost line: the probes' edge lines (:data:`PROBE_LINES`)."""
         return float(np.abs(self.probe_body[:, 0]).max())
+
+
+#: Samples of the along-track pattern table per line spacing (:func:`along_track`): linear interpolation of
+#: Γ⁴ (sinc⁴ of a membrane) between them is within 0.3 % of its peak.
+ALONG_TABLE_PER_LINE = 16
+
+
+def along_track(plan: FanPlan, rot: np.ndarray, rx_shift: np.ndarray | None = None) -> AlongTrack:
+    """The fan's along-track footprints of a block of pings (:class:`~sonar_embree.propagation.echoes.AlongTrack`).
+
+    ``rot`` (pings, 3, 3) body-to-world rotations; ``rx_shift`` (pings,) the receive beam's turn δ (None: 0).
+    The pattern table spans the block's lines and one spacing beyond each end (where an edge line's strip and
+    the lattice's reach end), at :data:`ALONG_TABLE_PER_LINE` samples per spacing."""
+    n_p = rot.shape[0]
+    shift = np.zeros(n_p) if rx_shift is None else np.asarray(rx_shift, dtype=np.float64)
+    lines = moving_lines(plan, shift)[0].s                       # with the lines a moving block adds
+    step = plan.ds / ALONG_TABLE_PER_LINE
+    s0 = float(lines.min()) - plan.ds
+    s = s0 + step * np.arange(int(round((float(lines.max()) + plan.ds - s0) / step)) + 1)
+    a = plan.pattern.along(s)
+    a_rx = plan.pattern.along(s[None, :] - shift[:, None])
+    gain = np.repeat((a * a)[None, :] * (a_rx * a_rx), 2, axis=0)
+    axis = np.repeat(np.asarray(rot[:, :, 0], dtype=np.float64) * plan.ds, 2, axis=0)
+    return AlongTrack(np.ascontiguousarray(axis), np.ascontiguousarray(gain), s0, float(step))
 
 
 def moving_lines(plan: FanPlan, rx_shift: np.ndarray):

@@ -323,7 +323,8 @@ def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes
     (its index in ``parts``, or ``paths[index]``: the surface line is a direct path; every part direct: no tags).
 
     Within a row, each part's echoes in their order, part by part. The hit points are kept when ``points``
-    (speckle, maps), the object ids when every part has them. With ``buf`` the result lives in its kept arrays
+    (speckle, maps), the object ids when every part has them, the along-track strips of the parts that have them
+    (:func:`_strips`). With ``buf`` the result lives in its kept arrays
     (valid until the front end's next block).
     """
     rows = parts[0].ray_start.shape[0] - 1
@@ -342,11 +343,22 @@ def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes
     kernels.merge_lit(starts, tuple(e.travel_time_s for e in parts), tuple(e.extent_s for e in parts), weights,
                       tuple(_points(e) for e in parts), tuple(_ids(e) for e in parts), start, t, ext, w, pts,
                       ids, path)
+    along, on_strip = _strips(parts, path)
     if paths is not None:
         if not any(paths):                          # every part direct (the fan and the aimed rays): no tags
-            return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids)
+            return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids, along=along, on_strip=on_strip)
         path[:] = np.asarray(paths, dtype=np.int8)[path]
-    return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids, path)
+    return Echoes(parts[0].n_channels, start, t, ext, w, pts, ids, path, along, on_strip)
+
+
+def _strips(parts, part_of: np.ndarray):
+    """The merged echoes' along-track strips (:attr:`Echoes.along`, the rows' of the parts that have them) and which
+    echoes lie on them (:attr:`Echoes.on_strip`; empty when all or none do), ``part_of`` each echo's part."""
+    marks = [e.along is not None for e in parts]
+    if not any(marks):
+        return None, np.zeros(0, dtype=bool)
+    along = next(e.along for e in parts if e.along is not None)
+    return along, (np.zeros(0, dtype=bool) if all(marks) else np.asarray(marks)[part_of])
 
 
 def _points(e: Echoes) -> np.ndarray:

@@ -27,6 +27,24 @@ from ..propagation.echoes import Echoes, merged, select
 from .processing import convolve_time
 
 
+#: No along-track strips: every echo at its point (:func:`strips`).
+_NO_STRIPS = (np.zeros((0, 3)), np.zeros((0, 2)), 0.0, 1.0, np.zeros(0, dtype=bool))
+
+
+def strips(e: Echoes) -> tuple:
+    """The kernel's view of the echoes' along-track strips (:attr:`~sonar_embree.propagation.echoes.Echoes.along`,
+    None: none): axis, gain, s0, step and which echoes lie on them
+    (:data:`~sonar_embree.kernels.args.SpeckleEchoes`)."""
+    a = e.along
+    if a is None:
+        return _NO_STRIPS
+    rows = e.ray_start.shape[0] - 1
+    if a.axis_rad.shape[0] != rows or a.gain.shape[0] != rows or e.on_strip.shape[0] not in (0, e.weight.shape[0]):
+        raise ValueError(f"along-track strips for {a.axis_rad.shape[0]} rows and {e.on_strip.shape[0]} echoes, "
+                         f"echoes in {rows} rows and {e.weight.shape[0]} echoes")   # a front end's bug, not input
+    return a.axis_rad, a.gain, float(a.s0), float(a.step), np.ascontiguousarray(e.on_strip, dtype=np.bool_)
+
+
 class ScattererLattice:
     """Scatterers frozen to the surface: a world-fixed cubic lattice (see :func:`kernels.speckle_block`).
 
@@ -77,7 +95,8 @@ class ScattererLattice:
             self._alloc(self.slots.shape[0], self.slots.shape[1])
         while True:
             kernels.speckle_block(
-                SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s),
+                SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
+                              *strips(e)),
                 PathEnds(pos_world, pos_rx, vel_rx, ref, float(time_per_m)),
                 Lattice(self.seed, self.cell_m, wavelength_m, self.SUB_SCATTERERS),
                 Waveform(synth.table, synth.table_start, synth.table_rate, rate_hz, phase_cycles_per_s),

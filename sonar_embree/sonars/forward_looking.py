@@ -185,6 +185,8 @@ class ForwardLookingFrontEnd(SideScanFrontEnd):
     steering direction, and the object echoes beamformed as the record is (:attr:`beam_power`)."""
 
     supports_labels = True
+    #: Its rows are azimuth lines (one channel each, beamformed): no along-track strips across them.
+    strips = False
 
     def __init__(self, sonar: ForwardLooking, fan: FanSettings):
         super().__init__(sonar.as_sidescan(), fan, sides=(False, True), elevation_nulls=ELEVATION_NULLS)

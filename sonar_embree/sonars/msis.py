@@ -12,6 +12,8 @@ environment, speckle, pulses, levels, receiver) applies unchanged.
 """
 from __future__ import annotations
 
+import dataclasses
+
 import math
 from dataclasses import dataclass
 
@@ -172,7 +174,10 @@ class MSISFrontEnd(SideScanFrontEnd):
         e, blk = super().cast(run, rot, pos_local, max_range_m, want_points, want_ids, clock, rx_shift)
         e = merged(e)
         start = np.concatenate([e.ray_start[1::2], e.ray_start[-1:]])
-        return Echoes(1, start, e.travel_time_s, e.extent_s, e.weight, e.point_m, e.object_id, e.path), blk
+        a = e.along
+        along = None if a is None else dataclasses.replace(a, axis_rad=a.axis_rad[1::2], gain=a.gain[1::2])
+        return Echoes(1, start, e.travel_time_s, e.extent_s, e.weight, e.point_m, e.object_id, e.path, along,
+                      e.on_strip), blk
 
 
 def polar_image(record, pixel_m: float | None = None):

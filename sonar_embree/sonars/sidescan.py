@@ -7,6 +7,7 @@ keeps the block's fan (:class:`~sonar_embree.propagation.fan.BlockEchoes`).
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
@@ -16,7 +17,7 @@ from ..propagation.aim import AimPlan
 from ..propagation.buffers import Buffers
 from ..config import FanSettings, Sonar
 from ..propagation.echoes import Echoes
-from ..propagation.fan import FanPlan
+from ..propagation.fan import FanPlan, along_track
 from ..propagation.paths import echoes_of
 from ..signal.processing import absorption_np_per_m
 from .base import FrontEnd
@@ -29,6 +30,10 @@ class SideScanFrontEnd(FrontEnd):
     supports_labels = True
     #: Whether rays are aimed at the scene's objects (:mod:`sonar_embree.propagation.aim`) besides the fan's.
     aims = True
+    #: Whether speckle spreads the fan's echoes over their along-track strips
+    #: (:class:`~sonar_embree.propagation.echoes.AlongTrack`): its rows must
+    #: stay the side-scan's (a type that regroups them into lines turns them off).
+    strips = True
 
     def __init__(self, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1):
         self.sonar = sonar
@@ -86,15 +91,17 @@ class SideScanFrontEnd(FrontEnd):
         blk = self.direct_path.cast(self, run, rot, pos_local, max_range_m, want_points, clock, rx_shift,
                                     bool(self.surface_paths))
         ids = run.compiled.face_object if want_ids else None
+        along = along_track(self.plan, rot, rx_shift) if want_points and self.strips else None   # speckle's
         if not self.surface_paths:
-            direct = self._rows(echoes_of(blk, ids), blk.el_start)
+            direct = dataclasses.replace(self._rows(echoes_of(blk, ids), blk.el_start), along=along)
             if blk.aimed is None:
                 return direct, blk
             return multipath.PathEchoes([direct, self._aimed_rows(blk.aimed)], want_points, None, (0, 0)), blk
-        return self._with_surface(run, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift), blk
+        return self._with_surface(run, blk, rot, pos_local, max_range_m, ids, want_points, clock, rx_shift,
+                                  along), blk
 
     def _with_surface(self, run, blk, rot, pos_local, max_range_m, ids, want_points, clock,
-                      rx_shift=None) -> multipath.PathEchoes:
+                      rx_shift=None, along=None) -> multipath.PathEchoes:
         """The direct echoes of the block and those of each surface path model (:mod:`~sonar_embree.propagation.paths`),
         kept as paths in the same rows (docs/physics.md §13); then the rays aimed at objects, path by path."""
         t0, before = time.perf_counter(), clock.get("embree", 0.0) + clock.get("rays", 0.0)
@@ -106,7 +113,7 @@ class SideScanFrontEnd(FrontEnd):
             parts, aimed = parts + more, aimed + more_aimed
         if blk.aimed is not None:                     # the rays aimed at objects: their direct echoes too
             aimed.insert(0, paths.AimedContribution(blk.aimed.echoes, blk.aimed, 0))
-        rows = [self._rows(p.echoes, p.layout, p.lines) for p in parts]
+        rows = [dataclasses.replace(self._rows(p.echoes, p.layout, p.lines), along=along) for p in parts]  # fan lines
         rows += [self._aimed_rows(a.rays, a.echoes) for a in aimed]
         tags = paths.tags(parts + aimed)
         cast = clock.get("embree", 0.0) + clock.get("rays", 0.0) - before  # the fans' casts, counted there

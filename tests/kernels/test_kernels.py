@@ -305,7 +305,8 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     vel = np.zeros((n_p, 3)) if n_tables == 1 else rng.uniform(-0.1, 0.1, (n_p, 3))  # receiver moving on (per unit r)
     def speckle(tab, size, status, out):
         rx_each = np.ascontiguousarray(np.repeat(rx[:, None], 2, axis=1))  # one receiver per channel
-        kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext), PathEnds(pos, rx_each, vel, rx, 0.0),
+        kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *NO_STRIPS),
+                              PathEnds(pos, rx_each, vel, rx, 0.0),
                               Lattice(7, 0.1, 0.00375, 4), Waveform(tab, -2.0, 10.0, 16.0, 533.3),
                               NodeTables(*_speckle_tables(n_tables, size)), status, out)
 
@@ -327,6 +328,56 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     assert synthesis.WaveformTables.build(sonar, se.Pulse.cw(), chain).table.dtype == np.float64
 
 
+#: SpeckleEchoes' strips when there are none: every echo at its point.
+NO_STRIPS = (np.zeros((0, 3)), np.zeros((0, 2)), 0.0, 1.0, np.zeros(0, dtype=bool))
+
+
+@pytest.mark.parametrize("n_tables", [1, 3])
+def test_speckle_block_with_along_track_strips_matches_naive(rng, n_tables):
+    """Echoes of a fan's lines spread over their strips (runs of one lattice cell taken together, the line's beam
+    factor taken out and put back at every node) and a few aimed echoes left at their points, against the twin."""
+    n_p, n_lines, n_el = 3, 5, 40
+    origin = np.array([512_000.0, 5_412_000.0, -20.0])
+    pos = origin + np.stack([0.3 * np.arange(n_p), np.zeros(n_p), np.full(n_p, 10.0)], axis=1)
+    heading = np.array([np.cos(0.3), np.sin(0.3), 0.0])               # x̂ not along a lattice axis
+    ds, s_lines = 0.02, 0.02 * (np.arange(n_lines) - 2)
+    side = np.cross([0.0, 0.0, 1.0], heading)
+    rows, pts, rng_m = [], [], []
+    for b in range(n_p):
+        for ch in range(2):
+            y = (-1) ** ch * np.linspace(8.0, 12.0, n_el)                # across track, 10 cm apart
+            p = (pos[b] - origin)[None, None] + s_lines[:, None, None] * 11.0 * heading + y[None, :, None] * side
+            p[..., 2] = rng.uniform(-0.01, 0.01, p.shape[:2])             # a floor near z = 0 (local)
+            pts.append(p.reshape(-1, 3))
+            rows.append(pts[-1].shape[0])
+    pts = np.concatenate(pts)
+    ray_start = np.concatenate(([0], np.cumsum(rows))).astype(np.int64)
+    n = pts.shape[0]
+    ping = np.repeat(np.arange(2 * n_p) // 2, rows)
+    r = np.linalg.norm(pts + origin - pos[ping], axis=1)
+    w, ext = rng.uniform(0.5, 1, n), rng.uniform(0, 0.05, n)
+    w[::17] = 0.0
+    on = rng.uniform(size=n) > 0.1                                       # a tenth aimed: at their points
+    grid = -0.08 + 0.0025 * np.arange(65)
+    gain = np.repeat((np.sinc(grid / 0.05) ** 4)[None], 2 * n_p, axis=0)
+    strips = (np.repeat(heading[None] * ds, 2 * n_p, axis=0), gain, -0.08, 0.0025, on)
+    table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
+    out, status = np.zeros((n_p, 2, 400), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
+    rx = np.ascontiguousarray(np.repeat(pos[:, None], 2, axis=1))
+    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *strips),
+                          PathEnds(pos, rx, np.zeros((n_p, 3)), pos, 0.0), Lattice(7, 0.1, 0.00375, 4),
+                          Waveform(table, -2.0, 10.0, 16.0, 533.3), NodeTables(*_speckle_tables(n_tables, 1 << 14)),
+                          status, out)
+    assert np.all(status == 1)
+    ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
+                              -2.0, 10.0, np.zeros_like(out), strips=strips)
+    assert np.abs(ref).max() > 0
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-9 * np.abs(ref).max())
+    plain = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
+                                -2.0, 10.0, np.zeros_like(out))
+    assert np.abs(plain - ref).max() > 0.1 * np.abs(ref).max()          # the strips change the lattice
+
+
 @pytest.mark.parametrize("n_tables", [1, 3])
 def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
     """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin."""
@@ -340,7 +391,8 @@ def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
     vel = rng.uniform(-0.1, 0.1, (n_p, 3))
     table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
     out, status = np.zeros((n_p, 6, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
-    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext), PathEnds(pos, receivers, vel, pos, 2.5),
+    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *NO_STRIPS),
+                          PathEnds(pos, receivers, vel, pos, 2.5),
                           Lattice(7, 0.1, 0.00375, 4), Waveform(table, -2.0, 10.0, 16.0, 533.3),
                           NodeTables(*_speckle_tables(n_tables, 1 << 12)), status, out)
     assert np.all(status == 1)

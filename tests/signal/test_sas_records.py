@@ -136,9 +136,19 @@ def _side_lobe_db(amp):
     return 20 * math.log10(max(lobes) / amp[i])
 
 
+#: The floor patch the images look at (along, across track, m), centred on the targets' ground range: every
+#: lattice node under the ±22° element beam radiates, so a whole floor would cost far more and add only far
+#: side lobes to the images.
+PATCH_M = (6.0, 4.0)
+
+
+def _patch():
+    return se.seafloor.flat(size_m=PATCH_M, center_m=(0.0, -ACROSS))
+
+
 def test_a_flat_floors_image_is_fully_developed_speckle():
     floor = se.Scene()
-    floor.add(se.seafloor.flat(size_m=(30.0, 44.0)), material=se.Material(backscatter_db=-20), label="seafloor")
+    floor.add(_patch(), material=se.Material(backscatter_db=-20), label="seafloor")
     rec = _simulate(floor, _trajectory(), seed=5)
     x, y = np.arange(-1.5, 1.5, 0.01), np.arange(-ACROSS - 0.7, -ACROSS + 0.7, 0.01)
     intensity = np.abs(record_image(rec, x, y, 0.0)) ** 2
@@ -174,7 +184,7 @@ def test_object_masks_sit_where_the_sas_image_shows_the_object():
     its top's far edge, √(g² + h² − 2Hh) for a point at ground range g and height h (the sonar H above the plane),
     and along track its own extent; the image's brightest pixels fall inside the mask."""
     sc = se.Scene()
-    sc.add(se.seafloor.flat(size_m=(30.0, 44.0)), material=se.Material(backscatter_db=-30), label="seafloor")
+    sc.add(_patch(), material=se.Material(backscatter_db=-30), label="seafloor")
     sc.add(trimesh.creation.box(extents=(1.0, 1.0, 0.5)).apply_translation((0.0, -ACROSS, 0.25)),
            material=se.Material(backscatter_db=-10), label="box")
     rec = _simulate(sc, _trajectory(), seed=2)
@@ -207,11 +217,11 @@ def test_image_masks_refuse_a_ragged_grid():
 def test_a_hole_in_the_floor_is_imaged_darker_than_the_floor():
     """A 0.8 m × 2.2 m hole in a flat floor (no scatterers at all) shows in the SAS image at least 4 dB below the
     floor around it. A known limit, not a closed form: the image's sidelobes alone, 10 resolution cells from the
-    edges, would leave it far deeper, but each lattice node's weight comes from the rays that land in its cells
-    ping by ping, and at the fan's density (quality 1) that jitter of its amplitude across the aperture leaks the
-    floor into the hole: 5.9 dB down here (a denser fan helps: in the gallery figure's geometry 5.4 dB at quality
-    1, 8.5 dB at quality 4; docs/physics.md §18c)."""
-    xs, ys = np.arange(-15.0, 15.0, 0.1), np.arange(-22.0, 2.0, 0.1)
+    edges, would leave it far deeper, but the speckle lattice spreads each seabed echo over its fan line's strip,
+    R·ds along track (1.36 m at 14.5 m for this element's fan at quality 1), so the floor beside the hole reaches
+    into it: 4.6 dB down here (9.2 dB with the fan 8 times denser along track, 12.6 dB 32 times; docs/physics.md
+    §4, "Limit")."""
+    xs, ys = np.arange(-PATCH_M[0] / 2, PATCH_M[0] / 2, 0.1), np.arange(-ACROSS - 2.0, -ACROSS + 2.0, 0.1)
     z = np.zeros((ys.size, xs.size))
     z[(np.abs(ys + ACROSS)[:, None] < 1.1) & (np.abs(xs)[None, :] < 0.4)] = np.nan
     sc = se.Scene().add(se.seafloor.grid_mesh(xs, ys[::-1], z[::-1]), material=se.Material(backscatter_db=-20),
