@@ -76,7 +76,8 @@ def frozen_scatterers(seed, ijk, n_sub):
 
 
 def gather_nodes(channel, points, weights, ranges, extents, cell_m, moments=None):
-    """Trilinear sharing of each ray's weight among 8 lattice nodes, reduced with np.unique.
+    """Trilinear sharing of each ray's weight among 8 lattice nodes (a fraction within 10⁻³ of 0 or 1 put there),
+    reduced with np.unique.
 
     Each ray's echo is uniform over R ± ΔR/2: second moment R² + ΔR²/12, support [R − ΔR/2, R + ΔR/2]; or, with
     ``moments`` = (variance, least, greatest) (n,) each, spread with that variance over those bounds.
@@ -88,6 +89,7 @@ def gather_nodes(channel, points, weights, ranges, extents, cell_m, moments=None
     f = np.asarray(points) / cell_m
     base = np.floor(f)
     t = f - base
+    t = np.where(t < 1e-3, 0.0, np.where(t > 1 - 1e-3, 1.0, t))   # within 10⁻³ of a lattice plane: on it
     rows = []
     for c in range(8):
         d = np.array([c & 1, (c >> 1) & 1, (c >> 2) & 1])

@@ -113,12 +113,19 @@ def test_gather_nodes_matches_naive(rng):
     first = {}                                         # listed in first-touch order: rays, then x, y, z corners
     for i in np.flatnonzero(w > 0):
         f = pts[i] / 0.25
+        frac = f - np.floor(f)
+        frac = np.where(frac < 1e-3, 0.0, np.where(frac > 1 - 1e-3, 1.0, frac))   # snapped onto a plane
         for dz, dy, dx in np.ndindex(2, 2, 2):
-            t = np.abs(1 - np.array([dx, dy, dz]) - (f - np.floor(f)))
+            t = np.abs(1 - np.array([dx, dy, dz]) - frac)
             if np.prod(t) > 0:
                 first.setdefault((ch[i], *(np.floor(f).astype(np.int64) + [dx, dy, dz])), None)
     first = list(first)
     assert [tuple(node_key[i]) for i in range(k)] == first
+    near = np.array([[512_000.1, 5_412_000.1, -20.0 + 1e-6], [512_000.1, 5_412_000.1, -20.0 - 1e-6]])
+    for p in near:                                     # a float32 rounding off a plane: one layer of nodes, not two
+        m = kernels.gather_nodes(np.zeros(1, np.int64), p[None], np.ones(1), np.ones(1), np.zeros(1), 0.25, slots,
+                                 3 + int(p[2] < -20), nodes, node_key, cache)
+        assert m == 4 and set(node_key[:m, 3]) == {-80}
     small = 1 << 10                                    # too small a table: says so instead of overfilling
     args = [np.full(small, -1, dtype=np.int64), 1, np.zeros((small // 2, kernels.NODE_WIDTH)),
             np.zeros((small // 2, 4), dtype=np.int64), cache]
