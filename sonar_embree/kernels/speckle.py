@@ -320,15 +320,13 @@ def _along_s(axis, r, dx, dy, dz):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _strip_of(echoes, r, px, py, pz, tx, cell_m):
-    """How ping row r's strip through (px, py, pz) is cut: (m, step, p_s), m = ⌈R·|a|/cell⌉ parts ``step`` =
-    R·|a|/m m apart along x̂ (:func:`_gather_ping`) and p_s = P(s) there; (1, 0, 1) without strips (``axis`` (0, 3))."""
-    axis = echoes.axis
-    if axis.shape[0] == 0:
-        return 1, 0.0, 1.0
-    s, a, rng = _along_s(axis, r, px - tx[0], py - tx[1], pz - tx[2])
+def _strip_of(axis, r, px, py, pz, tx, cell_m):
+    """How ping row r's strip through (px, py, pz) is cut (rows with strips only): (m, sx, sy, sz), m = ⌈R·|a|/cell⌉
+    parts one step (sx, sy, sz) = (R·|a|/m)·x̂ apart (:func:`_gather_ping`)."""
+    _, a, rng = _along_s(axis, r, px - tx[0], py - tx[1], pz - tx[2])
     m = min(max(int(math.ceil(rng * a / cell_m)), 1), MAX_SPREAD)
-    return m, rng * a / m, _pattern_at(echoes, r, s)
+    step = rng * a / m
+    return m, axis[r, 0] / a * step, axis[r, 1] / a * step, axis[r, 2] / a * step
 
 
 #: Columns of a strip group (:func:`_gather_ping`): W, Σ w·(p − p₀) (3), mean time, M2, least and greatest time,
@@ -361,10 +359,7 @@ def _group_flush(grp, echoes, r, ch, tx, cell_m, slots, epoch, nodes, node_key, 
     if not (w > 0.0):
         return count
     px, py, pz = grp[11] + grp[1] / w, grp[12] + grp[2] / w, grp[13] + grp[3] / w
-    m, step, _ = _strip_of(echoes, r, px, py, pz, tx, cell_m)
-    a = echoes.axis
-    n = math.sqrt(a[r, 0] * a[r, 0] + a[r, 1] * a[r, 1] + a[r, 2] * a[r, 2])
-    ux, uy, uz = a[r, 0] / n * step, a[r, 1] / n * step, a[r, 2] / n * step
+    m, ux, uy, uz = _strip_of(echoes.axis, r, px, py, pz, tx, cell_m)
     spread = (grp[4], grp[5] / w, grp[6], grp[7])
     for j in range(m):
         o = j - 0.5 * (m - 1)
@@ -423,7 +418,7 @@ def _gather_ping(b, n_ch, echoes, tx, cell_m, slots, epoch, nodes, node_key, cac
                 _same_cell(grp, px, py, pz, cell_m)
             if on_strip:
                 _group_add(grp, w, px, py, pz, times[i], extents[i])
-            elif count >= 0:
+            else:
                 count = _insert_ray(ch, px, py, pz, w, _uniform_spread(times[i], extents[i]), cell_m, slots, epoch,
                                     nodes, node_key, count, cache)
             if count < 0:
