@@ -82,15 +82,64 @@ def _elevation_db(grazing_deg: np.ndarray, tilt_deg, height_wavelengths) -> np.n
         return 40.0 * np.log10(np.abs(beam_sinc(x)))
 
 
+#: Body-frame depression bins of the elevation fit's cells, degrees.
+DEPRESSION_BIN_DEG = 1.0
+#: The elevation fit uses a cell where both files hold at least this many floor samples.
+MIN_CELL_SAMPLES = 16
+
+
+def depression_cells(values: np.ndarray, line: Line) -> dict:
+    """The floor's samples of ``values`` (pings, 2, samples) in cells of side, grazing angle (bins of
+    :data:`GRAZING_BIN_DEG`) and depression below the body's horizontal (bins of :data:`DEPRESSION_BIN_DEG`). Over a
+    flat floor a sample at grazing angle θ of a ping rolled φ (starboard down) left and came back at θ + φ below the
+    port transducer's horizontal and θ − φ below the starboard's: the seabed's σ follows θ, the elevation pattern
+    follows the depression. Roll is what tells them apart; without it the two angles are one and only the product
+    σ(θ)·G(θ) is seen.
+
+    Returns
+    -------
+    dict
+        ``count``, ``level_db`` (mean dB of the cell's samples), ``grazing_deg`` and ``depression_deg`` (the cell's
+        mean angles), each (cells,) over the cells that hold a sample.
+    """
+    s, r = line.settings, line.slant_range_m
+    alt = np.where(s["altitude_m"] > 0.0, s["altitude_m"], np.nan)[:, None]
+    lev = level_db(values, s["integer"])
+    theta = np.degrees(np.arcsin(np.clip(alt / np.maximum(r[None, :], 1e-9), 0.0, 1.0)))
+    roll = line.trajectory.roll_deg[:, None]
+    n_g, n_d = int(round(90.0 / GRAZING_BIN_DEG)) + 1, int(round(180.0 / DEPRESSION_BIN_DEG)) + 1
+    keys, lv, th, dep = [], [], [], []
+    for side, sign in ((0, 1.0), (1, -1.0)):
+        ok = (r[None, :] > alt * 1.02) & np.isfinite(lev[:, side])
+        d = (theta + sign * roll)[ok]
+        gi = np.clip((theta[ok] / GRAZING_BIN_DEG).astype(int), 0, n_g - 1)
+        di = np.clip(np.floor((d + 90.0) / DEPRESSION_BIN_DEG).astype(int), 0, n_d - 1)
+        keys.append((side * n_g + gi) * n_d + di)
+        lv.append(10.0 ** (lev[:, side][ok] / 10.0))
+        th.append(theta[ok])
+        dep.append(d)
+    k = np.concatenate(keys)
+    used, inv = np.unique(k, return_inverse=True)
+    count = np.bincount(inv).astype(float)
+    mean = lambda x: np.bincount(inv, weights=np.concatenate(x)) / count  # noqa: E731
+    with np.errstate(divide="ignore"):
+        lvl = 10.0 * np.log10(mean(lv))
+    return {"key": used, "count": count, "level_db": lvl, "grazing_deg": mean(th), "depression_deg": mean(dep)}
+
+
 def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
     """The tilt and vertical width whose two-way elevation pattern, put in place of the calibration beam's
-    (:data:`CALIBRATION_TILT_DEG`), brings the simulated level against grazing angle closest to the recorded one.
+    (:data:`CALIBRATION_TILT_DEG`), brings the simulated levels closest to the recorded ones, cell by cell of
+    :func:`depression_cells` (``real`` and ``sim``: theirs).
 
-    Over a flat floor an echo at grazing angle θ left and came back at depression θ, so the level curves differ by
-    the two patterns' ratio at θ alone: level(θ) = level_cal(θ) + G(θ; δ, ly) − G_cal(θ), G = 40·log10|sinc|. Every
-    candidate of :data:`FIT_TILTS_DEG` × :data:`FIT_WIDTHS_DEG` is scored by the RMS of the recorded minus the
-    candidate's levels within :data:`FIT_ELEVATION_GRAZING_DEG` after their median difference (the gain), over the
-    bins within :data:`FIT_ELEVATION_DEPTH_DB` of the record's highest (the same bins for every candidate).
+    In a cell the two files differ by the two patterns' ratio at the cell's depression β and by the seabeds' σ at
+    its grazing angle θ: level = level_cal + G(β; δ, ly) − G_cal(β) (+ σ_record(θ) − σ_candidate(θ)),
+    G = 40·log10|sinc|. Every candidate of :data:`FIT_TILTS_DEG` × :data:`FIT_WIDTHS_DEG` is scored by the RMS of the
+    recorded minus the candidate's levels after their mean difference (the gain), weighted by the cells' samples,
+    over the cells within :data:`FIT_ELEVATION_GRAZING_DEG` that hold :data:`MIN_CELL_SAMPLES` in both files and lie
+    within :data:`FIT_ELEVATION_DEPTH_DB` of the record's highest (the same cells for every candidate). A record
+    whose roll varies leaves a wrong candidate seabed a residual the pattern cannot take up (σ follows θ, the pattern
+    β), so the class chosen by this error is the record's.
 
     Returns
     -------
@@ -98,30 +147,71 @@ def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
         ``tilt_deg``, ``vertical_beamwidth_deg`` (one-way −3 dB), ``height_m`` (the membrane's), ``error_db`` and
         ``gain_offset_db``.
     """
-    g = np.array(real["grazing_deg"])
-    keep = (g >= FIT_ELEVATION_GRAZING_DEG[0]) & (g <= FIT_ELEVATION_GRAZING_DEG[1])
-    d = np.array(real["level_vs_grazing_db"], float)[keep] - np.array(sim["level_vs_grazing_db"], float)[keep]
-    d += _elevation_db(g[keep], CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS)
-    ok = np.isfinite(d)
+    _, ir, isim = np.intersect1d(real["key"], sim["key"], return_indices=True)
+    n = np.minimum(real["count"][ir], sim["count"][isim])
+    beta = real["depression_deg"][ir]
+    g = real["grazing_deg"][ir]
+    d = real["level_db"][ir] - sim["level_db"][isim] + _elevation_db(beta, CALIBRATION_TILT_DEG,
+                                                                      CALIBRATION_HEIGHT_WAVELENGTHS)
+    ok = (n >= MIN_CELL_SAMPLES) & (g >= FIT_ELEVATION_GRAZING_DEG[0]) & (g <= FIT_ELEVATION_GRAZING_DEG[1])
+    ok &= np.isfinite(d)
     ok[ok] = d[ok] >= d[ok].max() - FIT_ELEVATION_DEPTH_DB if ok.any() else ok[ok]
     if ok.sum() < 4:
-        raise ConfigError("replay: fewer than four grazing-angle bins hold both files' floor; no beam to fit")
-    heights = np.array([membrane_size_for_beamwidth(math.radians(w), 1.0) for w in FIT_WIDTHS_DEG])
-    model = _elevation_db(g[keep][ok][None, None, :], FIT_TILTS_DEG[:, None, None], heights[None, :, None])
+        raise ConfigError("replay: fewer than four grazing-angle cells hold both files' floor; no beam to fit")
+    w = n[ok] / n[ok].sum()
+    heights = np.array([membrane_size_for_beamwidth(math.radians(x), 1.0) for x in FIT_WIDTHS_DEG])
+    model = _elevation_db(beta[ok][None, None, :], FIT_TILTS_DEG[:, None, None], heights[None, :, None])
     resid = d[ok][None, None, :] - model
     resid = np.where(np.isfinite(resid), resid, 1e3)                  # a null where the record has floor: no fit
-    offset = np.median(resid, axis=2)
-    err = np.sqrt(np.mean((resid - offset[..., None]) ** 2, axis=2))
+    offset = np.sum(w * resid, axis=2)
+    err = np.sqrt(np.sum(w * (resid - offset[..., None]) ** 2, axis=2))
     i, j = np.unravel_index(int(np.argmin(err)), err.shape)
     return {"tilt_deg": float(FIT_TILTS_DEG[i]), "vertical_beamwidth_deg": float(FIT_WIDTHS_DEG[j]),
             "height_m": float(heights[j] * wavelength_m), "error_db": float(err[i, j]),
             "gain_offset_db": float(offset[i, j])}
 
 
+#: Two classes whose noise-free levels over a record's cells, each with its own best elevation pattern and gain,
+#: differ by less than this RMS (dB) look alike (:func:`look_alikes`): a flat floor without a calibrated gain cannot
+#: tell them apart, and their gains differ by their strengths' mean difference (APL-UW coarse sand, coarse silt and
+#: clay at 400 kHz: their σ(θ) differ by a constant within 0.5 dB RMS from 5° to 60°, and a free pattern takes up
+#: the rest).
+LOOK_ALIKE_DB = 0.3
+
+
+def _strength_db(law, grazing_deg: np.ndarray, frequency_hz: float) -> np.ndarray:
+    """Monostatic backscatter strength 10·log10 σ of ``law`` (a sediment name or law) at ``grazing_deg``, dB."""
+    law = (sediments.preset(law) if isinstance(law, str) else law).at_frequency(frequency_hz)
+    c = np.sin(np.radians(grazing_deg))
+    with np.errstate(divide="ignore"):
+        return 10.0 * np.log10(law.sigma(c, c))
+
+
+def look_alikes(cells: dict, chosen: str, beam: dict, classes, frequency_hz: float, wavelength_m: float) -> dict:
+    """The classes of ``classes`` the record's ``cells`` (:func:`depression_cells`) cannot tell from ``chosen`` with
+    the fitted ``beam`` (:func:`elevation_fit`'s): each class's noise-free levels (its σ at each cell's grazing angle,
+    the calibration pattern at its depression) fitted by :func:`elevation_fit` to the chosen class's noise-free
+    levels (its σ, the fitted pattern) come within :data:`LOOK_ALIKE_DB`. ``{class: gain offset that class would
+    take, dB, relative to the chosen one's}``, the chosen class left out."""
+    g, beta = cells["grazing_deg"], cells["depression_deg"]
+    height = beam["height_m"] / wavelength_m
+    want = dict(cells, level_db=_strength_db(chosen, g, frequency_hz) + _elevation_db(beta, beam["tilt_deg"], height))
+    out = {}
+    for name in classes:
+        if name == chosen:
+            continue
+        got = dict(cells, level_db=_strength_db(name, g, frequency_hz)
+                   + _elevation_db(beta, CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS))
+        fit = elevation_fit(want, got, wavelength_m)
+        if fit["error_db"] < LOOK_ALIKE_DB:
+            out[name] = fit["gain_offset_db"]
+    return out
+
+
 #: A fit of a longer line simulates only :data:`FIT_RUNS` runs of :data:`FIT_RUN_PINGS` consecutive pings, centred at
 #: evenly spaced quantiles of the line's altitudes (its geometries, not its length, decide the fit); the replay
 #: that follows simulates every ping once.
-FIT_RUNS, FIT_RUN_PINGS = 6, 16
+FIT_RUNS, FIT_RUN_PINGS = 6, 32
 #: The correlation length (m) of the K-distributed texture a --fit-texture replay puts on its floor: long against the
 #: resolution cell, so that its bands' scintillation index is (1 + SI₀)(1 + 1/ν) − 1 (:func:`texture_fit`); the record
 #: does not say its texture's own length.
@@ -430,14 +520,17 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
     dict
         ``sediment``, ``clutter_density_per_m2``, ``gain_offset_db`` and ``errors_db`` {"class" or
         "class @ density": error, dB}; with ``fit_beam`` also ``elevation`` (:func:`elevation_fit`'s tilt, width and
-        membrane height); with ``fit_texture`` also ``texture_shape`` (ν, :func:`texture_fit` against the chosen
-        candidate; inf: none). ``progress``: a bar over the candidates.
+        membrane height) and ``look_alike`` ({class: its gain offset less the chosen one's, dB}); with
+        ``fit_texture`` also ``texture_shape`` (ν, :func:`texture_fit` against the chosen candidate on the fitted
+        beam; inf: none). ``progress``: a bar over the candidates.
 
     ``fit_beam`` (no device preset): each candidate is simulated with the calibration beam and the record's elevation
-    pattern is fitted as well (:func:`elevation_fit`). The pattern's tilt trades off against the shape of σ(θ), so
-    with the beam free the class is poorly determined; fit the beam with the class known, or name a device.
+    pattern is fitted as well, cell by cell of grazing angle and depression (:func:`elevation_fit`); the class is
+    the one whose fit leaves the smallest error. The record's roll is what tells σ(θ) from the pattern; classes whose
+    σ(θ) differ by a near constant remain alike (the gain takes it up): ``look_alike`` lists them with the gain each
+    would take (:func:`look_alikes`), and the fit says so in one line.
     """
-    errors, offsets, beams, sims = {}, {}, {}, {}
+    errors, offsets, beams, sims, real_cells = {}, {}, {}, {}, None
     s = line.settings
     wavelength = s["sound_speed_m_s"] / s["frequency_hz"]
     cal = (CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * wavelength) if fit_beam else None
@@ -446,12 +539,14 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
         for n in densities:
             clutter = None if n is None else Clutter(float(n))
             key = (name, n)
-            sim = sims[key] = measures(simulate_line(line, name, clutter=clutter, elevation=cal, **kw), line)
+            values = simulate_line(line, name, clutter=clutter, elevation=cal, **kw)
+            sim = sims[key] = measures(values, line)
             if cal is None:                                       # a device's beam: only the gain and the class
                 offsets[key] = gain_offset_db(real, sim)
                 errors[key] = shape_error_db(real, sim, offsets[key])
             else:                                                 # no device: the record's elevation pattern too
-                beams[key] = elevation_fit(real, sim, wavelength)
+                real_cells = real_cells or depression_cells(line.settings["data"], line)
+                beams[key] = elevation_fit(real_cells, depression_cells(values, line), wavelength)
                 offsets[key], errors[key] = beams[key]["gain_offset_db"], beams[key]["error_db"]
             errors[key] += scintillation_error_db(real, sim) if len(densities) > 1 else 0.0
             if bar is not None:
@@ -464,9 +559,26 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
            "errors_db": {label(k): v for k, v in errors.items()}}
     if best in beams:
         out["elevation"] = {k: beams[best][k] for k in ("tilt_deg", "vertical_beamwidth_deg", "height_m")}
-    if fit_texture:
-        out["texture_shape"] = texture_fit(real, sims[best])
+        out["look_alike"] = _said_look_alikes(real_cells, best[0], out["elevation"], classes, s["frequency_hz"],
+                                              wavelength)
+    if fit_texture:                          # against the chosen candidate, on the fitted beam when there is one
+        el = out.get("elevation")
+        sim = sims[best] if el is None else measures(simulate_line(
+            line, best[0], clutter=None if best[1] is None else Clutter(float(best[1])),
+            elevation=(el["tilt_deg"], el["height_m"]), **kw), line)
+        out["texture_shape"] = texture_fit(real, sim)
     return out
+
+
+def _said_look_alikes(cells, chosen, beam, classes, frequency_hz, wavelength_m) -> dict:
+    """:func:`look_alikes`, said in one line when there are any: the chosen class is then one of a group the record
+    cannot tell apart, and its gain is that class's."""
+    alike = look_alikes(cells, chosen, beam, classes, frequency_hz, wavelength_m)
+    if alike:
+        others = ", ".join(f"{k} ({v:+.1f} dB gain)" for k, v in alike.items())
+        warn_once(f"replay --fit --fit-beam: over a flat floor, with the elevation pattern free, this record cannot "
+                  f"tell {chosen} from {others}; give the class (--classes) or a calibrated device to choose")
+    return alike
 
 
 def candidates_bar(progress: bool, n: int):

@@ -113,7 +113,7 @@ def test_fit_pulse_recovers_a_hidden_pulse_length(tmp_path, duration_s):
     """A line recorded with a CW pulse of ``duration_s`` (not the replay's default 100 µs): ``--fit-pulse`` picks that
     length from the correlation of neighbouring samples along range, and the replay's correlation then matches the
     record's within 0.1 (the default pulse is further off)."""
-    _line(tmp_path, sediment="apl-uw fine sand", pulse=se.Pulse.cw(duration_s=duration_s))
+    _line(tmp_path, sediment="apl-uw fine sand", pulse=se.Pulse.cw(duration_s=duration_s), n=30)
     out = tmp_path / "fit"
     assert main(["replay", str(tmp_path / "line.xtf"), "--fit", "--fit-pulse", "--classes", "apl-uw fine sand",
                  "-o", str(out), "--seed", "2", "--no-progress"]) == 0
@@ -428,13 +428,14 @@ def _long_line(tmp_path, sediment, gain_db, n=200):
 
 
 def test_a_long_lines_fit_simulates_runs_across_its_altitudes_and_recovers_the_class_and_gain(tmp_path):
-    """200 pings: the fit simulates 6 runs of 16 consecutive pings, centred from the lowest to the highest
-    altitude (both ends of the 5–11 m span reached), recovers the hidden class and gain, and replays every ping."""
+    """200 pings: the fit simulates 6 runs of 32 consecutive pings (overlapping where altitudes repeat), centred from
+    the lowest to the highest altitude (both ends of the 5–11 m span reached), recovers the hidden class and gain,
+    and replays every ping."""
     _long_line(tmp_path, "apl-uw coarse sand", 9.0)
     line = R.Line.read(tmp_path / "long.xtf")
     pings = R.fit_pings(line)
     alt = line.settings["altitude_m"][pings]
-    assert pings.size == R.FIT_RUNS * R.FIT_RUN_PINGS and np.all(np.diff(pings) > 0)
+    assert pings.size <= R.FIT_RUNS * R.FIT_RUN_PINGS < 200 and np.all(np.diff(pings) > 0)   # runs may overlap
     assert alt.min() < 5.2 and alt.max() > 10.8
     runs = np.split(pings, np.flatnonzero(np.diff(pings) > 1) + 1)
     assert all(r.size >= R.FIT_RUN_PINGS for r in runs)                       # runs of consecutive pings
@@ -489,3 +490,78 @@ def test_fit_beam_recovers_the_records_elevation_pattern_and_gain(tmp_path):
         R.replay(tmp_path / "beam.xtf", tmp_path / "dev", fit_classes=("apl-uw fine sand",), fit_beam=True,
                  device="cmax-cm2-325")
     shutil.rmtree(tmp_path / "plain")
+
+
+def test_depression_cells_put_each_sample_at_its_grazing_angle_plus_or_minus_the_roll():
+    """Over a flat floor a sample at slant range R of a ping at altitude h rolled φ (starboard down) has grazing angle
+    θ = asin(h/R) on both sides and lies θ + φ below the port transducer's horizontal and θ − φ below the
+    starboard's. Grouped here sample by sample into (side, 2° of θ, 1° of depression) and compared cell by cell:
+    counts, mean angles and the mean intensity's level."""
+    n, h, roll = 300, 10.0, np.array([4.0, -2.5])
+    rng = np.random.default_rng(1)
+    values = rng.exponential(1.0, (2, 2, n))
+    settings = {"sound_speed_m_s": 1500.0, "samples_per_channel": n, "sample_rate_hz": 15000.0, "integer": False,
+                "altitude_m": np.full(2, h), "data": values}
+    line = R.Line(settings, se.Trajectory(np.array([[0.0, 0.0, h], [0.1, 0.0, h]]), 90.0, 0.0, roll,
+                                          np.array([0.0, 0.1])))
+    cells = R.depression_cells(values, line)
+    want = {}
+    r = 0.5 * 1500.0 * np.arange(n) / 15000.0
+    for p in range(2):
+        for side, sign in ((0, 1.0), (1, -1.0)):                      # port: θ + φ; starboard: θ − φ
+            for i in np.flatnonzero(r > 1.02 * h):
+                theta = math.degrees(math.asin(h / r[i]))
+                beta = theta + sign * roll[p]
+                want.setdefault((side, int(theta // 2.0), math.floor(beta + 90.0)), []).append(
+                    (theta, beta, values[p, side, i]))
+    assert cells["count"].size == len(want)
+    got = sorted(zip(cells["grazing_deg"], cells["depression_deg"], cells["count"], cells["level_db"]))
+    ref = sorted((np.mean([t for t, _, _ in v]), np.mean([b for _, b, _ in v]), len(v),
+                  10 * math.log10(np.mean([x for _, _, x in v]))) for v in want.values())
+    np.testing.assert_allclose(np.array(got), np.array(ref), rtol=0, atol=1e-9)
+
+
+def _rolling_line(tmp_path, sediment, n=192, seed=4):
+    """Issue 52's hidden line for the joint fit: 400 kHz, a beam 40° wide (one way, −3 dB) tilted 12° down, a K
+    texture ν = 2 (1 m), +9 dB; altitude 4–6 m, the roll swinging ±3° (period 17 pings, as a towfish's does)."""
+    from sonar_embree.instrument.beam import membrane_size_for_beamwidth
+
+    ly = membrane_size_for_beamwidth(math.radians(40.0), 1500.0 / 400e3)
+    scene = se.Scene().add(se.seafloor.flat((400, 400)), material=se.Material(
+        scattering=se.sediments.preset(sediment), texture=se.KTexture(shape=2.0, correlation_m=1.0, seed=seed + 1)),
+        label="seafloor")
+    k = np.arange(n)
+    pos = np.stack([-30 + 0.4 * k, np.zeros(n), 5.0 - np.cos(2 * np.pi * k / n)], axis=1)
+    traj = se.Trajectory(pos, 90.0, 0.0, 3.0 * np.sin(2 * np.pi * k / 17.0), 0.2 * k)
+    rec = se.simulate(scene, traj, se.Sonar(max_range_m=30.0, tilt_deg=12.0, height_m=ly), PULSE, speckle=True,
+                      seed=seed, start_time="2026-05-01T12:00:00Z")
+    se.Record(rec.data * 10 ** 0.9, rec.time_s, rec.trajectory, rec.sonar, rec.pulse, rec.altitude_m,
+              rec.attrs).to_xtf(tmp_path / "roll.xtf", scale=1.0)
+
+
+@pytest.mark.parametrize("sediment", ["apl-uw fine sand", "apl-uw coarse silt"])
+def test_a_joint_fit_recovers_tilt_width_class_gain_and_texture(tmp_path, caplog, sediment):
+    """Issue 52: tilt, width, class, gain and ν fitted together, the class free among the four defaults. Roll tells
+    the pattern (it follows the depression) from σ (it follows the grazing angle). Fine sand is told from the others:
+    tilt within 2°, width within 10 %, the class, gain within 1 dB, ν within 30 %, no look-alike. Coarse silt's
+    σ(θ) differs from coarse sand's and clay's by a near constant at 400 kHz, which the gain takes up
+    (:data:`~sonar_embree.survey.replay.LOOK_ALIKE_DB`): the fit says so in one line and lists them with the gain
+    each would take; the hidden class is among them, with its gain within 1 dB."""
+    _rolling_line(tmp_path, sediment)
+    with caplog.at_level("WARNING"):
+        got = R.replay(tmp_path / "roll.xtf", tmp_path / "fit", fit_classes=R.FIT_CLASSES, seed=3, fit_beam=True,
+                       fit_texture=True)
+    fit = got["fit"]
+    beam = fit["elevation"]
+    assert beam["tilt_deg"] == pytest.approx(12.0, abs=2.0) and beam["vertical_beamwidth_deg"] == pytest.approx(
+        40.0, rel=0.1), (beam, fit["errors_db"])
+    assert fit["texture_shape"] == pytest.approx(2.0, rel=0.3)
+    said = [r.getMessage() for r in caplog.records if "cannot tell" in r.getMessage()]
+    if sediment == "apl-uw fine sand":
+        assert fit["sediment"] == sediment and fit["look_alike"] == {} and not said, fit["errors_db"]
+        assert got["gain_offset_db"] == pytest.approx(9.0, abs=1.0)
+        return
+    group = {fit["sediment"]: 0.0, **fit["look_alike"]}
+    assert set(group) == {"apl-uw coarse sand", "apl-uw coarse silt", "apl-uw clay"}, fit["errors_db"]
+    assert got["gain_offset_db"] + group[sediment] == pytest.approx(9.0, abs=1.0)
+    assert len(said) == 1 and all(k in said[0] for k in group)
