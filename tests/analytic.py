@@ -155,6 +155,26 @@ def sphere_quadrature(a, centre, positions, alpha_db_m, mu_db, n=240, gamma=side
     return np.array(out)
 
 
+def patch_quadrature(size, centre, positions, alpha_db_m, mu_db, gamma, n=200):
+    """Echo energy of a flat Lambertian rectangle ``size`` = (along x, along y) m at ``centre`` (x, y, z), facing up,
+    per ping: E = ∫ Γ⁴(u) μ cos²θi 10^(−2αR/10) / R⁴ dA (docs/physics.md eq. 1 with dA = R²dΩ/cos θi, σ = μ cos²θi
+    monostatic), midpoint rule on an n × n grid. ``positions`` (pings, 3) the sonar's; ``gamma(u, ping)`` the one-way
+    gain of world unit directions u (m, 3) at a ping."""
+    fx, fy = ((np.arange(n) + 0.5) / n - 0.5) * size[0], ((np.arange(n) + 0.5) / n - 0.5) * size[1]
+    X, Y = np.meshgrid(centre[0] + fx, centre[1] + fy, indexing="ij")
+    pt = np.stack([X.ravel(), Y.ravel(), np.full(X.size, float(centre[2]))], axis=1)
+    dA = size[0] * size[1] / (n * n)
+    out = []
+    for i, p in enumerate(positions):
+        v = pt - p
+        R = np.linalg.norm(v, axis=1)
+        u = v / R[:, None]
+        ci = np.maximum(-u[:, 2], 0.0)
+        g = gamma(u, i)
+        out.append(np.sum(g ** 4 * 10 ** (mu_db / 10) * ci ** 2 * 10 ** (-2 * alpha_db_m * R / 10) / R ** 4 * dA))
+    return np.array(out)
+
+
 def hemisphere_integral(f, n_theta=1200, n_phi=2048):
     """∫ f dΩ over the hemisphere in front of an aperture by brute quadrature in spherical angles about its axis:
     θ from the axis on Gauss–Legendre nodes over [0, π/2], φ on a uniform periodic grid (spectrally exact for the

@@ -30,12 +30,37 @@ from .echoes import AlongTrack
 #: A probe cell with nothing within range on both ends and both neighbours gets this
 #: many times the largest step: next to no rays, yet no blind spot.
 EMPTY_STEP_FACTOR = 8.0
-#: Probe lines per side, as fractions of the fan's outermost azimuth: the boresight line and the
-#: fan's edges, so that an object anywhere in the fan gets its edges refined.
+#: Probe lines per side of a narrow fan, as fractions of its outermost azimuth: the boresight line and the fan's
+#: edges, so that an object anywhere in the fan gets its edges refined.
 PROBE_LINES = np.array([0.0, -1.0, 1.0])
+#: The widest gap between probe lines, in sin ψ (about 2°): a wider fan is probed on lines this far apart at most,
+#: so that a seabed patch off boresight in a wide beam (a 4 cm SAS element's 22° at 100 kHz) is seen by a probe in
+#: every ping, not only when it lies under the boresight or an edge line (issue 53: a 4 m patch at 20 m went unheard
+#: in 8 of 21 pings). A patch narrower than R·PROBE_MAX_DS (1 m at 30 m) may still fall between them.
+PROBE_MAX_DS = 0.035
+
+
+def probe_lines(edge_s: float, ds: float) -> np.ndarray:
+    """(L,) sin ψ of the probe lines of a fan whose outermost line is at ±``edge_s`` and whose lines are ``ds``
+    apart: :data:`PROBE_LINES` when they lie within :data:`PROBE_MAX_DS` of each other, else the lattice's lines
+    k·ds from −edge to +edge (boresight included), k the largest whole number of spacings within
+    :data:`PROBE_MAX_DS` (at least 1: no probe between the fan's own lines, where no ray goes)."""
+    if edge_s <= PROBE_MAX_DS:
+        return PROBE_LINES * edge_s
+    k = max(1, int(PROBE_MAX_DS / ds + 1e-9))
+    n = int(round(edge_s / ds))
+    i = np.unique(np.concatenate([np.arange(0, n + 1, k), [n]]))
+    return np.concatenate([-i[:0:-1], i]) * ds
 #: Cells at object edges (range jumps, silhouettes) and their neighbours get this many times the density
 #: of the largest step.
 EDGE_DENSITY_FACTOR = 4.0
+
+
+def azimuth_oversample(sonar: Sonar, fan: FanSettings) -> float:
+    """The fan's azimuth oversampling: ``fan.azimuth_oversample`` (resolved settings), or more where its line spacing
+    λ/(2·lx)/oversample would exceed sin(``fan.max_azimuth_step_deg``) (a wide beam)."""
+    widest = sonar.wavelength_m / (2.0 * sonar.length_m) / math.sin(math.radians(fan.max_azimuth_step_deg))
+    return max(float(fan.azimuth_oversample), widest)
 
 
 @dataclass(frozen=True, eq=False)
@@ -63,13 +88,13 @@ class FanPlan:
         ``elevation_nulls``-th null of the membrane's vertical pattern (the baffle at most), on the membrane's
         azimuth lattice (a Gaussian beam of the same widths takes the same, less the lines on its own nulls)."""
         fan, pattern = fan.resolved(), sonar.transducer
-        s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, fan.azimuth_oversample,
+        s, ds = beam.azimuth_samples(sonar.wavelength_m, sonar.length_m, azimuth_oversample(sonar, fan),
                                      fan.azimuth_nulls, keep_nulls=True)
         s = s[~pattern.null_lines(s)]                       # lines on the beam's own nulls weigh nothing
         lo, hi = beam.elevation_span_rad(sonar.wavelength_m, sonar.height_m, sonar.tilt_rad, elevation_nulls)
         m = max(int(math.ceil((hi - lo) / math.radians(fan.probe_step_deg))) + 1, 3)
         probe = np.linspace(lo, hi, m)
-        lines = PROBE_LINES * np.abs(s).max()
+        lines = probe_lines(float(np.abs(s).max()), ds)
         body = np.concatenate([beam.fan_body(lines, probe, -1), beam.fan_body(lines, probe, +1)])
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side, float(sonar.tilt_rad), sonar.wavelength_m,
@@ -82,7 +107,7 @@ class FanPlan:
 
     @property
     def edge_s(self) -> float:
-        """sin ψ of the transmit span's outermost line: the probes' edge lines (:data:`PROBE_LINES`)."""
+        """sin ψ of the transmit span's outermost line: the probes' edge lines (:func:`probe_lines`)."""
         return float(np.abs(self.probe_body[:, 0]).max())
 
 
@@ -256,7 +281,7 @@ def elevation_rows(plan: FanPlan, probe_r: np.ndarray):
     ----------
     plan : FanPlan
     probe_r : (rows, L·m) float64
-        Probed slant range per row, probe line (``PROBE_LINES``, line-major) and
+        Probed slant range per row, probe line (:func:`probe_lines`, line-major) and
         probe depression, NaN for nothing in range. Each cell takes the densest
         line's density.
 

@@ -26,8 +26,8 @@ from .aim import AimedEchoes, drop_aimed, keep_own, lattice_rays
 from .buffers import Buffers
 from .echoes import Echoes
 from .gain import weigh_by_beam
-from .fan import (PROBE_LINES, BlockEchoes, FanPlan, drop_lines, elevation_rows, moving_lines, nadir_altitude,
-                  rays_per_ping)
+from .fan import (BlockEchoes, FanPlan, drop_lines, elevation_rows, moving_lines, nadir_altitude,
+                  probe_lines, rays_per_ping)
 from ..laws import apply_laws
 
 #: A chord stands off its arc by at most this many of the sonar's range bins (its hits are moved onto the arc;
@@ -121,7 +121,7 @@ def march(caster, m: Marching, state, lay, ray, clock, buffers: Buffers):
 def _probe_ranges(caster, plan, rot, pos_local, m: Marching, c_nom, clock, buffers):
     """Apparent range c·T (NaN: nothing in the window) of the curved probes, (rows, lines·m) as for straight ones."""
     rows, n_beta = 2 * rot.shape[0], plan.probe_beta.shape[0]
-    lines = PROBE_LINES * plan.edge_s
+    lines = probe_lines(plan.edge_s, plan.ds)
     el = np.arange(rows + 1, dtype=np.int64) * n_beta
     state, lay, ray = m.launch(lines, np.tile(plan.probe_beta, rows), el, rot, pos_local, buffers)
     hit_prim, hit, _ = march(caster, m, state, lay, ray, clock, buffers)

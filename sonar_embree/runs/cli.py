@@ -35,7 +35,7 @@ dataclasses (units in the key names):
                 exp_chirp: f_start_hz, f_stop_hz
   [fan]         quality (1: flat floor within 0.2 dB; 0.5 faster; 2-4 references),
                 or explicitly rays_per_bin, azimuth_oversample, azimuth_nulls,
-                max_step_deg, probe_step_deg, max_rays_per_side
+                max_step_deg, probe_step_deg, max_rays_per_side, max_azimuth_step_deg
   [simulation]  speckle (false), band ("baseband"|"carrier"), detection
                 ("coherent"|"incoherent"), matched_filter (default: on for FM),
                 tvg (false), noise_db_per_hz, lowpass_hz, speckle_cell_m, seed (0)

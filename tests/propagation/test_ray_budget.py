@@ -132,3 +132,32 @@ def test_moving_lines_add_the_receive_lobes_lines_on_the_same_lattice():
     assert moved.s[own[2]][-1] + ds / 2 >= null + delta / 2
     fls = sonars.front_end(se.Acquisition(se.ForwardLooking()).for_pulse(se.Pulse.cw()), se.FanSettings()).plan
     assert moving_lines(fls, np.full(3, delta))[0] is fls
+
+
+def test_a_wide_fan_is_probed_on_its_own_lines_and_its_lines_are_at_most_the_azimuth_step_apart():
+    """Issue 53, item 1: a narrow fan keeps its three probe lines (boresight and edges) and its oversampled spacing
+    λ/(2·lx)/2 (the default side-scan's plan is unchanged); a wide one (a 4 cm element at 100 kHz, 22°) takes lines
+    sin(1.5°) apart at most and is probed on lines of its own lattice, boresight and edges included, at most
+    :data:`PROBE_MAX_DS` apart (never between its lines, where no ray goes)."""
+    import math
+
+    from sonar_embree.propagation.fan import PROBE_LINES, PROBE_MAX_DS, FanPlan, probe_lines
+
+    np.testing.assert_array_equal(probe_lines(0.02, 0.005), PROBE_LINES * 0.02)
+    for edge, ds in ((0.28125, 0.09375), (0.3, 0.01), (8 * 0.0262, 0.0262)):
+        p = np.sort(probe_lines(edge, ds))
+        steps = np.round(p / ds, 9)
+        assert np.all(steps == np.round(steps)) and p[0] == -edge and p[-1] == edge and 0.0 in p
+        assert np.diff(p).max() <= max(PROBE_MAX_DS, ds) + 1e-12
+    fan = se.FanSettings().resolved()
+    narrow = se.Acquisition(se.Sonar(sample_rate_hz=40e3))
+    plan = FanPlan.build(narrow, fan)
+    assert plan.ds == pytest.approx(narrow.wavelength_m / (4 * narrow.length_m), rel=1e-12)
+    assert plan.probe_body.shape[0] == 2 * 3 * plan.probe_beta.size
+    wide = se.Acquisition(se.Sonar(frequency_hz=100e3, length_m=0.04, sample_rate_hz=40e3))
+    plan = FanPlan.build(wide, fan)
+    assert plan.ds == pytest.approx(math.sin(math.radians(1.5)), rel=1e-9)
+    lines = plan.probe_body.shape[0] // (2 * plan.probe_beta.size)
+    assert lines >= math.ceil(2 * plan.edge_s / PROBE_MAX_DS)
+    with pytest.raises(se.ConfigError, match="max_azimuth_step_deg"):
+        se.FanSettings(max_azimuth_step_deg=0.0)
