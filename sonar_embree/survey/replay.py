@@ -8,8 +8,9 @@ file's layout and reports the difference:
 - how it simulates: the vehicle flies at each ping's recorded altitude over the plane z = 0, with the file's
   heading, pitch and roll. The sonar is the file's frequency, range and sound speed, on a device preset's beam
   when one is named.
-- how it matches the file's layout: simulated at a whole multiple of the file's sample rate (at least the pulse's),
-  then decimated by the maximum to the file's samples per channel, as devices do. The file's TVG is applied when
+- how it matches the file's layout: simulated at the simulator's own rate for the pulse (four samples per CW
+  pulse length, :meth:`~sonar_embree.Sonar.for_pulse`) or the file's if that is higher, then decimated by the
+  maximum to the file's samples per channel, as devices do and as the project's own device records are made. The file's TVG is applied when
   its flag is set: the GainCode's k (30 if none) and the InitialGainCode.
 
 Levels are compared in dB of what is stored: 10·log10 of float samples (intensities) and 20·log10 of integer
@@ -221,6 +222,10 @@ FIT_PULSES_S = (20e-6, 50e-6, 100e-6, 200e-6, 400e-6)
 #: A fitted pulse at either end of :data:`FIT_PULSES_S` that misses the record's correlation by this much or more is
 #: said in one line (the record lies outside what the candidates give: speckle-free, or smoothed along range).
 PULSE_EDGE_ERROR = 0.05
+#: Pulses whose correlation errors lie within this of the best one's are alike (:func:`pulse_fit`): shorter than the
+#: file's sample spacing, a stored sample (the largest of its run) correlates with the next as little for 20 µs as
+#: for 50 µs (a 600 kHz record of 1024 samples over 30 m, 39 µs apart: 0.0012 and 0.0014 off).
+PULSE_TIE = 0.005
 
 
 def fit_pings(line: Line, runs: int = FIT_RUNS, run_pings: int = FIT_RUN_PINGS) -> np.ndarray:
@@ -316,8 +321,8 @@ def simulate_line(line: Line, law, *, device: str | None = None, pulse: Pulse | 
     pattern (default the :class:`~sonar_embree.Sonar`'s)."""
     s, traj = line.settings, line.trajectory
     pulse = pulse or (Pulse.preset(device) if device else Pulse.cw(duration_s=100e-6))
-    factor = max(1, math.ceil(4.0 / pulse.duration_s / s["sample_rate_hz"]))
-    kw = dict(max_range_m=s["slant_range_m"], sample_rate_hz=factor * s["sample_rate_hz"])
+    rate = max(s["sample_rate_hz"], Sonar(frequency_hz=s["frequency_hz"]).for_pulse(pulse).sample_rate_hz)
+    kw = dict(max_range_m=s["slant_range_m"], sample_rate_hz=rate)
     if elevation is not None and not device:
         kw.update(tilt_deg=float(elevation[0]), height_m=float(elevation[1]))
     water = Environment(sound_speed_m_s=s["sound_speed_m_s"])   # the file's sound speed
@@ -499,12 +504,31 @@ def pulse_fit(line: Line, real: dict, law, *, clutter=None, elevation=None, seed
             bar.update(1)
     if bar is not None:
         bar.close()
-    best = min(errors, key=lambda d: (not math.isfinite(errors[d]), errors[d]))
+    best = _likeliest_pulse(errors, 1.0 / line.settings["sample_rate_hz"])
     if best in (FIT_PULSES_S[0], FIT_PULSES_S[-1]) and not errors[best] < PULSE_EDGE_ERROR:
         warn_once(f"replay --fit-pulse: the record's correlation along range ({want:.2f}) lies beyond what "
                   f"{FIT_PULSES_S[0] * 1e6:g}–{FIT_PULSES_S[-1] * 1e6:g} µs pulses give (closest: "
                   f"{best * 1e6:g} µs, {errors[best]:.2f} off); is the record speckle-free, or filtered along range?")
     return {"pulse_s": best, "correlation_errors": {f"{d * 1e6:g} us": e for d, e in errors.items()}}
+
+
+def _likeliest_pulse(errors: dict, spacing_s: float) -> float:
+    """The pulse of ``errors`` ({length, s: correlation error}) with the smallest error; among those within
+    :data:`PULSE_TIE` of it (alike at this file's sample ``spacing_s``), the one nearest the spacing (a device stores
+    about one sample per resolution cell: finer samples would repeat, coarser lose resolution), said in one line with
+    what it means for the gain (the seabed's echo energy grows with the pulse length)."""
+    finite = {d: e for d, e in errors.items() if math.isfinite(e)}
+    if not finite:
+        return min(errors)
+    low = min(finite.values())
+    alike = sorted(d for d, e in finite.items() if e - low < PULSE_TIE)
+    best = min(alike, key=lambda d: (abs(math.log(d / spacing_s)), d))
+    if len(alike) > 1:
+        warn_once(f"replay --fit-pulse: {', '.join(f'{d * 1e6:g}' for d in alike)} µs pulses correlate alike along "
+                  f"range at this file's sample spacing ({spacing_s * 1e6:.3g} µs); the fit takes {best * 1e6:g} µs "
+                  f"(nearest the spacing), and the gain follows the pulse's energy (up to "
+                  f"{10 * math.log10(alike[-1] / alike[0]):.1f} dB between them)")
+    return best
 
 
 def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress: bool = False,

@@ -565,3 +565,36 @@ def test_a_joint_fit_recovers_tilt_width_class_gain_and_texture(tmp_path, caplog
     assert set(group) == {"apl-uw coarse sand", "apl-uw coarse silt", "apl-uw clay"}, fit["errors_db"]
     assert got["gain_offset_db"] + group[sediment] == pytest.approx(9.0, abs=1.0)
     assert len(said) == 1 and all(k in said[0] for k in group)
+
+
+def test_pulses_alike_at_the_files_sample_spacing_take_the_one_nearest_it_and_say_so(caplog):
+    """Pulses within PULSE_TIE of the best correlation error cannot be told apart at the file's sample spacing: the
+    one nearest the spacing is taken and the choice is said with the gain it implies (10·log10 of the lengths'
+    ratio); a clear best is taken silently."""
+    with caplog.at_level("WARNING"):
+        assert R._likeliest_pulse({20e-6: 0.0012, 50e-6: 0.0014, 100e-6: 0.10}, 39e-6) == 50e-6
+        assert "20, 50 µs pulses correlate alike" in caplog.text and "up to 4.0 dB" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING"):
+        assert R._likeliest_pulse({20e-6: 0.0, 50e-6: 0.03, 100e-6: 0.10}, 39e-6) == 20e-6
+        assert R._likeliest_pulse({20e-6: 0.2, 50e-6: 0.1, 100e-6: 0.0, 200e-6: 0.01}, 39e-6) == 100e-6
+    assert "alike" not in caplog.text
+
+
+def test_a_device_files_pulse_and_gain_come_back_through_its_decimation(tmp_path):
+    """A 600 kHz line written as a device writes it (1024 samples a side over 30 m, each the largest of its run of
+    the simulator's 80 kHz), 50 µs CW, +12 dB: ``--fit-pulse`` (the class given) takes 50 µs and the gain comes
+    back within 1 dB. Simulated at a whole multiple of the file's rate, the replay had found 20 µs as close and the
+    gain 2 dB high (the seabed's echo energy follows the pulse length)."""
+    scene = se.Scene().add(se.seafloor.flat((400.0, 200.0)), material=se.Material(
+        scattering=se.sediments.preset("apl-uw fine sand")), label="seafloor")
+    k = np.arange(60)
+    pos = np.stack([-9.0 + 0.3 * k, np.zeros(60), 3.5 - np.cos(2 * np.pi * k / 60)], axis=1)
+    rec = se.simulate(scene, se.Trajectory(pos, 90.0, 0.0, 0.0, 0.15 * k), se.Sonar(frequency_hz=600e3,
+                      max_range_m=30.0), se.Pulse.cw(duration_s=50e-6), speckle=True, seed=4,
+                      start_time="2026-05-01T12:00:00Z")
+    se.Record(rec.data * 10 ** 1.2, rec.time_s, rec.trajectory, rec.sonar, rec.pulse, rec.altitude_m,
+              rec.attrs).to_xtf(tmp_path / "dev.xtf", scale=1.0, samples_per_channel=1024)
+    got = R.replay(tmp_path / "dev.xtf", tmp_path / "fit", fit_classes=("apl-uw fine sand",), fit_pulse=True, seed=3)
+    assert got["fit"]["pulse_s"] == pytest.approx(50e-6), got["fit"]["correlation_errors"]
+    assert got["gain_offset_db"] == pytest.approx(12.0, abs=1.0)
