@@ -24,7 +24,7 @@ SLOW = frozenset({
     "test_replay.py::test_fit_beam_recovers_the_records_elevation_pattern_and_gain",
     "test_replay.py::test_a_long_lines_fit_simulates_runs_across_its_altitudes_and_recovers_the_class_and_gain",
     "test_replay.py::test_a_joint_fit_recovers_tilt_width_class_gain_and_texture",
-    "test_replay.py::test_a_device_files_pulse_and_gain_come_back_through_its_decimation",
+    "test_replay.py::test_a_device_files_beam_pulse_and_gain_come_back_through_its_decimation",
     "test_small_slope.py::test_the_small_slope_integral_against_mpmaths_oscillatory_quadrature",
     "test_small_slope.py::test_sigma_is_recovered_from_a_flat_floor_record",
     "test_small_slope.py::test_the_carriers_table_is_within_two_hundredths_of_a_db_of_the_model",

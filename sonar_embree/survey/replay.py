@@ -61,26 +61,37 @@ FIT_CLASSES = ("apl-uw coarse sand", "apl-uw fine sand", "apl-uw coarse silt", "
 #: Grazing angles the class fit compares, degrees (the near-nadir lobe and the shadows left out).
 FIT_GRAZING_DEG = (4.0, 60.0)
 #: The elevation pattern a fit without a device preset simulates its candidates with (tilt, degrees; membrane height
-#: in wavelengths): nearly flat over the floor's angles (a quarter-wavelength membrane at 45°: its one-way pattern
-#: stays within 1 dB from 0° to 90° of depression), so that :func:`elevation_fit` can put any other in its place.
-CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS = 45.0, 0.25
+#: in wavelengths): nearly flat over the floor's angles (a quarter-wavelength membrane: its one-way pattern falls by
+#: 0.9 dB from its boresight to 90° off), so that :func:`elevation_fit` can put any other in its place. Its boresight
+#: is horizontal, so that its baffle shuts out the floor on the other side: tilted 45°, it heard the other side's
+#: floor at the same range near nadir, which the fit's model left out (2 dB at 45° of grazing, the fit's width 5 %
+#: narrow and its level 5–18 dB off towards the null; issue 52).
+CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS = 0.0, 0.25
 #: The elevation patterns :func:`elevation_fit` tries: tilts (degrees) and one-way −3 dB vertical widths (degrees).
 FIT_TILTS_DEG, FIT_WIDTHS_DEG = np.arange(0.0, 50.5, 0.5), np.arange(10.0, 101.0, 1.0)
 #: Grazing angles the elevation fit compares, degrees.
 FIT_ELEVATION_GRAZING_DEG = (4.0, 80.0)
-#: The elevation fit leaves out the grazing bins where the recorded level, less the calibration simulation's, lies more
-#: than this far below its highest, dB: towards a null of the record's pattern a bin's level is set by how steeply
-#: the pattern falls across the bin, not by the pattern at its centre (a 40° beam's: 2.5–5 dB deeper than at the
-#: centre from 45° to 60°), and those bins had pulled the tilt 7° off (issue 52).
+#: The elevation fit leaves out the cells where the recorded level, less the calibration simulation's, lies more than
+#: this far below its highest, dB: towards a null of the record's pattern a cell's level hangs on the null's exact
+#: place and on speckle (issue 52; the beam a fit finds then replays the null's bins within 1 dB).
 FIT_ELEVATION_DEPTH_DB = 15.0
 
 
-def _elevation_db(grazing_deg: np.ndarray, tilt_deg, height_wavelengths) -> np.ndarray:
-    """Two-way elevation gain of a membrane ``height_wavelengths`` high tilted ``tilt_deg`` down, at depressions equal
-    to the flat floor's grazing angles: 40·log10|sinc(k·ly/2·sin(β − δ))|, dB (broadcast over the arguments)."""
-    x = np.pi * np.asarray(height_wavelengths) * np.sin(np.radians(np.asarray(grazing_deg) - np.asarray(tilt_deg)))
+def _elevation_db(depression_deg, tilt_deg, height_wavelengths, grazing_deg=None) -> np.ndarray:
+    """Two-way elevation gain (dB, broadcast over the arguments) of a membrane ``height_wavelengths`` high tilted
+    ``tilt_deg`` down, at depressions β below its horizontal: sinc⁴(k·ly/2·sin(β − δ)) in front of its baffle
+    (cos(β − δ) > 0). With ``grazing_deg`` θ (a flat floor's), plus the floor on the other side at the same range,
+    which lies 180° − 2θ + β below this side's horizontal (past nadir) and which a tilted, wide pattern hears near
+    nadir through its baffle."""
+    beta, tilt = np.asarray(depression_deg, dtype=np.float64), np.asarray(tilt_deg, dtype=np.float64)
+
+    def power(b):
+        off = np.radians(b - tilt)
+        return beam_sinc(np.pi * np.asarray(height_wavelengths) * np.sin(off)) ** 4 * (np.cos(off) > 0.0)
+
+    p = power(beta) if grazing_deg is None else power(beta) + power(180.0 - 2.0 * np.asarray(grazing_deg) + beta)
     with np.errstate(divide="ignore"):
-        return 40.0 * np.log10(np.abs(beam_sinc(x)))
+        return 10.0 * np.log10(p)
 
 
 #: Body-frame depression bins of the elevation fit's cells, degrees.
@@ -153,7 +164,7 @@ def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
     beta = real["depression_deg"][ir]
     g = real["grazing_deg"][ir]
     d = real["level_db"][ir] - sim["level_db"][isim] + _elevation_db(beta, CALIBRATION_TILT_DEG,
-                                                                      CALIBRATION_HEIGHT_WAVELENGTHS)
+                                                                      CALIBRATION_HEIGHT_WAVELENGTHS, g)
     ok = (n >= MIN_CELL_SAMPLES) & (g >= FIT_ELEVATION_GRAZING_DEG[0]) & (g <= FIT_ELEVATION_GRAZING_DEG[1])
     ok &= np.isfinite(d)
     ok[ok] = d[ok] >= d[ok].max() - FIT_ELEVATION_DEPTH_DB if ok.any() else ok[ok]
@@ -161,7 +172,8 @@ def elevation_fit(real: dict, sim: dict, wavelength_m: float) -> dict:
         raise ConfigError("replay: fewer than four grazing-angle cells hold both files' floor; no beam to fit")
     w = n[ok] / n[ok].sum()
     heights = np.array([membrane_size_for_beamwidth(math.radians(x), 1.0) for x in FIT_WIDTHS_DEG])
-    model = _elevation_db(beta[ok][None, None, :], FIT_TILTS_DEG[:, None, None], heights[None, :, None])
+    model = _elevation_db(beta[ok][None, None, :], FIT_TILTS_DEG[:, None, None], heights[None, :, None],
+                          g[ok][None, None, :])
     resid = d[ok][None, None, :] - model
     resid = np.where(np.isfinite(resid), resid, 1e3)                  # a null where the record has floor: no fit
     offset = np.sum(w * resid, axis=2)
@@ -196,13 +208,14 @@ def look_alikes(cells: dict, chosen: str, beam: dict, classes, frequency_hz: flo
     take, dB, relative to the chosen one's}``, the chosen class left out."""
     g, beta = cells["grazing_deg"], cells["depression_deg"]
     height = beam["height_m"] / wavelength_m
-    want = dict(cells, level_db=_strength_db(chosen, g, frequency_hz) + _elevation_db(beta, beam["tilt_deg"], height))
+    want = dict(cells, level_db=_strength_db(chosen, g, frequency_hz) + _elevation_db(beta, beam["tilt_deg"], height,
+                                                                                      g))
     out = {}
     for name in classes:
         if name == chosen:
             continue
         got = dict(cells, level_db=_strength_db(name, g, frequency_hz)
-                   + _elevation_db(beta, CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS))
+                   + _elevation_db(beta, CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS, g))
         fit = elevation_fit(want, got, wavelength_m)
         if fit["error_db"] < LOOK_ALIKE_DB:
             out[name] = fit["gain_offset_db"]
@@ -605,6 +618,14 @@ def _said_look_alikes(cells, chosen, beam, classes, frequency_hz, wavelength_m) 
     return alike
 
 
+def _first_pulse(sub: Line, real: dict, law, fit_beam: bool, seed: int, progress: bool) -> dict:
+    """:func:`pulse_fit` before the class and beam are known: over ``law`` (the first class), on the calibration
+    beam when the beam is fitted too."""
+    wavelength = sub.settings["sound_speed_m_s"] / sub.settings["frequency_hz"]
+    cal = (CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * wavelength) if fit_beam else None
+    return pulse_fit(sub, real, law, elevation=cal, seed=seed, progress=progress)
+
+
 def candidates_bar(progress: bool, n: int):
     """A tqdm bar over a fit's candidates (on stderr) when ``progress``, else None."""
     if not progress:
@@ -682,16 +703,15 @@ def replay(path, out_dir, *, sediment: str = "apl-uw fine sand", fit_classes=Non
     chosen = None
     if fit_classes:
         sub = line.subset(fit_pings(line))
-        chosen = fit(sub, measures(sub.settings["data"], sub), fit_classes, fit_densities, device=device, seed=seed,
-                     progress=progress, fit_beam=fit_beam, fit_texture=fit_texture)
+        real_sub = measures(sub.settings["data"], sub)
+        # the pulse first (the correlation along range hardly depends on the class or the beam): the level curves
+        # the class and the beam are fitted on depend on it near nadir and through the device's decimation
+        timing = _first_pulse(sub, real_sub, fit_classes[0], fit_beam, seed, progress) if fit_pulse else {}
+        chosen = fit(sub, real_sub, fit_classes, fit_densities, device=device, seed=seed, progress=progress,
+                     fit_beam=fit_beam, fit_texture=fit_texture,
+                     pulse=Pulse.cw(duration_s=timing["pulse_s"]) if timing else None)
         chosen["pings_simulated"] = int(sub.settings["data"].shape[0])
-        if fit_pulse:
-            el = chosen.get("elevation")
-            chosen.update(pulse_fit(sub, measures(sub.settings["data"], sub), chosen["sediment"], seed=seed,
-                                    progress=progress,
-                                    clutter=None if chosen["clutter_density_per_m2"] is None
-                                    else Clutter(float(chosen["clutter_density_per_m2"])),
-                                    elevation=None if el is None else (el["tilt_deg"], el["height_m"])))
+        chosen.update(timing)
     name = chosen["sediment"] if chosen else (sediment if scene is None else "the scene's")
     density = chosen["clutter_density_per_m2"] if chosen else None
     beam = chosen.get("elevation") if chosen else None

@@ -543,7 +543,8 @@ def _rolling_line(tmp_path, sediment, n=192, seed=4):
 def test_a_joint_fit_recovers_tilt_width_class_gain_and_texture(tmp_path, caplog, sediment):
     """Issue 52: tilt, width, class, gain and ν fitted together, the class free among the four defaults. Roll tells
     the pattern (it follows the depression) from σ (it follows the grazing angle). Fine sand is told from the others:
-    tilt within 2°, width within 10 %, the class, gain within 1 dB, ν within 30 %, no look-alike. Coarse silt's
+    tilt within 2°, width within 10 %, the class, gain within 1 dB, ν within 30 %, no look-alike, and the replay's
+    level against grazing within 3 dB RMS of the record's over every bin from 5° to 80°. Coarse silt's
     σ(θ) differs from coarse sand's and clay's by a near constant at 400 kHz, which the gain takes up
     (:data:`~sonar_embree.survey.replay.LOOK_ALIKE_DB`): the fit says so in one line and lists them with the gain
     each would take; the hidden class is among them, with its gain within 1 dB."""
@@ -560,6 +561,10 @@ def test_a_joint_fit_recovers_tilt_width_class_gain_and_texture(tmp_path, caplog
     if sediment == "apl-uw fine sand":
         assert fit["sediment"] == sediment and fit["look_alike"] == {} and not said, fit["errors_db"]
         assert got["gain_offset_db"] == pytest.approx(9.0, abs=1.0)
+        real, sim = (np.array(got[k]["level_vs_grazing_db"], float) for k in ("recorded", "simulated"))
+        g = np.array(got["recorded"]["grazing_deg"])
+        both = np.isfinite(real) & np.isfinite(sim) & (g >= 5.0) & (g <= 80.0)
+        assert both.sum() >= 20 and np.sqrt(np.mean((real[both] - sim[both]) ** 2)) < 3.0   # every bin, the null's too
         return
     group = {fit["sediment"]: 0.0, **fit["look_alike"]}
     assert set(group) == {"apl-uw coarse sand", "apl-uw coarse silt", "apl-uw clay"}, fit["errors_db"]
@@ -581,20 +586,35 @@ def test_pulses_alike_at_the_files_sample_spacing_take_the_one_nearest_it_and_sa
     assert "alike" not in caplog.text
 
 
-def test_a_device_files_pulse_and_gain_come_back_through_its_decimation(tmp_path):
+def test_a_device_files_beam_pulse_and_gain_come_back_through_its_decimation(tmp_path):
     """A 600 kHz line written as a device writes it (1024 samples a side over 30 m, each the largest of its run of
-    the simulator's 80 kHz), 50 µs CW, +12 dB: ``--fit-pulse`` (the class given) takes 50 µs and the gain comes
-    back within 1 dB. Simulated at a whole multiple of the file's rate, the replay had found 20 µs as close and the
-    gain 2 dB high (the seabed's echo energy follows the pulse length)."""
+    the simulator's 80 kHz): a 40° beam tilted 10°, 50 µs CW, +12 dB, altitude 2.5–4.5 m, roll ±3°.
+    ``--fit-beam --fit-pulse`` (the class given) takes 50 µs, the tilt within 2°, the width within 10 %, the gain
+    within 1 dB, and the replay's level against grazing is within 3 dB RMS of the record's over every bin from 5°
+    to 80°, the beam's null included. Before: the beam was fitted with the default 100 µs and a calibration beam
+    that also heard the other side's floor near nadir (38° wide, 7–18 dB off towards the null), and the pulse,
+    simulated at a whole multiple of the file's rate, came back 20 µs with the gain 2 dB high."""
+    from sonar_embree.instrument.beam import membrane_size_for_beamwidth
+
     scene = se.Scene().add(se.seafloor.flat((400.0, 200.0)), material=se.Material(
         scattering=se.sediments.preset("apl-uw fine sand")), label="seafloor")
-    k = np.arange(60)
-    pos = np.stack([-9.0 + 0.3 * k, np.zeros(60), 3.5 - np.cos(2 * np.pi * k / 60)], axis=1)
-    rec = se.simulate(scene, se.Trajectory(pos, 90.0, 0.0, 0.0, 0.15 * k), se.Sonar(frequency_hz=600e3,
-                      max_range_m=30.0), se.Pulse.cw(duration_s=50e-6), speckle=True, seed=4,
+    k = np.arange(96)
+    pos = np.stack([-14.0 + 0.3 * k, np.zeros(k.size), 3.5 - np.cos(2 * np.pi * k / k.size)], axis=1)
+    traj = se.Trajectory(pos, 90.0, 0.0, 3.0 * np.sin(2 * np.pi * k / 17.0), 0.15 * k)
+    sonar = se.Sonar(frequency_hz=600e3, max_range_m=30.0, tilt_deg=10.0,
+                     height_m=membrane_size_for_beamwidth(math.radians(40.0), 1500.0 / 600e3))
+    rec = se.simulate(scene, traj, sonar, se.Pulse.cw(duration_s=50e-6), speckle=True, seed=4,
                       start_time="2026-05-01T12:00:00Z")
     se.Record(rec.data * 10 ** 1.2, rec.time_s, rec.trajectory, rec.sonar, rec.pulse, rec.altitude_m,
               rec.attrs).to_xtf(tmp_path / "dev.xtf", scale=1.0, samples_per_channel=1024)
-    got = R.replay(tmp_path / "dev.xtf", tmp_path / "fit", fit_classes=("apl-uw fine sand",), fit_pulse=True, seed=3)
+    got = R.replay(tmp_path / "dev.xtf", tmp_path / "fit", fit_classes=("apl-uw fine sand",), fit_pulse=True,
+                   fit_beam=True, seed=3)
+    beam = got["fit"]["elevation"]
     assert got["fit"]["pulse_s"] == pytest.approx(50e-6), got["fit"]["correlation_errors"]
+    assert beam["tilt_deg"] == pytest.approx(10.0, abs=2.0) and beam["vertical_beamwidth_deg"] == pytest.approx(
+        40.0, rel=0.1), beam
     assert got["gain_offset_db"] == pytest.approx(12.0, abs=1.0)
+    real, sim = (np.array(got[k]["level_vs_grazing_db"], float) for k in ("recorded", "simulated"))
+    g = np.array(got["recorded"]["grazing_deg"])
+    both = np.isfinite(real) & np.isfinite(sim) & (g >= 5.0) & (g <= 80.0)
+    assert both.sum() >= 20 and np.sqrt(np.mean((real[both] - sim[both]) ** 2)) < 3.0, (real - sim)[both]
