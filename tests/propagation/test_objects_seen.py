@@ -117,18 +117,14 @@ def test_a_ball_at_shallow_depression_is_seen_in_every_ping():
         assert np.abs(err).max() < 1.0, (q, err.min(), err.max())
 
 
-def test_msis_sees_a_small_sphere_at_every_bearing_step():
-    """MSIS (1.8° beam), a 5 cm ball 12 m out on the beam's axis, the head stepping 0.2°: the echo energy per step
-    is the quadrature with the MSIS's beam within 1 dB at every step where it is within −20 dB of its peak.
-    Head frame: x along the bearing ψ (clockwise from north, heading 0), y to its right, z down;
+def _msis_gamma(sonar, n):
+    """Γ(u, ping) of an MSIS's membrane at its first ``n`` bearings, from its −3 dB widths (sin x/x = 1/√2 solved
+    here). Head frame: x along the bearing ψ (clockwise from north, heading 0), y to its right, z down;
     Γ = sinc(k·lx/2·u_y)·sinc(k·ly/2·(−u_x sin δ + u_z cos δ)) on u_x cos δ + u_z sin δ > 0."""
     from scipy.optimize import brentq
 
-    sonar = se.MSIS(step_deg=0.2, start_bearing_deg=26.0)
-    n = 41
     bearings = np.radians(sonar.bearings_deg(np.arange(n)))
-    psi0, rho, d = np.radians(30.0), 12.0, np.radians(sonar.tilt_deg)
-    centre = (rho * np.sin(psi0), rho * np.cos(psi0), H - rho * np.tan(d))
+    d = np.radians(sonar.tilt_deg)
     acq = se.Acquisition.of(sonar)
     lam, k = acq.wavelength_m, acq.wavenumber_rad_m
     x0 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 1e-9, np.pi)
@@ -143,6 +139,19 @@ def test_msis_sees_a_small_sphere_at_every_bearing_step():
         g = np.sinc(k * lx / 2 * uy / np.pi) * np.sinc(k * ly / 2 * (-ux * np.sin(d) + uz * np.cos(d)) / np.pi)
         return np.where(ux * np.cos(d) + uz * np.sin(d) > 0, g, 0.0)
 
+    return gamma
+
+
+def test_msis_sees_a_small_sphere_at_every_bearing_step():
+    """MSIS (1.8° beam), a 5 cm ball 12 m out on the beam's axis, the head stepping 0.2°: the echo energy per step
+    is the quadrature with the MSIS's beam within 1 dB at every step where it is within −20 dB of its peak.
+    Head frame: x along the bearing ψ (clockwise from north, heading 0), y to its right, z down;
+    Γ = sinc(k·lx/2·u_y)·sinc(k·ly/2·(−u_x sin δ + u_z cos δ)) on u_x cos δ + u_z sin δ > 0."""
+    sonar = se.MSIS(step_deg=0.2, start_bearing_deg=26.0)
+    n = 41
+    psi0, rho, d = np.radians(30.0), 12.0, np.radians(sonar.tilt_deg)
+    centre = (rho * np.sin(psi0), rho * np.cos(psi0), H - rho * np.tan(d))
+    gamma = _msis_gamma(sonar, n)
     traj = se.Trajectory(np.tile([[0.0, 0.0, H]], (n, 1)), heading_deg=0.0, times_s=np.arange(n, dtype=float))
     scene = se.Scene().add(se.seafloor.flat((120, 120)), label="seafloor")
     scene.add(_ball_mesh(0.05, centre), label="ball", material=se.Material(backscatter_db=MU_DB))
@@ -643,29 +652,13 @@ def test_a_seabed_patch_off_boresight_in_a_wide_beam_is_heard_in_every_ping():
 def test_a_seabed_patch_in_a_wide_beam_msis_is_heard_at_every_bearing_step():
     """The same for an MSIS with a 20° horizontal beam (200 kHz, 40° vertical) stepping 1° across a 3 m × 2 m patch
     12 m out on its sector's centre: the quadrature with the MSIS's beam (head frame as in
-    test_msis_sees_a_small_sphere_at_every_bearing_step) within 1 dB at every step where it is within 10 dB of its
+    :func:`_msis_gamma`) within 1 dB at every step where it is within 10 dB of its
     peak, for the seabed patch and the object. Before: up to 3.8 dB off."""
-    from scipy.optimize import brentq
-
     sonar = se.MSIS(frequency_hz=200e3, horizontal_beamwidth_deg=20.0, vertical_beamwidth_deg=40.0, step_deg=1.0,
                     sector_deg=60.0, start_bearing_deg=0.0)
     n = 61
-    bearings = np.radians(sonar.bearings_deg(np.arange(n)))
-    d = np.radians(sonar.tilt_deg)
+    gamma = _msis_gamma(sonar, n)
     acq = se.Acquisition.of(sonar)
-    lam, k = acq.wavelength_m, acq.wavenumber_rad_m
-    x0 = brentq(lambda x: np.sin(x) / x - 2 ** -0.5, 1e-9, np.pi)
-    lx, ly = (x0 * lam / (np.pi * np.sin(np.radians(w) / 2))
-              for w in (sonar.horizontal_beamwidth_deg, sonar.vertical_beamwidth_deg))
-
-    def gamma(u, ping):
-        b = bearings[ping]
-        ux = u[:, 0] * np.sin(b) + u[:, 1] * np.cos(b)
-        uy = u[:, 0] * np.cos(b) - u[:, 1] * np.sin(b)
-        uz = -u[:, 2]
-        g = np.sinc(k * lx / 2 * uy / np.pi) * np.sinc(k * ly / 2 * (-ux * np.sin(d) + uz * np.cos(d)) / np.pi)
-        return np.where(ux * np.cos(d) + uz * np.sin(d) > 0, g, 0.0)
-
     traj = se.Trajectory(np.tile([[0.0, 0.0, H]], (n, 1)), heading_deg=0.0, times_s=np.arange(n, dtype=float))
     ref = patch_quadrature((3.0, 2.0), (0.0, 12.0, 0.0), traj.positions_m, acq.alpha_db_per_m, MU_DB, gamma)
     inside = ref >= 0.1 * ref.max()
