@@ -273,7 +273,7 @@ def test_fit_recovers_a_hidden_clutter_density_with_the_class(tmp_path):
     telling the densities apart."""
     law = se.sediments.preset("apl-uw fine sand")
     mat = se.Material(scattering=law, clutter=se.Clutter(40.0))
-    scene = se.Scene().add(se.seafloor.flat((400, 400)), material=mat, label="seafloor")
+    scene = se.Scene().add(se.seafloor.flat((100, 70)), material=mat, label="seafloor")
     traj = se.Trajectory.line((-15, 0, 8.0), (15, 0, 7.0), 60)
     rec = se.simulate(scene, traj, se.Sonar(max_range_m=30.0), PULSE, speckle=True, seed=9,
                       start_time="2026-05-01T12:00:00Z")
