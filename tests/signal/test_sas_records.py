@@ -216,22 +216,39 @@ def test_image_masks_refuse_a_ragged_grid():
 
 def test_a_hole_in_the_floor_is_imaged_darker_than_the_floor():
     """A 0.8 m × 2.2 m hole in a flat floor (no scatterers at all) shows in the SAS image at least 8 dB below the
-    floor around it. A known limit, not a closed form: the image's sidelobes alone, 10 resolution cells from the
-    edges, would leave it far deeper, but the speckle lattice spreads each seabed echo over its fan line's strip,
-    R·ds along track (0.38 m at 14.5 m for this element's fan at quality 1, its lines 1.5° apart), so the floor
-    beside the hole reaches into it: 9.4 dB down here (4.6 dB with the element's own 5.4° line spacing, 12.6 dB
-    with the fan 32 times denser along track; docs/physics.md §4, "Limit")."""
+    floor around it at quality 1. The speckle lattice spreads each seabed echo over its fan line's strip, R·ds along
+    track (0.38 m at 14.5 m for this element's fan at quality 1, its lines 1.5° apart), so the floor beside the hole
+    reaches into it: 9.4 dB down here (4.6 dB with the element's own 5.4° line spacing; 14.7 dB with lines 0.2°
+    apart, the next test's reference depth; docs/physics.md §4, "Limit")."""
+    assert _hole_depth_db(se.Material(backscatter_db=-20)) < -8.0
+
+
+def _hole_depth_db(material, fan=None) -> float:
+    """The SAS image's mean intensity over a 0.8 m × 2.2 m hole in a floor of ``material`` (pixels 0.15 m and more
+    from its edges) against the floor's beside it, dB."""
     xs, ys = np.arange(-PATCH_M[0] / 2, PATCH_M[0] / 2, 0.1), np.arange(-ACROSS - 2.0, -ACROSS + 2.0, 0.1)
     z = np.zeros((ys.size, xs.size))
     z[(np.abs(ys + ACROSS)[:, None] < 1.1) & (np.abs(xs)[None, :] < 0.4)] = np.nan
-    sc = se.Scene().add(se.seafloor.grid_mesh(xs, ys[::-1], z[::-1]), material=se.Material(backscatter_db=-20),
-                        label="seafloor")
-    rec = _simulate(sc, _trajectory(), seed=4)
+    sc = se.Scene().add(se.seafloor.grid_mesh(xs, ys[::-1], z[::-1]), material=material, label="seafloor")
+    rec = se.simulate(sc, _trajectory(), SONAR, PULSE, speckle=True, seed=4, fan=fan)
     x, y = np.arange(-2.0, 2.0, 0.02), np.arange(-ACROSS - 1.2, -ACROSS + 1.2, 0.02)
     i = np.abs(record_image(rec, x, y, 0.0)) ** 2
     hole = i[np.ix_(np.abs(y + ACROSS) < 0.8, np.abs(x) < 0.25)].mean()
     floor = i[np.ix_(np.abs(y + ACROSS) < 0.8, np.abs(np.abs(x) - 1.5) < 0.3)].mean()
-    assert 10 * np.log10(hole / floor) < -8.0
+    return float(10 * np.log10(hole / floor))
+
+
+def test_with_fine_lines_a_hole_is_as_deep_as_exact_point_scatterers_make_it():
+    """Issue 53, item 3: the same hole in a floor of exact point echoes (clutter points alone, 300 per m²: each
+    echo the bistatic closed form, tests/signal/test_receiver_arrays.py) images about 15 dB
+    down: the image former's side lobes from the floor around it, the depth this window allows. The lattice's floor
+    with the fan's lines 0.2° apart (5 cm at 14.5 m, against 0.38 m at quality 1) comes within 1 dB of it: what
+    quality 1 leaves in the hole (9.4 dB) is the strips' reach, a sampling choice (FanSettings.max_azimuth_step_deg),
+    not the lattice's weights."""
+    points = _hole_depth_db(se.Material(backscatter_db=-150, clutter=se.Clutter(300.0, strength_db=-30.0,
+                                                                                 spread_db=0.0)))
+    lattice = _hole_depth_db(se.Material(backscatter_db=-20), fan=se.FanSettings(max_azimuth_step_deg=0.2))
+    assert points < -13.0 and abs(lattice - points) < 1.0, (lattice, points)
 
 
 def test_record_image_refuses_what_cannot_form_an_image(point):
