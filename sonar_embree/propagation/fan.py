@@ -51,6 +51,8 @@ def probe_lines(edge_s: float, ds: float) -> np.ndarray:
     n = int(round(edge_s / ds))
     i = np.unique(np.concatenate([np.arange(0, n + 1, k), [n]]))
     return np.concatenate([-i[:0:-1], i]) * ds
+
+
 #: Cells at object edges (range jumps, silhouettes) and their neighbours get this many times the density
 #: of the largest step.
 EDGE_DENSITY_FACTOR = 4.0
