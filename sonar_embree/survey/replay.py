@@ -10,8 +10,8 @@ file's layout and reports the difference:
   when one is named.
 - how it matches the file's layout: simulated at the simulator's own rate for the pulse (four samples per CW
   pulse length, :meth:`~sonar_embree.Sonar.for_pulse`) or the file's if that is higher, then decimated by the
-  maximum to the file's samples per channel, as devices do and as the project's own device records are made. The file's TVG is applied when
-  its flag is set: the GainCode's k (30 if none) and the InitialGainCode.
+  maximum to the file's samples per channel, as devices do and as the project's own device records are made. The
+  file's TVG is applied when its flag is set: the GainCode's k (30 if none) and the InitialGainCode.
 
 Levels are compared in dB of what is stored: 10·log10 of float samples (intensities) and 20·log10 of integer
 codes (amplitudes). The measures (:func:`measures`), per file, are:
@@ -111,8 +111,9 @@ def depression_cells(values: np.ndarray, line: Line) -> dict:
     Returns
     -------
     dict
-        ``count``, ``level_db`` (mean dB of the cell's samples), ``grazing_deg`` and ``depression_deg`` (the cell's
-        mean angles), each (cells,) over the cells that hold a sample.
+        ``key`` (the cell's index: side, grazing bin, depression bin), ``count``, ``level_db`` (dB of the mean
+        intensity of the cell's samples), ``grazing_deg`` and ``depression_deg`` (the cell's mean angles), each
+        (cells,) over the cells that hold a sample.
     """
     s, r = line.settings, line.slant_range_m
     alt = np.where(s["altitude_m"] > 0.0, s["altitude_m"], np.nan)[:, None]
@@ -567,10 +568,11 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
     σ(θ) differ by a near constant remain alike (the gain takes it up): ``look_alike`` lists them with the gain each
     would take (:func:`look_alikes`), and the fit says so in one line.
     """
-    errors, offsets, beams, sims, real_cells = {}, {}, {}, {}, None
+    errors, offsets, beams, sims = {}, {}, {}, {}
     s = line.settings
     wavelength = s["sound_speed_m_s"] / s["frequency_hz"]
-    cal = (CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * wavelength) if fit_beam else None
+    cal = _calibration_beam(line) if fit_beam else None
+    real_cells = depression_cells(s["data"], line) if fit_beam else None
     bar = candidates_bar(progress, len(classes) * len(densities))
     for name in classes:
         for n in densities:
@@ -582,7 +584,6 @@ def fit(line: Line, real: dict, classes=FIT_CLASSES, densities=(None,), progress
                 offsets[key] = gain_offset_db(real, sim)
                 errors[key] = shape_error_db(real, sim, offsets[key])
             else:                                                 # no device: the record's elevation pattern too
-                real_cells = real_cells or depression_cells(line.settings["data"], line)
                 beams[key] = elevation_fit(real_cells, depression_cells(values, line), wavelength)
                 offsets[key], errors[key] = beams[key]["gain_offset_db"], beams[key]["error_db"]
             errors[key] += scintillation_error_db(real, sim) if len(densities) > 1 else 0.0
@@ -621,9 +622,14 @@ def _said_look_alikes(cells, chosen, beam, classes, frequency_hz, wavelength_m) 
 def _first_pulse(sub: Line, real: dict, law, fit_beam: bool, seed: int, progress: bool) -> dict:
     """:func:`pulse_fit` before the class and beam are known: over ``law`` (the first class), on the calibration
     beam when the beam is fitted too."""
-    wavelength = sub.settings["sound_speed_m_s"] / sub.settings["frequency_hz"]
-    cal = (CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * wavelength) if fit_beam else None
-    return pulse_fit(sub, real, law, elevation=cal, seed=seed, progress=progress)
+    return pulse_fit(sub, real, law, elevation=_calibration_beam(sub) if fit_beam else None, seed=seed,
+                     progress=progress)
+
+
+def _calibration_beam(line: Line) -> tuple:
+    """(tilt, degrees; membrane height, m) of the calibration beam at ``line``'s wavelength."""
+    s = line.settings
+    return CALIBRATION_TILT_DEG, CALIBRATION_HEIGHT_WAVELENGTHS * s["sound_speed_m_s"] / s["frequency_hz"]
 
 
 def candidates_bar(progress: bool, n: int):
