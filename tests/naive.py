@@ -342,6 +342,43 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
     return out
 
 
+def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
+                         rate, n_sub, out, receivers, vel_rx, time_per_m, strips=None):
+    """Per ping: the nodes of :func:`speckle_block`, each scatterer per receiver an impulse at
+    (t + (|X − rx_k| − |X − tx|)·time_per_m)·rate·S on the grid of 1/S sample (S = out.shape[2]), split linearly
+    between its two nearest grid times, grid time i written to out[b, row, i mod S, i // S]; the receivers move at
+    ``vel_rx`` (the reference receiver is the transmitter)."""
+    steps, n_rx = out.shape[2], out.shape[1] // 2
+    for b in range(pos_world.shape[0]):
+        nodes = _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, strips, pos_world[b])
+        if not nodes:
+            continue
+        keys = np.array(list(nodes.keys()))
+        w, r_mean, m2, rmin, rmax = np.array(list(nodes.values())).T
+        sigma = np.sqrt(m2 / w)                                          # the beam scales W and M2 alike
+        if strips is not None:
+            w = w * np.array([_pattern(strips, 2 * b + k[0], _along_s(strips[0][2 * b + k[0]],
+                                                                     (k[1:] * cell_m - pos_world[b])[None])[0])
+                              for k in keys])
+        g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
+        x = keys[:, 1:] * cell_m - vel_rx[b] * r_mean[:, None]          # the node seen from the moved receivers
+        d_ref = np.linalg.norm(x - pos_world[b], axis=1)
+        d_tx = np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
+        r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None], rmax[:, None])
+        for k in range(n_rx):
+            rows = keys[:, 0] * n_rx + k
+            d_rx = np.linalg.norm(x - receivers[b, rows], axis=1)
+            amp = (np.sqrt(w / n_sub) * np.exp(-2j * np.pi * (((d_tx + d_rx) / wavelength_m) % 1)))[:, None] * g
+            grid = (r_env + ((d_rx - d_ref) * time_per_m)[:, None]) * rate * steps
+            lo = np.floor(grid)
+            for i, a in ((lo, amp * (1 - (grid - lo))), (lo + 1, amp * (grid - lo))):
+                i = i.astype(np.int64)
+                row = np.repeat(rows, n_sub)
+                ok = (i.ravel() // steps >= 0) & (i.ravel() // steps < out.shape[3])
+                np.add.at(out[b], (row[ok], (i.ravel() % steps)[ok], (i.ravel() // steps)[ok]), a.ravel()[ok])
+    return out
+
+
 def label_rows(el_start, dr, lit_range, lit_extent, lit_score, lit_object, lit_point, lit_dir, hid_range, hid_extent,
                hid_object, hid_point, hid_dir, pos, outward, is_seafloor, origin_z, n_s):
     """Per sample: the best-scoring lit footprint whose range cell overlaps it, else the first hidden one."""

@@ -33,14 +33,14 @@ from .rays import (BEAM_GAUSS, BEAM_SINC, _sinc, beam_cosines, beam_factor, fact
                    elevation_density, fan_echoes, fan_rays, place_rows, probe_rays, sinc_rows, weigh_fan,
                    weigh_lines, weigh_pairs, weigh_rays, launch_body)
 from .sas import backproject
-from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block
+from .speckle import CACHE_WIDTH, NODE_WIDTH, frozen_scatterers, gather_nodes, speckle_block, speckle_block_shared
 from .splat import splat_rows, splat_table
 from .swell import (G_HB, G_HS, G_NB, G_NS, G_S0, G_B0, G_STRIP, GLINT_WIDTH, glint_rays, swell_glints, swell_launch,
                     swell_paths, swell_surface_hits)
 from .truth import label_rows
 
 __all__ = ["direct_eigenrays", "swell_bounce", "swell_tubes", "swell_up_legs", "arc_start_at", "backproject", "DeviceBvh", "cuda_available", "lbvh_boxes", "lbvh_children", "morton_codes", "traverse_cpu", "EIGEN_WIDTH", "M_COS_I", "M_COS_S", "M_EXT", "M_PHI", "M_T", "M_U2", "M_W", "M_XUP", "MIX_WIDTH", "curved_mixed", "surface_eigenrays", "surface_reach", "NO_LAYOUT", "HIT_WIDTH", "RAY_WIDTH", "S_L", "STATE_WIDTH", "arc_advance", "arc_chord", "arc_echoes", "arc_land", "arc_start", "CACHE_WIDTH", "NODE_WIDTH", "REFIT_MIN_COS", "REFIT_REL_TOL", "cos_sin", "elevation_density", "fan_echoes", "fan_rays",
-           "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "splat_rows",
+           "frozen_scatterers", "gather_nodes", "label_rows", "count_lit", "merge_lit", "mixed_legs", "two_bounce", "visibility_legs", "njit", "max_threads", "num_threads", "set_num_threads", "place_rows", "probe_rays", "prange", "speckle_block", "speckle_block_shared", "splat_rows",
            "splat_table", "G_HB", "G_HS", "G_NB", "G_NS", "G_S0", "G_B0", "G_STRIP", "GLINT_WIDTH", "glint_rays",
            "swell_glints", "swell_launch", "swell_paths", "swell_surface_hits", "_sinc", "sinc_rows",
            "beam_cosines", "weigh_lines", "weigh_fan", "weigh_rays", "weigh_pairs", "launch_body",

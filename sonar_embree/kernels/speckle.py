@@ -6,6 +6,7 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
+from .rays import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6
 from .splat import _splat_one
 
 #: splitmix64 constants (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014).
@@ -497,20 +498,125 @@ def _splat_scatterers(out, j, h, n_sub, base, t_mean, spread, t_lo, t_hi, shift,
         _splat_one(out, j, r_env * rate_hz, a, table, table_start, table_rate)
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _beam_on(echoes, b, n_ch, nodes_t, key_t, q, cell_m, tx):
+    """Put the along-track beam at node q's own s into its weight (:func:`_node_beam`; W and M2 scaled alike, so
+    σ² = M2/W stays); whether the node radiates at all."""
+    beam = _node_beam(echoes, n_ch * b + key_t[q, 0], key_t[q, 1], key_t[q, 2], key_t[q, 3], cell_m, tx)
+    if beam != 1.0:
+        nodes_t[q, 0] *= beam
+        nodes_t[q, 2] *= beam
+    return beam > 0.0
+
+
 @njit(cache=True, nogil=True)
 def _emit_ping(b, n_ch, count, nodes_t, key_t, echoes, ends, n_rx, lattice, waveform, out_b):
     """Every node 0 … count − 1 of ping b's table into ``out_b`` (:func:`_emit_node`), each with the along-track
-    beam at its own s where the echoes have strips (:func:`_node_beam`), the ping's ends
+    beam at its own s where the echoes have strips (:func:`_beam_on`), the ping's ends
     (:data:`~sonar_embree.kernels.args.PathEnds`) taken once (views made once per ping, not per node)."""
     tx, rx, v_rx, ref, time_per_m = ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m
-    cell_m = lattice.cell_m
     for q in range(count):
-        beam = _node_beam(echoes, n_ch * b + key_t[q, 0], key_t[q, 1], key_t[q, 2], key_t[q, 3], cell_m, tx)
-        if beam != 1.0:                      # W and M2 scaled alike: the weight takes the beam, σ² = M2/W stays
-            nodes_t[q, 0] *= beam
-            nodes_t[q, 2] *= beam
-        if beam > 0.0:
+        if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, tx):
             _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def turn(x):
+    """e^(−j2π·x) for 0 ≤ x < 1 without libm: x − n/4 (n the nearest quarter, exact) times 2π, then fdlibm's sine
+    and cosine polynomials on |y| ≤ π/4 (kernels/rays.py) and the quarter turn n·π/2 by swapping and signs. Within
+    4·10⁻¹⁶ of NumPy's (tests/kernels/test_kernels.py), at a fifth of the time of a sine and a cosine."""
+    n = math.floor(4.0 * x + 0.5)
+    y = 2.0 * math.pi * (x - 0.25 * n)
+    z = y * y
+    sp = y + y * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    h = 0.5 * z
+    w = 1.0 - h
+    cp = w + (((1.0 - w) - h) + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+    q = int(n)
+    odd = (q & 1) == 1
+    return complex((1 - 2 * (((q + 1) >> 1) & 1)) * (sp if odd else cp),   # quarter turns, without a branch
+                   (2 * ((q >> 1) & 1) - 1) * (cp if odd else sp))
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _node_impulses(nodes, q, h, n_sub, rate, amps, where):
+    """Node q's ``n_sub`` frozen scatterers (hash h) on the reference path: amplitude √(W/n_sub)·g into ``amps`` and
+    envelope time × ``rate`` into ``where`` (:func:`_splat_scatterers`' times, without a waveform)."""
+    w, t_mean = nodes[q, 0], nodes[q, 1]
+    spread = math.sqrt(3.0) * math.sqrt(max(nodes[q, 2] / w, 0.0))
+    amp = math.sqrt(w / n_sub)
+    for sub in range(n_sub):
+        g, v = _frozen(h, sub, n_sub)
+        amps[sub] = amp * g
+        where[sub] = min(max(t_mean + spread * (2.0 * v - 1.0), nodes[q, 3]), nodes[q, 4]) * rate
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, out, scratch):
+    """Node q heard by each of its channel's receivers (:func:`speckle_block_shared`): its scatterers once
+    (:func:`_node_impulses`), every receiver's phase and delay at once (:func:`_receiver_turns`), then each
+    scatterer as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs)."""
+    amps, where, phase, delay = scratch
+    ch, ix, iy, iz = node_key[q, 0], node_key[q, 1], node_key[q, 2], node_key[q, 3]
+    _node_impulses(nodes, q, _node_hash(lattice.seed, ix, iy, iz), lattice.n_sub, rate, amps, where)
+    _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay)
+    n_rx = phase.shape[0]
+    for k in range(n_rx):
+        for sub in range(amps.shape[0]):
+            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub])
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay):
+    """For node (i, j, k) of channel ch and every receiver k of it, in a loop that vectorises: ``phase[k]`` =
+    e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ) and ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m
+    × ``rate`` (grid steps), the ping's ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m)."""
+    tx, rx, vel, ref, time_per_m = ends_b
+    cell_m = lattice.cell_m
+    x0, y0, z0 = (ijk[0] * cell_m - vel[0] * t_mean, ijk[1] * cell_m - vel[1] * t_mean,
+                  ijk[2] * cell_m - vel[2] * t_mean)
+    d_tx = _distance(ijk[0], ijk[1], ijk[2], cell_m, tx)
+    d_ref = math.sqrt((x0 - ref[0]) ** 2 + (y0 - ref[1]) ** 2 + (z0 - ref[2]) ** 2)
+    n_rx = phase.shape[0]
+    for k in range(n_rx):
+        j = ch * n_rx + k
+        d_rx = math.sqrt((x0 - rx[j, 0]) ** 2 + (y0 - rx[j, 1]) ** 2 + (z0 - rx[j, 2]) ** 2)
+        cycles = (d_tx + d_rx) / lattice.wavelength_m
+        phase[k] = turn(cycles - math.floor(cycles))              # x − ⌊x⌋ = x % 1.0, exactly
+        delay[k] = (d_rx - d_ref) * time_per_m * rate
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _add_impulse(out, j, x, a):
+    """An impulse of amplitude a at time x (in 1/S sample, S = out.shape[1] a power of two) into row j of ``out``
+    (rows, S, n): weights 1 − f and f (f = x − ⌊x⌋) at ⌊x⌋ and ⌊x⌋ + 1, each index i in sub-row i mod S of sample
+    ⌊i/S⌋ (dropped outside the record)."""
+    steps, n = out.shape[1], out.shape[2]
+    shift = _log2(steps)
+    i = int(math.floor(x))
+    f = x - i
+    for ii, c in ((i, a * (1.0 - f)), (i + 1, a * f)):
+        whole = ii >> shift
+        if 0 <= whole < n:
+            out[j, ii - (whole << shift), whole] += c
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _log2(steps):
+    """log2 of a power of two."""
+    k = 0
+    while (1 << k) < steps:
+        k += 1
+    return k
+
+
+@njit(cache=True, nogil=True)
+def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rate, out_b, scratch):
+    """:func:`_emit_ping` with one emission per node for all its receivers (:func:`_emit_node_shared`)."""
+    ends_b = (ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m)
+    for q in range(count):
+        if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, ends_b[0]):
+            _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, out_b, scratch)
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -584,4 +690,42 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
                 status[b] = -1
                 continue
             _emit_ping(b, n_ch, count, nodes[t], node_key[t], echoes, ends, n_rx, lattice, waveform, out[b])
+            status[b] = 1
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
+    """:func:`speckle_block` for receiver arrays in baseband: every node's scatterers drawn once for all receivers,
+    as impulses whose fractional delays the caller applies in the frequency domain.
+
+    The same gather and nodes; each node's ``n_sub`` scatterers take their amplitude √(W/n_sub)·g and envelope time
+    t once (:func:`_node_impulses`); each receiver adds them times its own phase e^(−j2π·(|X − tx| + |X − rx|)/λ)
+    at t + (|X − rx| − |X − rx_ref|)·time_per_m as impulses on a grid of 1/S sample, split linearly between the
+    two nearest grid times (:func:`_add_impulse`). ``out`` (pings, channels·n_rx, S, n_samples) complex128 holds
+    grid time i in sub-row i mod S of sample ⌊i/S⌋: sub-row s is still to be delayed by s/S sample, and the
+    waveform to be applied (both once per row by FFT, :func:`sonar_embree.signal.synthesis.delayed_sum`). Of
+    ``waveform`` only ``rate_hz`` is read; its carrier phase must be 0 (baseband). Cost: one gather, the scatterers
+    once and 2·n_sub writes per receiver and node, where :func:`speckle_block` splats every scatterer's tabulated
+    waveform once per receiver.
+    """
+    cell_m = lattice.cell_m
+    slots, epochs, nodes, node_key, caches = tables
+    n_p = ends.tx.shape[0]
+    n_ch = (echoes.ray_start.shape[0] - 1) // max(n_p, 1)
+    n_rx = out.shape[1] // max(n_ch, 1)
+    n_t = slots.shape[0]
+    for t in prange(n_t):
+        scratch = (np.zeros(lattice.n_sub, dtype=np.complex128), np.zeros(lattice.n_sub),
+                   np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx))
+        for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
+            if status[b] != 0:
+                continue
+            epochs[t] += 1
+            count = _gather_ping(b, n_ch, echoes, ends.tx[b], cell_m, slots[t], epochs[t], nodes[t], node_key[t],
+                                 caches[t])
+            if count < 0:
+                status[b] = -1
+                continue
+            _emit_ping_shared(b, n_ch, count, nodes[t], node_key[t], echoes, ends, lattice,
+                              waveform.rate_hz * out.shape[2], out[b], scratch)
             status[b] = 1

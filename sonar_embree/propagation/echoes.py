@@ -126,3 +126,17 @@ def select(e: Echoes, keep: np.ndarray) -> Echoes:
 
     return Echoes(e.n_channels, start, e.travel_time_s[keep], e.extent_s[keep], e.weight[keep], part(e.point_m),
                   part(e.object_id), part(e.path), e.along, part(e.on_strip))
+
+
+def ping_slice(e: Echoes, a: int, b: int) -> Echoes:
+    """The echoes of the block's pings a … b − 1 (rows a·channels … b·channels − 1), offsets from 0."""
+    r0, r1 = a * e.n_channels, b * e.n_channels
+    i0, i1 = int(e.ray_start[r0]), int(e.ray_start[r1])
+
+    def part(x):
+        return x[i0:i1] if x.shape[0] == e.weight.shape[0] else x
+
+    along = None if e.along is None else AlongTrack(e.along.axis_rad[r0:r1], e.along.gain[r0:r1], e.along.s0,
+                                                    e.along.step)
+    return Echoes(e.n_channels, e.ray_start[r0:r1 + 1] - i0, e.travel_time_s[i0:i1], e.extent_s[i0:i1],
+                  e.weight[i0:i1], part(e.point_m), part(e.object_id), part(e.path), along, part(e.on_strip))

@@ -23,7 +23,8 @@ from ..kernels.args import Lattice, NodeTables, PathEnds, SpeckleEchoes, Wavefor
 from ..propagation import multipath
 from . import processing, pulses
 from ..config import Pulse, SignalChain
-from ..propagation.echoes import Echoes, merged, select
+from ..propagation.clutter import PointEchoes
+from ..propagation.echoes import Echoes, merged, ping_slice, select
 from .processing import convolve_time
 
 
@@ -82,7 +83,9 @@ class ScattererLattice:
         moving at ``vel_rx`` (m/s per ping; default at rest) during the ping. ``pos_rx`` may instead hold a
         receiver per output channel, (pings, channels, 3): an array's elements, each with its own path; then
         ``rx_ref`` (pings, 3) is the receiver the echoes' times were made for and ``time_per_m`` (1/c, s/m) delays
-        each element's envelope by its path's difference (:func:`kernels.speckle_block`).
+        each element's envelope by its path's difference (:func:`kernels.speckle_block`). An ``out`` of shape
+        (pings, channels, S, n) takes the elements from one emission per node, sub-row s still to be delayed by
+        s/S sample (:func:`kernels.speckle_block_shared`, :func:`delayed_sum`).
         """
         pos_world = np.ascontiguousarray(pos_world)
         pos_rx = pos_world if pos_rx is None else np.ascontiguousarray(pos_rx)
@@ -93,8 +96,9 @@ class ScattererLattice:
         status = np.zeros(pos_world.shape[0], dtype=np.int64)
         if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
             self._alloc(self.slots.shape[0], self.slots.shape[1])
+        kernel = kernels.speckle_block_shared if out.ndim == 4 else kernels.speckle_block
         while True:
-            kernels.speckle_block(
+            kernel(
                 SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
                               *strips(e)),
                 PathEnds(pos_world, pos_rx, vel_rx, ref, float(time_per_m)),
@@ -239,8 +243,8 @@ class _Ends:
 
 def _element_points(e: Echoes, row, cycles, ends: _Ends, sonar, n_out_ch: int):
     """The clutter's point echoes heard by every element: (echo index, output row, travel time (s), phase (cycles)),
-    one per echo and element, each element's path |X − p_k| replacing the return leg |X − p_tx| (docs/physics.md
-    §18a)."""
+    one per echo and element, each element's path |X − p_k − v·τ| replacing the return leg |X − p_tx| (docs/physics.md
+    §18a; τ the echo's monostatic time, v the block's velocity or 0)."""
     n_ch = (e.ray_start.shape[0] - 1) // ends.pos_world.shape[0]
     n_el = n_out_ch // n_ch
     ping, ch = row // n_ch, row % n_ch
@@ -248,11 +252,86 @@ def _element_points(e: Echoes, row, cycles, ends: _Ends, sonar, n_out_ch: int):
     d_ref = np.linalg.norm(x - ends.pos_world[ping], axis=1)
     k = np.arange(n_el)
     rx = ends.receivers[ping[:, None], ch[:, None] * n_el + k]          # (n, elements, 3)
+    if ends.vel_world is not None:                                      # where each element is when the echo arrives
+        rx = rx + (ends.vel_world[ping] * e.travel_time_s[:, None])[:, None, :]
     extra = np.linalg.norm(x[:, None, :] - rx, axis=2) - d_ref[:, None]  # (n, elements) m
     out_row = (ping[:, None] * n_out_ch + ch[:, None] * n_el + k).ravel()
     idx = np.repeat(np.arange(row.size), n_el)
     times = (e.travel_time_s[:, None] + extra / sonar.sound_speed_m_s).ravel()
     return idx, out_row, times, (cycles[:, None] - extra / sonar.wavelength_m).ravel() % 1.0
+
+
+def _moving_points(e: Echoes, row, cycles, ends: _Ends, sonar):
+    """The clutter's point echoes heard by a receiver moving at the block's velocity v during the ping: (travel time
+    (s), phase (cycles)), the return leg |X − p − v·τ| replacing |X − p| (τ the echo's monostatic time; the lattice's
+    nodes take the same leg for their phase, docs/physics.md §16)."""
+    ping = row // e.n_channels
+    x = e.point_m + ends.origin_m
+    p = ends.pos_world[ping]
+    extra = np.linalg.norm(x - p - ends.vel_world[ping] * e.travel_time_s[:, None], axis=1) - np.linalg.norm(x - p,
+                                                                                                             axis=1)
+    return e.travel_time_s + extra / sonar.sound_speed_m_s, (cycles - extra / sonar.wavelength_m) % 1.0
+
+
+def _ends_of(ends: _Ends, a: int, b: int) -> _Ends:
+    """The path ends of the block's pings a … b − 1."""
+    return _Ends(ends.origin_m, ends.pos_world[a:b], None if ends.vel_world is None else ends.vel_world[a:b],
+                 None if ends.receivers is None else ends.receivers[a:b])
+
+
+def _cycles(points, a: int, b: int):
+    """The clutter points' phases (cycles) of the block's pings a … b − 1."""
+    e = points.echoes
+    return points.cycles[int(e.ray_start[a * e.n_channels]):int(e.ray_start[b * e.n_channels])]
+
+
+#: A receiver array's scatterers are put on a grid of 1/ARRAY_DELAY_STEPS sample (each split linearly between its
+#: two nearest grid times) and the fractions delayed once per row in the frequency domain (:func:`delayed_sum`):
+#: within 0.003 dB and 0.001 rad of per-element synthesis at a compressed point's peak, −50 dB of the record's energy
+#: (the Kaiser-sinc table's own departure from an exact fractional delay; docs/benchmarks.md, "Receiver arrays").
+#: A power of two.
+ARRAY_DELAY_STEPS = 16
+#: Memory of the sub-rows a block of shared array synthesis fills at once, bytes (:func:`shared_chunk_pings`).
+SHARED_BYTES = 1 << 27
+
+
+def shared_chunk_pings(rows: int, n: int) -> int:
+    """How many pings of ``rows`` rows of ``n`` samples fill :data:`SHARED_BYTES` of sub-rows (at least one per
+    thread)."""
+    per_ping = rows * ARRAY_DELAY_STEPS * n * 16
+    return max(SHARED_BYTES // per_ping, kernels.num_threads(), 1)
+
+
+def delayed_sum(shared, plain, pulse, lead: int):
+    """Σ_s shared[..., s, :] delayed by s/S sample, plus ``plain``, convolved with ``pulse`` (``lead`` its taps before
+    delay 0), in one pass through the frequency domain: the delays are exact for a band-limited signal (a phase ramp
+    e^(−j2πν·s/S) over the FFT's frequencies ν, cycles per sample).
+
+    Parameters
+    ----------
+    shared : (pings, rows, S, n) complex
+        Impulses on a grid of 1/S sample, sub-row s still to be delayed by s/S (:func:`kernels.speckle_block_shared`).
+    plain : (pings, rows, n) complex
+        Band-limited impulses at their times (the clutter's points).
+    pulse : (n_p,) complex
+        The baseband pulse p̃(k/fs).
+    lead : int
+        Samples the impulses were delayed by (the output starts there).
+
+    Returns
+    -------
+    (pings, rows, n) complex
+        ``y[n] = Σ_k pulse[k]·x[n + lead − k]`` of the delayed sum x (:func:`~.processing.convolve_time`).
+    """
+    from scipy import fft as sfft
+
+    n, steps = plain.shape[-1], shared.shape[-2]
+    n_fft = sfft.next_fast_len(n + pulse.shape[0] + IMPULSE_HALF_WIDTH, real=False)
+    f = np.fft.fftfreq(n_fft)                                    # cycles per sample
+    ramp = np.exp(-2j * np.pi * np.outer(np.arange(steps) / steps, f))
+    x = np.einsum("prsf,sf->prf", sfft.fft(shared, n_fft, axis=-1), ramp) + sfft.fft(plain, n_fft, axis=-1)
+    y = sfft.ifft(x * sfft.fft(pulse, n_fft), axis=-1)
+    return np.ascontiguousarray(y[..., lead:lead + n])
 
 
 class SpeckleSynthesis:
@@ -320,7 +399,8 @@ class SpeckleSynthesis:
                 delay_s: float = 0.0) -> None:
         """Add the clutter's point echoes to ``out`` (pings, channels, n) complex: √w·e^(j2π·cycles), times the
         carrier's e^(j2π·f0·t) on the carrier, splatted with the waveform table at t + ``delay_s``; with a receiver
-        array, each element's at its own delay and phase (:func:`_element_points`)."""
+        array, each element's at its own delay and phase (:func:`_element_points`); a moving receiver hears each
+        point where it is when the echo arrives (:func:`_moving_points`)."""
         if points is None or points.echoes.weight.size == 0:
             return
         e = points.echoes
@@ -329,6 +409,8 @@ class SpeckleSynthesis:
         if ends.receivers is not None:
             idx, row, times, cycles = _element_points(e, row, cycles, ends, self.sonar, out.shape[1])
             weight = weight[idx]
+        elif ends.vel_world is not None:
+            times, cycles = _moving_points(e, row, cycles, ends, self.sonar)
         amp = np.sqrt(weight) * np.exp(2j * np.pi * cycles)
         if phase_cycles_per_s != 0.0:
             amp = amp * np.exp(2j * np.pi * ((phase_cycles_per_s * times) % 1.0))
@@ -339,13 +421,28 @@ class SpeckleSynthesis:
     def _impulses(self, e: Echoes, ends: "_Ends", out, points=None) -> None:
         """A long pulse in baseband: the scatterers as band-limited impulses (delayed by the interpolator's half
         width so that none loses its early taps), then one FFT convolution with p̃(n/fs) per block, added to
-        ``out``."""
+        ``out``. A receiver array's elements share each node's scatterers, their delays applied by FFT
+        (:func:`kernels.speckle_block_shared`, :func:`delayed_sum`), a few pings at a time
+        (:func:`shared_chunk_pings`); a receiver per channel keeps the splat and its bits."""
         fs, lead = self.sonar.sample_rate_hz, IMPULSE_HALF_WIDTH
-        buf = np.zeros(out.shape[:-1] + (out.shape[-1] + lead,), dtype=np.complex128)
         late = dataclasses.replace(e, travel_time_s=e.travel_time_s + lead / fs)
-        self._lattice(late, ends, fs, 0.0, buf)
-        self._points(points, ends, fs, 0.0, buf, lead / fs)
-        out += convolve_time(buf, self.tables.baseband_pulse, lead=lead)[..., :out.shape[-1]]
+        n_b, rows, n = out.shape
+        if ends.receivers is None or rows == (e.ray_start.shape[0] - 1) // max(n_b, 1):  # a receiver per channel
+            buf = np.zeros((n_b, rows, n + lead), dtype=np.complex128)
+            self._lattice(late, ends, fs, 0.0, buf)
+            self._points(points, ends, fs, 0.0, buf, lead / fs)
+            out += convolve_time(buf, self.tables.baseband_pulse, lead=lead)[..., :n]
+            return
+        chunk = shared_chunk_pings(rows, n + lead)
+        for a in range(0, n_b, chunk):
+            b = min(a + chunk, n_b)
+            sub, sub_ends = ping_slice(late, a, b), _ends_of(ends, a, b)
+            shared = np.zeros((b - a, rows, ARRAY_DELAY_STEPS, n + lead), dtype=np.complex128)
+            buf = np.zeros((b - a, rows, n + lead), dtype=np.complex128)
+            self._lattice(sub, sub_ends, fs, 0.0, shared)
+            sub_points = None if points is None else PointEchoes(ping_slice(points.echoes, a, b), _cycles(points, a, b))
+            self._points(sub_points, sub_ends, fs, 0.0, buf, lead / fs)
+            out[a:b] += delayed_sum(shared, buf, self.tables.baseband_pulse, lead)[..., :n]
 
     def _lattice(self, e: Echoes, ends: "_Ends", rate_hz: float, phase_cycles_per_s: float, out) -> None:
         """The lattice's echoes of every path: each its own gather and phase, the frozen scatterers shared; the

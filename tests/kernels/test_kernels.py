@@ -409,6 +409,52 @@ def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
 
 
+@pytest.mark.parametrize("n_tables", [1, 3])
+def test_speckle_block_shared_matches_naive(rng, n_tables):
+    """Three receivers per channel from one draw of each node's scatterers: impulses on a grid of 1/8 sample, split
+    linearly, each receiver at its own phase and delay, against the twin; with along-track strips."""
+    n_p, n = 3, 600
+    ray_start = np.linspace(0, n, 2 * n_p + 1).astype(np.int64)
+    origin = np.array([512_000.0, 5_412_000.0, -20.0])
+    pts = rng.uniform(-1, 1, (n, 3)) * [2, 2, 0.2]
+    w, r, ext = rng.uniform(0, 1, n), rng.uniform(10, 12, n), rng.uniform(0, 0.05, n)
+    pos = origin + rng.uniform(-1, 1, (n_p, 3)) + [0, 0, 10]
+    receivers = pos[:, None, :] + rng.uniform(-0.3, 0.3, (n_p, 6, 3))
+    vel = rng.uniform(-0.1, 0.1, (n_p, 3))
+    axis = np.tile([0.05, 0.01, 0.0], (2 * n_p, 1))
+    strips = (axis, rng.uniform(0.2, 1.0, (2 * n_p, 41)), -1.0, 0.05, np.zeros(0, dtype=bool))
+    table = np.ones(3)                                             # not read: the shared kernel writes impulses
+    out, status = np.zeros((n_p, 6, 8, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
+    kernels.speckle_block_shared(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *strips),
+                                 PathEnds(pos, receivers, vel, pos, 2.5),
+                                 Lattice(7, 0.1, 0.00375, 4), Waveform(table, -1.0, 1.0, 16.0, 0.0),
+                                 NodeTables(*_speckle_tables(n_tables, 1 << 16)), status, out)
+    assert np.all(status == 1)
+    ref = naive.speckle_block_shared(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 4,
+                                     np.zeros_like(out), receivers, vel, 2.5, strips=strips)
+    assert np.count_nonzero(ref) > 1000 and not np.allclose(ref[:, 0], ref[:, 1])   # the elements differ
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
+
+
+def test_turn_is_the_unit_phasor_of_minus_two_pi_x(rng):
+    """kernels.speckle.turn (fdlibm's polynomials after an exact reduction to the nearest quarter turn) against
+    NumPy's e^(−j2πx) on [0, 1), the quarter turns and their neighbours included."""
+    from numba import njit
+
+    from sonar_embree.kernels.speckle import turn
+
+    @njit
+    def run(x, out):
+        for i in range(x.shape[0]):
+            out[i] = turn(x[i])
+
+    q = np.arange(5) / 4
+    x = np.concatenate([rng.uniform(0, 1, 200_000), q[:4], np.nextafter(q[1:], 0), np.nextafter(q[:4], 1)])
+    out = np.empty(x.shape, dtype=np.complex128)
+    run(x, out)
+    assert np.abs(out - np.exp(-2j * np.pi * x)).max() < 1e-15
+
+
 def test_sinc_rows_matches_libm_sin_over_x(rng):
     """kernels.sinc_rows (fdlibm's polynomials, vectorised) against NumPy's sin(x)/x: within 3 ulp, and within
     1e-21 of the sine near its zeros (the two-term reduction's residue of π/2), over the beams' argument range;
