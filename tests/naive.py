@@ -948,19 +948,20 @@ def curved_mixed(hits, launch, poses, normals, medium, weighting):
     return out
 
 
-def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels, fwd=None, max_u=2.0):
+def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels, fwd=None, max_u=2.0, vel=None):
     """Twin of kernels.backproject: every pixel's sum over pings and elements, vectorised over pixels with
     np.interp (zero outside the record), each ping and element kept where the mean of its two along-track
-    direction cosines is within ``max_u``."""
+    direction cosines is within ``max_u``; the element moved on by vel·2|x − tx|/c (vel None: at rest)."""
     n_p, n_k, n_s = data.shape
     out = np.zeros(pixels.shape[0], dtype=np.complex128)
     grid = t0_s + np.arange(n_s) / rate_hz
     fwd = np.tile([1.0, 0.0, 0.0], (n_p, 1)) if fwd is None else fwd
     for p in range(n_p):
         d_tx = np.linalg.norm(pixels - tx[p], axis=1)
+        moved = 0.0 if vel is None else vel[p] * (2.0 * d_tx / sound_speed_m_s)[:, None]
         for k in range(n_k):
-            d_rx = np.linalg.norm(pixels - rx[p, k], axis=1)
-            u = 0.5 * ((pixels - tx[p]) @ fwd[p] / d_tx + (pixels - rx[p, k]) @ fwd[p] / d_rx)
+            d_rx = np.linalg.norm(pixels - rx[p, k] - moved, axis=1)
+            u = 0.5 * ((pixels - tx[p]) @ fwd[p] / d_tx + (pixels - rx[p, k] - moved) @ fwd[p] / d_rx)
             tau = (d_tx + d_rx) / sound_speed_m_s
             inside = (tau >= grid[0]) & (tau < grid[-1]) & (np.abs(u) <= max_u)
             s = np.interp(tau, grid, data[p, k].real) + 1j * np.interp(tau, grid, data[p, k].imag)

@@ -17,9 +17,10 @@ def _dist(a, b, m):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, fwd, max_u, pixels, out):
-    """Time-domain backprojection: ``out[m] = Σ_p Σ_k s_pk(τ)·e^(j2π·f0·τ)``, τ = (|x_m − tx_p| + |x_m − rx_pk|)/c,
-    over the pings and elements that see x_m within ``max_u`` of broadside.
+def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, vel, fwd, max_u, pixels, out):
+    """Time-domain backprojection: ``out[m] = Σ_p Σ_k s_pk(τ)·e^(j2π·f0·τ)``, τ = (|x_m − tx_p| + |x_m − r_pk|)/c,
+    r_pk = rx_pk + v_p·2|x_m − tx_p|/c the element where the echo of x_m reaches it (motion during the ping; v = 0:
+    stop-and-hop), over the pings and elements that see x_m within ``max_u`` of broadside.
 
     s_pk is the complex baseband record of ping p and element k, read at (τ − t0)·fs by linear interpolation
     (zero outside the record); the phase is taken as 2π·(f0·τ mod 1). A ping and element count only where the
@@ -36,7 +37,9 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, fwd, m
     tx : (pings, 3) float64
         The transmitter's position at each ping, m.
     rx : (pings, elements, 3) float64
-        Each element's position when it receives, m.
+        Each element's position at the ping's time, m.
+    vel : (pings, 3) float64
+        The elements' velocity during each ping, m/s (zeros: stop-and-hop).
     fwd : (pings, 3) float64
         Each ping's forward (along-track) unit vector.
     max_u : float
@@ -54,11 +57,13 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, fwd, m
             d_tx = _dist(x, tx, p)
             u_tx = ((x[0] - tx[p, 0]) * fwd[p, 0] + (x[1] - tx[p, 1]) * fwd[p, 1]
                     + (x[2] - tx[p, 2]) * fwd[p, 2]) / d_tx
+            lag = 2.0 * d_tx / sound_speed_m_s                     # the monostatic time, as the records take it
+            mx, my, mz = x[0] - vel[p, 0] * lag, x[1] - vel[p, 1] * lag, x[2] - vel[p, 2] * lag
             rx_p = rx[p]
             for k in range(n_k):
-                d_rx = _dist(x, rx_p, k)
-                u = 0.5 * (u_tx + ((x[0] - rx_p[k, 0]) * fwd[p, 0] + (x[1] - rx_p[k, 1]) * fwd[p, 1]
-                                   + (x[2] - rx_p[k, 2]) * fwd[p, 2]) / d_rx)
+                ex, ey, ez = mx - rx_p[k, 0], my - rx_p[k, 1], mz - rx_p[k, 2]
+                d_rx = math.sqrt(ex * ex + ey * ey + ez * ez)
+                u = 0.5 * (u_tx + (ex * fwd[p, 0] + ey * fwd[p, 1] + ez * fwd[p, 2]) / d_rx)
                 if abs(u) > max_u:
                     continue
                 tau = (d_tx + d_rx) / sound_speed_m_s

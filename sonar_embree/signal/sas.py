@@ -20,12 +20,12 @@ from scipy.spatial import cKDTree
 from .. import kernels
 from ..errors import ConfigError
 from ..raycast import RayCaster
-from ..validation import check_number
+from ..validation import check_bool, check_number
 
 
 def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, sound_speed_m_s: float, tx, rx,
                          x_m, y_m, z_m: float = 0.0, upsample: int = 4, forward=None,
-                         max_u: float | None = None) -> np.ndarray:
+                         max_u: float | None = None, velocity=None) -> np.ndarray:
     """The backprojected image of element records on the grid ``x_m`` × ``y_m`` at height ``z_m``.
 
     Parameters
@@ -79,7 +79,11 @@ def backprojection_image(data, t0_s: float, rate_hz: float, carrier_hz: float, s
     band = 2.0 if max_u is None else float(max_u)
     if not band > 0:
         raise ConfigError(f"backprojection_image: max_u must be > 0, got {max_u!r}")
-    kernels.backproject(d, float(t0_s), float(rate_hz), float(carrier_hz), float(sound_speed_m_s), tx, rx,
+    vel = np.zeros_like(tx) if velocity is None else np.ascontiguousarray(velocity, dtype=np.float64)
+    if vel.shape != tx.shape or not np.all(np.isfinite(vel)):
+        raise ConfigError(f"backprojection_image: velocity must be finite (pings, 3) = {tx.shape} m/s, got "
+                          f"{vel.shape}")
+    kernels.backproject(d, float(t0_s), float(rate_hz), float(carrier_hz), float(sound_speed_m_s), tx, rx, vel,
                         np.ascontiguousarray(fwd), band, pixels, out)
     return out.reshape(xx.shape)
 
@@ -127,7 +131,7 @@ def _checked_selection(values, n: int, what: str) -> np.ndarray:
 
 
 def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard", positions_m=None,
-                 elements=None, pings=None, upsample: int = 4, max_u="auto") -> np.ndarray:
+                 elements=None, pings=None, upsample: int = 4, max_u="auto", motion: bool = True) -> np.ndarray:
     """The backprojected image of a simulated receiver-array record (``Record.element_data``) on a world grid.
 
     Parameters
@@ -156,12 +160,14 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
         centres (tx + rx)/2 of consecutive pings and elements along track (D/2 apart for an array of elements D
         long and D apart whose pings advance N·D/2: a band of ±λ/(2D), the along-track resolution D/2); None:
         every ping and element, ambiguities included.
+    motion : bool
+        Undo the motion during the ping of a trajectory with a velocity: each element taken where it is when the
+        echo of the pixel reaches it, v·2R/c on (the records' own convention, docs/physics.md §16). False, or a
+        trajectory without a velocity: stop-and-hop, each element where it is at the ping's time.
 
     Returns
     -------
     (ny, nx) complex128
-        Stop-and-hop: each element is taken where it is at the ping's time. Motion during the ping (a trajectory
-        with a velocity) is not undone: its echoes reached elements that had moved on by v·τ.
     """
     arr = record.sonar.receive_array
     if record.element_data is None or arr is None:
@@ -185,8 +191,11 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
         if max_u != "auto":
             raise ConfigError(f"record_image: max_u must be a number, 'auto' or None, got {max_u!r}")
         max_u = unaliased_band(pos[p], rx[p][:, k], fwd, s.wavelength_m)
+    check_bool("record_image", "motion", motion)
+    vel = record.trajectory.velocity_m_s
     return backprojection_image(np.asarray(record.element_data[p, ch])[:, k], 0.0, s.sample_rate_hz, s.frequency_hz,
-                                s.sound_speed_m_s, pos[p], rx[p][:, k], x_m, y_m, z_m, upsample, fwd, max_u)
+                                s.sound_speed_m_s, pos[p], rx[p][:, k], x_m, y_m, z_m, upsample, fwd, max_u,
+                                None if vel is None or not motion else vel[p])
 
 
 def unaliased_band(tx, rx, fwd, wavelength_m: float) -> float:

@@ -51,11 +51,15 @@ def test_the_kernel_matches_its_twin():
     px = np.column_stack([rng.uniform(-2, 2, 300), rng.uniform(3, 6, 300), np.zeros(300)])
     out = np.empty(300, dtype=np.complex128)
     fwd = np.tile([1.0, 0.0, 0.0], (5, 1))
-    for max_u in (2.0, 0.3):                                       # every ping and element, then a band
-        kernels.backproject(data, 0.001, 50e3, F0, C, tx, rx, fwd, max_u, px, out)
-        want = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, max_u)
+    vel = rng.uniform(-3, 3, (5, 3))
+    for max_u, v in ((2.0, None), (0.3, None), (0.3, vel)):     # every ping and element, a band, moving
+        kernels.backproject(data, 0.001, 50e3, F0, C, tx, rx, np.zeros((5, 3)) if v is None else v, fwd, max_u,
+                            px, out)
+        want = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, max_u, vel=v)
         np.testing.assert_allclose(out, want, rtol=1e-9, atol=1e-9)
     assert np.count_nonzero(out) > 200
+    still = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, 0.3)
+    assert np.abs(out - still).max() > 0.1 * np.abs(still).max()                 # the motion matters
 
 
 def test_a_point_targets_image_has_the_closed_form_resolutions_and_side_lobe():
