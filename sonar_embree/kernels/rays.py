@@ -204,6 +204,16 @@ _C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.1359
 
 
 @njit(cache=True, nogil=True, inline='always')
+def sin_cos_poly(y):
+    """(sin y, cos y) for |y| ≤ π/4 by fdlibm's k_sin and k_cos polynomials (no branch: loops of it vectorise)."""
+    z = y * y
+    sp = y + y * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    h = 0.5 * z
+    w = 1.0 - h
+    return sp, w + (((1.0 - w) - h) + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+
+
+@njit(cache=True, nogil=True, inline='always')
 def _sinc_poly(x):
     """sin(x)/x without a branch, so that a loop of it vectorises: fdlibm's polynomials of sin and cos after the
     two-term Cody–Waite reduction y = |x| − n·π/2 (n·π/2 in 33 + 53 bits). Within 3 ulp of ``math.sin(x)/x`` for
@@ -212,11 +222,7 @@ def _sinc_poly(x):
     ax = abs(x)
     n = math.floor(ax * 0.6366197723675814 + 0.5)           # nearest multiple of π/2
     y = (ax - n * 1.57079632673412561417e+00) - n * 6.07710050650619224932e-11
-    z = y * y
-    sp = y + y * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    h = 0.5 * z
-    w = 1.0 - h
-    cp = w + (((1.0 - w) - h) + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+    sp, cp = sin_cos_poly(y)
     q = int(n)
     out = (1.0 - (q & 2)) * (cp if q & 1 else sp)
     tiny = ax < 1e-8

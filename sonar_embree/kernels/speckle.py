@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from ._numba import njit, prange
-from .rays import _C1, _C2, _C3, _C4, _C5, _C6, _S1, _S2, _S3, _S4, _S5, _S6
+from .rays import sin_cos_poly
 from .splat import _splat_one
 
 #: splitmix64 constants (Steele, Lea and Flood, "Fast splittable pseudorandom number generators", OOPSLA 2014).
@@ -526,12 +526,7 @@ def turn(x):
     and cosine polynomials on |y| ≤ π/4 (kernels/rays.py) and the quarter turn n·π/2 by swapping and signs. Within
     4·10⁻¹⁶ of NumPy's (tests/kernels/test_kernels.py), at a fifth of the time of a sine and a cosine."""
     n = math.floor(4.0 * x + 0.5)
-    y = 2.0 * math.pi * (x - 0.25 * n)
-    z = y * y
-    sp = y + y * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    h = 0.5 * z
-    w = 1.0 - h
-    cp = w + (((1.0 - w) - h) + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6))))))
+    sp, cp = sin_cos_poly(2.0 * math.pi * (x - 0.25 * n))
     q = int(n)
     odd = (q & 1) == 1
     return complex((1 - 2 * (((q + 1) >> 1) & 1)) * (sp if odd else cp),   # quarter turns, without a branch
@@ -619,6 +614,15 @@ def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rat
             _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, out_b, scratch)
 
 
+@njit(cache=True, nogil=True, inline='always')
+def _ping_nodes(b, t, n_ch, echoes, tx, cell_m, tables):
+    """Ping b's lattice nodes in hash table t (a new epoch of it, :func:`_gather_ping`): their count, or −1 when
+    the table is too small."""
+    slots, epochs, nodes, node_key, caches = tables
+    epochs[t] += 1
+    return _gather_ping(b, n_ch, echoes, tx, cell_m, slots[t], epochs[t], nodes[t], node_key[t], caches[t])
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
     """Speckle of a block of pings: rays → frozen lattice scatterers → delayed waveforms, one ping per task.
@@ -674,7 +678,7 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         Accumulator.
     """
     cell_m = lattice.cell_m
-    slots, epochs, nodes, node_key, caches = tables
+    slots, nodes, node_key = tables.slots, tables.nodes, tables.node_key
     n_p = ends.tx.shape[0]
     n_ch = (echoes.ray_start.shape[0] - 1) // max(n_p, 1)  # the echoes' channels; each heard by n_rx receivers
     n_rx = out.shape[1] // max(n_ch, 1)
@@ -683,9 +687,7 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
             if status[b] != 0:
                 continue
-            epochs[t] += 1
-            count = _gather_ping(b, n_ch, echoes, ends.tx[b], cell_m, slots[t], epochs[t], nodes[t], node_key[t],
-                                 caches[t])
+            count = _ping_nodes(b, t, n_ch, echoes, ends.tx[b], cell_m, tables)
             if count < 0:
                 status[b] = -1
                 continue
@@ -709,7 +711,7 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
     waveform once per receiver.
     """
     cell_m = lattice.cell_m
-    slots, epochs, nodes, node_key, caches = tables
+    slots, nodes, node_key = tables.slots, tables.nodes, tables.node_key
     n_p = ends.tx.shape[0]
     n_ch = (echoes.ray_start.shape[0] - 1) // max(n_p, 1)
     n_rx = out.shape[1] // max(n_ch, 1)
@@ -720,9 +722,7 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
             if status[b] != 0:
                 continue
-            epochs[t] += 1
-            count = _gather_ping(b, n_ch, echoes, ends.tx[b], cell_m, slots[t], epochs[t], nodes[t], node_key[t],
-                                 caches[t])
+            count = _ping_nodes(b, t, n_ch, echoes, ends.tx[b], cell_m, tables)
             if count < 0:
                 status[b] = -1
                 continue

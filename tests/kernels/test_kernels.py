@@ -385,17 +385,22 @@ def test_speckle_block_with_along_track_strips_matches_naive(rng, n_tables):
     assert np.abs(plain - ref).max() > 0.1 * np.abs(ref).max()          # the strips change the lattice
 
 
-@pytest.mark.parametrize("n_tables", [1, 3])
-def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
-    """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin."""
-    n_p, n = 3, 600
+def _array_case(rng, n_p=3, n=600):
+    """Echoes of ``n_p`` pings (two channels, ``n`` echoes) far from the origin, their transmitters and three
+    receivers per channel moving during the ping: (n_p, ray_start, origin, points, w, r, ext, pos, receivers, vel)."""
     ray_start = np.linspace(0, n, 2 * n_p + 1).astype(np.int64)
     origin = np.array([512_000.0, 5_412_000.0, -20.0])
     pts = rng.uniform(-1, 1, (n, 3)) * [2, 2, 0.2]
     w, r, ext = rng.uniform(0, 1, n), rng.uniform(10, 12, n), rng.uniform(0, 0.05, n)
     pos = origin + rng.uniform(-1, 1, (n_p, 3)) + [0, 0, 10]
     receivers = pos[:, None, :] + rng.uniform(-0.3, 0.3, (n_p, 6, 3))
-    vel = rng.uniform(-0.1, 0.1, (n_p, 3))
+    return n_p, ray_start, origin, pts, w, r, ext, pos, receivers, rng.uniform(-0.1, 0.1, (n_p, 3))
+
+
+@pytest.mark.parametrize("n_tables", [1, 3])
+def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
+    """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin."""
+    n_p, ray_start, origin, pts, w, r, ext, pos, receivers, vel = _array_case(rng)
     table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
     out, status = np.zeros((n_p, 6, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
     kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *NO_STRIPS),
@@ -413,14 +418,7 @@ def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
 def test_speckle_block_shared_matches_naive(rng, n_tables):
     """Three receivers per channel from one draw of each node's scatterers: impulses on a grid of 1/8 sample, split
     linearly, each receiver at its own phase and delay, against the twin; with along-track strips."""
-    n_p, n = 3, 600
-    ray_start = np.linspace(0, n, 2 * n_p + 1).astype(np.int64)
-    origin = np.array([512_000.0, 5_412_000.0, -20.0])
-    pts = rng.uniform(-1, 1, (n, 3)) * [2, 2, 0.2]
-    w, r, ext = rng.uniform(0, 1, n), rng.uniform(10, 12, n), rng.uniform(0, 0.05, n)
-    pos = origin + rng.uniform(-1, 1, (n_p, 3)) + [0, 0, 10]
-    receivers = pos[:, None, :] + rng.uniform(-0.3, 0.3, (n_p, 6, 3))
-    vel = rng.uniform(-0.1, 0.1, (n_p, 3))
+    n_p, ray_start, origin, pts, w, r, ext, pos, receivers, vel = _array_case(rng)
     axis = np.tile([0.05, 0.01, 0.0], (2 * n_p, 1))
     strips = (axis, rng.uniform(0.2, 1.0, (2 * n_p, 41)), -1.0, 0.05, np.zeros(0, dtype=bool))
     table = np.ones(3)                                             # not read: the shared kernel writes impulses
