@@ -287,8 +287,9 @@ def _cycles(points, a: int, b: int):
 
 #: A receiver array's scatterers are put on a grid of 1/ARRAY_DELAY_STEPS sample (each split linearly between its
 #: two nearest grid times) and the fractions delayed once per row in the frequency domain (:func:`delayed_sum`):
-#: within 0.003 dB and 0.001 rad of per-element synthesis at a compressed point's peak, −50 dB of the record's energy
-#: (the Kaiser-sinc table's own departure from an exact fractional delay; docs/benchmarks.md, "Receiver arrays").
+#: within 0.01 dB and 0.001 rad of per-element synthesis at a compressed peak (0.002–0.009 dB measured), −50 dB of
+#: the record's energy (the Kaiser-sinc table's own departure from an exact fractional delay; docs/benchmarks.md,
+#: "Receiver arrays").
 #: A power of two.
 ARRAY_DELAY_STEPS = 16
 #: Memory of the sub-rows a block of shared array synthesis fills at once, bytes (:func:`shared_chunk_pings`).
