@@ -581,6 +581,11 @@ class Material:
 #: 20 m off a 22° beam's track within 1 dB of its aimed-ray echo in every ping (issue 53; 3 dB with the 5.4° of the
 #: beam's own oversampled spacing).
 AZIMUTH_STEP_DEG = 1.5
+#: The same for a receive array spread along track (a SAS): lines 5 cm apart at 14.5 m, so that the speckle strips
+#: (R·ds along track) do not reach across a hole or shadow the image resolves; the SAS test's 0.8 m hole then images
+#: within 1 dB of a floor of exact point echoes (14.7 against 15.2 dB down; 9.4 dB at 1.5°), at 2–10 % more time
+#: per 16-element ping (docs/benchmarks.md, "Receiver arrays").
+ARRAY_AZIMUTH_STEP_DEG = 0.2
 
 
 @dataclass(frozen=True)
@@ -616,7 +621,8 @@ class FanSettings:
     max_step_deg : float or None
         Largest elevation step in degrees, wherever the scene is smooth.
     max_azimuth_step_deg : float or None
-        Largest angle between azimuth lines, degrees (default 1.5/quality): a wide beam (a 4 cm SAS element's 22°
+        Largest angle between azimuth lines, degrees (default 1.5/quality, and :data:`ARRAY_AZIMUTH_STEP_DEG`/quality
+        for a receive array spread along track): a wide beam (a 4 cm SAS element's 22°
         at 100 kHz) takes lines this close rather than its ``azimuth_oversample`` spacing, so a seabed patch a
         fraction of its footprint is sampled along track in every ping. Beams narrower than about 6° are unaffected.
     probe_step_deg : float or None

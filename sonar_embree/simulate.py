@@ -25,7 +25,7 @@ from .propagation.clutter import check_clutter, clutter_echoes
 from .propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
 from .propagation.volume import VolumeBeam, volume_density
 from .signal import processing, pulses
-from .config import Acquisition, FanSettings, Pulse, SignalChain, Sonar
+from .config import ARRAY_AZIMUTH_STEP_DEG, Acquisition, FanSettings, Pulse, SignalChain, Sonar
 from .environment import Environment
 from .errors import ConfigError
 from .signal.truth import GroundTruth
@@ -254,6 +254,18 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
                    iso_utc(start_time if start_time is not None else trajectory.start_time), elements)
 
 
+def _array_lines(sonar, fan):
+    """``fan`` with lines at most :data:`~sonar_embree.config.ARRAY_AZIMUTH_STEP_DEG`/quality apart for a receive
+    array with an element ahead of or behind the transmitter (a SAS), unless ``max_azimuth_step_deg`` is given: its
+    image resolves the strips' reach along track (docs/physics.md §4, "Limit")."""
+    arr = getattr(sonar, "receive_array", None)
+    if not isinstance(fan, FanSettings) or fan.max_azimuth_step_deg is not None or arr is None:
+        return fan
+    if not any(p[0] != 0.0 for p in arr.positions_m):                # no element ahead of or behind the transmitter
+        return fan
+    return dataclasses.replace(fan, max_azimuth_step_deg=min(ARRAY_AZIMUTH_STEP_DEG / fan.quality, 30.0))
+
+
 def _resolve(sonar, pulse, fan, quality, chain, environment, caster, cache, ping_offset, chain_kwargs):
     """Defaults and validation of :func:`simulate`'s settings: (sonar for the pulse, pulse, fan, resolved chain)."""
     sonar = Sonar() if sonar is None else sonar
@@ -263,6 +275,7 @@ def _resolve(sonar, pulse, fan, quality, chain, environment, caster, cache, ping
             raise ConfigError("simulate: give either quality or fan, not both (FanSettings has a quality field)")
         fan = FanSettings(quality=quality)
     fan = FanSettings() if fan is None else fan
+    fan = _array_lines(sonar.sonar if isinstance(sonar, Acquisition) else sonar, fan)
     if isinstance(sonar, Acquisition):      # a sonar already in its medium
         if environment is not None and environment != sonar.environment:
             raise ConfigError("simulate: give the medium once: as environment or in the Acquisition, not both")

@@ -233,12 +233,13 @@ def test_image_masks_refuse_a_ragged_grid():
 
 
 def test_a_hole_in_the_floor_is_imaged_darker_than_the_floor():
-    """A 0.8 m × 2.2 m hole in a flat floor (no scatterers at all) shows in the SAS image at least 8 dB below the
-    floor around it at quality 1. The speckle lattice spreads each seabed echo over its fan line's strip, R·ds along
-    track (0.38 m at 14.5 m for this element's fan at quality 1, its lines 1.5° apart), so the floor beside the hole
-    reaches into it: 9.4 dB down here (4.6 dB with the element's own 5.4° line spacing; 14.7 dB with lines 0.2°
-    apart, the next test's reference depth; docs/physics.md §4, "Limit")."""
-    assert _hole_depth_db(se.Material(backscatter_db=-20)) < -8.0
+    """A 0.8 m × 2.2 m hole in a flat floor (no scatterers at all) shows in the SAS image at least 13 dB below the
+    floor around it at quality 1 (14.7 dB). The speckle lattice spreads each seabed echo over its fan line's strip,
+    R·ds along track; an along-track array's fan takes lines 0.2° apart (config.ARRAY_AZIMUTH_STEP_DEG: 5 cm at
+    14.5 m), so the floor beside the hole no longer reaches into it (9.4 dB down with the 1.5° of other wide beams,
+    4.6 dB with the element's own 5.4°; docs/physics.md §4, "Limit")."""
+    assert _hole_depth_db(se.Material(backscatter_db=-20)) < -13.0
+    assert _hole_depth_db(se.Material(backscatter_db=-20), fan=se.FanSettings(max_azimuth_step_deg=1.5)) > -11.0
 
 
 def _hole_depth_db(material, fan=None) -> float:
@@ -256,16 +257,16 @@ def _hole_depth_db(material, fan=None) -> float:
     return float(10 * np.log10(hole / floor))
 
 
-def test_with_fine_lines_a_hole_is_as_deep_as_exact_point_scatterers_make_it():
+def test_at_quality_1_a_hole_is_as_deep_as_exact_point_scatterers_make_it():
     """Issue 53, item 3: the same hole in a floor of exact point echoes (clutter points alone, 300 per m²: each
     echo the bistatic closed form, tests/signal/test_receiver_arrays.py) images about 15 dB
     down: the image former's side lobes from the floor around it, the depth this window allows. The lattice's floor
-    with the fan's lines 0.2° apart (5 cm at 14.5 m, against 0.38 m at quality 1) comes within 1 dB of it: what
-    quality 1 leaves in the hole (9.4 dB) is the strips' reach, a sampling choice (FanSettings.max_azimuth_step_deg),
-    not the lattice's weights."""
+    at quality 1 (an along-track array's lines 0.2° apart, 5 cm at 14.5 m) comes within 1 dB of it: the strips'
+    reach along track, a sampling choice (FanSettings.max_azimuth_step_deg), not the lattice's weights, set the
+    shallower depths of wider line spacings."""
     points = _hole_depth_db(se.Material(backscatter_db=-150, clutter=se.Clutter(300.0, strength_db=-30.0,
                                                                                  spread_db=0.0)))
-    lattice = _hole_depth_db(se.Material(backscatter_db=-20), fan=se.FanSettings(max_azimuth_step_deg=0.2))
+    lattice = _hole_depth_db(se.Material(backscatter_db=-20))
     assert points < -13.0 and abs(lattice - points) < 1.0, (lattice, points)
 
 
