@@ -25,7 +25,7 @@ from .propagation.clutter import check_clutter, clutter_echoes
 from .propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
 from .propagation.volume import VolumeBeam, volume_density
 from .signal import processing, pulses
-from .config import ARRAY_AZIMUTH_STEP_DEG, Acquisition, FanSettings, Pulse, SignalChain, Sonar
+from .config import ARRAY_AZIMUTH_STEP_DEG, Acquisition, FanSettings, Pulse, SignalChain, Sonar, Transducer
 from .environment import Environment
 from .errors import ConfigError
 from .signal.truth import GroundTruth
@@ -258,7 +258,7 @@ def _array_lines(sonar, fan):
     """``fan`` with lines at most :data:`~sonar_embree.config.ARRAY_AZIMUTH_STEP_DEG`/quality apart for a receive
     array with an element ahead of or behind the transmitter (a SAS), unless ``max_azimuth_step_deg`` is given: its
     image resolves the strips' reach along track (docs/physics.md §4, "Limit")."""
-    arr = getattr(sonar, "receive_array", None)
+    arr = sonar.receive_array if isinstance(sonar, Transducer) else None   # (a wrong type is named later)
     if not isinstance(fan, FanSettings) or fan.max_azimuth_step_deg is not None or arr is None:
         return fan
     if not any(p[0] != 0.0 for p in arr.positions_m):                # no element ahead of or behind the transmitter
