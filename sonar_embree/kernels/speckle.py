@@ -547,10 +547,11 @@ def _node_impulses(nodes, q, h, n_sub, rate, amps, where):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, out, scratch):
+def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scratch):
     """Node q heard by each of its channel's receivers (:func:`speckle_block_shared`): its scatterers once
     (:func:`_node_impulses`), every receiver's phase and delay at once (:func:`_receiver_turns`), then each
-    scatterer as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs)."""
+    scatterer as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
+    ``shift``: log2 S."""
     amps, where, phase, delay = scratch
     ch, ix, iy, iz = node_key[q, 0], node_key[q, 1], node_key[q, 2], node_key[q, 3]
     _node_impulses(nodes, q, _node_hash(lattice.seed, ix, iy, iz), lattice.n_sub, rate, amps, where)
@@ -558,7 +559,7 @@ def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, out, scratch):
     n_rx = phase.shape[0]
     for k in range(n_rx):
         for sub in range(amps.shape[0]):
-            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub])
+            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub], shift)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -582,12 +583,11 @@ def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _add_impulse(out, j, x, a):
+def _add_impulse(out, j, x, a, shift):
     """An impulse of amplitude a at time x (in 1/S sample, S = out.shape[1] a power of two) into row j of ``out``
     (rows, S, n): weights 1 − f and f (f = x − ⌊x⌋) at ⌊x⌋ and ⌊x⌋ + 1, each index i in sub-row i mod S of sample
-    ⌊i/S⌋ (dropped outside the record)."""
-    steps, n = out.shape[1], out.shape[2]
-    shift = _log2(steps)
+    ⌊i/S⌋ (dropped outside the record); ``shift`` = log2 S."""
+    n = out.shape[2]
     i = int(math.floor(x))
     f = x - i
     for ii, c in ((i, a * (1.0 - f)), (i + 1, a * f)):
@@ -609,9 +609,10 @@ def _log2(steps):
 def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rate, out_b, scratch):
     """:func:`_emit_ping` with one emission per node for all its receivers (:func:`_emit_node_shared`)."""
     ends_b = (ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m)
+    shift = _log2(out_b.shape[1])                                 # once per ping, not per impulse
     for q in range(count):
         if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, ends_b[0]):
-            _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, out_b, scratch)
+            _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, shift, out_b, scratch)
 
 
 @njit(cache=True, nogil=True, inline='always')

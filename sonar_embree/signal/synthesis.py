@@ -17,6 +17,7 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from scipy import fft as sfft
 
 from .. import kernels
 from ..kernels.args import Lattice, NodeTables, PathEnds, SpeckleEchoes, Waveform
@@ -324,8 +325,6 @@ def delayed_sum(shared, plain, pulse, lead: int):
     (pings, rows, n) complex
         ``y[n] = Σ_k pulse[k]·x[n + lead − k]`` of the delayed sum x (:func:`~.processing.convolve_time`).
     """
-    from scipy import fft as sfft
-
     n, steps = plain.shape[-1], shared.shape[-2]
     n_fft = sfft.next_fast_len(n + pulse.shape[0] + IMPULSE_HALF_WIDTH, real=False)
     f = np.fft.fftfreq(n_fft)                                    # cycles per sample
