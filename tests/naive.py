@@ -948,10 +948,12 @@ def curved_mixed(hits, launch, poses, normals, medium, weighting):
     return out
 
 
-def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels, fwd=None, max_u=2.0, vel=None):
+def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels, fwd=None, max_u=2.0, vel=None,
+                taper=0.0):
     """Twin of kernels.backproject: every pixel's sum over pings and elements, vectorised over pixels with
-    np.interp (zero outside the record), each ping and element kept where the mean of its two along-track
-    direction cosines is within ``max_u``; the element moved on by vel·2|x − tx|/c (vel None: at rest)."""
+    np.interp (zero outside the record), each ping and element kept where the mean u of its two along-track
+    direction cosines is within ``max_u`` and weighted by 1 − taper·(1 − cos(π·u/max_u)); the element moved on
+    by vel·2|x − tx|/c (vel None: at rest)."""
     n_p, n_k, n_s = data.shape
     out = np.zeros(pixels.shape[0], dtype=np.complex128)
     grid = t0_s + np.arange(n_s) / rate_hz
@@ -965,7 +967,8 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, pixels
             tau = (d_tx + d_rx) / sound_speed_m_s
             inside = (tau >= grid[0]) & (tau < grid[-1]) & (np.abs(u) <= max_u)
             s = np.interp(tau, grid, data[p, k].real) + 1j * np.interp(tau, grid, data[p, k].imag)
-            out += np.where(inside, s * np.exp(2j * np.pi * carrier_hz * tau), 0.0)
+            weight = 1.0 - taper * (1.0 - np.cos(np.pi * u / max_u))
+            out += np.where(inside, weight * s * np.exp(2j * np.pi * carrier_hz * tau), 0.0)
     return out
 
 

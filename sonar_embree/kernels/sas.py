@@ -17,7 +17,7 @@ def _dist(a, b, m):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, vel, fwd, max_u, pixels, out):
+def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, vel, fwd, max_u, taper, pixels, out):
     """Time-domain backprojection: ``out[m] = Σ_p Σ_k s_pk(τ)·e^(j2π·f0·τ)``, τ = (|x_m − tx_p| + |x_m − r_pk|)/c,
     r_pk = rx_pk + v_p·2|x_m − tx_p|/c the element where the echo of x_m reaches it (motion during the ping; v = 0:
     stop-and-hop), over the pings and elements that see x_m within ``max_u`` of broadside.
@@ -25,7 +25,8 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, vel, f
     s_pk is the complex baseband record of ping p and element k, read at (τ − t0)·fs by linear interpolation
     (zero outside the record); the phase is taken as 2π·(f0·τ mod 1). A ping and element count only where the
     mean of the transmit and receive direction cosines along track, u = ((x − tx)·f/|x − tx| + (x − rx)·f/|x − rx|)/2
-    with f the ping's forward unit vector, has |u| ≤ ``max_u`` (the processed band; ≥ 1: every one). Pixels are
+    with f the ping's forward unit vector, has |u| ≤ ``max_u`` (the processed band; ≥ 1: every one), weighted by
+    the cosine on a pedestal 1 − taper·(1 − cos(π·u/max_u)) (0: uniform; 0.46: Hamming; 0.5: Hann). Pixels are
     independent, so the result does not depend on the thread count.
 
     Parameters
@@ -44,6 +45,8 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, vel, f
         Each ping's forward (along-track) unit vector.
     max_u : float
         The largest |u| processed.
+    taper : float
+        The along-track weighting's depth, in [0, 0.5].
     pixels : (m, 3) float64
         Image points, m (the same frame).
     out : (m,) complex128
@@ -74,5 +77,7 @@ def backproject(data, t0_s, rate_hz, carrier_hz, sound_speed_m_s, tx, rx, vel, f
                 f = v - i
                 s = data[p, k, i] * (1.0 - f) + data[p, k, i + 1] * f
                 ph = 2.0 * math.pi * ((carrier_hz * tau) % 1.0)
+                if taper > 0.0:
+                    s *= 1.0 - taper * (1.0 - math.cos(math.pi * u / max_u))
                 acc += s * complex(math.cos(ph), math.sin(ph))
         out[m] = acc

@@ -52,11 +52,13 @@ def test_the_kernel_matches_its_twin():
     out = np.empty(300, dtype=np.complex128)
     fwd = np.tile([1.0, 0.0, 0.0], (5, 1))
     vel = rng.uniform(-3, 3, (5, 3))
-    for max_u, v in ((2.0, None), (0.3, None), (0.3, vel)):     # every ping and element, a band, moving
+    for max_u, v, taper in ((2.0, None, 0.0), (0.3, None, 0.0), (0.3, vel, 0.0), (0.3, vel, 0.46)):
         kernels.backproject(data, 0.001, 50e3, F0, C, tx, rx, np.zeros((5, 3)) if v is None else v, fwd, max_u,
-                            px, out)
-        want = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, max_u, vel=v)
+                            taper, px, out)                    # every ping and element, a band, moving, weighted
+        want = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, max_u, vel=v, taper=taper)
         np.testing.assert_allclose(out, want, rtol=1e-9, atol=1e-9)
+    assert np.abs(out - naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, 0.3, vel=vel)).max() > 0.01 * \
+        np.abs(out).max()                                                           # the weighting matters
     assert np.count_nonzero(out) > 200
     still = naive.backproject(data, 0.001, 50e3, F0, C, tx, rx, px, fwd, 0.3)
     assert np.abs(out - still).max() > 0.1 * np.abs(still).max()                 # the motion matters
