@@ -38,8 +38,9 @@ class WriteOptions:
         The soundings grid's pixel, m (the bathymetry GeoTIFF).
     sas_grid : dict, optional
         The SAS image's grid (the ``sas`` output): ``x_m`` and ``y_m`` ([min, max] world m), ``pixel_m`` and
-        optionally ``z_m`` (the grid's world height, default 0) and ``channel`` ("port" or "starboard", default
-        starboard); :func:`check_sas_grid`.
+        optionally ``z_m`` (the grid's world height, default 0), ``channel`` ("port" or "starboard", default
+        starboard) and ``taper`` (side-lobe weighting in [0, 0.5], default 0; 0.46 is Hamming's,
+        :func:`~sonar_embree.signal.sas.record_image`); :func:`check_sas_grid`.
     cache : dict
         What one record's writers share (its soundings, made once for both outputs that need them).
     """
@@ -118,7 +119,7 @@ def _bathymetry(rec, path, o):
 #: The most pixels a SAS image may have (a backprojection costs pings × elements per pixel).
 MAX_SAS_PIXELS = 4_000_000
 #: The keys of ``[output] sas_grid`` and whether each is needed.
-SAS_GRID_KEYS = {"x_m": True, "y_m": True, "pixel_m": True, "z_m": False, "channel": False}
+SAS_GRID_KEYS = {"x_m": True, "y_m": True, "pixel_m": True, "z_m": False, "channel": False, "taper": False}
 
 
 def check_sas_grid(grid, where: str = "[output] sas_grid") -> dict:
@@ -129,7 +130,7 @@ def check_sas_grid(grid, where: str = "[output] sas_grid") -> dict:
     missing = [k for k, need in SAS_GRID_KEYS.items() if need and k not in grid]
     if unknown or missing:
         raise ConfigError(f"{where}: " + (f"unknown key {unknown[0]!r}" if unknown else f"needs {missing[0]!r}"))
-    out = {"z_m": 0.0, "channel": "starboard", **grid}
+    out = {"z_m": 0.0, "channel": "starboard", "taper": 0.0, **grid}
     for k in ("x_m", "y_m"):
         v = out[k]
         if not (isinstance(v, (list, tuple)) and len(v) == 2 and all(_number(x) for x in v) and v[0] < v[1]):
@@ -139,6 +140,8 @@ def check_sas_grid(grid, where: str = "[output] sas_grid") -> dict:
                           f"{out['z_m']!r}")
     if out["channel"] not in ("port", "starboard"):
         raise ConfigError(f"{where}: channel must be 'port' or 'starboard', got {out['channel']!r}")
+    if not (_number(out["taper"]) and 0.0 <= out["taper"] <= 0.5):
+        raise ConfigError(f"{where}: taper must be a number in [0, 0.5] (0.46: Hamming), got {out['taper']!r}")
     n = _sas_axes(out)
     if n[0].size * n[1].size > MAX_SAS_PIXELS:
         raise ConfigError(f"{where}: {n[0].size} × {n[1].size} pixels; at most {MAX_SAS_PIXELS} (a larger pixel_m "
@@ -164,7 +167,7 @@ def _sas(rec, path, o):
         raise ConfigError("output 'sas' needs [output] sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … }")
     g = check_sas_grid(o.sas_grid)
     x, y = _sas_axes(g)
-    intensity = np.abs(record_image(rec, x, y, float(g["z_m"]), g["channel"])) ** 2       # (ny, nx), y ascending
+    intensity = np.abs(record_image(rec, x, y, float(g["z_m"]), g["channel"], taper=float(g["taper"]))) ** 2
     with np.errstate(divide="ignore"):
         db = 10.0 * np.log10(intensity)
     p = float(g["pixel_m"])

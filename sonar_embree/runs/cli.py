@@ -57,7 +57,8 @@ dataclasses (units in the key names):
                 bathymetry (a receive_array's interferometric soundings, soundings.xyz, and
                 their grid, bathymetry.tif, at bathymetry_pixel_m = 0.5 m), sas (the
                 backprojected SAS image of an along-track receive_array, sas.tif, on
-                sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … });
+                sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = …,
+                optional z_m, channel, taper (0.46: Hamming side lobes) });
                 display: scale ("db"|"gamma"), dynamic_range_db (35), gamma,
                 ground_range, tvg (display only; default true), reference_percentile
                 (99.99: the level shown white), floor_headroom_db (12: white at least

@@ -409,3 +409,11 @@ def test_the_sas_image_is_an_output_in_the_records_crs(point, tmp_path):
         OutputOptions(sas=True, sas_grid={"x_m": [0, 1], "y_m": [0, 1], "pixel": 0.1})
     with pytest.raises(se.ConfigError, match="at most 4000000"):
         OutputOptions(sas=True, sas_grid={**grid, "pixel_m": 1e-4})
+    with pytest.raises(se.ConfigError, match=r"taper must be a number in \[0, 0.5\]"):
+        OutputOptions(sas=True, sas_grid={**grid, "taper": 0.9})
+    os.makedirs(tmp_path / "w")
+    weighted = registry.write_each(rec, str(tmp_path / "w"), ("sas",),
+                                   OutputOptions(sas=True, sas_grid={**grid, "taper": 0.46}).write_options())
+    with rasterio.open(weighted[0]) as f:                                   # the grid's taper reaches the image
+        np.testing.assert_allclose(f.read(1), (np.abs(record_image(rec, x, y, float(target[2]), taper=0.46)) ** 2)
+                                   [::-1].astype(np.float32), rtol=1e-6)
