@@ -216,14 +216,17 @@ def record_image(record, x_m, y_m, z_m: float = 0.0, channel: str = "starboard",
 def range_weighted(data, rate_hz: float, pulse, carrier_hz: float, taper: float) -> np.ndarray:
     """Compressed baseband records (…, samples) weighted across the FM pulse's swept band [f_lo, f_hi] (relative
     to the carrier) by 1 − taper·(1 − cos(2π·(f − f_c)/B)), f_c its centre and B its width; outside the band the
-    edges' weight. A CW pulse, or taper 0, returns ``data`` as it is."""
+    edges' weight, on the records zero-padded to twice their length (no echo wraps round). A CW pulse, or taper 0,
+    returns ``data`` as it is."""
     check_number("record_image", "taper", taper, lo=0.0, hi=0.5)
     if taper == 0.0 or not pulse.is_fm:
         return data
     lo, hi = pulse.frequency_span_hz(carrier_hz)
-    f = np.fft.fftfreq(data.shape[-1], 1.0 / rate_hz) + carrier_hz
+    n = data.shape[-1]
+    f = np.fft.fftfreq(2 * n, 1.0 / rate_hz) + carrier_hz          # twice as long: nothing wraps round the end
     x = np.clip((f - 0.5 * (lo + hi)) / (hi - lo), -0.5, 0.5)
-    return np.fft.ifft(np.fft.fft(data, axis=-1) * (1.0 - taper * (1.0 - np.cos(2.0 * np.pi * x))), axis=-1)
+    weighted = np.fft.fft(data, 2 * n, axis=-1) * (1.0 - taper * (1.0 - np.cos(2.0 * np.pi * x)))
+    return np.fft.ifft(weighted, axis=-1)[..., :n]
 
 
 def unaliased_band(tx, rx, fwd, wavelength_m: float) -> float:
