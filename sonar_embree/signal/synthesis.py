@@ -77,7 +77,7 @@ class ScattererLattice:
 
     def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
                    phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None, vel_rx=None,
-                   rx_ref=None, time_per_m: float = 0.0):
+                   rx_ref=None, time_per_m: float = 0.0, draw: int = 0):
         """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table.
 
         ``pos_world`` transmits and ``pos_rx`` (default: the same) receives, world m per ping, the receiver
@@ -86,7 +86,9 @@ class ScattererLattice:
         ``rx_ref`` (pings, 3) is the receiver the echoes' times were made for and ``time_per_m`` (1/c, s/m) delays
         each element's envelope by its path's difference (:func:`kernels.speckle_block`). An ``out`` of shape
         (pings, channels, S, n) takes the elements from one emission per node, sub-row s still to be delayed by
-        s/S sample (:func:`kernels.speckle_block_shared`, :func:`delayed_sum`).
+        s/S sample (:func:`kernels.speckle_block_shared`, :func:`delayed_sum`). ``draw`` > 0 gives the nodes
+        scatterers independent of draw 0's (the second of an array's two one-bounce paths, :meth:`SpeckleSynthesis
+        ._lattice`).
         """
         pos_world = np.ascontiguousarray(pos_world)
         pos_rx = pos_world if pos_rx is None else np.ascontiguousarray(pos_rx)
@@ -103,13 +105,20 @@ class ScattererLattice:
                 SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
                               *strips(e)),
                 PathEnds(pos_world, pos_rx, vel_rx, ref, float(time_per_m)),
-                Lattice(self.seed, self.cell_m, wavelength_m, self.SUB_SCATTERERS),
+                Lattice(self.seed if draw == 0 else _draw_seed(self.seed, draw), self.cell_m, wavelength_m,
+                        self.SUB_SCATTERERS),
                 Waveform(synth.table, synth.table_start, synth.table_rate, rate_hz, phase_cycles_per_s),
                 NodeTables(self.slots, self.epochs, self.nodes, self.node_key, self.caches), status, out)
             if np.all(status > 0):
                 return
             self._alloc(self.slots.shape[0], 2 * self.slots.shape[1])
             status[status < 0] = 0
+
+
+def _draw_seed(seed: int, draw: int) -> int:
+    """A lattice seed for draw ``draw`` of a run's seed: a 63-bit integer from NumPy's SeedSequence of both."""
+    return int(np.random.SeedSequence([int(seed) & (2 ** 63 - 1), 0x4D1CED, int(draw)]).generate_state(1, np.uint64)[0]
+               >> np.uint64(1))
 
 
 #: A baseband pulse longer than this many samples (an FM pulse: 2·B·τ of them at fs = 2B) is synthesised as
@@ -447,7 +456,10 @@ class SpeckleSynthesis:
     def _lattice(self, e: Echoes, ends: "_Ends", rate_hz: float, phase_cycles_per_s: float, out) -> None:
         """The lattice's echoes of every path: each its own gather and phase, the frozen scatterers shared; the
         receiver (or its image) moves at the block's velocity (or its mirror) during the ping; a receiver array's
-        elements (or their images) each on their own path."""
+        elements (or their images) each on their own path. The one-bounce echo stands for S→X→S' and S'→X→S, added
+        in power (docs/physics.md §13); where an array's elements are off the transmitter the two differ, and each
+        takes half the weight on its own legs, S→X→R_k' and S'→X→R_k, the second with its own scatterer draw (so
+        that they still add in power)."""
         s, origin_m, pos, vel, rcv = self.sonar, ends.origin_m, ends.pos_world, ends.vel_world, ends.receivers
         time_per_m = 0.0 if rcv is None else 1.0 / s.sound_speed_m_s
         if e.path.shape[0] == 0:
@@ -458,12 +470,17 @@ class SpeckleSynthesis:
         image = multipath.mirror(pos, z_s)
         rcv_image = None if rcv is None else multipath.mirror(rcv, z_s)
         v, v_image = (None, None) if vel is None else (vel, vel * [1.0, 1.0, -1.0])
-        for p, (tx, rx, ref, vr) in enumerate(((pos, rcv if rcv is not None else pos, pos, v),
-                                               (pos, rcv_image if rcv is not None else image, image, v_image),
-                                               (image, rcv_image if rcv is not None else image, image, v_image))):
-            self.lattice.synthesise(select(e, e.path == p), origin_m, tx, s.wavelength_m, rate_hz,
-                                    phase_cycles_per_s, self.tables, out, pos_rx=rx, vel_rx=vr, rx_ref=ref,
-                                    time_per_m=time_per_m)
+        legs = [(0, pos, rcv if rcv is not None else pos, pos, v, 1.0, 0),
+                (1, pos, rcv_image if rcv is not None else image, image, v_image, 1.0, 0),
+                (2, image, rcv_image if rcv is not None else image, image, v_image, 1.0, 0)]
+        if rcv is not None and np.any(rcv != pos[:, None, :]):       # elements off the transmitter: S'→X→R_k too
+            legs[1:2] = [(1, pos, rcv_image, image, v_image, 0.5, 0), (1, image, rcv, pos, v, 0.5, 1)]
+        for p, tx, rx, ref, vr, share, draw in legs:
+            part = select(e, e.path == p)
+            if share != 1.0:
+                part = dataclasses.replace(part, weight=share * part.weight)
+            self.lattice.synthesise(part, origin_m, tx, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
+                                    out, pos_rx=rx, vel_rx=vr, rx_ref=ref, time_per_m=time_per_m, draw=draw)
 
     def noise_source(self, run):
         """For a beamformer: ``noise(shape, complex_)`` of the run's density on its outputs (pings, beams, n_s), each

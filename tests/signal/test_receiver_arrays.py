@@ -2,6 +2,8 @@
 τ_k = (|X − p_tx| + |X − p_k|)/c and phase −2π·f0·τ_k for a point scatterer; speckle coherent across elements; a
 one-element array at the transmitter is the plain side-scan, bit for bit; the element dimension in the files;
 refusals in one line."""
+import dataclasses
+
 import numpy as np
 import pytest
 import trimesh
@@ -268,3 +270,42 @@ def test_a_moving_receiver_hears_each_clutter_point_where_it_is_when_the_echo_ar
             assert np.abs(stop).min() > 1.0, stop
             checked += 1
     assert checked >= 2
+
+
+def test_under_a_surface_an_element_off_the_transmitter_hears_both_one_bounce_paths():
+    """Issue 53, item 6. S→X→S' and S'→X→S are one echo of twice the weight for the transmitter (docs/physics.md
+    §13); an element R 0.6 m above it hears them on different legs, S→X→R' and S'→X→R, 0.72 m of path apart for a
+    small cube 10 m out and 5 m down, 3 m under the surface. Over 8 pings 0.8 m apart (independent looks at the
+    cube), each arrives at its own closed-form time (its centroid's delay after the direct echo's within 3 samples
+    of the closed form's for the cube's centre, 19 samples apart; the faces each leg sees move it by a few cm) with half the one-bounce weight: the two arrivals' energies within a factor 2 of each other
+    (each its own scatterer draw, so that they add in power as the transmitter's do). Before, the second was
+    missing (its energy that of side lobes)."""
+    z_s, x = 10.0, np.array([0.0, -10.0, 2.0])
+    sc = se.Scene().add(trimesh.creation.box(extents=(0.2, 0.2, 0.2)).apply_translation(x),
+                        material=se.Material(backscatter_db=-10), label="cube")
+    arr = se.ReceiverArray(((0.0, 0.0, 0.0), (0.0, 0.0, 0.6)))
+    sonar = se.Sonar(frequency_hz=F0, length_m=0.05, height_m=0.02, tilt_deg=20, max_range_m=25, receive_array=arr)
+    traj = se.Trajectory.line(start=(-2.8, 0, 7.0), end=(2.8, 0, 7.0), n_pings=8)
+    traj = dataclasses.replace(traj, velocity_m_s=None)                  # stop-and-hop: the closed form's legs
+    rec = se.simulate(sc, traj, se.Acquisition(sonar, se.Environment(surface=se.SeaSurface(z_m=z_s))),
+                      se.Pulse.lfm(bandwidth_hz=B, duration_s=1e-3, taper=0.3), speckle=True, seed=3)
+    mirror = lambda p: p * [1, 1, -1] + [0, 0, 2 * z_s]
+    d = lambda a, b: float(np.linalg.norm(a - b))
+    fs = rec.sonar.sample_rate_hz
+    energy = {"S-X-R'": 0.0, "S'-X-R": 0.0}
+    for p, tx in enumerate(traj.positions_m):
+        r1 = tx + [0.0, 0.0, 0.6]
+        taus = {"direct": (d(x, tx) + d(x, r1)) / C, "S-X-R'": (d(x, tx) + d(x, mirror(r1))) / C,
+                "S'-X-R": (d(x, mirror(tx)) + d(x, r1)) / C}
+        assert abs(taus["S'-X-R"] - taus["S-X-R'"]) * C > 0.6
+        z = np.abs(rec.element_data[p, 1, 1]) ** 2                       # starboard, the upper element
+        peak = {}
+        for name, tau in taus.items():
+            n = int(round(tau * fs))
+            part = z[n - 10:n + 11]
+            peak[name] = n - 10 + float(np.sum(np.arange(21) * part) / part.sum())    # the arrival's centroid
+            if name != "direct":
+                energy[name] += part.sum()
+        for name in energy:                                              # after the direct echo, as the closed form
+            assert abs(peak[name] - peak["direct"] - (taus[name] - taus["direct"]) * fs) <= 3.0, (p, name, peak)
+    assert 0.5 < energy["S'-X-R"] / energy["S-X-R'"] < 2.0, energy
