@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import checks, sonars
-from .propagation.clutter import check_clutter, clutter_echoes
+from .propagation.clutter import check_clutter, clutter_echoes, element_gains
 from .propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
 from .propagation.volume import VolumeBeam, volume_density
 from .signal import processing, pulses
@@ -384,10 +384,14 @@ def _check_array(sonar, chain: SignalChain) -> None:
 
 
 def _clutter_block(run: _Run, a: int, b: int):
-    """The clutter echoes of pings a … b − 1 (:func:`sonar_embree.propagation.clutter.clutter_echoes`)."""
-    return clutter_echoes(run.prepared.clutter, run.sonar, run.prepared.caster, run.rots[a:b], run.pos_local[a:b],
-                          run.max_r,
-                          processing.absorption_np_per_m(run.sonar.alpha_db_per_m))
+    """The clutter echoes of pings a … b − 1 (:func:`sonar_embree.propagation.clutter.clutter_echoes`), with a
+    receiver array each element's pattern along its own direction (:func:`~sonar_embree.propagation.clutter
+    .element_gains`)."""
+    rot, pos = run.rots[a:b], run.pos_local[a:b]
+    points = clutter_echoes(run.prepared.clutter, run.sonar, run.prepared.caster, rot, pos, run.max_r,
+                            processing.absorption_np_per_m(run.sonar.alpha_db_per_m))
+    rx = run.front.receivers(rot, pos)
+    return points if rx is None else element_gains(points, run.sonar, rot, pos, rx)
 
 
 def _volume_beam(sonar) -> VolumeBeam | None:

@@ -247,9 +247,27 @@ def _along_s(axis_row, d):
 
 def _pattern(strips, row, s):
     """The row's tabulated along-track pattern at s, linear between samples, 0 outside (np.interp)."""
-    axis, gain, s0, step, _ = strips
+    axis, gain, _, s0, step, _ = strips
     grid = s0 + step * np.arange(gain.shape[1])
     return np.interp(s, grid, gain[row], left=0.0, right=0.0)
+
+
+def _element_gains(strips, rows, x, ref, rx):
+    """√(Γ_rx²(s_k)/Γ_rx²(s)) per node (kernels.speckle._element_gain): nodes x (n, 3) of strips rows ``rows``,
+    s from the reference receiver ref (3,), s_k from each node's receiver rx (n, 3); 1 where Γ_rx²(s) is 0 or
+    s_k = s."""
+    if strips is None:
+        return np.ones(x.shape[0])
+    axis, _, gain_rx, s0, step, _ = strips
+    grid = s0 + step * np.arange(gain_rx.shape[1])
+    out = np.ones(x.shape[0])
+    for i, r in enumerate(rows):
+        s = _along_s(axis[r], (x[i] - ref)[None])[0]
+        s_k = _along_s(axis[r], (x[i] - rx[i])[None])[0]
+        g = np.interp(s, grid, gain_rx[r], left=0.0, right=0.0)
+        if g > 0 and s_k != s:
+            out[i] = np.sqrt(np.interp(s_k, grid, gain_rx[r], left=0.0, right=0.0) / g)
+    return out
 
 
 def strip_points(row, points, weights, ranges, extents, strips, tx, cell_m):
@@ -259,7 +277,7 @@ def strip_points(row, points, weights, ranges, extents, strips, tx, cell_m):
     two-pass), each run cut
     into m = ⌈R·|a|/cell⌉ points along x̂, R its centre's distance from ``tx``; the others at their points.
     Returns points, weights, ranges and moments (variance, least, greatest), for :func:`gather_nodes`."""
-    axis, gain, s0, step, on = strips
+    axis, gain, _, s0, step, on = strips
     a = axis[row]
     p_s = _pattern(strips, row, _along_s(a, points - tx))
     w = np.where(p_s > 0, weights / np.where(p_s > 0, p_s, 1.0), 0.0)
@@ -295,9 +313,9 @@ def _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, str
         return gather_nodes(ch, points_world[lo:hi], weights[lo:hi], ranges[lo:hi], extents[lo:hi], cell_m)
     parts = []
     for c, (a, z) in enumerate(((lo, mid), (mid, hi))):
-        on = strips[4][a:z] if strips[4].shape[0] else strips[4]
+        on = strips[5][a:z] if strips[5].shape[0] else strips[5]
         p, w, r, v, l, h = strip_points(2 * b + c, points_world[a:z], weights[a:z], ranges[a:z], extents[a:z],
-                                        strips[:4] + (on,), tx, cell_m)
+                                        strips[:5] + (on,), tx, cell_m)
         parts.append((np.full(w.size, c), p, w, r, v, l, h))
     ch, p, w, r, v, l, h = (np.concatenate([x[k] for x in parts]) for k in range(7))
     return gather_nodes(ch, p, w, r, np.zeros_like(r), cell_m, moments=(v, l, h))
@@ -309,8 +327,9 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
     """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table
     (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in).
     ``receivers`` (pings, 2·n_rx, 3): n_rx receivers per channel, receiver k of channel ch writing row ch·n_rx + k,
-    each delayed by (|X − rx_k| − |X − rx|)·time_per_m. ``strips`` (axis, gain, s0, step, on_strip): the echoes
-    taken through :func:`strip_points`, and every node's weight times the pattern at its own along-track cosine."""
+    each delayed by (|X − rx_k| − |X − rx|)·time_per_m. ``strips`` (axis, gain, gain_rx, s0, step, on_strip): the
+    echoes taken through :func:`strip_points`, every node's weight times the pattern at its own along-track cosine,
+    and with receivers (time_per_m ≠ 0) each receiver's amplitude times :func:`_element_gains`."""
     n_rx = out.shape[1] // 2
     for b in range(pos_world.shape[0]):
         nodes = _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, strips, pos_world[b])
@@ -334,6 +353,9 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
             d_rx = np.linalg.norm(x - rx, axis=1)
             l_node = np.linalg.norm(x - pos_world[b], axis=1) + d_rx             # 2R for the direct path
             base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))
+            if time_per_m != 0.0 and receivers is not None:
+                base = base * _element_gains(strips, 2 * b + keys[:, 0], x, pos_world[b] if pos_rx is None else
+                                             pos_rx[b], receivers[b, keys[:, 0] * n_rx + k])
             r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None],
                             rmax[:, None]) + ((d_rx - d_ref) * time_per_m)[:, None]
             amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
@@ -368,7 +390,8 @@ def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_
         for k in range(n_rx):
             rows = keys[:, 0] * n_rx + k
             d_rx = np.linalg.norm(x - receivers[b, rows], axis=1)
-            amp = (np.sqrt(w / n_sub) * np.exp(-2j * np.pi * (((d_tx + d_rx) / wavelength_m) % 1)))[:, None] * g
+            gain = _element_gains(strips, 2 * b + keys[:, 0], keys[:, 1:] * cell_m, pos_world[b], receivers[b, rows])
+            amp = (gain * np.sqrt(w / n_sub) * np.exp(-2j * np.pi * (((d_tx + d_rx) / wavelength_m) % 1)))[:, None] * g
             grid = (r_env + ((d_rx - d_ref) * time_per_m)[:, None]) * rate * steps
             lo = np.floor(grid)
             for i, a in ((lo, amp * (1 - (grid - lo))), (lo + 1, amp * (grid - lo))):

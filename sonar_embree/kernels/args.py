@@ -47,9 +47,10 @@ LegOut = namedtuple("LegOut", "start end idx org dir length")
 #: A block's echoes for speckle: row offsets (channels·pings + 1,), hit points (n, 3) (local frame, m), the local
 #: frame's world origin (3,), each echo's weight, two-way travel time (s) and its extent (s) (n,), and the rows'
 #: along-track strips: each row's forward axis times the fan's line spacing (rows, 3) (world, rad; (0, 3): none),
-#: its along-track two-way pattern (rows, n_tab) on s = s0 + k·step, s0 and step (propagation.echoes.AlongTrack),
-#: and which echoes lie on them (n,) bool ((0,): all) (see kernels.speckle_block).
-SpeckleEchoes = namedtuple("SpeckleEchoes", "ray_start points origin weights times extents axis gain s0 step on_strip")
+#: its along-track two-way pattern and that pattern's receive factor alone (rows, n_tab) on s = s0 + k·step, s0 and
+#: step (propagation.echoes.AlongTrack), and which echoes lie on them (n,) bool ((0,): all) (kernels.speckle_block).
+SpeckleEchoes = namedtuple("SpeckleEchoes",
+                           "ray_start points origin weights times extents axis gain gain_rx s0 step on_strip")
 #: Each ping's transmitting position (pings, 3) and receiving positions (pings, channels·receivers, 3) (world, m),
 #: the receivers' velocity (pings, 3), the receiver the echoes' times were made for (pings, 3) and the travel time
 #: per metre of path (1/c; 0: the receivers' own delays ignored), see kernels.speckle_block.

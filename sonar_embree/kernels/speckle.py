@@ -295,17 +295,40 @@ MAX_SPREAD = 4096
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _pattern_at(echoes, r, s):
-    """Row r's along-track pattern P(s) (``gain``, ``s0``, ``step`` of
-    :data:`~sonar_embree.kernels.args.SpeckleEchoes`), linear between its samples, 0 outside the table."""
-    gain = echoes.gain
-    x = (s - echoes.s0) / echoes.step
+def _table_at(gain, r, s, s0, step):
+    """Row r of a table ``gain`` on s = s0 + k·step at s, linear between its samples, 0 outside it."""
+    x = (s - s0) / step
     n = gain.shape[1]
     if not (x >= 0.0 and x <= n - 1):
         return 0.0
     k = min(int(x), n - 2)
     t = x - k
     return gain[r, k] * (1.0 - t) + gain[r, k + 1] * t
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _pattern_at(echoes, r, s):
+    """Row r's along-track pattern P(s) (``gain``, ``s0``, ``step`` of
+    :data:`~sonar_embree.kernels.args.SpeckleEchoes`), linear between its samples, 0 outside the table."""
+    return _table_at(echoes.gain, r, s, echoes.s0, echoes.step)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _element_gain(echoes, r, ix, iy, iz, cell_m, ref, rx, j):
+    """√(Γ_rx²(s_k)/Γ_rx²(s)): receiver ``rx[j]`` (its place at the ping's time) hears node (i, j, k) of row r with
+    the receive pattern at its own along-track cosine s_k, not at the s of ``ref``, the receiver the echo's weight
+    was made for (the transmitter or its image; ``gain_rx`` of :data:`~sonar_embree.kernels.args.SpeckleEchoes`);
+    1 without strips, at ``ref``, or where Γ_rx²(s) is 0 (the node is silent there)."""
+    axis = echoes.axis
+    if axis.shape[0] == 0:
+        return 1.0
+    x, y, z = ix * cell_m, iy * cell_m, iz * cell_m
+    s = _along_s(axis, r, x - ref[0], y - ref[1], z - ref[2])[0]
+    s_k = _along_s(axis, r, x - rx[j, 0], y - rx[j, 1], z - rx[j, 2])[0]
+    g = _table_at(echoes.gain_rx, r, s, echoes.s0, echoes.step)
+    if s_k == s or not g > 0.0:
+        return 1.0
+    return math.sqrt(_table_at(echoes.gain_rx, r, s_k, echoes.s0, echoes.step) / g)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -450,10 +473,10 @@ def _distance(ix, iy, iz, cell_m, pos):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node(nodes, node_key, q, pos_tx, pos_rx, n_rx, vel_rx, rx_ref, time_per_m, lattice, waveform, out):
+def _emit_node(nodes, node_key, q, pos_tx, pos_rx, gains, vel_rx, rx_ref, time_per_m, lattice, waveform, out):
     """Splat node q's ``n_sub`` frozen scatterers into each of its channel's receivers' rows of ``out`` (see
-    :func:`speckle_block`): the node's phase and delay per receiver here, its scatterers by
-    :func:`_splat_scatterers`.
+    :func:`speckle_block`): the node's phase and delay per receiver here, receiver k's amplitude times
+    ``gains[k]`` (:func:`_element_gains`), its scatterers by :func:`_splat_scatterers`.
 
     Reads rows by index, never through a row view (kernels/_numba.py: views contend for the reference count).
     """
@@ -472,12 +495,15 @@ def _emit_node(nodes, node_key, q, pos_tx, pos_rx, n_rx, vel_rx, rx_ref, time_pe
     if time_per_m != 0.0:  # receivers away from the one the echoes' times were made for: their own delays
         d_ref = _distance(ix, iy, iz, cell_m, (rx_ref[0] + vel_rx[0] * t_mean, rx_ref[1] + vel_rx[1] * t_mean,
                                                rx_ref[2] + vel_rx[2] * t_mean))
+    n_rx = gains.shape[0]
     for k in range(n_rx):
         j = ch * n_rx + k
         rx = (pos_rx[j, 0] + vel_rx[0] * t_mean, pos_rx[j, 1] + vel_rx[1] * t_mean, pos_rx[j, 2] + vel_rx[2] * t_mean)
         d_rx = _distance(ix, iy, iz, cell_m, rx)
         cycles = ((d_tx + d_rx) / wavelength_m) % 1.0  # monostatic: d + d = 2d exactly, the bits of 2d/λ
         base = math.sqrt(w / n_sub) * complex(math.cos(2.0 * math.pi * cycles), -math.sin(2.0 * math.pi * cycles))
+        if gains[k] != 1.0:
+            base *= gains[k]
         shift = (d_rx - d_ref) * time_per_m if time_per_m != 0.0 else 0.0
         _splat_scatterers(out, j, h, n_sub, base, t_mean, spread, nodes[q, 3], nodes[q, 4], shift, waveform)
 
@@ -515,9 +541,21 @@ def _emit_ping(b, n_ch, count, nodes_t, key_t, echoes, ends, n_rx, lattice, wave
     beam at its own s where the echoes have strips (:func:`_beam_on`), the ping's ends
     (:data:`~sonar_embree.kernels.args.PathEnds`) taken once (views made once per ping, not per node)."""
     tx, rx, v_rx, ref, time_per_m = ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m
+    gains = np.ones(n_rx)
     for q in range(count):
         if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, tx):
-            _emit_node(nodes_t, key_t, q, tx, rx, n_rx, v_rx, ref, time_per_m, lattice, waveform, out_b)
+            if time_per_m != 0.0:                     # receivers on their own paths: each its own receive pattern
+                _element_gains(echoes, n_ch * b, key_t, q, lattice.cell_m, ref, rx, gains)
+            _emit_node(nodes_t, key_t, q, tx, rx, gains, v_rx, ref, time_per_m, lattice, waveform, out_b)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _element_gains(echoes, row0, key_t, q, cell_m, ref, rx, gains):
+    """``gains[k]`` = :func:`_element_gain` of node q (row ``row0`` + its channel) for each receiver k of its
+    channel (rows ch·n + k of ``rx``, their places at the ping's time; n = gains.shape[0])."""
+    ch, n = key_t[q, 0], gains.shape[0]
+    for k in range(n):
+        gains[k] = _element_gain(echoes, row0 + ch, key_t[q, 1], key_t[q, 2], key_t[q, 3], cell_m, ref, rx, ch * n + k)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -552,14 +590,15 @@ def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scr
     (:func:`_node_impulses`), every receiver's phase and delay at once (:func:`_receiver_turns`), then each
     scatterer as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
     ``shift``: log2 S."""
-    amps, where, phase, delay = scratch
+    amps, where, phase, delay, gains = scratch
     ch, ix, iy, iz = node_key[q, 0], node_key[q, 1], node_key[q, 2], node_key[q, 3]
     _node_impulses(nodes, q, _node_hash(lattice.seed, ix, iy, iz), lattice.n_sub, rate, amps, where)
     _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay)
     n_rx = phase.shape[0]
     for k in range(n_rx):
+        turn_k = phase[k] * gains[k]
         for sub in range(amps.shape[0]):
-            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub], shift)
+            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], turn_k * amps[sub], shift)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -612,6 +651,7 @@ def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rat
     shift = _log2(out_b.shape[1])                                 # once per ping, not per impulse
     for q in range(count):
         if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, ends_b[0]):
+            _element_gains(echoes, n_ch * b, key_t, q, lattice.cell_m, ends_b[3], ends_b[1], scratch[4])
             _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, shift, out_b, scratch)
 
 
@@ -719,7 +759,7 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
     n_t = slots.shape[0]
     for t in prange(n_t):
         scratch = (np.zeros(lattice.n_sub, dtype=np.complex128), np.zeros(lattice.n_sub),
-                   np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx))
+                   np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx), np.ones(n_rx))
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
             if status[b] != 0:
                 continue

@@ -14,6 +14,7 @@ sound-speed profile leaves clutter on its direct path, with a warning), the sona
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -52,11 +53,13 @@ class ClutterField:
 
 @dataclass(frozen=True, eq=False)
 class PointEchoes:
-    """The clutter echoes of a block: :class:`Echoes` (zero extent; ``point_m`` each scatterer, local frame) and each
-    one's phase ``cycles`` (φ_k − 2R/λ, in cycles)."""
+    """The clutter echoes of a block: :class:`Echoes` (zero extent; ``point_m`` each scatterer, local frame), each
+    one's phase ``cycles`` (φ_k − 2R/λ, in cycles) and, with a receiver array, each element's amplitude factor
+    ``element_gain`` (n, elements) Γ(u_k)/Γ(u) (:func:`element_gains`; None: 1)."""
 
     echoes: Echoes
     cycles: np.ndarray
+    element_gain: np.ndarray | None = None
 
 
 def clutter_field(compiled, seed: int) -> ClutterField | None:
@@ -160,5 +163,34 @@ def clutter_echoes(field: ClutterField, sonar, caster, rot, pos_local, max_range
     return PointEchoes(e, np.concatenate(cycles))
 
 
+def element_gains(points: PointEchoes, sonar, rot, pos_local, rx_local) -> PointEchoes:
+    """``points`` with each element's amplitude factor Γ(u_k)/Γ(u): the element hears the scatterer with the side's
+    pattern along its own direction u_k (body frame, from its place at the ping's time ``rx_local`` (pings,
+    2·elements, 3), local m) instead of the transmitter's u (1 where Γ(u) is 0). Both the along-track and the
+    elevation pattern (docs/physics.md §18a)."""
+    e = points.echoes
+    n_el = rx_local.shape[1] // 2
+    row = np.repeat(np.arange(e.ray_start.shape[0] - 1), np.diff(e.ray_start))
+    ping, ch = row // 2, row % 2
+    side = np.where(ch == 0, -1.0, 1.0)
+    body = lambda d: np.einsum("nij,ni->nj", rot[ping], d / np.linalg.norm(d, axis=-1, keepdims=True))
+    g_tx = _gamma(sonar, body(e.point_m - pos_local[ping]), side)
+    gain = np.ones((row.size, n_el))
+    for k in range(n_el):
+        g_k = _gamma(sonar, body(e.point_m - rx_local[ping, ch * n_el + k]), side)
+        gain[:, k] = np.where(g_tx != 0.0, g_k / np.where(g_tx != 0.0, g_tx, 1.0), 1.0)
+    return dataclasses.replace(points, element_gain=gain)
+
+
+def _gamma(sonar, u_body, side) -> np.ndarray:
+    """:func:`side_gamma` of directions (n, 3) each on its own side (n,) (−1 port, +1 starboard)."""
+    out = np.zeros(u_body.shape[0])
+    for s in (-1.0, 1.0):
+        m = side == s
+        if m.any():
+            out[m] = side_gamma(sonar, u_body[m], s)
+    return out
+
+
 __all__ = ["AZIMUTH_NULLS", "ClutterField", "PointEchoes", "check_clutter", "clutter_echoes", "clutter_field",
-           "side_gamma"]
+           "element_gains", "side_gamma"]

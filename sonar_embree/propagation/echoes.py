@@ -33,12 +33,16 @@ class AlongTrack:
         x̂ (world, unit) times the lines' spacing ds (rad), per row.
     gain : (rows, n_tab) float64
         P(s) = Γ²(s)·Γ_rx²(s − δ) per row (δ the ping's receive-beam turn) at s = s0 + k·step; 0 outside.
+    gain_rx : (rows, n_tab) float64
+        Its receive factor Γ_rx²(s − δ) alone: a receiver array's element k takes Γ_rx² at its own along-track
+        cosine s_k instead of the transmitter's s (docs/physics.md §18a).
     s0, step : float
         The table's first s and its spacing.
     """
 
     axis_rad: np.ndarray
     gain: np.ndarray
+    gain_rx: np.ndarray
     s0: float
     step: float
 
@@ -136,7 +140,7 @@ def ping_slice(e: Echoes, a: int, b: int) -> Echoes:
     def part(x):
         return x[i0:i1] if x.shape[0] == e.weight.shape[0] else x
 
-    along = None if e.along is None else AlongTrack(e.along.axis_rad[r0:r1], e.along.gain[r0:r1], e.along.s0,
-                                                    e.along.step)
+    along = None if e.along is None else AlongTrack(e.along.axis_rad[r0:r1], e.along.gain[r0:r1],
+                                                    e.along.gain_rx[r0:r1], e.along.s0, e.along.step)
     return Echoes(e.n_channels, e.ray_start[r0:r1 + 1] - i0, e.travel_time_s[i0:i1], e.extent_s[i0:i1],
                   e.weight[i0:i1], part(e.point_m), part(e.object_id), part(e.path), along, part(e.on_strip))

@@ -133,8 +133,10 @@ def along_track(plan: FanPlan, rot: np.ndarray, rx_shift: np.ndarray | None = No
     a = plan.pattern.along(s)
     a_rx = plan.pattern.along(s[None, :] - shift[:, None])
     gain = np.repeat((a * a)[None, :] * (a_rx * a_rx), 2, axis=0)
+    gain_rx = np.repeat(a_rx * a_rx, 2, axis=0)
     axis = np.repeat(np.asarray(rot[:, :, 0], dtype=np.float64) * plan.ds, 2, axis=0)
-    return AlongTrack(np.ascontiguousarray(axis), np.ascontiguousarray(gain), s0, float(step))
+    return AlongTrack(np.ascontiguousarray(axis), np.ascontiguousarray(gain), np.ascontiguousarray(gain_rx), s0,
+                      float(step))
 
 
 def moving_lines(plan: FanPlan, rx_shift: np.ndarray):

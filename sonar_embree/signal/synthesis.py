@@ -30,21 +30,23 @@ from .processing import convolve_time
 
 
 #: No along-track strips: every echo at its point (:func:`strips`).
-_NO_STRIPS = (np.zeros((0, 3)), np.zeros((0, 2)), 0.0, 1.0, np.zeros(0, dtype=bool))
+_NO_STRIPS = (np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2)), 0.0, 1.0, np.zeros(0, dtype=bool))
 
 
 def strips(e: Echoes) -> tuple:
     """The kernel's view of the echoes' along-track strips (:attr:`~sonar_embree.propagation.echoes.Echoes.along`,
-    None: none): axis, gain, s0, step and which echoes lie on them
+    None: none): axis, gain, receive gain, s0, step and which echoes lie on them
     (:data:`~sonar_embree.kernels.args.SpeckleEchoes`)."""
     a = e.along
     if a is None:
         return _NO_STRIPS
     rows = e.ray_start.shape[0] - 1
-    if a.axis_rad.shape[0] != rows or a.gain.shape[0] != rows or e.on_strip.shape[0] not in (0, e.weight.shape[0]):
+    if (a.axis_rad.shape[0] != rows or a.gain.shape != a.gain_rx.shape or a.gain.shape[0] != rows
+            or e.on_strip.shape[0] not in (0, e.weight.shape[0])):
         raise ValueError(f"along-track strips for {a.axis_rad.shape[0]} rows and {e.on_strip.shape[0]} echoes, "
                          f"echoes in {rows} rows and {e.weight.shape[0]} echoes")   # a front end's bug, not input
-    return a.axis_rad, a.gain, float(a.s0), float(a.step), np.ascontiguousarray(e.on_strip, dtype=np.bool_)
+    return (a.axis_rad, a.gain, a.gain_rx, float(a.s0), float(a.step),
+            np.ascontiguousarray(e.on_strip, dtype=np.bool_))
 
 
 class ScattererLattice:
@@ -289,10 +291,12 @@ def _ends_of(ends: _Ends, a: int, b: int) -> _Ends:
                  None if ends.receivers is None else ends.receivers[a:b])
 
 
-def _cycles(points, a: int, b: int):
-    """The clutter points' phases (cycles) of the block's pings a … b − 1."""
+def _points_of(points, a: int, b: int):
+    """The clutter points of the block's pings a … b − 1: echoes, phases (cycles) and element gains."""
     e = points.echoes
-    return points.cycles[int(e.ray_start[a * e.n_channels]):int(e.ray_start[b * e.n_channels])]
+    i0, i1 = int(e.ray_start[a * e.n_channels]), int(e.ray_start[b * e.n_channels])
+    gain = None if points.element_gain is None else points.element_gain[i0:i1]
+    return PointEchoes(ping_slice(e, a, b), points.cycles[i0:i1], gain)
 
 
 #: A receiver array's scatterers are put on a grid of 1/ARRAY_DELAY_STEPS sample (each split linearly between its
@@ -417,7 +421,7 @@ class SpeckleSynthesis:
         weight, times, cycles = e.weight, e.travel_time_s, points.cycles
         if ends.receivers is not None:
             idx, row, times, cycles = _element_points(e, row, cycles, ends, self.sonar, out.shape[1])
-            weight = weight[idx]
+            weight = weight[idx] if points.element_gain is None else weight[idx] * points.element_gain.ravel() ** 2
         elif ends.vel_world is not None:
             times, cycles = _moving_points(e, row, cycles, ends, self.sonar)
         amp = np.sqrt(weight) * np.exp(2j * np.pi * cycles)
@@ -449,7 +453,7 @@ class SpeckleSynthesis:
             shared = np.zeros((b - a, rows, ARRAY_DELAY_STEPS, n + lead), dtype=np.complex128)
             buf = np.zeros((b - a, rows, n + lead), dtype=np.complex128)
             self._lattice(sub, sub_ends, fs, 0.0, shared)
-            sub_points = None if points is None else PointEchoes(ping_slice(points.echoes, a, b), _cycles(points, a, b))
+            sub_points = None if points is None else _points_of(points, a, b)
             self._points(sub_points, sub_ends, fs, 0.0, buf, lead / fs)
             out[a:b] += delayed_sum(shared, buf, self.tables.baseband_pulse, lead)[..., :n]
 

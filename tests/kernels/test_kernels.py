@@ -336,7 +336,7 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
 
 
 #: SpeckleEchoes' strips when there are none: every echo at its point.
-NO_STRIPS = (np.zeros((0, 3)), np.zeros((0, 2)), 0.0, 1.0, np.zeros(0, dtype=bool))
+NO_STRIPS = (np.zeros((0, 3)), np.zeros((0, 2)), np.zeros((0, 2)), 0.0, 1.0, np.zeros(0, dtype=bool))
 
 
 @pytest.mark.parametrize("n_tables", [1, 3])
@@ -367,7 +367,7 @@ def test_speckle_block_with_along_track_strips_matches_naive(rng, n_tables):
     on = rng.uniform(size=n) > 0.1                                       # a tenth aimed: at their points
     grid = -0.08 + 0.0025 * np.arange(65)
     gain = np.repeat((np.sinc(grid / 0.05) ** 4)[None], 2 * n_p, axis=0)
-    strips = (np.repeat(heading[None] * ds, 2 * n_p, axis=0), gain, -0.08, 0.0025, on)
+    strips = (np.repeat(heading[None] * ds, 2 * n_p, axis=0), gain, np.sqrt(gain), -0.08, 0.0025, on)
     table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
     out, status = np.zeros((n_p, 2, 400), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
     rx = np.ascontiguousarray(np.repeat(pos[:, None], 2, axis=1))
@@ -397,19 +397,28 @@ def _array_case(rng, n_p=3, n=600):
     return n_p, ray_start, origin, pts, w, r, ext, pos, receivers, rng.uniform(-0.1, 0.1, (n_p, 3))
 
 
-@pytest.mark.parametrize("n_tables", [1, 3])
-def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables):
-    """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin."""
+def _array_strips(rng, n_p):
+    """Strips for :func:`_array_case`: an along-track axis, and random two-way and receive tables of 41 samples."""
+    axis = np.tile([0.05, 0.01, 0.0], (2 * n_p, 1))
+    return axis, rng.uniform(0.2, 1.0, (2 * n_p, 41)), rng.uniform(0.2, 1.0, (2 * n_p, 41)), -1.0, 0.05, \
+        np.zeros(0, dtype=bool)
+
+
+@pytest.mark.parametrize("n_tables, with_strips", [(1, False), (3, False), (1, True)])
+def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables, with_strips):
+    """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin; with
+    strips, each receiver's amplitude also takes the receive pattern at its own along-track cosine."""
     n_p, ray_start, origin, pts, w, r, ext, pos, receivers, vel = _array_case(rng)
+    strips = _array_strips(rng, n_p) if with_strips else None
     table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
     out, status = np.zeros((n_p, 6, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
-    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *NO_STRIPS),
+    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *(strips or NO_STRIPS)),
                           PathEnds(pos, receivers, vel, pos, 2.5),
                           Lattice(7, 0.1, 0.00375, 4), Waveform(table, -2.0, 10.0, 16.0, 533.3),
-                          NodeTables(*_speckle_tables(n_tables, 1 << 12)), status, out)
+                          NodeTables(*_speckle_tables(n_tables, 1 << (16 if with_strips else 12))), status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0,
-                              10.0, np.zeros_like(out), vel_rx=vel, receivers=receivers, time_per_m=2.5)
+                              10.0, np.zeros_like(out), vel_rx=vel, receivers=receivers, time_per_m=2.5, strips=strips)
     assert np.abs(ref[:, 1]).max() > 0 and not np.allclose(ref[:, 0], ref[:, 1])   # the elements differ
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
 
@@ -419,8 +428,7 @@ def test_speckle_block_shared_matches_naive(rng, n_tables):
     """Three receivers per channel from one draw of each node's scatterers: impulses on a grid of 1/8 sample, split
     linearly, each receiver at its own phase and delay, against the twin; with along-track strips."""
     n_p, ray_start, origin, pts, w, r, ext, pos, receivers, vel = _array_case(rng)
-    axis = np.tile([0.05, 0.01, 0.0], (2 * n_p, 1))
-    strips = (axis, rng.uniform(0.2, 1.0, (2 * n_p, 41)), -1.0, 0.05, np.zeros(0, dtype=bool))
+    strips = _array_strips(rng, n_p)
     table = np.ones(3)                                             # not read: the shared kernel writes impulses
     out, status = np.zeros((n_p, 6, 8, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
     kernels.speckle_block_shared(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *strips),
