@@ -253,9 +253,9 @@ def _pattern(strips, row, s):
 
 
 def _element_gains(strips, rows, x, ref, rx):
-    """√(Γ_rx²(s_k)/Γ_rx²(s)) per node (kernels.speckle._element_gain): nodes x (n, 3) of strips rows ``rows``,
-    s from the reference receiver ref (3,), s_k from each node's receiver rx (n, 3); 1 where Γ_rx²(s) is 0 or
-    s_k = s."""
+    """Γ_rx(s_k)/Γ_rx(s) per node (kernels.speckle._element_gains, ``gain_rx`` an amplitude table): nodes seen at x
+    (n, 3) of strips rows ``rows``, s from the reference receiver ref (3,), s_k from each node's receiver rx
+    (n, 3); 1 where Γ_rx(s) is 0 or s_k = s."""
     if strips is None:
         return np.ones(x.shape[0])
     axis, _, gain_rx, s0, step, _ = strips
@@ -266,7 +266,7 @@ def _element_gains(strips, rows, x, ref, rx):
         s_k = _along_s(axis[r], (x[i] - rx[i])[None])[0]
         g = np.interp(s, grid, gain_rx[r], left=0.0, right=0.0)
         if g > 0 and s_k != s:
-            out[i] = np.sqrt(np.interp(s_k, grid, gain_rx[r], left=0.0, right=0.0) / g)
+            out[i] = np.interp(s_k, grid, gain_rx[r], left=0.0, right=0.0) / g
     return out
 
 
@@ -354,8 +354,8 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
             l_node = np.linalg.norm(x - pos_world[b], axis=1) + d_rx             # 2R for the direct path
             base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))
             if time_per_m != 0.0 and receivers is not None:
-                base = base * _element_gains(strips, 2 * b + keys[:, 0], x, pos_world[b] if pos_rx is None else
-                                             pos_rx[b], receivers[b, keys[:, 0] * n_rx + k])
+                base = base * _element_gains(strips, 2 * b + keys[:, 0], x - move, pos_world[b] if pos_rx is None
+                                             else pos_rx[b], receivers[b, keys[:, 0] * n_rx + k])
             r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None],
                             rmax[:, None]) + ((d_rx - d_ref) * time_per_m)[:, None]
             amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
@@ -390,7 +390,7 @@ def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_
         for k in range(n_rx):
             rows = keys[:, 0] * n_rx + k
             d_rx = np.linalg.norm(x - receivers[b, rows], axis=1)
-            gain = _element_gains(strips, 2 * b + keys[:, 0], keys[:, 1:] * cell_m, pos_world[b], receivers[b, rows])
+            gain = _element_gains(strips, 2 * b + keys[:, 0], x, pos_world[b], receivers[b, rows])
             amp = (gain * np.sqrt(w / n_sub) * np.exp(-2j * np.pi * (((d_tx + d_rx) / wavelength_m) % 1)))[:, None] * g
             grid = (r_env + ((d_rx - d_ref) * time_per_m)[:, None]) * rate * steps
             lo = np.floor(grid)

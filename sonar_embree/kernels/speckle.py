@@ -314,24 +314,6 @@ def _pattern_at(echoes, r, s):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _element_gain(echoes, r, ix, iy, iz, cell_m, ref, rx, j):
-    """√(Γ_rx²(s_k)/Γ_rx²(s)): receiver ``rx[j]`` (its place at the ping's time) hears node (i, j, k) of row r with
-    the receive pattern at its own along-track cosine s_k, not at the s of ``ref``, the receiver the echo's weight
-    was made for (the transmitter or its image; ``gain_rx`` of :data:`~sonar_embree.kernels.args.SpeckleEchoes`);
-    1 without strips, at ``ref``, or where Γ_rx²(s) is 0 (the node is silent there)."""
-    axis = echoes.axis
-    if axis.shape[0] == 0:
-        return 1.0
-    x, y, z = ix * cell_m, iy * cell_m, iz * cell_m
-    s = _along_s(axis, r, x - ref[0], y - ref[1], z - ref[2])[0]
-    s_k = _along_s(axis, r, x - rx[j, 0], y - rx[j, 1], z - rx[j, 2])[0]
-    g = _table_at(echoes.gain_rx, r, s, echoes.s0, echoes.step)
-    if s_k == s or not g > 0.0:
-        return 1.0
-    return math.sqrt(_table_at(echoes.gain_rx, r, s_k, echoes.s0, echoes.step) / g)
-
-
-@njit(cache=True, nogil=True, inline='always')
 def _along_s(axis, r, dx, dy, dz):
     """(s, |a|, R): the along-track direction cosine s = d·x̂/|d| of the offset d = (dx, dy, dz) from the transmitter
     in row r (``axis`` a·x̂ per row), |a| and R = |d|; s = 2 (outside every table) where a or d is 0."""
@@ -542,20 +524,86 @@ def _emit_ping(b, n_ch, count, nodes_t, key_t, echoes, ends, n_rx, lattice, wave
     (:data:`~sonar_embree.kernels.args.PathEnds`) taken once (views made once per ping, not per node)."""
     tx, rx, v_rx, ref, time_per_m = ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m
     gains = np.ones(n_rx)
+    apart = _any_apart(rx, ref) if time_per_m != 0.0 else False
     for q in range(count):
         if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, tx):
-            if time_per_m != 0.0:                     # receivers on their own paths: each its own receive pattern
-                _element_gains(echoes, n_ch * b, key_t, q, lattice.cell_m, ref, rx, gains)
+            if apart:                                 # receivers on their own paths: each its own receive pattern
+                _element_gains(echoes, n_ch * b, key_t, q, _seen_from(key_t, nodes_t, q, lattice.cell_m, v_rx), ref,
+                               rx, gains)
             _emit_node(nodes_t, key_t, q, tx, rx, gains, v_rx, ref, time_per_m, lattice, waveform, out_b)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _element_gains(echoes, row0, key_t, q, cell_m, ref, rx, gains):
-    """``gains[k]`` = :func:`_element_gain` of node q (row ``row0`` + its channel) for each receiver k of its
-    channel (rows ch·n + k of ``rx``, their places at the ping's time; n = gains.shape[0])."""
+def _any_apart(rx, ref):
+    """Whether any receiver (rows of ``rx``) is away from ``ref`` (the receiver the echoes were made for)."""
+    for j in range(rx.shape[0]):
+        if rx[j, 0] != ref[0] or rx[j, 1] != ref[1] or rx[j, 2] != ref[2]:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _seen_from(key_t, nodes_t, q, cell_m, vel):
+    """Node q's place less vel·t̄ (t̄ its mean time): where the receivers, at their places at the ping's time,
+    see it when its echo arrives (as they move on by vel·t̄)."""
+    t = nodes_t[q, 1]
+    return (key_t[q, 1] * cell_m - vel[0] * t, key_t[q, 2] * cell_m - vel[1] * t, key_t[q, 3] * cell_m - vel[2] * t)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _element_gains(echoes, row0, key_t, q, x, ref, rx, gains):
+    """``gains[k]`` = Γ_rx(s_k)/Γ_rx(s) for each receiver k of node q's channel (rows ch·n + k of ``rx``, n =
+    gains.shape[0]; :func:`_pattern_ratios` in row ``row0`` + the channel): s_k the receiver's own along-track
+    cosine to the node seen at ``x`` (:func:`_seen_from`), s that of ``ref``, the receiver the echo's weight was
+    made for (the transmitter or its image). 1 without strips."""
     ch, n = key_t[q, 0], gains.shape[0]
+    if echoes.axis.shape[0] == 0:
+        for k in range(n):                          # by index: a slice is a view, whose count threads contend for
+            gains[k] = 1.0
+        return
+    f = _unit_axis(echoes.axis, row0 + ch)
     for k in range(n):
-        gains[k] = _element_gain(echoes, row0 + ch, key_t[q, 1], key_t[q, 2], key_t[q, 3], cell_m, ref, rx, ch * n + k)
+        j = ch * n + k
+        gains[k] = _cosine(x, (rx[j, 0], rx[j, 1], rx[j, 2]), f)
+    _pattern_ratios(echoes, row0 + ch, _cosine(x, ref, f), gains)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _unit_axis(axis, r):
+    """Row r's forward axis x̂ (``axis`` = |a|·x̂ per row), a 3-tuple; (0, 0, 0) without strips."""
+    if axis.shape[0] == 0:
+        return 0.0, 0.0, 0.0
+    a = math.sqrt(axis[r, 0] * axis[r, 0] + axis[r, 1] * axis[r, 1] + axis[r, 2] * axis[r, 2])
+    return axis[r, 0] / a, axis[r, 1] / a, axis[r, 2] / a
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _cosine(x, p, f):
+    """The along-track cosine (x − p)·f/|x − p| of point x seen from p (3-tuples)."""
+    dx, dy, dz = x[0] - p[0], x[1] - p[1], x[2] - p[2]
+    return (dx * f[0] + dy * f[1] + dz * f[2]) / math.sqrt(dx * dx + dy * dy + dz * dz)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _pattern_ratios(echoes, r, s, s_k):
+    """In place, each receiver's along-track cosine ``s_k[k]`` → Γ_rx(s_k)/Γ_rx(s), the receive pattern
+    (``gain_rx`` of :data:`~sonar_embree.kernels.args.SpeckleEchoes`, row r, linear between its samples, 0 outside)
+    at its own direction against the reference receiver's s; 1 where s_k = s (a receiver at the reference: its
+    bits kept) or Γ_rx(s) is 0."""
+    gain, s0, n = echoes.gain_rx, echoes.s0, echoes.gain_rx.shape[1]
+    per_step = 1.0 / echoes.step
+    g = _table_at(gain, r, s, s0, echoes.step)
+    inv_g = 1.0 / g if g > 0.0 else 0.0
+    for k in range(s_k.shape[0]):
+        x = (s_k[k] - s0) * per_step
+        if inv_g == 0.0 or s_k[k] == s:
+            s_k[k] = 1.0
+        elif x >= 0.0 and x <= n - 1:
+            i = min(int(x), n - 2)
+            t = x - i
+            s_k[k] = (gain[r, i] * (1.0 - t) + gain[r, i + 1] * t) * inv_g
+        else:
+            s_k[k] = 0.0
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -572,9 +620,12 @@ def turn(x):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _node_impulses(nodes, q, h, n_sub, rate, amps, where):
-    """Node q's ``n_sub`` frozen scatterers (hash h) on the reference path: amplitude √(W/n_sub)·g into ``amps`` and
-    envelope time × ``rate`` into ``where`` (:func:`_splat_scatterers`' times, without a waveform)."""
+def _node_impulses(nodes, q, ijk, lattice, rate, amps, where):
+    """Node q's (at lattice index ``ijk``) ``n_sub`` frozen scatterers on the reference path: amplitude √(W/n_sub)·g
+    into ``amps`` and envelope time × ``rate`` into ``where`` (:func:`_splat_scatterers`' times, without a
+    waveform)."""
+    n_sub = lattice.n_sub
+    h = _node_hash(lattice.seed, ijk[0], ijk[1], ijk[2])
     w, t_mean = nodes[q, 0], nodes[q, 1]
     spread = math.sqrt(3.0) * math.sqrt(max(nodes[q, 2] / w, 0.0))
     amp = math.sqrt(w / n_sub)
@@ -585,27 +636,34 @@ def _node_impulses(nodes, q, h, n_sub, rate, amps, where):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scratch):
+def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scratch, echoes, row0):
     """Node q heard by each of its channel's receivers (:func:`speckle_block_shared`): its scatterers once
-    (:func:`_node_impulses`), every receiver's phase and delay at once (:func:`_receiver_turns`), then each
-    scatterer as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
+    (:func:`_node_impulses`), every receiver's phase, delay and along-track cosine at once (:func:`_receiver_turns`),
+    its receive pattern at that cosine (:func:`_pattern_ratios`, row ``row0`` + the channel), then each scatterer
+    as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
     ``shift``: log2 S."""
     amps, where, phase, delay, gains = scratch
     ch, ix, iy, iz = node_key[q, 0], node_key[q, 1], node_key[q, 2], node_key[q, 3]
-    _node_impulses(nodes, q, _node_hash(lattice.seed, ix, iy, iz), lattice.n_sub, rate, amps, where)
-    _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay)
+    _node_impulses(nodes, q, (ix, iy, iz), lattice, rate, amps, where)
+    s_ref = _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay, gains,
+                            _unit_axis(echoes.axis, row0 + ch))
     n_rx = phase.shape[0]
+    if echoes.axis.shape[0] > 0:
+        _pattern_ratios(echoes, row0 + ch, s_ref, gains)
+        for k in range(n_rx):
+            phase[k] *= gains[k]
     for k in range(n_rx):
-        turn_k = phase[k] * gains[k]
         for sub in range(amps.shape[0]):
-            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], turn_k * amps[sub], shift)
+            _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub], shift)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay):
+def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine, fwd):
     """For node (i, j, k) of channel ch and every receiver k of it, in a loop that vectorises: ``phase[k]`` =
-    e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ) and ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m
-    × ``rate`` (grid steps), the ping's ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m)."""
+    e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ), ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m
+    × ``rate`` (grid steps) and ``cosine[k]`` the along-track cosine (X − v·t̄ − rx_k)·f/|X − v·t̄ − rx_k| (f =
+    ``fwd``), the ping's ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m); returns the reference receiver's
+    cosine."""
     tx, rx, vel, ref, time_per_m = ends_b
     cell_m = lattice.cell_m
     x0, y0, z0 = (ijk[0] * cell_m - vel[0] * t_mean, ijk[1] * cell_m - vel[1] * t_mean,
@@ -619,6 +677,11 @@ def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay):
         cycles = (d_tx + d_rx) / lattice.wavelength_m
         phase[k] = turn(cycles - math.floor(cycles))              # x − ⌊x⌋ = x % 1.0, exactly
         delay[k] = (d_rx - d_ref) * time_per_m * rate
+        cosine[k] = d_rx
+    for k in range(n_rx):                                          # apart, so that the loop above still vectorises
+        j = ch * n_rx + k
+        cosine[k] = ((x0 - rx[j, 0]) * fwd[0] + (y0 - rx[j, 1]) * fwd[1] + (z0 - rx[j, 2]) * fwd[2]) / cosine[k]
+    return ((x0 - ref[0]) * fwd[0] + (y0 - ref[1]) * fwd[1] + (z0 - ref[2]) * fwd[2]) / d_ref
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -651,8 +714,7 @@ def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rat
     shift = _log2(out_b.shape[1])                                 # once per ping, not per impulse
     for q in range(count):
         if _beam_on(echoes, b, n_ch, nodes_t, key_t, q, lattice.cell_m, ends_b[0]):
-            _element_gains(echoes, n_ch * b, key_t, q, lattice.cell_m, ends_b[3], ends_b[1], scratch[4])
-            _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, shift, out_b, scratch)
+            _emit_node_shared(nodes_t, key_t, q, ends_b, lattice, rate, shift, out_b, scratch, echoes, n_ch * b)
 
 
 @njit(cache=True, nogil=True, inline='always')

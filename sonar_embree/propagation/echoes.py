@@ -34,8 +34,8 @@ class AlongTrack:
     gain : (rows, n_tab) float64
         P(s) = Γ²(s)·Γ_rx²(s − δ) per row (δ the ping's receive-beam turn) at s = s0 + k·step; 0 outside.
     gain_rx : (rows, n_tab) float64
-        Its receive factor Γ_rx²(s − δ) alone: a receiver array's element k takes Γ_rx² at its own along-track
-        cosine s_k instead of the transmitter's s (docs/physics.md §18a).
+        Its receive factor alone, as an amplitude |Γ_rx(s − δ)|: a receiver array's element k takes Γ_rx at its own
+        along-track cosine s_k instead of the transmitter's s (docs/physics.md §18a).
     s0, step : float
         The table's first s and its spacing.
     """

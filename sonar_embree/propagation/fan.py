@@ -133,7 +133,7 @@ def along_track(plan: FanPlan, rot: np.ndarray, rx_shift: np.ndarray | None = No
     a = plan.pattern.along(s)
     a_rx = plan.pattern.along(s[None, :] - shift[:, None])
     gain = np.repeat((a * a)[None, :] * (a_rx * a_rx), 2, axis=0)
-    gain_rx = np.repeat(a_rx * a_rx, 2, axis=0)
+    gain_rx = np.repeat(np.abs(a_rx), 2, axis=0)                # Γ_rx alone, an amplitude
     axis = np.repeat(np.asarray(rot[:, :, 0], dtype=np.float64) * plan.ds, 2, axis=0)
     return AlongTrack(np.ascontiguousarray(axis), np.ascontiguousarray(gain), np.ascontiguousarray(gain_rx), s0,
                       float(step))
