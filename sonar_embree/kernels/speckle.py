@@ -561,11 +561,11 @@ def _element_gains(echoes, row0, key_t, q, x, ref, rx, gains):
         for k in range(n):                          # by index: a slice is a view, whose count threads contend for
             gains[k] = 1.0
         return
-    f = _unit_axis(echoes.axis, row0 + ch)
+    r = row0 + ch
     for k in range(n):
         j = ch * n + k
-        gains[k] = _cosine(x, (rx[j, 0], rx[j, 1], rx[j, 2]), f)
-    _pattern_ratios(echoes, row0 + ch, _cosine(x, ref, f), gains)
+        gains[k] = _along_s(echoes.axis, r, x[0] - rx[j, 0], x[1] - rx[j, 1], x[2] - rx[j, 2])[0]
+    _pattern_ratios(echoes, r, _along_s(echoes.axis, r, x[0] - ref[0], x[1] - ref[1], x[2] - ref[2])[0], gains)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -575,13 +575,6 @@ def _unit_axis(axis, r):
         return 0.0, 0.0, 0.0
     a = math.sqrt(axis[r, 0] * axis[r, 0] + axis[r, 1] * axis[r, 1] + axis[r, 2] * axis[r, 2])
     return axis[r, 0] / a, axis[r, 1] / a, axis[r, 2] / a
-
-
-@njit(cache=True, nogil=True, inline='always')
-def _cosine(x, p, f):
-    """The along-track cosine (x − p)·f/|x − p| of point x seen from p (3-tuples)."""
-    dx, dy, dz = x[0] - p[0], x[1] - p[1], x[2] - p[2]
-    return (dx * f[0] + dy * f[1] + dz * f[2]) / math.sqrt(dx * dx + dy * dy + dz * dz)
 
 
 @njit(cache=True, nogil=True, inline='always')
