@@ -723,8 +723,15 @@ def test_a_lost_ctrl_c_still_leaves_nothing(tmp_path, monkeypatch):
     from sonar_embree.runs import commands
     real = commands.simulate
     monkeypatch.setattr("sonar_embree.runs.commands.simulate", lost)
+    # as at a terminal: a test run started in the background by a shell inherits SIGINT ignored, and the command
+    # then (rightly) leaves Ctrl-C alone
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     out = tmp_path / "out"
-    assert cli.main(["render", str(cfg), "-o", str(out), "--no-progress"]) == 130
+    try:
+        status = cli.main(["render", str(cfg), "-o", str(out), "--no-progress"])
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert status == 130
     assert calls == ["swallowed"] and (not out.exists() or not [n for n in os.listdir(out) if n != MANIFEST])
     assert not owner.INTERRUPTED.is_set()                       # cleared for the next command in this process
     monkeypatch.setattr(commands, "simulate", real)
