@@ -25,6 +25,7 @@ SLOW = frozenset({
     "test_replay.py::test_a_long_lines_fit_simulates_runs_across_its_altitudes_and_recovers_the_class_and_gain",
     "test_replay.py::test_a_joint_fit_recovers_tilt_width_class_gain_and_texture",
     "test_sas_records.py::test_at_quality_1_a_hole_is_as_deep_as_the_closed_form_makes_it",
+    "test_sas_records.py::test_a_cubes_shadow_is_as_deep_as_the_closed_form_makes_it",
     "test_sas_records.py::test_with_uniform_phase_centres_and_weighting_a_hole_is_over_20_db_deep",
     "test_replay.py::test_a_device_files_beam_pulse_and_gain_come_back_through_its_decimation",
     "test_small_slope.py::test_the_small_slope_integral_against_mpmaths_oscillatory_quadrature",
