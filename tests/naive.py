@@ -327,7 +327,8 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
     """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table
     (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in).
     ``receivers`` (pings, 2·n_rx, 3): n_rx receivers per channel, receiver k of channel ch writing row ch·n_rx + k,
-    each delayed by (|X − rx_k| − |X − rx|)·time_per_m. ``strips`` (axis, gain, gain_rx, s0, step, on_strip): the
+    each delayed by (|X − rx_k − v·R̄| − |X − rx|)·time_per_m (with one receiver, rx_k = rx: its motion alone).
+    ``strips`` (axis, gain, gain_rx, s0, step, on_strip): the
     echoes taken through :func:`strip_points`, every node's weight times the pattern at its own along-track cosine,
     and with receivers (time_per_m ≠ 0) each receiver's amplitude times :func:`_element_gains`."""
     n_rx = out.shape[1] // 2
@@ -347,7 +348,7 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
         move = 0.0 if vel_rx is None else vel_rx[b] * r_mean[:, None]
         ref = (pos_world[b] if pos_rx is None else pos_rx[b]) + move             # (nodes, 3)
         x = keys[:, 1:] * cell_m
-        d_ref = np.linalg.norm(x - ref, axis=1)
+        d_ref = np.linalg.norm(x - (pos_world[b] if pos_rx is None else pos_rx[b]), axis=1)   # the still leg
         for k in range(n_rx):
             rx = ref if receivers is None else receivers[b, keys[:, 0] * n_rx + k] + move
             d_rx = np.linalg.norm(x - rx, axis=1)
@@ -367,7 +368,7 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
 def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
                          rate, n_sub, out, receivers, vel_rx, time_per_m, strips=None):
     """Per ping: the nodes of :func:`speckle_block`, each scatterer per receiver an impulse at
-    (t + (|X − rx_k| − |X − tx|)·time_per_m)·rate·S on the grid of 1/S sample (S = out.shape[2]), split linearly
+    (t + (|X − rx_k − v·R̄| − |X − tx|)·time_per_m)·rate·S on the grid of 1/S sample (S = out.shape[2]), split linearly
     between its two nearest grid times, grid time i written to out[b, row, i mod S, i // S]; the receivers move at
     ``vel_rx`` (the reference receiver is the transmitter)."""
     steps, n_rx = out.shape[2], out.shape[1] // 2
@@ -384,8 +385,8 @@ def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_
                               for k in keys])
         g, v = frozen_scatterers(seed, keys[:, 1:], n_sub)
         x = keys[:, 1:] * cell_m - vel_rx[b] * r_mean[:, None]          # the node seen from the moved receivers
-        d_ref = np.linalg.norm(x - pos_world[b], axis=1)
         d_tx = np.linalg.norm(keys[:, 1:] * cell_m - pos_world[b], axis=1)
+        d_ref = d_tx                                                     # the still leg the times were made for
         r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None], rmax[:, None])
         for k in range(n_rx):
             rows = keys[:, 0] * n_rx + k

@@ -474,9 +474,8 @@ def _emit_node(nodes, node_key, q, pos_tx, pos_rx, gains, vel_rx, rx_ref, time_p
     spread = math.sqrt(3.0) * sigma
     d_tx = _distance(ix, iy, iz, cell_m, pos_tx)
     d_ref = 0.0
-    if time_per_m != 0.0:  # receivers away from the one the echoes' times were made for: their own delays
-        d_ref = _distance(ix, iy, iz, cell_m, (rx_ref[0] + vel_rx[0] * t_mean, rx_ref[1] + vel_rx[1] * t_mean,
-                                               rx_ref[2] + vel_rx[2] * t_mean))
+    if time_per_m != 0.0:  # each receiver's own leg, where it is when the echo arrives, for the echoes' still one
+        d_ref = _distance(ix, iy, iz, cell_m, rx_ref)
     n_rx = gains.shape[0]
     for k in range(n_rx):
         j = ch * n_rx + k
@@ -653,7 +652,7 @@ def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scr
 @njit(cache=True, nogil=True, inline='always')
 def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine, fwd):
     """For node (i, j, k) of channel ch and every receiver k of it, in a loop that vectorises: ``phase[k]`` =
-    e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ), ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m
+    e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ), ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref|)·time_per_m
     × ``rate`` (grid steps) and ``cosine[k]`` the along-track cosine (X − v·t̄ − rx_k)·f/|X − v·t̄ − rx_k| (f =
     ``fwd``), the ping's ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m); returns the reference receiver's
     cosine."""
@@ -662,7 +661,7 @@ def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine
     x0, y0, z0 = (ijk[0] * cell_m - vel[0] * t_mean, ijk[1] * cell_m - vel[1] * t_mean,
                   ijk[2] * cell_m - vel[2] * t_mean)
     d_tx = _distance(ijk[0], ijk[1], ijk[2], cell_m, tx)
-    d_ref = math.sqrt((x0 - ref[0]) ** 2 + (y0 - ref[1]) ** 2 + (z0 - ref[2]) ** 2)
+    d_ref = _distance(ijk[0], ijk[1], ijk[2], cell_m, ref)        # the leg the echoes' times were made for
     n_rx = phase.shape[0]
     for k in range(n_rx):
         j = ch * n_rx + k
@@ -674,7 +673,8 @@ def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine
     for k in range(n_rx):                                          # apart, so that the loop above still vectorises
         j = ch * n_rx + k
         cosine[k] = ((x0 - rx[j, 0]) * fwd[0] + (y0 - rx[j, 1]) * fwd[1] + (z0 - rx[j, 2]) * fwd[2]) / cosine[k]
-    return ((x0 - ref[0]) * fwd[0] + (y0 - ref[1]) * fwd[1] + (z0 - ref[2]) * fwd[2]) / d_ref
+    d_seen = math.sqrt((x0 - ref[0]) ** 2 + (y0 - ref[1]) ** 2 + (z0 - ref[2]) ** 2)
+    return ((x0 - ref[0]) * fwd[0] + (y0 - ref[1]) * fwd[1] + (z0 - ref[2]) * fwd[2]) / d_seen
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -754,9 +754,9 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         ch·n_rx + k of ``out``; one per channel for a single receiver; the mirror image in the sea surface for a
         surface leg): the node phase is (|X − tx| + |X − rx − v·t̄|)/λ; ``vel_rx`` (pings, 3): the receivers'
         velocity per ping, world m per unit of ``times`` (zeros: stop-and-hop); ``rx_ref`` (pings, 3): the
-        receiver the echoes' times were made for, and ``time_per_m`` (units of ``times`` per m, 1/c; 0: none):
-        each receiver's envelope is delayed by (|X − rx − v·t̄| − |X − rx_ref − v·t̄|)·time_per_m, its own
-        bistatic path (docs/physics.md §18a).
+        receiver the echoes' times were made for, still, and ``time_per_m`` (units of ``times`` per m, 1/c; 0:
+        none): each receiver's envelope is delayed by (|X − rx − v·t̄| − |X − rx_ref|)·time_per_m, its own
+        bistatic path where it is when the echo arrives (docs/physics.md §16, §18a).
     lattice : :data:`~sonar_embree.kernels.args.Lattice`
         Speckle ``seed`` (int), lattice spacing ``cell_m`` (m), acoustic wavelength (m) and scatterers per node
         ``n_sub``.
@@ -797,8 +797,8 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
     as impulses whose fractional delays the caller applies in the frequency domain.
 
     The same gather and nodes; each node's ``n_sub`` scatterers take their amplitude √(W/n_sub)·g and envelope time
-    t once (:func:`_node_impulses`); each receiver adds them times its own phase e^(−j2π·(|X − tx| + |X − rx|)/λ)
-    at t + (|X − rx| − |X − rx_ref|)·time_per_m as impulses on a grid of 1/S sample, split linearly between the
+    t once (:func:`_node_impulses`); each receiver, moved to rx + v·t̄, adds them times its own phase
+    e^(−j2π·(|X − tx| + |X − rx − v·t̄|)/λ) at t + (|X − rx − v·t̄| − |X − rx_ref|)·time_per_m as impulses on a grid of 1/S sample, split linearly between the
     two nearest grid times (:func:`_add_impulse`). ``out`` (pings, channels·n_rx, S, n_samples) complex128 holds
     grid time i in sub-row i mod S of sample ⌊i/S⌋: sub-row s is still to be delayed by s/S sample, and the
     waveform to be applied (both once per row by FFT, :func:`sonar_embree.signal.synthesis.delayed_sum`). Of

@@ -465,7 +465,8 @@ class SpeckleSynthesis:
         takes half the weight on its own legs, S→X→R_k' and S'→X→R_k, the second with its own scatterer draw (so
         that they still add in power)."""
         s, origin_m, pos, vel, rcv = self.sonar, ends.origin_m, ends.pos_world, ends.vel_world, ends.receivers
-        time_per_m = 0.0 if rcv is None else 1.0 / s.sound_speed_m_s
+        moving = vel is not None and bool(np.any(vel))          # each receiver's own leg in the envelope too
+        time_per_m = 1.0 / s.sound_speed_m_s if rcv is not None or moving else 0.0
         if e.path.shape[0] == 0:
             self.lattice.synthesise(e, origin_m, pos, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
                                     out, pos_rx=rcv, vel_rx=vel, rx_ref=pos, time_per_m=time_per_m)

@@ -310,10 +310,11 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     status = np.zeros(n_p, dtype=np.int64)
     rx = pos if n_tables != 2 else pos * [1.0, 1.0, -1.0] + [0.0, 0.0, 2.0 * (origin[2] + 15.0)]  # a surface image
     vel = np.zeros((n_p, 3)) if n_tables == 1 else rng.uniform(-0.1, 0.1, (n_p, 3))  # receiver moving on (per unit r)
+    per_m = 2.5 if n_tables == 3 else 0.0              # 3: the moving receiver's own leg in the envelope too
     def speckle(tab, size, status, out):
         rx_each = np.ascontiguousarray(np.repeat(rx[:, None], 2, axis=1))  # one receiver per channel
         kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *NO_STRIPS),
-                              PathEnds(pos, rx_each, vel, rx, 0.0),
+                              PathEnds(pos, rx_each, vel, rx, per_m),
                               Lattice(7, 0.1, 0.00375, 4), Waveform(tab, -2.0, 10.0, 16.0, 533.3),
                               NodeTables(*_speckle_tables(n_tables, size)), status, out)
 
@@ -323,7 +324,7 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
     speckle(table, 1 << 12, status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
-                              -2.0, 10.0, np.zeros_like(out), pos_rx=rx, vel_rx=vel)
+                              -2.0, 10.0, np.zeros_like(out), pos_rx=rx, vel_rx=vel, time_per_m=per_m)
     assert np.abs(ref).max() > 0
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
     real_env = np.hanning(101) + 0j                      # a real envelope given as complex, and as reals (CW):

@@ -442,6 +442,43 @@ def test_a_cubes_shadow_is_as_deep_as_the_closed_form_makes_it():
     assert want < -20.0 and abs(points - want) < 1.5 and abs(lattice - want) < 1.5, (want, points, lattice)
 
 
+def _envelope_lag_s(a, b, fs):
+    """The lag (s) of |a| behind |b| (1-D records at ``fs`` Hz): the peak of their cross-correlation, interpolated
+    64 times by zero-padding the spectrum."""
+    n = 64 * 2 * a.size
+    xc = np.fft.irfft(np.fft.rfft(np.abs(a), 2 * a.size) * np.conj(np.fft.rfft(np.abs(b), 2 * a.size)), n)
+    lag = int(np.argmax(xc))
+    return (lag if lag < n // 2 else lag - n) / (64 * fs)
+
+
+@pytest.mark.parametrize("array", [None, ARRAY])
+def test_a_moving_sonars_lattice_echo_arrives_on_its_moving_leg(array, seed=3):
+    """Motion during the ping (docs/physics.md §16): the sonar transmits at p and hears an echo of travel time τ at
+    p + v·τ, so a patch at along-track cosine u arrives (|X − p − v·τ| − |X − p|)/c ≈ −v·τ·u/c earlier than
+    stop-and-hop puts it, in its envelope as in its phase. A patch 2 cm along and 20 cm across track, 3.7 m ahead at
+    14.5 m (u = 0.25), at 5 m/s: 16 µs, a third of the compressed pulse. The lattice's envelope (a single channel,
+    and an array's element from the shared emission) moves by the closed form within 15 % (measured 4–6 %; a
+    point echo's, exact, 2 %); before, it kept 2R/c and moved by +0.4 to +0.8 µs (the receive beam's turn
+    reweighting the patch). Narrow along track, so that the turn cannot move the patch's range centroid much."""
+    x0, v, half = 3.7, 5.0, (0.01, 0.1)
+    corners = [[x0 + a * half[0], -ACROSS + b * half[1], 0.0] for a, b in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    sc = se.Scene().add(trimesh.Trimesh(corners, [[0, 1, 2], [0, 2, 3]]), material=se.Material(backscatter_db=-20),
+                        label="patch")
+    x = np.array([-0.5, 0.0, 0.5])
+    pos = np.stack([x, np.zeros(3), np.full(3, H)], axis=1)
+    traj = se.Trajectory(pos, np.full(3, 90.0), np.zeros(3), np.zeros(3), x / v,
+                         velocity_m_s=np.tile([v, 0.0, 0.0], (3, 1)))
+    sonar = dataclasses.replace(SONAR, receive_array=array)
+    recs = [se.simulate(sc, t, sonar, PULSE, speckle=True, seed=seed, keep_complex=True)
+            for t in (traj, traj.stop_and_hop())]
+    series = [r.complex_data[1, 1] if array is None else r.element_data[1, 1, 0] for r in recs]
+    centre = np.array([x0, -ACROSS, 0.0])
+    r = np.linalg.norm(centre - pos[1])
+    want = (np.linalg.norm(centre - pos[1] - [v * 2 * r / C, 0.0, 0.0]) - r) / C
+    got = _envelope_lag_s(*series, 1.0 / float(recs[0].time_s[1] - recs[0].time_s[0]))
+    assert want < -15e-6 and abs(got - want) < 0.15 * abs(want), (got, want)
+
+
 def test_record_image_refuses_what_cannot_form_an_image(point):
     """Issue 49: no pings, a wrong-length mask, an element out of range, no elements, a NaN pixel or height and a
     grid beyond the pixel cap are one-line errors naming the value, not zeros or a MemoryError."""
