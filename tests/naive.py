@@ -368,8 +368,8 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
 def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
                          rate, n_sub, out, receivers, vel_rx, time_per_m, strips=None):
     """Per ping: the nodes of :func:`speckle_block`, each scatterer per receiver an impulse at
-    (t + (|X − rx_k − v·R̄| − |X − tx|)·time_per_m)·rate·S on the grid of 1/S sample (S = out.shape[2]), split linearly
-    between its two nearest grid times, grid time i written to out[b, row, i mod S, i // S]; the receivers move at
+    (t + (|X − rx_k − v·R̄| − |X − tx|)·time_per_m)·rate·S on the grid of 1/S sample (S = out.shape[2]), split
+    linearly between its two nearest grid times, grid time i written to out[b, row, i mod S, i // S]; the receivers move at
     ``vel_rx`` (the reference receiver is the transmitter)."""
     steps, n_rx = out.shape[2], out.shape[1] // 2
     for b in range(pos_world.shape[0]):

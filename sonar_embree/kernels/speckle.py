@@ -798,13 +798,13 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
 
     The same gather and nodes; each node's ``n_sub`` scatterers take their amplitude √(W/n_sub)·g and envelope time
     t once (:func:`_node_impulses`); each receiver, moved to rx + v·t̄, adds them times its own phase
-    e^(−j2π·(|X − tx| + |X − rx − v·t̄|)/λ) at t + (|X − rx − v·t̄| − |X − rx_ref|)·time_per_m as impulses on a grid of 1/S sample, split linearly between the
-    two nearest grid times (:func:`_add_impulse`). ``out`` (pings, channels·n_rx, S, n_samples) complex128 holds
-    grid time i in sub-row i mod S of sample ⌊i/S⌋: sub-row s is still to be delayed by s/S sample, and the
-    waveform to be applied (both once per row by FFT, :func:`sonar_embree.signal.synthesis.delayed_sum`). Of
-    ``waveform`` only ``rate_hz`` is read; its carrier phase must be 0 (baseband). Cost: one gather, the scatterers
-    once and 2·n_sub writes per receiver and node, where :func:`speckle_block` splats every scatterer's tabulated
-    waveform once per receiver.
+    e^(−j2π·(|X − tx| + |X − rx − v·t̄|)/λ) at t + (|X − rx − v·t̄| − |X − rx_ref|)·time_per_m as impulses on a
+    grid of 1/S sample, split linearly between the two nearest grid times (:func:`_add_impulse`). ``out`` (pings,
+    channels·n_rx, S, n_samples) complex128 holds grid time i in sub-row i mod S of sample ⌊i/S⌋: sub-row s is
+    still to be delayed by s/S sample, and the waveform to be applied (both once per row by FFT,
+    :func:`sonar_embree.signal.synthesis.delayed_sum`). Of ``waveform`` only ``rate_hz`` is read; its carrier phase
+    must be 0 (baseband). Cost: one gather, the scatterers once and 2·n_sub writes per receiver and node, where
+    :func:`speckle_block` splats every scatterer's tabulated waveform once per receiver.
     """
     cell_m = lattice.cell_m
     slots, nodes, node_key = tables.slots, tables.nodes, tables.node_key

@@ -434,7 +434,8 @@ def test_a_cubes_shadow_is_as_deep_as_the_closed_form_makes_it():
     (:func:`_closed_form_shadow_depth_db`: each floor point heard only by the pings and elements whose legs miss the
     box) puts the shadow of a 1 m × 1 m × 0.5 m box 25.8 dB below the floor, with pings N·D/2 apart and Hamming
     weighting; the lattice's floor at quality 1 (24.7 dB) and a floor of exact point echoes (25.5 dB) within 1.5 dB
-    of it (the closed form's own approximation, one point image for the whole lit floor, moves it by up to 0.5 dB). The box is black: its own echo's side lobes would fill the shadow as well."""
+    of it (the closed form's own approximation, one point image for the whole lit floor, moves it by up to
+    0.5 dB). The box is black: its own echo's side lobes would fill the shadow as well."""
     want = _closed_form_shadow_depth_db(_trajectory(step=0.16), 0.46)
     points = _shadow_depth_db(se.Material(backscatter_db=-150, clutter=se.Clutter(300.0, strength_db=-30.0,
                                                                                   spread_db=0.0)))
