@@ -282,10 +282,10 @@ def _hole_depth_db(material, fan=None, step=0.15, taper=0.0) -> float:
     return _hole_to_floor_db(np.abs(record_image(rec, x, y, 0.0, taper=taper)) ** 2, x, y)
 
 
-def _hole_to_floor_db(intensity, x, y) -> float:
-    """Mean intensity over the hole's inner pixels (|y + ACROSS| < 0.8, |x| < 0.25) against the floor's at the
-    same ranges 1.2–1.8 m along track from it, dB."""
-    rows = np.abs(y + ACROSS) < 0.8
+def _hole_to_floor_db(intensity, x, y, y_mid=-ACROSS, half_y=0.8) -> float:
+    """Mean intensity over the dark pixels |y − y_mid| < half_y, |x| < 0.25 (by default the hole's inner ones)
+    against the floor's at the same ranges 1.2–1.8 m along track from it, dB."""
+    rows = np.abs(y - y_mid) < half_y
     hole = intensity[np.ix_(rows, np.abs(x) < 0.25)].mean()
     floor = intensity[np.ix_(rows, np.abs(np.abs(x) - 1.5) < 0.3)].mean()
     return float(10 * np.log10(hole / floor))
@@ -326,14 +326,24 @@ def _closed_form_hole_depth_db(traj, taper) -> float:
     the floor's points q (the hole left out), h the point image of :func:`_point_image` at the hole's centre
     (taken as the same everywhere on the patch: 1 cm along, 2 cm across, out to ±5 m and the cut's ±0.9 m
     reach), a convolution of the floor's mask with |h|²; then :func:`_hole_to_floor_db` of it."""
+    x, y = _floor_grid()
+    floor = ~((np.abs(y + ACROSS)[:, None] < 1.1) & (np.abs(x)[None] < 0.4))
+    return _hole_to_floor_db(_through_point_image(floor, traj, taper), x, y)
+
+
+def _floor_grid():
+    """The closed forms' grid over the patch, 1 cm along and 2 cm across track: (x (600,), y (200,)) m."""
+    return np.arange(-3.0, 3.0, 0.01) + 0.005, -ACROSS + np.arange(-2.0, 2.0, 0.02) + 0.01
+
+
+def _through_point_image(mask, traj, taper):
+    """Σ_q |h(x − q)|² over the points q of ``mask`` (on :func:`_floor_grid`), h the point image at the patch's
+    centre (:func:`_point_image`, out to ±5 m along and the cut's ±0.9 m reach): a convolution, (200, 600)."""
     from scipy.signal import fftconvolve
 
-    sx, sy = 0.01, 0.02
-    psf = _point_image(np.array([0.0, -ACROSS, 0.0]), np.arange(-500, 501) * sx, np.arange(-45, 46) * sy, traj,
+    psf = _point_image(np.array([0.0, -ACROSS, 0.0]), np.arange(-500, 501) * 0.01, np.arange(-45, 46) * 0.02, traj,
                        taper)
-    x, y = np.arange(-3.0, 3.0, sx) + sx / 2, -ACROSS + np.arange(-2.0, 2.0, sy) + sy / 2
-    floor = ~((np.abs(y + ACROSS)[:, None] < 1.1) & (np.abs(x)[None] < 0.4))
-    return _hole_to_floor_db(fftconvolve(floor.astype(float), np.abs(psf[::-1, ::-1]) ** 2, mode="same"), x, y)
+    return fftconvolve(mask.astype(float), np.abs(psf[::-1, ::-1]) ** 2, mode="same")
 
 
 def test_with_uniform_phase_centres_and_weighting_a_hole_is_over_20_db_deep():
@@ -371,14 +381,6 @@ BOX = (np.array([-0.5, -ACROSS + 0.5, 0.0]), np.array([0.5, -ACROSS + 1.5, 0.5])
 SHADOW_Y = -13.85                                   # the shadow's middle (ground range 13.85 m), y
 
 
-def _shadow_to_floor_db(intensity, x, y) -> float:
-    """Mean intensity over the shadow (|y − SHADOW_Y| < 0.35, |x| < 0.25) against the floor's at the same ranges
-    1.2–1.8 m along track from it, dB."""
-    rows = np.abs(y - SHADOW_Y) < 0.35
-    shadow = intensity[np.ix_(rows, np.abs(x) < 0.25)].mean()
-    return float(10 * np.log10(shadow / intensity[np.ix_(rows, np.abs(np.abs(x) - 1.5) < 0.3)].mean()))
-
-
 def _crosses_box(a, b):
     """Whether the segments a → b (..., 3) pass through :data:`BOX` (the slab method), bool (...)."""
     d = b - a
@@ -395,10 +397,7 @@ def _closed_form_shadow_depth_db(traj, taper) -> float:
     patch's centre, a convolution as for the hole); the points some hear and some do not (the penumbra) are summed
     one by one at 5 × 5 pixels over the shadow; points none hears (under and behind the box) add nothing. Grid 1 cm
     along, 2 cm across over the patch; the floor's level from the convolution beside it."""
-    from scipy.signal import fftconvolve
-
-    sx, sy = 0.01, 0.02
-    x, y = np.arange(-3.0, 3.0, sx) + sx / 2, -ACROSS + np.arange(-2.0, 2.0, sy) + sy / 2
+    x, y = _floor_grid()
     near = (np.abs(x)[None] < 1.5) & (y[:, None] > SHADOW_Y - 1.0) & (y[:, None] < BOX[1][1] + 0.1)
     yy, xx = np.meshgrid(y, x, indexing="ij")
     q = np.stack([xx[near], yy[near], np.zeros(near.sum())], axis=1)
@@ -407,9 +406,7 @@ def _closed_form_shadow_depth_db(traj, taper) -> float:
     heard = ~_crosses_box(q[:, None, None], rx[None]) & ~_crosses_box(q[:, None], nav[None])[..., None]
     lit, some = np.ones(near.shape, bool), heard.any(axis=(1, 2)) & ~heard.all(axis=(1, 2))
     lit[near] = heard.all(axis=(1, 2))
-    psf = _point_image(np.array([0.0, -ACROSS, 0.0]), np.arange(-500, 501) * sx, np.arange(-45, 46) * sy, traj,
-                       taper)
-    image = fftconvolve(lit.astype(float), np.abs(psf[::-1, ::-1]) ** 2, mode="same")
+    image = _through_point_image(lit, traj, taper)
     px, py = np.meshgrid(np.linspace(-0.2, 0.2, 5), SHADOW_Y + np.linspace(-0.3, 0.3, 5))
     pixels = np.stack([px.ravel(), py.ravel(), np.zeros(px.size)], axis=1)
     penumbra = np.sum(np.abs(_aperture_sum(q[some], heard[some], pixels, traj, taper)) ** 2, axis=1)
@@ -420,12 +417,13 @@ def _closed_form_shadow_depth_db(traj, taper) -> float:
 
 def _shadow_depth_db(material, step=0.16, taper=0.46) -> float:
     """The SAS image's shadow of a black :data:`BOX` (no echo of its own) on the floor patch of ``material`` against
-    the floor beside it, dB (:func:`_shadow_to_floor_db`; pings ``step`` m apart, weighting ``taper``)."""
+    the floor beside it, dB (:func:`_hole_to_floor_db` over the shadow's middle; pings ``step`` m apart,
+    weighting ``taper``)."""
     sc = se.Scene().add(_patch(), material=material, label="seafloor")
     sc.add(trimesh.creation.box(bounds=np.stack(BOX)), material=se.Material(backscatter_db=-150), label="box")
     rec = se.simulate(sc, _trajectory(step=step), SONAR, PULSE, speckle=True, seed=4)
     x, y = np.arange(-2.0, 2.0, 0.02), np.arange(SHADOW_Y - 0.6, SHADOW_Y + 0.6, 0.02)
-    return _shadow_to_floor_db(np.abs(record_image(rec, x, y, 0.0, taper=taper)) ** 2, x, y)
+    return _hole_to_floor_db(np.abs(record_image(rec, x, y, 0.0, taper=taper)) ** 2, x, y, SHADOW_Y, 0.35)
 
 
 def test_a_cubes_shadow_is_as_deep_as_the_closed_form_makes_it():
