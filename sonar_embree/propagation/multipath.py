@@ -318,6 +318,10 @@ class PathEchoes:
         return self._merged
 
 
+#: Parts :func:`merge` hands its kernels, the missing ones empty (their tuples' length is part of their compiled type).
+MERGE_PARTS = 6
+
+
 def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes:
     """The lit echoes of the paths ``parts`` (direct, one bounce, two bounces), row by row, each tagged with its path
     (its index in ``parts``, or ``paths[index]``: the surface line is a direct path; every part direct: no tags).
@@ -328,8 +332,9 @@ def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes
     (valid until the front end's next block).
     """
     rows = parts[0].ray_start.shape[0] - 1
-    starts = tuple(e.ray_start for e in parts)
-    weights = tuple(e.weight for e in parts)
+    pad = max(MERGE_PARTS - len(parts), 0)                 # empty parts: one compiled signature for any count
+    starts = tuple(e.ray_start for e in parts) + (np.zeros(rows + 1, dtype=np.int64),) * pad
+    weights = tuple(e.weight for e in parts) + (np.zeros(0),) * pad
     counts = np.empty(rows, dtype=np.int64)
     kernels.count_lit(starts, weights, counts)
     start = np.concatenate(([0], np.cumsum(counts))).astype(np.int64)
@@ -340,9 +345,10 @@ def merge(parts, points: bool, buf: Buffers | None = None, paths=None) -> Echoes
                        take("merged_path", m, np.int8))
     pts = take("merged_pts", (m if points else 0, 3))
     ids = take("merged_ids", m if with_ids else 0, np.int32)
-    kernels.merge_lit(starts, tuple(e.travel_time_s for e in parts), tuple(e.extent_s for e in parts), weights,
-                      tuple(_points(e) for e in parts), tuple(_ids(e) for e in parts), start, t, ext, w, pts,
-                      ids, path)
+    kernels.merge_lit(starts, tuple(e.travel_time_s for e in parts) + weights[len(parts):],
+                      tuple(e.extent_s for e in parts) + weights[len(parts):], weights,
+                      tuple(_points(e) for e in parts) + (np.zeros((0, 3)),) * pad,
+                      tuple(_ids(e) for e in parts) + (np.zeros(0, np.int32),) * pad, start, t, ext, w, pts, ids, path)
     along, on_strip = _strips(parts, path)
     if paths is not None:
         if not any(paths):                          # every part direct (the fan and the aimed rays): no tags
