@@ -3,6 +3,7 @@ error its upsampling buys (docs/benchmarks.md, "Receiver arrays").
 
     python scripts/bench_arrays.py                      # prints Markdown tables
     python scripts/bench_arrays.py --pings 2 --runs 1 --elements 1 2 8 16 --no-image   # a quicker pass
+    python scripts/bench_arrays.py --layout vertical --elements 2 16 --no-image       # stacked elements
 
 Pings: the anchor mine on a 120 m flat floor at 10 m altitude, 100 kHz, elements 4 cm long along track (D
 apart, so a ±22° element beam: every node of the lattice under it radiates), a 20 kHz LFM of 1 ms, coherent
@@ -72,7 +73,17 @@ def _element_error(scene, traj, rec, n):
     return worst
 
 
-def pings_table(n_pings=4, runs=2, elements=(1, 2, 8, 16, 32), errors=True) -> str:
+def _array(n, layout):
+    """n elements along track D apart, or stacked vertically D apart (each then hears with its own elevation
+    pattern, docs/physics.md §18a); None: no array."""
+    if n is None:
+        return None
+    if layout == "vertical" and n > 1:
+        return se.ReceiverArray.vertical(D, n)
+    return se.ReceiverArray.along_track(n, D)
+
+
+def pings_table(n_pings=4, runs=2, elements=(1, 2, 8, 16, 32), errors=True, layout="along") -> str:
     scene = se.Scene()
     scene.add(se.seafloor.flat((120.0, 120.0)), material=se.Material(backscatter_db=-27), label="seafloor")
     scene.add(se.assets.path("anchor_mine.obj"), material=se.Material(backscatter_db=-15))
@@ -81,7 +92,7 @@ def pings_table(n_pings=4, runs=2, elements=(1, 2, 8, 16, 32), errors=True) -> s
             "| element vs alone: peak dB, rad; record error energy |", "|---|---|---|---|---|---|"]
     single = None
     for n in (None,) + tuple(elements):
-        ms, syn, rec = _best(scene, traj, _sonar(None if n is None else se.ReceiverArray.along_track(n, D)), runs)
+        ms, syn, rec = _best(scene, traj, _sonar(_array(n, layout)), runs)
         single = single or ms
         err = "" if n is None or n < 2 or not errors else "{:.4f} dB, {:.4f} rad; {:.1f} dB".format(
             *_element_error(scene, traj, rec, n))
@@ -145,8 +156,10 @@ def main() -> int:
     ap.add_argument("--elements", type=int, nargs="+", default=[1, 2, 8, 16, 32])
     ap.add_argument("--no-errors", action="store_true", help="skip the per-element reference runs")
     ap.add_argument("--no-image", action="store_true", help="skip the image-formation table")
+    ap.add_argument("--layout", choices=("along", "vertical"), default="along",
+                    help="elements along track (default) or stacked vertically, D apart")
     a = ap.parse_args()
-    print(pings_table(a.pings, a.runs, tuple(a.elements), not a.no_errors))
+    print(pings_table(a.pings, a.runs, tuple(a.elements), not a.no_errors, a.layout))
     if not a.no_image:
         print()
         print(image_table())

@@ -14,6 +14,7 @@ H = 10.0  # sonar altitude of the reference cases, m
 #: Tests that take a second or more on the 2-core machine (``pytest --durations``), marked ``slow``: the quick
 #: tier, ``python -m pytest -q -m "not slow"``, leaves them out (README, "Tests").
 SLOW = frozenset({
+    "test_receiver_arrays.py::test_off_line_elements_hear_the_lattice_through_their_own_elevation_pattern",
     "test_replay.py::test_a_calibrated_replay_has_the_records_texture_statistics",
     "test_replay.py::test_fit_pulse_recovers_a_hidden_pulse_length",
     "test_replay.py::test_fit_pulse_says_when_the_record_lies_beyond_its_pulses",

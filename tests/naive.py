@@ -252,10 +252,31 @@ def _pattern(strips, row, s):
     return np.interp(s, grid, gain[row], left=0.0, right=0.0)
 
 
-def _element_gains(strips, rows, x, ref, rx):
+def _element_gains(strips, rows, x, ref, rx, across=None):
     """Γ_rx(s_k)/Γ_rx(s) per node (kernels.speckle._element_gains, ``gain_rx`` an amplitude table): nodes seen at x
     (n, 3) of strips rows ``rows``, s from the reference receiver ref (3,), s_k from each node's receiver rx
-    (n, 3); 1 where Γ_rx(s) is 0 or s_k = s."""
+    (n, 3); 1 where Γ_rx(s) is 0 or s_k = s; times :func:`_across_gains` with ``across``."""
+    out = _along_gains(strips, rows, x, ref, rx)
+    return out if across is None else out * _across_gains(across, rows, x, ref, rx)
+
+
+def _across_gains(across, rows, x, ref, rx):
+    """|Γ(v_k)|/|Γ(v)| per node (kernels.speckle._across_ratios): ``across`` = (side (rows, 3), table, v0, step), v
+    the cosine of the direction from ``ref`` to the node seen at x with its row's side axis, v_k that from rx; 1
+    where |Γ(v)| is 0. The table linear between its samples, 0 outside."""
+    side, table, v0, step = across
+    grid = v0 + step * np.arange(table.shape[0])
+
+    def at(d):
+        v = np.sum(d * side[rows], axis=1) / np.linalg.norm(d, axis=1)
+        return np.interp(v, grid, table, left=0.0, right=0.0)
+
+    g = at(x - ref)
+    return np.where(g > 0, at(x - rx) / np.where(g > 0, g, 1.0), 1.0)
+
+
+def _along_gains(strips, rows, x, ref, rx):
+    """The along-track part of :func:`_element_gains`."""
     if strips is None:
         return np.ones(x.shape[0])
     axis, _, gain_rx, s0, step, _ = strips
@@ -323,14 +344,15 @@ def _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, str
 
 def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
                   delay_per_m, phase_cycles_per_m, n_sub, table, table_start, table_rate, out, pos_rx=None,
-                  vel_rx=None, receivers=None, time_per_m=0.0, strips=None):
+                  vel_rx=None, receivers=None, time_per_m=0.0, strips=None, across=None):
     """Per ping: naive gather → naive frozen scatterers → envelope ranges and amplitudes → naive splat_table
     (the receiver at rx + v·R̄ when each node's echo arrives, R̄ in the units the ranges are given in).
     ``receivers`` (pings, 2·n_rx, 3): n_rx receivers per channel, receiver k of channel ch writing row ch·n_rx + k,
     each delayed by (|X − rx_k − v·R̄| − |X − rx|)·time_per_m (with one receiver, rx_k = rx: its motion alone).
     ``strips`` (axis, gain, gain_rx, s0, step, on_strip): the
     echoes taken through :func:`strip_points`, every node's weight times the pattern at its own along-track cosine,
-    and with receivers (time_per_m ≠ 0) each receiver's amplitude times :func:`_element_gains`."""
+    and with receivers (time_per_m ≠ 0) each receiver's amplitude times :func:`_element_gains` (with ``across``,
+    (side, table, v0, step), the across-track ratios too)."""
     n_rx = out.shape[1] // 2
     for b in range(pos_world.shape[0]):
         nodes = _row_nodes(b, ray_start, points_world, weights, ranges, extents, cell_m, strips, pos_world[b])
@@ -356,7 +378,7 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
             base = np.sqrt(w / n_sub) * np.exp(-2j * np.pi * ((l_node / wavelength_m) % 1))
             if time_per_m != 0.0 and receivers is not None:
                 base = base * _element_gains(strips, 2 * b + keys[:, 0], x - move, pos_world[b] if pos_rx is None
-                                             else pos_rx[b], receivers[b, keys[:, 0] * n_rx + k])
+                                             else pos_rx[b], receivers[b, keys[:, 0] * n_rx + k], across)
             r_env = np.clip(r_mean[:, None] + np.sqrt(3) * sigma[:, None] * (2 * v - 1), rmin[:, None],
                             rmax[:, None]) + ((d_rx - d_ref) * time_per_m)[:, None]
             amp = base[:, None] * g * np.exp(2j * np.pi * ((phase_cycles_per_m * r_env) % 1))
@@ -366,7 +388,7 @@ def speckle_block(ray_start, points_world, weights, ranges, extents, pos_world, 
 
 
 def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_world, seed, cell_m, wavelength_m,
-                         rate, n_sub, out, receivers, vel_rx, time_per_m, strips=None):
+                         rate, n_sub, out, receivers, vel_rx, time_per_m, strips=None, across=None):
     """Per ping: the nodes of :func:`speckle_block`, each scatterer per receiver an impulse at
     (t + (|X − rx_k − v·R̄| − |X − tx|)·time_per_m)·rate·S on the grid of 1/S sample (S = out.shape[2]), split
     linearly between its two nearest grid times, grid time i written to out[b, row, i mod S, i // S]; the receivers move at
@@ -391,7 +413,7 @@ def speckle_block_shared(ray_start, points_world, weights, ranges, extents, pos_
         for k in range(n_rx):
             rows = keys[:, 0] * n_rx + k
             d_rx = np.linalg.norm(x - receivers[b, rows], axis=1)
-            gain = _element_gains(strips, 2 * b + keys[:, 0], x, pos_world[b], receivers[b, rows])
+            gain = _element_gains(strips, 2 * b + keys[:, 0], x, pos_world[b], receivers[b, rows], across)
             amp = (gain * np.sqrt(w / n_sub) * np.exp(-2j * np.pi * (((d_tx + d_rx) / wavelength_m) % 1)))[:, None] * g
             grid = (r_env + ((d_rx - d_ref) * time_per_m)[:, None]) * rate * steps
             lo = np.floor(grid)

@@ -3,9 +3,9 @@
 Every element hears the same frozen scatterers (so speckle is coherent across the elements) along its own
 bistatic path: transmitter at ping time → scatterer → element, where the element is when the echo arrives
 (motion during the ping), with travel time τ_k = (|X − p_tx| + |X − p_k|)/c and carrier phase −2π·f0·τ_k. Each
-element is a copy of the side's receiving membrane: its pattern is the side's, taken in the direction of the
-transmitter's ray, which differs from the element's own direction by at most the array's size over the range (a
-small angle at any range the array is used at). Two layouts have constructors:
+element is a copy of the side's receiving membrane and hears with its pattern along its own direction to the
+scatterer (along track always; across track too where the element lies off the transmitter's along-track line;
+docs/physics.md §18a). Two layouts have constructors:
 
 - :meth:`ReceiverArray.vertical`: an interferometric side-scan's receivers stacked across the face (the
   phase difference of two of them gives the angle of arrival, :mod:`sonar_embree.signal.interferometry`);

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+import numpy as np
+
 #: A block's fan: azimuth direction cosines s (n_az,) and their spacing ds (float, or per line), the elevation
 #: rays' cos β, sin β and cell width dβ (n,), and the rows' first rays el_start (rows + 1,).
 Fan = namedtuple("Fan", "s ds cos_beta sin_beta dbeta el_start")
@@ -48,9 +50,19 @@ LegOut = namedtuple("LegOut", "start end idx org dir length")
 #: frame's world origin (3,), each echo's weight, two-way travel time (s) and its extent (s) (n,), and the rows'
 #: along-track strips: each row's forward axis times the fan's line spacing (rows, 3) (world, rad; (0, 3): none),
 #: its along-track two-way pattern and that pattern's receive factor alone (rows, n_tab) on s = s0 + k·step, s0 and
-#: step (propagation.echoes.AlongTrack), and which echoes lie on them (n,) bool ((0,): all) (kernels.speckle_block).
-SpeckleEchoes = namedtuple("SpeckleEchoes",
-                           "ray_start points origin weights times extents axis gain gain_rx s0 step on_strip")
+#: step (propagation.echoes.AlongTrack), and which echoes lie on them (n,) bool ((0,): all), then the receive
+#: pattern across track for receivers off the reference's along-track line (the four fields of :data:`Across`;
+#: default: none) (kernels.speckle_block).
+SpeckleEchoes = namedtuple("SpeckleEchoes", "ray_start points origin weights times extents axis gain gain_rx s0 step "
+                                            "on_strip side across v0 v_step")
+#: The receive pattern across track, for receiver arrays whose elements lie off the reference receiver's along-track
+#: line (docs/physics.md §18a): each row's unit across axis v̂ (rows, 3) (world; (0, 3): none), the pattern's across
+#: factor as an amplitude |Γ(v)| (n,) on v = v0 + k·v_step, v0 and v_step. (Flat in SpeckleEchoes: a parallel
+#: kernel's arguments may not nest tuples.)
+Across = namedtuple("Across", "side across v0 v_step")
+#: No receive pattern across track: the elements take the reference receiver's.
+NO_ACROSS = Across(np.zeros((0, 3)), np.zeros(2), -1.0, 2.0)
+SpeckleEchoes.__new__.__defaults__ = tuple(NO_ACROSS)
 #: Each ping's transmitting position (pings, 3) and receiving positions (pings, channels·receivers, 3) (world, m),
 #: the receivers' velocity (pings, 3), the receiver the echoes' times were made for (pings, 3) and the travel time
 #: per metre of path (1/c; 0: the receivers' own delays ignored), see kernels.speckle_block.

@@ -554,17 +554,52 @@ def _element_gains(echoes, row0, key_t, q, x, ref, rx, gains):
     """``gains[k]`` = Γ_rx(s_k)/Γ_rx(s) for each receiver k of node q's channel (rows ch·n + k of ``rx``, n =
     gains.shape[0]; :func:`_pattern_ratios` in row ``row0`` + the channel): s_k the receiver's own along-track
     cosine to the node seen at ``x`` (:func:`_seen_from`), s that of ``ref``, the receiver the echo's weight was
-    made for (the transmitter or its image). 1 without strips."""
+    made for (the transmitter or its image), 1 without strips; times the across factor's ratio at each receiver's
+    own direction where the echoes have one (:func:`_across_ratios`)."""
     ch, n = key_t[q, 0], gains.shape[0]
+    r = row0 + ch
     if echoes.axis.shape[0] == 0:
         for k in range(n):                          # by index: a slice is a view, whose count threads contend for
             gains[k] = 1.0
+    else:
+        for k in range(n):
+            j = ch * n + k
+            gains[k] = _along_s(echoes.axis, r, x[0] - rx[j, 0], x[1] - rx[j, 1], x[2] - rx[j, 2])[0]
+        _pattern_ratios(echoes, r, _along_s(echoes.axis, r, x[0] - ref[0], x[1] - ref[1], x[2] - ref[2])[0], gains)
+    _across_ratios(echoes, r, x, ref, rx, ch, gains)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _across_at(echoes, r, dx, dy, dz):
+    """The receive pattern's across factor |Γ(v)| (``echoes.across`` on v0 + k·v_step, linear between its samples,
+    0 outside) towards (dx, dy, dz) from a receiver, v the direction's cosine with row r's across axis ``side``
+    (:data:`~sonar_embree.kernels.args.Across`)."""
+    side, table = echoes.side, echoes.across
+    v = (dx * side[r, 0] + dy * side[r, 1] + dz * side[r, 2]) / math.sqrt(dx * dx + dy * dy + dz * dz)
+    x = (v - echoes.v0) / echoes.v_step
+    n = table.shape[0]
+    if x < 0.0 or x > n - 1:
+        return 0.0
+    i = min(int(x), n - 2)
+    t = x - i
+    return table[i] * (1.0 - t) + table[i + 1] * t
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _across_ratios(echoes, r, x, ref, rx, ch, gains):
+    """In place, ``gains[k]`` times |Γ(v_k)|/|Γ(v)| (:func:`_across_at`, row r): receiver k of channel ch (row
+    ch·n + k of ``rx``, n = gains.shape[0]) sees the node at ``x`` along its own direction, ``ref`` (the receiver
+    the echo's weight was made for) along v. Nothing without across axes or where |Γ(v)| is 0; v_k = v gives 1
+    exactly (a receiver at the reference keeps its bits)."""
+    if echoes.side.shape[0] == 0:
         return
-    r = row0 + ch
+    g = _across_at(echoes, r, x[0] - ref[0], x[1] - ref[1], x[2] - ref[2])
+    if g <= 0.0:
+        return
+    n = gains.shape[0]
     for k in range(n):
         j = ch * n + k
-        gains[k] = _along_s(echoes.axis, r, x[0] - rx[j, 0], x[1] - rx[j, 1], x[2] - rx[j, 2])[0]
-    _pattern_ratios(echoes, r, _along_s(echoes.axis, r, x[0] - ref[0], x[1] - ref[1], x[2] - ref[2])[0], gains)
+        gains[k] *= _across_at(echoes, r, x[0] - rx[j, 0], x[1] - rx[j, 1], x[2] - rx[j, 2]) / g
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -631,7 +666,8 @@ def _node_impulses(nodes, q, ijk, lattice, rate, amps, where):
 def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scratch, echoes, row0):
     """Node q heard by each of its channel's receivers (:func:`speckle_block_shared`): its scatterers once
     (:func:`_node_impulses`), every receiver's phase, delay and along-track cosine at once (:func:`_receiver_turns`),
-    its receive pattern at that cosine (:func:`_pattern_ratios`, row ``row0`` + the channel), then each scatterer
+    its receive pattern at that cosine (:func:`_pattern_ratios`, row ``row0`` + the channel) and across track
+    (:func:`_across_ratios`), then each scatterer
     as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
     ``shift``: log2 S."""
     amps, where, phase, delay, gains = scratch
@@ -644,6 +680,8 @@ def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scr
         _pattern_ratios(echoes, row0 + ch, s_ref, gains)
         for k in range(n_rx):
             phase[k] *= gains[k]
+    _across_ratios(echoes, row0 + ch, _seen_from(node_key, nodes, q, lattice.cell_m, ends_b[2]), ends_b[3],
+                   ends_b[1], ch, phase)
     for k in range(n_rx):
         for sub in range(amps.shape[0]):
             _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub], shift)

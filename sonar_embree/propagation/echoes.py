@@ -38,6 +38,12 @@ class AlongTrack:
         along-track cosine s_k instead of the transmitter's s (docs/physics.md §18a).
     s0, step : float
         The table's first s and its spacing.
+    side_axis : (rows, 3) float64 or None
+        Each row's unit across axis v̂ (world): the beam's second axis, in the elevation plane and perpendicular to
+        the boresight (:class:`~sonar_embree.instrument.beams.base.Beam`); None: not tabulated.
+    across : (table (n,) float64, v0, step) or None
+        The receive pattern's across factor as an amplitude |Γ(v)| on v = v0 + k·step: an element off the
+        transmitter's along-track line takes it at its own direction (docs/physics.md §18a).
     """
 
     axis_rad: np.ndarray
@@ -45,6 +51,14 @@ class AlongTrack:
     gain_rx: np.ndarray
     s0: float
     step: float
+    side_axis: np.ndarray | None = None
+    across: tuple | None = None
+
+    def rows(self, r0: int, r1: int, every: int = 1) -> "AlongTrack":
+        """Rows r0, r0 + every, … < r1 (a block's pings, or one channel of each)."""
+        side = None if self.side_axis is None else self.side_axis[r0:r1:every]
+        return AlongTrack(self.axis_rad[r0:r1:every], self.gain[r0:r1:every], self.gain_rx[r0:r1:every], self.s0,
+                          self.step, side, self.across)
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,7 +154,6 @@ def ping_slice(e: Echoes, a: int, b: int) -> Echoes:
     def part(x):
         return x[i0:i1] if x.shape[0] == e.weight.shape[0] else x
 
-    along = None if e.along is None else AlongTrack(e.along.axis_rad[r0:r1], e.along.gain[r0:r1],
-                                                    e.along.gain_rx[r0:r1], e.along.s0, e.along.step)
+    along = None if e.along is None else e.along.rows(r0, r1)
     return Echoes(e.n_channels, e.ray_start[r0:r1 + 1] - i0, e.travel_time_s[i0:i1], e.extent_s[i0:i1],
                   e.weight[i0:i1], part(e.point_m), part(e.object_id), part(e.path), along, part(e.on_strip))

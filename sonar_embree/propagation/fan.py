@@ -136,7 +136,31 @@ def along_track(plan: FanPlan, rot: np.ndarray, rx_shift: np.ndarray | None = No
     gain_rx = np.repeat(np.abs(a_rx), 2, axis=0)                # Γ_rx alone, an amplitude
     axis = np.repeat(np.asarray(rot[:, :, 0], dtype=np.float64) * plan.ds, 2, axis=0)
     return AlongTrack(np.ascontiguousarray(axis), np.ascontiguousarray(gain), np.ascontiguousarray(gain_rx), s0,
-                      float(step))
+                      float(step), side_axes(rot, plan.tilt_rad), across_table(plan.pattern))
+
+
+#: Samples of the across-track pattern table per first-null angle's sine (:func:`across_table`): linear
+#: interpolation of a membrane's sinc between them is within 0.02 % of its peak.
+ACROSS_TABLE_PER_NULL = 64
+
+
+def side_axes(rot: np.ndarray, tilt_rad: float) -> np.ndarray:
+    """Each row's (2·ping + side: port, starboard) unit across axis v̂ in the world, (rows, 3): the beam's second
+    axis (:class:`~sonar_embree.instrument.beams.base.Beam`), v̂ = (0, −side·sin δ, cos δ) in the body frame (forward,
+    starboard, down; side −1 port, +1 starboard, δ the tilt), as :func:`~sonar_embree.propagation.gain.weigh_by_beam`
+    takes v = e·v̂ for a ray's body direction e; ``rot`` (pings, 3, 3) body to world."""
+    c, s = math.cos(tilt_rad), math.sin(tilt_rad)
+    body = np.array([[0.0, s, c], [0.0, -s, c]])                  # port, starboard
+    return np.ascontiguousarray(np.einsum("pij,sj->psi", np.asarray(rot, dtype=np.float64), body).reshape(-1, 3))
+
+
+def across_table(pattern) -> tuple:
+    """A side's receive pattern across track, |Γ(v)| for v in [−1, 1] at :data:`ACROSS_TABLE_PER_NULL` samples per
+    sin of the first null's angle (at most 2¹⁶): (table, v0, step), for an element off the transmitter's line."""
+    step = max(math.sin(min(pattern.first_null_rad, 0.5 * math.pi)) / ACROSS_TABLE_PER_NULL, 2.0 / 65535)
+    n = int(math.ceil(2.0 / step)) + 1
+    v = -1.0 + step * np.arange(n)
+    return np.ascontiguousarray(np.abs(pattern.across(v)), dtype=np.float64), -1.0, float(step)
 
 
 def moving_lines(plan: FanPlan, rx_shift: np.ndarray):

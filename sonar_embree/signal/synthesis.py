@@ -20,7 +20,7 @@ import numpy as np
 from scipy import fft as sfft
 
 from .. import kernels
-from ..kernels.args import Lattice, NodeTables, PathEnds, SpeckleEchoes, Waveform
+from ..kernels.args import NO_ACROSS, Across, Lattice, NodeTables, PathEnds, SpeckleEchoes, Waveform
 from ..propagation import multipath
 from . import processing, pulses
 from ..config import Pulse, SignalChain
@@ -47,6 +47,30 @@ def strips(e: Echoes) -> tuple:
                          f"echoes in {rows} rows and {e.weight.shape[0]} echoes")   # a front end's bug, not input
     return (a.axis_rad, a.gain, a.gain_rx, float(a.s0), float(a.step),
             np.ascontiguousarray(e.on_strip, dtype=np.bool_))
+
+
+#: Receivers closer than this to the reference receiver's along-track line take its across-track pattern, m.
+ACROSS_OFF_LINE_M = 1e-6
+
+
+def across(e: Echoes, pos_rx: np.ndarray, ref: np.ndarray, mirrored: bool = False) -> Across:
+    """The kernel's view of the receive pattern across track (:data:`~sonar_embree.kernels.args.Across`): for
+    receivers ``pos_rx`` (pings, rows, 3) of which any lies off the along-track line through ``ref`` (pings, 3), the
+    echoes' across axes and table, each element then taking the pattern at its own direction; else none (a line of
+    elements along track, or one receiver, keeps its bits and its cost). ``mirrored``: the receivers are images in
+    the sea surface, whose arrivals come mirrored (the axes' vertical part turned over)."""
+    a = e.along
+    if a is None or a.side_axis is None or a.across is None or pos_rx.ndim != 3:
+        return NO_ACROSS
+    n_p = ref.shape[0]
+    fwd = a.axis_rad[::max(a.axis_rad.shape[0] // max(n_p, 1), 1)][:n_p]
+    fwd = fwd / np.linalg.norm(fwd, axis=1, keepdims=True)
+    off = pos_rx - ref[:, None, :]
+    off = off - np.einsum("prk,pk->pr", off, fwd)[..., None] * fwd[:, None, :]
+    if not np.any(np.linalg.norm(off, axis=2) > ACROSS_OFF_LINE_M):
+        return NO_ACROSS
+    side = a.side_axis * [1.0, 1.0, -1.0] if mirrored else a.side_axis
+    return Across(np.ascontiguousarray(side, dtype=np.float64), *a.across)
 
 
 class ScattererLattice:
@@ -79,7 +103,7 @@ class ScattererLattice:
 
     def synthesise(self, e: Echoes, origin_m, pos_world, wavelength_m: float, rate_hz: float,
                    phase_cycles_per_s: float, synth: "WaveformTables", out, pos_rx=None, vel_rx=None,
-                   rx_ref=None, time_per_m: float = 0.0, draw: int = 0):
+                   rx_ref=None, time_per_m: float = 0.0, draw: int = 0, mirrored: bool = False):
         """Add the block's scatterer echoes to ``out`` (pings, channels, n) complex, h from ``synth``'s table.
 
         ``pos_world`` transmits and ``pos_rx`` (default: the same) receives, world m per ping, the receiver
@@ -88,9 +112,10 @@ class ScattererLattice:
         ``rx_ref`` (pings, 3) is the receiver the echoes' times were made for and ``time_per_m`` (1/c, s/m) delays
         each element's envelope by its path's difference (:func:`kernels.speckle_block`). An ``out`` of shape
         (pings, channels, S, n) takes the elements from one emission per node, sub-row s still to be delayed by
-        s/S sample (:func:`kernels.speckle_block_shared`, :func:`delayed_sum`). ``draw`` > 0 gives the nodes
-        scatterers independent of draw 0's (the second of an array's two one-bounce paths, :meth:`SpeckleSynthesis
-        ._lattice`).
+        s/S sample (:func:`kernels.speckle_block_shared`, :func:`delayed_sum`); elements off the reference's
+        along-track line also take the receive pattern across track at their own directions (:func:`across`;
+        ``mirrored``: the receivers are images in the sea surface). ``draw`` > 0 gives the nodes scatterers
+        independent of draw 0's (the second of an array's two one-bounce paths, :meth:`SpeckleSynthesis._lattice`).
         """
         pos_world = np.ascontiguousarray(pos_world)
         pos_rx = pos_world if pos_rx is None else np.ascontiguousarray(pos_rx)
@@ -102,11 +127,13 @@ class ScattererLattice:
         if self.epochs.max() + 2 * status.size >= 2 ** 31:  # slots pack the epoch in 32 bits: start afresh
             self._alloc(self.slots.shape[0], self.slots.shape[1])
         kernel = kernels.speckle_block_shared if out.ndim == 4 else kernels.speckle_block
+        off_line = across(e, pos_rx, ref, mirrored) if time_per_m != 0.0 else NO_ACROSS
+        echoes = SpeckleEchoes(*map(_plain, (e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s,
+                                             e.extent_s, *strips(e), *off_line)))
+        ends = PathEnds(*map(_plain, (pos_world, pos_rx, vel_rx, ref)), float(time_per_m))
         while True:
             kernel(
-                SpeckleEchoes(e.ray_start, e.point_m, origin_m, e.weight, e.travel_time_s, e.extent_s,
-                              *strips(e)),
-                PathEnds(pos_world, pos_rx, vel_rx, ref, float(time_per_m)),
+                echoes, ends,
                 Lattice(self.seed if draw == 0 else _draw_seed(self.seed, draw), self.cell_m, wavelength_m,
                         self.SUB_SCATTERERS),
                 Waveform(synth.table, synth.table_start, synth.table_rate, rate_hz, phase_cycles_per_s),
@@ -115,6 +142,13 @@ class ScattererLattice:
                 return
             self._alloc(self.slots.shape[0], 2 * self.slots.shape[1])
             status[status < 0] = 0
+
+
+def _plain(x):
+    """An array argument of the speckle kernels as they are compiled for: C-contiguous and writeable (a copy of a
+    strided or read-only one: each layout and flag would compile the kernels again, 10–30 s per process); other
+    values unchanged."""
+    return np.require(x, requirements=("C", "W")) if isinstance(x, np.ndarray) else x
 
 
 def _draw_seed(seed: int, draw: int) -> int:
@@ -485,7 +519,8 @@ class SpeckleSynthesis:
             if share != 1.0:
                 part = dataclasses.replace(part, weight=share * part.weight)
             self.lattice.synthesise(part, origin_m, tx, s.wavelength_m, rate_hz, phase_cycles_per_s, self.tables,
-                                    out, pos_rx=rx, vel_rx=vr, rx_ref=ref, time_per_m=time_per_m, draw=draw)
+                                    out, pos_rx=rx, vel_rx=vr, rx_ref=ref, time_per_m=time_per_m, draw=draw,
+                                    mirrored=ref is image)
 
     def noise_source(self, run):
         """For a beamformer: ``noise(shape, complex_)`` of the run's density on its outputs (pings, beams, n_s), each

@@ -12,7 +12,6 @@ environment, speckle, pulses, levels, receiver) applies unchanged.
 """
 from __future__ import annotations
 
-import dataclasses
 
 import math
 from dataclasses import dataclass
@@ -175,8 +174,7 @@ class MSISFrontEnd(SideScanFrontEnd):
         e = merged(e)
         start = np.concatenate([e.ray_start[1::2], e.ray_start[-1:]])
         a = e.along
-        along = None if a is None else dataclasses.replace(a, axis_rad=a.axis_rad[1::2], gain=a.gain[1::2],
-                                                           gain_rx=a.gain_rx[1::2])
+        along = None if a is None else a.rows(1, a.axis_rad.shape[0], 2)
         return Echoes(1, start, e.travel_time_s, e.extent_s, e.weight, e.point_m, e.object_id, e.path, along,
                       e.on_strip), blk
 

@@ -405,40 +405,57 @@ def _array_strips(rng, n_p):
         np.zeros(0, dtype=bool)
 
 
-@pytest.mark.parametrize("n_tables, with_strips", [(1, False), (3, False), (1, True)])
-def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables, with_strips):
+def _array_across(rng, n_p):
+    """Across-track axes (unit, random per row) and a random receive table of 81 samples on v ∈ [−1, 1]."""
+    side = rng.normal(size=(2 * n_p, 3))
+    return side / np.linalg.norm(side, axis=1, keepdims=True), rng.uniform(0.2, 1.0, 81), -1.0, 0.025
+
+
+@pytest.mark.parametrize("n_tables, with_strips, with_across", [(1, False, False), (3, False, False),
+                                                                (1, True, False), (1, False, True), (3, True, True)])
+def test_speckle_block_with_receiver_arrays_matches_naive(rng, n_tables, with_strips, with_across):
     """Three receivers per channel, each on its own path and delay (docs/physics.md §18a), against the twin; with
-    strips, each receiver's amplitude also takes the receive pattern at its own along-track cosine."""
+    strips, each receiver's amplitude also takes the receive pattern at its own along-track cosine, with across
+    axes at its own across-track cosine."""
     n_p, ray_start, origin, pts, w, r, ext, pos, receivers, vel = _array_case(rng)
     strips = _array_strips(rng, n_p) if with_strips else None
+    across = _array_across(rng, n_p) if with_across else None
     table = np.exp(2j * np.pi * np.linspace(0, 1, 101)) * np.hanning(101)
     out, status = np.zeros((n_p, 6, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
-    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *(strips or NO_STRIPS)),
+    kernels.speckle_block(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *(strips or NO_STRIPS), *(across or ())),
                           PathEnds(pos, receivers, vel, pos, 2.5),
                           Lattice(7, 0.1, 0.00375, 4), Waveform(table, -2.0, 10.0, 16.0, 533.3),
                           NodeTables(*_speckle_tables(n_tables, 1 << (16 if with_strips else 12))), status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table, -2.0,
-                              10.0, np.zeros_like(out), vel_rx=vel, receivers=receivers, time_per_m=2.5, strips=strips)
+                              10.0, np.zeros_like(out), vel_rx=vel, receivers=receivers, time_per_m=2.5, strips=strips,
+                              across=across)
     assert np.abs(ref[:, 1]).max() > 0 and not np.allclose(ref[:, 0], ref[:, 1])   # the elements differ
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
+    if with_across:                                                    # the across ratios change the record
+        plain = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
+                                    -2.0, 10.0, np.zeros_like(out), vel_rx=vel, receivers=receivers, time_per_m=2.5,
+                                    strips=strips)
+        assert np.abs(plain - ref).max() > 0.1 * np.abs(ref).max()
 
 
-@pytest.mark.parametrize("n_tables", [1, 3])
-def test_speckle_block_shared_matches_naive(rng, n_tables):
+@pytest.mark.parametrize("n_tables, with_across", [(1, False), (3, False), (3, True)])
+def test_speckle_block_shared_matches_naive(rng, n_tables, with_across):
     """Three receivers per channel from one draw of each node's scatterers: impulses on a grid of 1/8 sample, split
-    linearly, each receiver at its own phase and delay, against the twin; with along-track strips."""
+    linearly, each receiver at its own phase and delay, against the twin; with along-track strips, and across-track
+    axes."""
     n_p, ray_start, origin, pts, w, r, ext, pos, receivers, vel = _array_case(rng)
     strips = _array_strips(rng, n_p)
+    across = _array_across(rng, n_p) if with_across else None
     table = np.ones(3)                                             # not read: the shared kernel writes impulses
     out, status = np.zeros((n_p, 6, 8, 200), dtype=np.complex128), np.zeros(n_p, dtype=np.int64)
-    kernels.speckle_block_shared(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *strips),
+    kernels.speckle_block_shared(SpeckleEchoes(ray_start, pts, origin, w, r, ext, *strips, *(across or ())),
                                  PathEnds(pos, receivers, vel, pos, 2.5),
                                  Lattice(7, 0.1, 0.00375, 4), Waveform(table, -1.0, 1.0, 16.0, 0.0),
                                  NodeTables(*_speckle_tables(n_tables, 1 << 16)), status, out)
     assert np.all(status == 1)
     ref = naive.speckle_block_shared(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 4,
-                                     np.zeros_like(out), receivers, vel, 2.5, strips=strips)
+                                     np.zeros_like(out), receivers, vel, 2.5, strips=strips, across=across)
     assert np.count_nonzero(ref) > 1000 and not np.allclose(ref[:, 0], ref[:, 1])   # the elements differ
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-11 * np.abs(ref).max())
 
