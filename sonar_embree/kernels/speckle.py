@@ -574,8 +574,15 @@ def _across_at(echoes, r, dx, dy, dz):
     """The receive pattern's across factor |Γ(v)| (``echoes.across`` on v0 + k·v_step, linear between its samples,
     0 outside) towards (dx, dy, dz) from a receiver, v the direction's cosine with row r's across axis ``side``
     (:data:`~sonar_embree.kernels.args.Across`)."""
-    side, table = echoes.side, echoes.across
-    v = (dx * side[r, 0] + dy * side[r, 1] + dz * side[r, 2]) / math.sqrt(dx * dx + dy * dy + dz * dz)
+    side = echoes.side
+    return _across_table(echoes, (dx * side[r, 0] + dy * side[r, 1] + dz * side[r, 2])
+                         / math.sqrt(dx * dx + dy * dy + dz * dz))
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _across_table(echoes, v):
+    """|Γ(v)| from ``echoes.across`` on v0 + k·v_step, linear between its samples, 0 outside."""
+    table = echoes.across
     x = (v - echoes.v0) / echoes.v_step
     n = table.shape[0]
     if x < 0.0 or x > n - 1:
@@ -583,6 +590,14 @@ def _across_at(echoes, r, dx, dy, dz):
     i = min(int(x), n - 2)
     t = x - i
     return table[i] * (1.0 - t) + table[i + 1] * t
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _side_of(echoes, r):
+    """Row r's across axis v̂ as a 3-tuple; (0, 0, 0) without across axes."""
+    if echoes.side.shape[0] == 0:
+        return 0.0, 0.0, 0.0
+    return echoes.side[r, 0], echoes.side[r, 1], echoes.side[r, 2]
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -667,33 +682,37 @@ def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scr
     """Node q heard by each of its channel's receivers (:func:`speckle_block_shared`): its scatterers once
     (:func:`_node_impulses`), every receiver's phase, delay and along-track cosine at once (:func:`_receiver_turns`),
     its receive pattern at that cosine (:func:`_pattern_ratios`, row ``row0`` + the channel) and across track
-    (:func:`_across_ratios`), then each scatterer
+    (the across cosines from the same loop, :func:`_across_table`), then each scatterer
     as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
     ``shift``: log2 S."""
-    amps, where, phase, delay, gains = scratch
+    amps, where, phase, delay, gains, across_v = scratch
     ch, ix, iy, iz = node_key[q, 0], node_key[q, 1], node_key[q, 2], node_key[q, 3]
     _node_impulses(nodes, q, (ix, iy, iz), lattice, rate, amps, where)
-    s_ref = _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay, gains,
-                            _unit_axis(echoes.axis, row0 + ch))
+    side = _side_of(echoes, row0 + ch)
+    s_ref, v_ref = _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay, gains,
+                                   _unit_axis(echoes.axis, row0 + ch), side, across_v)
     n_rx = phase.shape[0]
     if echoes.axis.shape[0] > 0:
         _pattern_ratios(echoes, row0 + ch, s_ref, gains)
         for k in range(n_rx):
             phase[k] *= gains[k]
-    _across_ratios(echoes, row0 + ch, _seen_from(node_key, nodes, q, lattice.cell_m, ends_b[2]), ends_b[3],
-                   ends_b[1], ch, phase)
+    if echoes.side.shape[0] > 0:
+        g = _across_table(echoes, v_ref)
+        if g > 0.0:
+            for k in range(n_rx):
+                phase[k] *= _across_table(echoes, across_v[k]) / g
     for k in range(n_rx):
         for sub in range(amps.shape[0]):
             _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub], shift)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine, fwd):
+def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine, fwd, side, across_v):
     """For node (i, j, k) of channel ch and every receiver k of it, in a loop that vectorises: ``phase[k]`` =
     e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ), ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref|)·time_per_m
     × ``rate`` (grid steps) and ``cosine[k]`` the along-track cosine (X − v·t̄ − rx_k)·f/|X − v·t̄ − rx_k| (f =
-    ``fwd``), the ping's ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m); returns the reference receiver's
-    cosine."""
+    ``fwd``), and where ``side`` (v̂) is not (0, 0, 0) ``across_v[k]`` the across one, with v̂ for f; the ping's
+    ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m). Returns the reference receiver's two cosines."""
     tx, rx, vel, ref, time_per_m = ends_b
     cell_m = lattice.cell_m
     x0, y0, z0 = (ijk[0] * cell_m - vel[0] * t_mean, ijk[1] * cell_m - vel[1] * t_mean,
@@ -708,11 +727,17 @@ def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine
         phase[k] = turn(cycles - math.floor(cycles))              # x − ⌊x⌋ = x % 1.0, exactly
         delay[k] = (d_rx - d_ref) * time_per_m * rate
         cosine[k] = d_rx
+    if side[0] != 0.0 or side[1] != 0.0 or side[2] != 0.0:        # before the distances become along cosines
+        for k in range(n_rx):
+            j = ch * n_rx + k
+            across_v[k] = ((x0 - rx[j, 0]) * side[0] + (y0 - rx[j, 1]) * side[1] + (z0 - rx[j, 2]) * side[2]) / \
+                cosine[k]
     for k in range(n_rx):                                          # apart, so that the loop above still vectorises
         j = ch * n_rx + k
         cosine[k] = ((x0 - rx[j, 0]) * fwd[0] + (y0 - rx[j, 1]) * fwd[1] + (z0 - rx[j, 2]) * fwd[2]) / cosine[k]
     d_seen = math.sqrt((x0 - ref[0]) ** 2 + (y0 - ref[1]) ** 2 + (z0 - ref[2]) ** 2)
-    return ((x0 - ref[0]) * fwd[0] + (y0 - ref[1]) * fwd[1] + (z0 - ref[2]) * fwd[2]) / d_seen
+    return (((x0 - ref[0]) * fwd[0] + (y0 - ref[1]) * fwd[1] + (z0 - ref[2]) * fwd[2]) / d_seen,
+            ((x0 - ref[0]) * side[0] + (y0 - ref[1]) * side[1] + (z0 - ref[2]) * side[2]) / d_seen)
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -852,7 +877,7 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
     n_t = slots.shape[0]
     for t in prange(n_t):
         scratch = (np.zeros(lattice.n_sub, dtype=np.complex128), np.zeros(lattice.n_sub),
-                   np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx), np.ones(n_rx))
+                   np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx), np.ones(n_rx), np.zeros(n_rx))
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
             if status[b] != 0:
                 continue
