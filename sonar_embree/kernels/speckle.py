@@ -680,39 +680,73 @@ def _node_impulses(nodes, q, ijk, lattice, rate, amps, where):
 @njit(cache=True, nogil=True, inline='always')
 def _emit_node_shared(nodes, node_key, q, ends_b, lattice, rate, shift, out, scratch, echoes, row0):
     """Node q heard by each of its channel's receivers (:func:`speckle_block_shared`): its scatterers once
-    (:func:`_node_impulses`), every receiver's phase, delay and along-track cosine at once (:func:`_receiver_turns`),
-    its receive pattern at that cosine (:func:`_pattern_ratios`, row ``row0`` + the channel) and across track
-    (the across cosines from the same loop, :func:`_across_table`), then each scatterer
-    as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second (S·fs);
-    ``shift``: log2 S."""
-    amps, where, phase, delay, gains, across_v = scratch
-    ch, ix, iy, iz = node_key[q, 0], node_key[q, 1], node_key[q, 2], node_key[q, 3]
-    _node_impulses(nodes, q, (ix, iy, iz), lattice, rate, amps, where)
-    side = _side_of(echoes, row0 + ch)
-    s_ref, v_ref = _receiver_turns((ix, iy, iz), nodes[q, 1], ch, ends_b, lattice, rate, phase, delay, gains,
-                                   _unit_axis(echoes.axis, row0 + ch), side, across_v)
+    (:func:`_node_impulses`), every receiver's phase, delay and receive pattern at once (:func:`_receivers`), then
+    each scatterer as an impulse at its time per receiver (:func:`_add_impulse`). ``rate``: sub-rows per second
+    (S·fs); ``shift``: log2 S; ``scratch`` = (amplitudes, times, the receivers' arrays of :func:`_receivers`)."""
+    amps, where, per_rx = scratch
+    ch = node_key[q, 0]
+    _node_impulses(nodes, q, (node_key[q, 1], node_key[q, 2], node_key[q, 3]), lattice, rate, amps, where)
+    _receivers(nodes, node_key, q, ends_b, lattice, rate, echoes, row0, per_rx)
+    phase, delay = per_rx[0], per_rx[1]
     n_rx = phase.shape[0]
-    if echoes.axis.shape[0] > 0:
-        _pattern_ratios(echoes, row0 + ch, s_ref, gains)
-        for k in range(n_rx):
-            phase[k] *= gains[k]
-    if echoes.side.shape[0] > 0:
-        g = _across_table(echoes, v_ref)
-        if g > 0.0:
-            for k in range(n_rx):
-                phase[k] *= _across_table(echoes, across_v[k]) / g
     for k in range(n_rx):
         for sub in range(amps.shape[0]):
             _add_impulse(out, ch * n_rx + k, where[sub] + delay[k], phase[k] * amps[sub], shift)
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine, fwd, side, across_v):
+def _receivers(nodes, node_key, q, ends_b, lattice, rate, echoes, row0, per_rx):
+    """Node q for each receiver k of its channel, into ``per_rx`` = (phase, delay, cosine, across) (n_rx,) each:
+    its phase and delay (:func:`_receiver_turns`), the phase times the receive pattern's ratios at the receiver's
+    own direction against the reference receiver's, along track where the echoes have strips
+    (:func:`_pattern_ratios`, row ``row0`` + the channel) and across track where they have across axes
+    (:func:`_across_table`), the cosines from the distances the phase loop leaves in ``cosine``."""
+    phase, delay, cosine, across_v = per_rx
+    ch = node_key[q, 0]
+    r = row0 + ch
+    seen = _receiver_turns((node_key[q, 1], node_key[q, 2], node_key[q, 3]), nodes[q, 1], ch, ends_b, lattice, rate,
+                           phase, delay, cosine)
+    n_rx = phase.shape[0]
+    side = _side_of(echoes, r)
+    if echoes.side.shape[0] > 0:                                   # before the distances become along cosines
+        _cosines(seen, ch, ends_b[1], side, cosine, across_v)
+    if echoes.axis.shape[0] > 0:
+        fwd = _unit_axis(echoes.axis, r)
+        _cosines(seen, ch, ends_b[1], fwd, cosine, cosine)
+        _pattern_ratios(echoes, r, _cosine_to(seen, ends_b[3], fwd), cosine)
+        for k in range(n_rx):
+            phase[k] *= cosine[k]
+    if echoes.side.shape[0] > 0:
+        g = _across_table(echoes, _cosine_to(seen, ends_b[3], side))
+        if g > 0.0:
+            for k in range(n_rx):
+                phase[k] *= _across_table(echoes, across_v[k]) / g
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _cosines(seen, ch, rx, axis, dist, out):
+    """``out[k]`` = (seen − rx_k)·axis/dist[k] for receiver k of channel ch (row ch·n + k of ``rx``, n =
+    out.shape[0]), ``dist`` its distances |seen − rx_k| (``out`` may be ``dist``: each entry read before written)."""
+    n = out.shape[0]
+    for k in range(n):
+        j = ch * n + k
+        out[k] = ((seen[0] - rx[j, 0]) * axis[0] + (seen[1] - rx[j, 1]) * axis[1] + (seen[2] - rx[j, 2]) * axis[2]) / \
+            dist[k]
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _cosine_to(seen, ref, axis):
+    """The cosine of seen − ref with the unit ``axis``."""
+    dx, dy, dz = seen[0] - ref[0], seen[1] - ref[1], seen[2] - ref[2]
+    return (dx * axis[0] + dy * axis[1] + dz * axis[2]) / math.sqrt(dx ** 2 + dy ** 2 + dz ** 2)
+
+
+@njit(cache=True, nogil=True, inline='always')
+def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, dist):
     """For node (i, j, k) of channel ch and every receiver k of it, in a loop that vectorises: ``phase[k]`` =
     e^(−j2π·(|X − tx| + |X − rx_k − v·t̄|)/λ), ``delay[k]`` = (|X − rx_k − v·t̄| − |X − rx_ref|)·time_per_m
-    × ``rate`` (grid steps) and ``cosine[k]`` the along-track cosine (X − v·t̄ − rx_k)·f/|X − v·t̄ − rx_k| (f =
-    ``fwd``), and where ``side`` (v̂) is not (0, 0, 0) ``across_v[k]`` the across one, with v̂ for f; the ping's
-    ends ``ends_b`` = (tx, rx, v, rx_ref, time_per_m). Returns the reference receiver's two cosines."""
+    × ``rate`` (grid steps) and ``dist[k]`` = |X − v·t̄ − rx_k|, the ping's ends ``ends_b`` = (tx, rx, v, rx_ref,
+    time_per_m). Returns X − v·t̄, where the moving receivers see the node (a 3-tuple)."""
     tx, rx, vel, ref, time_per_m = ends_b
     cell_m = lattice.cell_m
     x0, y0, z0 = (ijk[0] * cell_m - vel[0] * t_mean, ijk[1] * cell_m - vel[1] * t_mean,
@@ -726,18 +760,8 @@ def _receiver_turns(ijk, t_mean, ch, ends_b, lattice, rate, phase, delay, cosine
         cycles = (d_tx + d_rx) / lattice.wavelength_m
         phase[k] = turn(cycles - math.floor(cycles))              # x − ⌊x⌋ = x % 1.0, exactly
         delay[k] = (d_rx - d_ref) * time_per_m * rate
-        cosine[k] = d_rx
-    if side[0] != 0.0 or side[1] != 0.0 or side[2] != 0.0:        # before the distances become along cosines
-        for k in range(n_rx):
-            j = ch * n_rx + k
-            across_v[k] = ((x0 - rx[j, 0]) * side[0] + (y0 - rx[j, 1]) * side[1] + (z0 - rx[j, 2]) * side[2]) / \
-                cosine[k]
-    for k in range(n_rx):                                          # apart, so that the loop above still vectorises
-        j = ch * n_rx + k
-        cosine[k] = ((x0 - rx[j, 0]) * fwd[0] + (y0 - rx[j, 1]) * fwd[1] + (z0 - rx[j, 2]) * fwd[2]) / cosine[k]
-    d_seen = math.sqrt((x0 - ref[0]) ** 2 + (y0 - ref[1]) ** 2 + (z0 - ref[2]) ** 2)
-    return (((x0 - ref[0]) * fwd[0] + (y0 - ref[1]) * fwd[1] + (z0 - ref[2]) * fwd[2]) / d_seen,
-            ((x0 - ref[0]) * side[0] + (y0 - ref[1]) * side[1] + (z0 - ref[2]) * side[2]) / d_seen)
+        dist[k] = d_rx
+    return x0, y0, z0
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -877,7 +901,7 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
     n_t = slots.shape[0]
     for t in prange(n_t):
         scratch = (np.zeros(lattice.n_sub, dtype=np.complex128), np.zeros(lattice.n_sub),
-                   np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx), np.ones(n_rx), np.zeros(n_rx))
+                   (np.zeros(n_rx, dtype=np.complex128), np.zeros(n_rx), np.ones(n_rx), np.zeros(n_rx)))
         for b in range(t * n_p // n_t, (t + 1) * n_p // n_t):
             if status[b] != 0:
                 continue
