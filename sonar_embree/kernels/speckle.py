@@ -570,13 +570,10 @@ def _element_gains(echoes, row0, key_t, q, x, ref, rx, gains):
 
 
 @njit(cache=True, nogil=True, inline='always')
-def _across_at(echoes, r, dx, dy, dz):
-    """The receive pattern's across factor |Γ(v)| (``echoes.across`` on v0 + k·v_step, linear between its samples,
-    0 outside) towards (dx, dy, dz) from a receiver, v the direction's cosine with row r's across axis ``side``
-    (:data:`~sonar_embree.kernels.args.Across`)."""
-    side = echoes.side
-    return _across_table(echoes, (dx * side[r, 0] + dy * side[r, 1] + dz * side[r, 2])
-                         / math.sqrt(dx * dx + dy * dy + dz * dz))
+def _across_at(echoes, r, x, at):
+    """The receive pattern's across factor |Γ(v)| (:func:`_across_table`) at a receiver at ``at`` for a node at ``x``,
+    v the cosine of x − at with row r's across axis ``side`` (:data:`~sonar_embree.kernels.args.Across`)."""
+    return _across_table(echoes, _cosine_to(x, at, _side_of(echoes, r)))
 
 
 @njit(cache=True, nogil=True, inline='always')
@@ -608,13 +605,13 @@ def _across_ratios(echoes, r, x, ref, rx, ch, gains):
     exactly (a receiver at the reference keeps its bits)."""
     if echoes.side.shape[0] == 0:
         return
-    g = _across_at(echoes, r, x[0] - ref[0], x[1] - ref[1], x[2] - ref[2])
+    g = _across_at(echoes, r, x, ref)
     if g <= 0.0:
         return
     n = gains.shape[0]
     for k in range(n):
         j = ch * n + k
-        gains[k] *= _across_at(echoes, r, x[0] - rx[j, 0], x[1] - rx[j, 1], x[2] - rx[j, 2]) / g
+        gains[k] *= _across_at(echoes, r, x, (rx[j, 0], rx[j, 1], rx[j, 2])) / g
 
 
 @njit(cache=True, nogil=True, inline='always')

@@ -83,6 +83,7 @@ class FanPlan:
     sides: tuple = (True, True)  # which sides get rays (port, starboard); a side without has empty rows
     spans_motion: bool = True    # lines added for the receive beam's turn under motion (moving_lines)
     pattern: object = None       # each side's Beam (instrument.beams), weighed after the path kernels (gain.py)
+    across: tuple = ()           # the pattern's across factor as a table (:func:`across_table`), made once per run
 
     @classmethod
     def build(cls, sonar: Sonar, fan: FanSettings, sides=(True, True), elevation_nulls: int = 1) -> "FanPlan":
@@ -100,7 +101,7 @@ class FanPlan:
         body = np.concatenate([beam.fan_body(lines, probe, -1), beam.fan_body(lines, probe, +1)])
         return cls(s, ds, probe, body, sonar.range_bin_m / fan.rays_per_bin, math.radians(fan.max_step_deg),
                    10.0 * sonar.max_range_m, fan.max_rays_per_side, float(sonar.tilt_rad), sonar.wavelength_m,
-                   fan.footprint, tuple(bool(x) for x in sides), pattern=pattern)
+                   fan.footprint, tuple(bool(x) for x in sides), pattern=pattern, across=across_table(pattern))
 
     @property
     def n_probe(self) -> int:
@@ -136,7 +137,7 @@ def along_track(plan: FanPlan, rot: np.ndarray, rx_shift: np.ndarray | None = No
     gain_rx = np.repeat(np.abs(a_rx), 2, axis=0)                # Γ_rx alone, an amplitude
     axis = np.repeat(np.asarray(rot[:, :, 0], dtype=np.float64) * plan.ds, 2, axis=0)
     return AlongTrack(np.ascontiguousarray(axis), np.ascontiguousarray(gain), np.ascontiguousarray(gain_rx), s0,
-                      float(step), side_axes(rot, plan.tilt_rad), across_table(plan.pattern))
+                      float(step), side_axes(rot, plan.tilt_rad), plan.across)
 
 
 #: Samples of the across-track pattern table per first-null angle's sine (:func:`across_table`): linear
