@@ -44,12 +44,24 @@ def physical_memory_bytes() -> int | None:
 BYTES_PER_RAY = 250
 
 
+class RaysMemoryError(ConfigError):
+    """A block of rays that cannot fit in half this machine's memory (:func:`check_rays_memory`); a run casts a
+    block of several pings that raises it again a ping at a time."""
+
+
+def rays_memory_budget() -> int | None:
+    """Rays that fit in half this machine's memory at :data:`BYTES_PER_RAY` each (None where the OS does not say)."""
+    have = physical_memory_bytes()
+    return None if have is None else int(0.5 * have) // BYTES_PER_RAY
+
+
 def check_rays_memory(n_rays: int, n_pings: int, what: str) -> None:
-    """Refuse, before they are cast, a block of rays that cannot fit in half this machine's memory."""
+    """Refuse, before they are cast, a block of rays that cannot fit in half this machine's memory
+    (:class:`RaysMemoryError`)."""
     have = physical_memory_bytes()
     need = int(n_rays) * BYTES_PER_RAY
     if have is not None and need > 0.5 * have:
-        raise ConfigError(f"{what}: {n_pings} ping(s) need {n_rays} rays, about {need / 2**30:.1f} GiB in memory, "
+        raise RaysMemoryError(f"{what}: {n_pings} ping(s) need {n_rays} rays, about {need / 2**30:.1f} GiB in memory, "
                           f"more than half this machine's {have / 2**30:.1f} GiB; lower the quality, the range or "
                           "(a forward-looking sonar) n_elements")
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import checks, sonars
+from . import checks, kernels, sonars
 from .propagation.clutter import check_clutter, clutter_echoes, element_gains
 from .propagation.prepared import PreparedRun, RunCache, prepare, scene_caster
 from .propagation.volume import VolumeBeam, volume_density
@@ -42,6 +42,32 @@ log = logging.getLogger(__name__)
 BLOCK_RAYS = 2 ** 18
 #: Pings of the first block, before the ray count per ping is known.
 FIRST_BLOCK_PINGS = 4
+#: Rays per block at most where a block is widened to a ping per thread (:func:`next_block_pings`).
+MAX_BLOCK_RAYS = 2 ** 21
+
+
+def next_block_pings(rays_per_ping: int) -> int:
+    """Pings of the next block, its pings casting up to ``rays_per_ping`` rays each: about :data:`BLOCK_RAYS` rays,
+    but a ping per thread while under :data:`MAX_BLOCK_RAYS` and half of the memory budget of
+    :func:`~sonar_embree.checks.rays_memory_budget` (the synthesis kernels run a ping per thread: a block of one ping
+    leaves the other cores idle), and never more than the budget holds, 1 to 64. Results do not depend on it."""
+    r, budget = max(rays_per_ping, 1), checks.rays_memory_budget()
+    wide = MAX_BLOCK_RAYS if budget is None else min(MAX_BLOCK_RAYS, budget // 2)
+    n = min(max(BLOCK_RAYS // r, min(kernels.num_threads(), wide // r), 1), 64)
+    return n if budget is None else max(min(n, budget // r), 1)
+
+
+def _cast(run: "_Run", a: int, b: int, speckle: bool, labels: bool, clock: dict):
+    """(b, echoes, fan) of pings a … b − 1 (``run.front.cast``); a block of several pings whose rays cannot fit in
+    memory (:class:`~sonar_embree.checks.RaysMemoryError`) is cast as its first ping alone (b = a + 1): only a ping
+    that cannot fit alone is refused."""
+    try:
+        return (b, *run.front.cast(run.prepared, run.rots[a:b], run.pos_local[a:b], run.max_r, speckle, labels, clock,
+                                   rx_shift=run.rx_shift[a:b]))
+    except checks.RaysMemoryError:
+        if b - a == 1:
+            raise
+    return _cast(run, a, a + 1, speckle, labels, clock)
 
 
 def memory_estimate_bytes(n_pings: int, n_samples: int, chain: SignalChain, labels: bool = False,
@@ -213,11 +239,9 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
     clock = {} if timings is None else timings
     clock["setup"] = clock.get("setup", 0.0) + time.perf_counter() - t_start
     bar = progress_bar(progress, len(trajectory))
-    a, block = 0, FIRST_BLOCK_PINGS if run.front.synth_channels <= 2 else 1  # wide fans: a ping
+    a, block = 0, FIRST_BLOCK_PINGS if run.front.synth_channels <= 2 else min(kernels.num_threads(), FIRST_BLOCK_PINGS)
     while a < len(trajectory):
-        b = min(a + block, len(trajectory))
-        e, blk = run.front.cast(run.prepared, run.rots[a:b], run.pos_local[a:b], run.max_r, chain.speckle,
-                                labels, clock, rx_shift=run.rx_shift[a:b])
+        b, e, blk = _cast(run, a, min(a + block, len(trajectory)), chain.speckle, labels, clock)
         run.altitude[a:b], run.n_rays[a:b] = blk.altitude_m, blk.n_rays
         if run.truth is not None:
             t = time.perf_counter()
@@ -233,7 +257,7 @@ def simulate(scene: Scene, trajectory: Trajectory, sonar: Sonar | None = None, p
         clock["synthesis"] = clock.get("synthesis", 0.0) + time.perf_counter() - t
         if bar is not None:
             bar.update(b - a)
-        nxt = min(max(BLOCK_RAYS // max(int(blk.n_rays.max()), 1), 1), 64)  # (np.clip of ints costs 0.1 ms)
+        nxt = next_block_pings(int(blk.n_rays.max()))
         now = time.perf_counter()
         if a == 0:
             first_end, first_n = now, b

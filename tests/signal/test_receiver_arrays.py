@@ -288,6 +288,56 @@ def test_shared_emission_keeps_its_bits_whatever_the_chunk_of_pings(monkeypatch)
     assert np.array_equal(whole.element_data, chunked.element_data)
 
 
+def test_an_arrays_pings_reach_the_speckle_kernel_a_ping_per_thread(monkeypatch):
+    """A receiver array's blocks hold a ping per thread (the kernels run a ping per thread): its first block was one
+    ping, and later ones one ping too where a ping casts more than BLOCK_RAYS/2 rays (a SAS fan's 0.2° lines), which
+    left every core but one idle (a 16-element ping cost 3.4 single channels on 2 cores; 1.9 since). The real
+    kernel runs; the test only counts the pings of each call. Same bits as blocks of one ping."""
+    import numba
+
+    from sonar_embree import kernels
+
+    if kernels.num_threads() < 2:
+        pytest.skip("one Numba thread: every block is a ping per thread")
+    seen, real = [], kernels.speckle_block_shared
+
+    def counting(*args):
+        seen.append(args[5].size)                         # status: one entry per ping of the call
+        return real(*args)
+
+    monkeypatch.setattr(kernels, "speckle_block_shared", counting)
+    traj = se.Trajectory.line(start=(-0.3, 0, 5), end=(0.3, 0, 5), n_pings=4)
+    pulse = se.Pulse.lfm(bandwidth_hz=B, duration_s=1e-3, taper=0.1)
+    sonar = _sas_sonar(se.ReceiverArray.along_track(4, 0.04))
+    rec = se.simulate(_cube_scene(), traj, sonar, pulse, speckle=True, seed=3)
+    assert seen and min(seen) >= 2, seen
+    n = numba.get_num_threads()
+    try:
+        numba.set_num_threads(1)
+        one = se.simulate(_cube_scene(), traj, sonar, pulse, speckle=True, seed=3)
+    finally:
+        numba.set_num_threads(n)
+    assert np.array_equal(rec.element_data, one.element_data)
+
+
+def test_blocks_take_a_ping_per_thread_within_the_ray_budget(monkeypatch):
+    """About BLOCK_RAYS rays a block, but a ping per thread while under MAX_BLOCK_RAYS, 1 to 64 pings, and never
+    more than half the machine's memory holds (checks.BYTES_PER_RAY a ray)."""
+    import importlib
+
+    from sonar_embree import checks, kernels
+
+    sim = importlib.import_module("sonar_embree.simulate")     # the package's `simulate` is the function
+    monkeypatch.setattr(checks, "physical_memory_bytes", lambda: 2 ** 36)                     # a 64 GiB machine
+    threads = kernels.num_threads()
+    assert sim.next_block_pings(1) == 64
+    assert sim.next_block_pings(sim.BLOCK_RAYS // 3) == max(3, min(threads, 64))
+    assert sim.next_block_pings(sim.BLOCK_RAYS * 3) == max(1, min(threads, sim.MAX_BLOCK_RAYS // (sim.BLOCK_RAYS * 3)))
+    assert sim.next_block_pings(sim.MAX_BLOCK_RAYS + 1) == 1
+    monkeypatch.setattr(checks, "physical_memory_bytes", lambda: 3 * 1000 * checks.BYTES_PER_RAY)   # 1.5 pings
+    assert sim.next_block_pings(1000) == 1
+
+
 @pytest.mark.parametrize("array", [None, se.ReceiverArray.along_track(4, 0.04)], ids=["one receiver", "elements"])
 def test_a_moving_receiver_hears_each_clutter_point_where_it_is_when_the_echo_arrives(array):
     """At 2 m/s along track, 3 m before a clutter point, the return leg is |X − p_k − v·τ0| (τ0 = 2R/c): the phase at

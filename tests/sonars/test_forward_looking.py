@@ -346,6 +346,24 @@ def test_memory_is_estimated_before_the_rays_are_cast(monkeypatch):
         se.MSIS(horizontal_beamwidth_deg=0.01)
 
 
+def test_a_block_too_big_for_memory_is_cast_a_ping_at_a_time(monkeypatch):
+    """Blocks hold several pings (4 at first; later a ping per thread where rays allow). On a machine where one
+    ping's rays fit in half its memory but a block's do not, the run casts that block a ping at a time (same bits)
+    instead of refusing it; a ping that does not fit alone is still refused in one line."""
+    from sonar_embree import checks
+
+    scene = se.Scene().add(se.seafloor.flat((100.0, 100.0)), label="seafloor")
+    line = se.Trajectory.line((0.0, 0.0, 10.0), (0.3, 0.0, 10.0), 4)
+    whole = se.simulate(scene, line, se.Sonar(max_range_m=30.0))
+    rays = int(np.max(whole.attrs["rays_per_ping"]))
+    monkeypatch.setattr(checks, "physical_memory_bytes", lambda: 3 * rays * checks.BYTES_PER_RAY)  # 1.5 pings
+    small = se.simulate(scene, line, se.Sonar(max_range_m=30.0))
+    assert np.array_equal(small.starboard, whole.starboard) and np.array_equal(small.port, whole.port)
+    monkeypatch.setattr(checks, "physical_memory_bytes", lambda: rays * checks.BYTES_PER_RAY)     # half a ping
+    with pytest.raises(checks.RaysMemoryError, match=r"the ray fan: 1 ping\(s\) need"):
+        se.simulate(scene, line, se.Sonar(max_range_m=30.0))
+
+
 def test_an_all_zero_record_warns(caplog):
     """Finding 10's class: a record without a single echo (a box in range but outside every beam) is never silent."""
     import trimesh
