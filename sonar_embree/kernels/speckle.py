@@ -392,7 +392,8 @@ def _same_cell(grp, px, py, pz, cell_m):
 @njit(cache=True, nogil=True)
 def _gather_ping(b, n_ch, echoes, tx, cell_m, slots, epoch, nodes, node_key, cache):
     """:func:`gather_nodes` on ping b's rays of ``echoes`` (:data:`~sonar_embree.kernels.args.SpeckleEchoes`),
-    channel by channel (points local + origin); count or −1.
+    channel by channel (points local + origin); count, or −2 − k when the table filled at the ping's k-th ray (k
+    from 0; the caller sizes the next table from it: :func:`sonar_embree.signal.synthesis.grown_capacity`).
 
     Where the rows have strips (``axis`` a·x̂ and the pattern P), an echo of weight w at range R from ``tx`` (the
     ping's transmitter, world m) and along-track cosine s stands for a strip R·|a| long along x̂, and weighs
@@ -428,10 +429,10 @@ def _gather_ping(b, n_ch, echoes, tx, cell_m, slots, epoch, nodes, node_key, cac
                 count = _insert_ray(ch, px, py, pz, w, _uniform_spread(times[i], extents[i]), cell_m, slots, epoch,
                                     nodes, node_key, count, cache)
             if count < 0:
-                return -1
+                return -2 - (i - ray_start[n_ch * b])
         count = _group_flush(grp, echoes, r, ch, tx, cell_m, slots, epoch, nodes, node_key, count, cache)
         if count < 0:
-            return -1
+            return -2 - (ray_start[r + 1] - ray_start[n_ch * b])
     return count
 
 
@@ -796,8 +797,8 @@ def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rat
 
 @njit(cache=True, nogil=True, inline='always')
 def _ping_nodes(b, t, n_ch, echoes, tx, cell_m, tables):
-    """Ping b's lattice nodes in hash table t (a new epoch of it, :func:`_gather_ping`): their count, or −1 when
-    the table is too small."""
+    """Ping b's lattice nodes in hash table t (a new epoch of it, :func:`_gather_ping`): their count, or −2 − k when
+    the table filled at the ping's k-th ray."""
     slots, epochs, nodes, node_key, caches = tables
     epochs[t] += 1
     return _gather_ping(b, n_ch, echoes, tx, cell_m, slots[t], epochs[t], nodes[t], node_key[t], caches[t])
@@ -852,8 +853,8 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
         (T, cap // 2, 4) int64, ``caches`` (T, CACHE_WIDTH) int64: T hash tables, node lists and last-cell caches
         (see :func:`gather_nodes`), reused without clearing.
     status : (pings,) int64
-        0: to do (set to 1 when done, −1 when its table was too small: grow the
-        tables, reset to 0 and call again; nothing was written for that ping).
+        0: to do (set to 1 when done, −2 − k when its table filled at the ping's k-th ray: grow the tables,
+        reset to 0 and call again; nothing was written for that ping).
     out : (pings, channels·n_rx, n_samples) complex128
         Accumulator.
     """
@@ -869,7 +870,7 @@ def speckle_block(echoes, ends, lattice, waveform, tables, status, out):
                 continue
             count = _ping_nodes(b, t, n_ch, echoes, ends.tx[b], cell_m, tables)
             if count < 0:
-                status[b] = -1
+                status[b] = count
                 continue
             _emit_ping(b, n_ch, count, nodes[t], node_key[t], echoes, ends, n_rx, lattice, waveform, out[b])
             status[b] = 1
@@ -904,7 +905,7 @@ def speckle_block_shared(echoes, ends, lattice, waveform, tables, status, out):
                 continue
             count = _ping_nodes(b, t, n_ch, echoes, ends.tx[b], cell_m, tables)
             if count < 0:
-                status[b] = -1
+                status[b] = count
                 continue
             _emit_ping_shared(b, n_ch, count, nodes[t], node_key[t], echoes, ends, lattice,
                               waveform.rate_hz * out.shape[2], out[b], scratch)

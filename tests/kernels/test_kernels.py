@@ -319,10 +319,12 @@ def test_speckle_block_matches_naive_for_any_table_count(rng, n_tables):
                               NodeTables(*_speckle_tables(n_tables, size)), status, out)
 
     speckle(table, 1 << 8, status, out)  # too small a table
-    assert np.all(status == -1) and np.all(out == 0)  # says so, writes nothing
+    rays = ray_start[2::2] - ray_start[:-1:2]
+    assert np.all(status <= -2) and np.all(-status - 2 < rays) and np.all(out == 0)  # says at which ray, writes nothing
+    cap = synthesis.grown_capacity(1 << 8, status, ray_start)
     status[:] = 0
-    speckle(table, 1 << 12, status, out)
-    assert np.all(status == 1)
+    speckle(table, cap, status, out)                    # grown once, from the rate the rays made nodes
+    assert np.all(status == 1) and cap > 1 << 9, cap
     ref = naive.speckle_block(ray_start, pts + origin, w, r, ext, pos, 7, 0.1, 0.00375, 16.0, 533.3, 4, table,
                               -2.0, 10.0, np.zeros_like(out), pos_rx=rx, vel_rx=vel, time_per_m=per_m)
     assert np.abs(ref).max() > 0

@@ -128,3 +128,16 @@ def test_a_chirp_synthesised_as_impulses_is_the_splatted_chirp(monkeypatch):
         assert np.abs(diff).max() < 5e-3 * np.abs(want.complex_data).max()
         assert (np.abs(diff) ** 2).sum() < 1e-4 * energy
         assert (np.abs(got.complex_data) ** 2).sum() == pytest.approx(energy, rel=1e-3)
+
+
+def test_node_tables_grow_to_the_rate_their_rays_made_nodes():
+    """A ping that filled its table at its k-th of n rays (status −2 − k) gets room for n/k times the nodes: the
+    capacity times the next power of two of n/k, at least 2 and at most MAX_TABLE_GROWTH; the worst ping decides."""
+    from sonar_embree.signal import synthesis
+
+    ray_start = np.array([0, 500, 1000, 1300, 2000, 2400, 3000])       # 3 pings of 2 channels: 1000, 1000, 1000 rays
+    grown = synthesis.grown_capacity
+    assert grown(1 << 10, np.array([1, -2 - 400, 1]), ray_start) == 1 << 12          # 1000/400 = 2.5 → 4
+    assert grown(1 << 10, np.array([-2 - 999, 1, 1]), ray_start) == 1 << 11          # 1.001 → at least twice
+    assert grown(1 << 10, np.array([-2 - 700, -2 - 110, 1]), ray_start) == 1 << 14   # the worst: 9.1 → 16
+    assert grown(1 << 10, np.array([-2, 1, 1]), ray_start) == 1 << 10 << 4           # full at the first: 16 at most
