@@ -61,9 +61,10 @@ def check_rays_memory(n_rays: int, n_pings: int, what: str) -> None:
     have = physical_memory_bytes()
     need = int(n_rays) * BYTES_PER_RAY
     if have is not None and need > 0.5 * have:
-        raise RaysMemoryError(f"{what}: {n_pings} ping(s) need {n_rays} rays, about {need / 2**30:.1f} GiB in memory, "
-                          f"more than half this machine's {have / 2**30:.1f} GiB; lower the quality, the range or "
-                          "(a forward-looking sonar) n_elements")
+        raise RaysMemoryError(
+            f"{what}: {n_pings} ping(s) need {n_rays} rays, about {need / 2**30:.1f} GiB in memory, more than half "
+            f"this machine's {have / 2**30:.1f} GiB; lower the quality, the range or (a forward-looking sonar) "
+            "n_elements")
 
 
 def check_sonar(sonar) -> None:
