@@ -175,6 +175,31 @@ def patch_quadrature(size, centre, positions, alpha_db_m, mu_db, gamma, n=200):
     return np.array(out)
 
 
+def cylinder_quadrature(rho, length, centre, axis, positions, alpha_db_m, mu_db, gamma, n_t=1000, n_phi=128):
+    """Echo energy of a Lambertian cylinder's side (radius ``rho``, ``length`` along ``axis``, centred at ``centre``,
+    m) per ping: E = ∫ Γ⁴(u) μ cos²θi 10^(−2αR/10) / R⁴ dA over its side, cos θi = max(−u·n, 0) (a convex surface
+    shadows only itself, which cos θi > 0 excludes), midpoint rule on an n_t × n_phi grid, dA = ρ dφ dt."""
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    e1 = np.cross(a, [0.0, 0.0, 1.0])
+    e1 = e1 / np.linalg.norm(e1) if np.linalg.norm(e1) > 1e-9 else np.array([1.0, 0.0, 0.0])
+    e2 = np.cross(a, e1)
+    t = ((np.arange(n_t) + 0.5) / n_t - 0.5) * length
+    phi = 2 * np.pi * (np.arange(n_phi) + 0.5) / n_phi
+    T, P = np.meshgrid(t, phi, indexing="ij")
+    normal = np.cos(P).ravel()[:, None] * e1 + np.sin(P).ravel()[:, None] * e2
+    pt = np.asarray(centre, float) + T.ravel()[:, None] * a + rho * normal
+    dA = length / n_t * rho * 2 * np.pi / n_phi
+    out = []
+    for i, p in enumerate(positions):
+        v = pt - p
+        R = np.linalg.norm(v, axis=1)
+        u = v / R[:, None]
+        ci = np.maximum(-(u * normal).sum(axis=1), 0.0)
+        out.append(np.sum(gamma(u, i) ** 4 * 10 ** (mu_db / 10) * ci ** 2 * 10 ** (-2 * alpha_db_m * R / 10) / R ** 4
+                          * dA))
+    return np.array(out)
+
+
 def hemisphere_integral(f, n_theta=1200, n_phi=2048):
     """∫ f dΩ over the hemisphere in front of an aperture by brute quadrature in spherical angles about its axis:
     θ from the axis on Gauss–Legendre nodes over [0, π/2], φ on a uniform periodic grid (spectrally exact for the

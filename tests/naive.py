@@ -756,13 +756,14 @@ def first_hits(org, dirs, vertices, faces, t_max):
     return prim, dist
 
 
-def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m, max_rays):
+def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m, max_rays, slender=None):
     """(2·pings, k, 6) lattices [s0, hs, β0, hβ, ns, nβ] of every object in every row, by plain vector algebra: the
     object's bounding cone (half-angle γ = asin(ρ/D) about its centre's body direction) spans s_c ± γ and
     β_c ± asin(sin γ / √(1 − s_c²)), clipped to the row's span (s widened by δ on its side); cells of at most
     2γ/n_across, the fan's steps and (in β) 2γ·dr/(2ρ); none beyond the range, inside the sphere, on the
     along-track axis or above ``max_rays``. With curved rays (span[7] = κ > 0) the cone widens by 0.6·κ·(D + ρ)
-    along the elevation direction."""
+    along the elevation direction. ``slender`` = (cell_m, cover, cover_start, max_cells): where cell_m/(D + ρ) is
+    finer than either step, both steps are at most that, up to max_cells of them, then :func:`slender_trim`."""
     n_p, k = rot.shape[0], centre.shape[0]
     out = np.zeros((2 * n_p, k, 6))
     for r in range(2 * n_p):
@@ -793,26 +794,101 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
                 continue
             hs = min(2 * gam / n_across, span[5])
             hb = min(2 * gam / n_across, span[6], 2 * gam * dr_m / (2 * radius[j]))
+            thin = slender is not None and slender[0][j] / (d + radius[j]) < max(hs, hb)
+            if thin:
+                hs, hb = min(hs, slender[0][j] / (d + radius[j])), min(hb, slender[0][j] / (d + radius[j]))
             ns, nb = np.ceil((s_hi - s_lo) / hs - 1e-9), np.ceil((b_hi - b_lo) / hb - 1e-9)
-            if ns * nb > max_rays:
+            if ns * nb > (slender[3] if thin else max_rays):
                 continue
             out[r, j] = [s_lo, (s_hi - s_lo) / ns, b_lo, (b_hi - b_lo) / nb, ns, nb]
+            if thin:
+                cell_m, cover, start, max_cells = slender
+                out[r, j] = slender_trim(out[r, j], cover[start[j]:start[j + 1]], cell_m[j], rot[b], pos[b], side,
+                                         max_cells)
     return out
 
 
-def aim_directions(table, rot):
-    """World directions of every lattice's rays (rows, then objects; s-major, β fastest), cell centres."""
+def aim_directions(table, rot, cells=None):
+    """World directions of every lattice's rays (rows, then objects; s-major, β fastest), cell centres; with
+    ``cells`` (:func:`cover_cells`) a slender lattice's marked cells only."""
     out = []
     for r in range(table.shape[0]):
-        for row in table[r]:
+        for k, row in enumerate(table[r]):
             ns, nb = int(row[4]), int(row[5])
             if ns == 0:
                 continue
             s = row[0] + (np.arange(ns) + 0.5) * row[1]
             beta = row[2] + (np.arange(nb) + 0.5) * row[3]
             el = [0, nb, nb] if r % 2 == 0 else [0, 0, nb]
-            out.append(fan_directions(s, beta, np.array(el), rot[r // 2:r // 2 + 1]))
+            d = fan_directions(s, beta, np.array(el), rot[r // 2:r // 2 + 1])
+            keep = None if cells is None else cells[r][k]
+            out.append(d if keep is None else d[keep.ravel()])
     return np.concatenate(out) if out else np.zeros((0, 3))
+
+
+def _project(pts, rot, pos, side):
+    """(s, β) of the directions from the sonar (``rot``, ``pos``) to the local points ``pts`` (n, 3), on ``side``."""
+    v = (pts - pos) @ rot
+    return v[:, 0] / np.linalg.norm(v, axis=1), np.arctan2(v[:, 2], side * v[:, 1])
+
+
+def _reach(row, pts, rot, pos, side):
+    """Inclusive cell ranges (s, β) of lattice ``row`` that the box of ``pts`` projected reaches, one cell more."""
+    s, b = _project(pts, rot, pos, side)
+    i0 = max(int(np.floor((s.min() - row[0]) / row[1])) - 1, 0)
+    i1 = min(int(np.floor((s.max() - row[0]) / row[1])) + 1, int(row[4]) - 1)
+    j0 = max(int(np.floor((b.min() - row[2]) / row[3])) - 1, 0)
+    j1 = min(int(np.floor((b.max() - row[2]) / row[3])) + 1, int(row[5]) - 1)
+    return i0, i1, j0, j1
+
+
+def slender_trim(row, pts, cell_m, rot, pos, side, max_cells):
+    """A slender object's lattice ``row`` [s0, hs, β0, hβ, ns, nβ] trimmed to its cover's box (one cell more) and
+    refined to ``cell_m``/(its cross-section's corner distance) of the angle its middle slice spans across the
+    line joining its end slices' centres (the larger span of s and β where that line is shorter; the lattice's own
+    cells where the object is seen exactly edge-on)."""
+    i0, i1, j0, j1 = _reach(row, pts, rot, pos, side)
+    if i1 < i0 or j1 < j0:
+        return np.zeros(6)
+    s, b = _project(pts, rot, pos, side)
+    end = np.array([[s[:4].mean(), b[:4].mean()], [s[-4:].mean(), b[-4:].mean()]])
+    m = 4 * ((len(pts) // 4) // 2)
+    mid = np.stack([s[m:m + 4], b[m:m + 4]], axis=1)
+    axis = end[1] - end[0]
+    normal = np.array([-axis[1], axis[0]])
+    if np.linalg.norm(normal) <= np.ptp(mid, axis=0).max():
+        width = np.ptp(mid, axis=0).max()
+    else:
+        width = np.ptp(mid @ normal) / np.linalg.norm(normal)
+    h = width * cell_m / np.linalg.norm(pts[2] - pts[0])
+    h = h if h > 1e-12 else np.inf
+    ns = int(np.ceil((i1 - i0 + 1) * row[1] / min(row[1], h) - 1e-9))
+    nb = int(np.ceil((j1 - j0 + 1) * row[3] / min(row[3], h) - 1e-9))
+    if ns * nb > max_cells:
+        return np.zeros(6)
+    return np.array([row[0] + i0 * row[1], row[1] * (i1 - i0 + 1) / ns, row[2] + j0 * row[3],
+                     row[3] * (j1 - j0 + 1) / nb, ns, nb])
+
+
+def cover_cells(table, cover, cover_start, rot, pos, max_rays):
+    """Each slender lattice's cells to cast ((rows, k) list of (ns, nβ) bool arrays, None where every cell is cast):
+    those within one cell of the (s, β) box of a segment between consecutive 4-corner slices of its cover; a
+    lattice of more than ``max_rays`` of them gets none (all False)."""
+    out = [[None] * table.shape[1] for _ in range(table.shape[0])]
+    for r in range(table.shape[0]):
+        side = 1.0 if r % 2 else -1.0
+        for k in range(table.shape[1]):
+            row = table[r, k]
+            if row[7] < 0 or row[4] == 0:                  # MASK: an offset for a slender lattice, −1 otherwise
+                continue
+            cells = np.zeros((int(row[4]), int(row[5])), dtype=bool)
+            pts = cover[cover_start[k]:cover_start[k + 1]]
+            for a in range(0, len(pts) - 4, 4):
+                i0, i1, j0, j1 = _reach(row, pts[a:a + 8], rot[r // 2], pos[r // 2], side)
+                if i1 >= i0 and j1 >= j0:                   # (a slice with a negative end would wrap)
+                    cells[i0:i1 + 1, j0:j1 + 1] = True
+            out[r][k] = cells if cells.sum() <= max_rays else np.zeros_like(cells)
+    return out
 
 
 def drop_aimed(ray_start, prim, face_object, cand_of_object, aimed, weight):

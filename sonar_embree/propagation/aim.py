@@ -31,6 +31,17 @@ from ..laws import apply_laws
 RAYS_ACROSS = 8
 #: The most rays one object gets in one row at quality 1 (× quality); a bigger object is left to the fan.
 MAX_RAYS = 4096
+#: Cells across a slender object's width at its far side, at quality 1 (× √quality): a cable, a pipe or a strip
+#: thinner than the cone's cells is otherwise hit by one row of cells or none (docs/physics.md §7b). 6 puts 2 cm
+#: cables within 0.25 dB and 1 cm strips within 0.7 dB of their quadratures (4: 1.0 dB at half the rays, 8: 0.35
+#: dB at 1.7 times them; docs/benchmarks.md).
+THIN_ACROSS = 6
+#: An object is slender when its box's second extent is under this fraction of its bounding sphere's radius (two of
+#: the cone's cells): a cable, a pipe, a strip, a mast.
+SLENDER_WIDTH = 0.5
+#: A slender object may cast this many times :data:`MAX_RAYS` in a row (its covered cells only): a 2 m × 1 cm strip
+#: across the beam 13 m out casts up to about 10,000.
+SLENDER_RAYS = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,6 +52,9 @@ class AimPlan:
     centre: np.ndarray           # (k, 3) float64 bounding-sphere centre, local frame, m
     radius: np.ndarray           # (k,) float64 bounding-sphere radius, m
     cand_of_object: np.ndarray   # (n_objects,) int32 candidate of each object, −1 for none
+    cell_m: np.ndarray           # (k,) float64 a slender object's largest cell at its far side, m; inf: not slender
+    cover: np.ndarray            # (m, 3) float64 slender objects' box slices, 4 corners each, local frame, m
+    cover_start: np.ndarray      # (k + 1,) int64 candidate k's cover points
     span: np.ndarray             # (8,) see kernels.aim.aim_lattices
     sides: np.ndarray            # (2,) bool
     n_across: float
@@ -65,27 +79,74 @@ class AimPlan:
         objects = np.flatnonzero(~np.asarray(compiled.is_seafloor)).astype(np.int32)
         if objects.size == 0:
             return None
-        centre, radius = bounding_spheres(compiled)
+        faces = np.flatnonzero(~np.asarray(compiled.is_seafloor)[compiled.face_object])   # the objects' own
+        centre, radius = bounding_spheres(compiled, faces)
         cand = np.full(len(compiled.labels), -1, dtype=np.int32)
         cand[objects] = np.arange(objects.size, dtype=np.int32)
         s_lo, s_hi, b_lo, b_hi, hs, hb = (float(x) for x in span)
         q = float(quality)
-        return cls(objects, centre[objects], radius[objects], cand,
+        n_across = float(math.ceil(RAYS_ACROSS * math.sqrt(q)))
+        cell_m, cover, cover_start = slender_boxes(compiled, faces, objects, radius[objects], n_across,
+                                                   math.ceil(THIN_ACROSS * math.sqrt(q)))
+        return cls(objects, centre[objects], radius[objects], cand, cell_m, cover, cover_start,
                    np.array([s_lo, s_hi, b_lo, b_hi, 0.0, hs, hb, float(kappa)]),
-                   np.asarray(sides, dtype=bool), float(math.ceil(RAYS_ACROSS * math.sqrt(q))), float(dr_m),
-                   float(MAX_RAYS * max(q, 1.0)))
+                   np.asarray(sides, dtype=bool), n_across, float(dr_m), float(MAX_RAYS * max(q, 1.0)))
 
 
-def bounding_spheres(compiled):
+def bounding_spheres(compiled, faces):
     """((n_objects, 3) centres, (n_objects,) radii) of the objects' bounding spheres: the centre of each object's
-    box and the farthest of its vertices from it (m, local frame)."""
+    box and the farthest of its vertices from it (m, local frame), over the triangles ``faces`` (others' radius 0)."""
     box = compiled.object_bounds
     centre = 0.5 * (box[:, 0] + box[:, 1])
-    obj = np.repeat(compiled.face_object, 3)
-    v = compiled.vertices[compiled.faces.ravel()]
+    obj = np.repeat(compiled.face_object[faces], 3)
+    v = compiled.vertices[compiled.faces[faces].ravel()]
     r2 = np.zeros(len(compiled.labels))
     np.maximum.at(r2, obj, ((v - centre[obj]) ** 2).sum(axis=1))
     return centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6
+
+
+def slender_boxes(compiled, faces, objects, radius, n_across: float, thin_across: int):
+    """Which candidates are slender, and their cover: (k,) the largest cell at the far side (m; inf: not slender),
+    (m, 3) cover points and (k + 1,) their offsets; ``faces`` the candidates' triangles.
+
+    An object's box has the principal axes of its vertices (its extents e₁ ≥ e₂ ≥ e₃ along them); it is
+    slender when e₂ is under :data:`SLENDER_WIDTH` of its radius ρ (about two of the cone's cells 2ρ/``n_across``
+    across it) and e₂/``thin_across`` is finer than the cone's cell; in a row where that is also finer than the
+    lattice's other limits allow, its cells shrink to it (:func:`kernels.aim.aim_lattices`). Its cover is the box's cross-section (4 corners) at slices along e₁ no farther apart
+    than e₂: each segment is then small against its range (:func:`kernels.aim.cover_cells`)."""
+    cand = np.full(len(compiled.labels), -1)
+    cand[objects] = np.arange(objects.size)
+    n_v = compiled.vertices.shape[0]
+    key = np.unique(np.repeat(cand[compiled.face_object[faces]], 3) * n_v + compiled.faces[faces].ravel())
+    k_of, v = key // n_v, compiled.vertices[key % n_v]
+    n = np.maximum(np.bincount(k_of, minlength=objects.size), 1)[:, None]
+    mid = np.stack([np.bincount(k_of, v[:, q], objects.size) for q in range(3)], axis=1) / n
+    d = v - mid[k_of]
+    cov = np.stack([np.stack([np.bincount(k_of, d[:, a] * d[:, b], objects.size) for b in range(3)], axis=1)
+                    for a in range(3)], axis=1) / n[:, :, None]
+    axes = np.linalg.eigh(cov)[1][:, :, ::-1]                            # columns: principal axes, longest first
+    proj = np.einsum("ni,nij->nj", d, axes[k_of])
+    lo, hi = np.full((objects.size, 3), np.inf), np.full((objects.size, 3), -np.inf)
+    np.minimum.at(lo, k_of, proj)
+    np.maximum.at(hi, k_of, proj)
+    e = hi - lo
+    slender = (e[:, 1] < SLENDER_WIDTH * radius) & (e[:, 1] / thin_across < 2.0 * radius / n_across)
+    cell = np.where(slender, np.maximum(e[:, 1], 1e-6) / thin_across, np.inf)
+    cover = [np.zeros((0, 3))] + [_slices(mid[k], axes[k], lo[k], hi[k]) for k in np.flatnonzero(slender)]
+    counts = np.zeros(objects.size, dtype=np.int64)
+    counts[slender] = [c.shape[0] for c in cover[1:]]
+    return cell, np.ascontiguousarray(np.concatenate(cover)), np.concatenate(([0], np.cumsum(counts)))
+
+
+def _slices(mid, axes, lo, hi):
+    """(4·slices, 3) the corners of a box's cross-sections (centre ``mid``, axes columns, extents ``lo`` … ``hi``
+    along them) at slices along its first axis no farther apart than its second extent (lo[1] … hi[1] and lo[2] …
+    hi[2] corners: the third minus the first corner spans the second extent)."""
+    e = hi - lo
+    t = np.linspace(lo[0], hi[0], int(math.ceil(e[0] / max(e[1], 1e-6))) + 1)
+    corners = np.array([[lo[1], lo[2]], [lo[1], hi[2]], [hi[1], lo[2]], [hi[1], hi[2]]])
+    local = np.concatenate([np.repeat(t, 4)[:, None], np.tile(corners, (t.size, 1))], axis=1)
+    return mid + local @ axes.T
 
 
 @dataclass(frozen=True, eq=False)
@@ -159,16 +220,30 @@ def lattice_rays(aim: AimPlan, rot, pos_local, rx_shift, max_range_m: float):
     span = aim.span.copy()
     span[4] = max_range_m
     table = np.empty((2 * n_p, k, K.LATTICE_WIDTH))
-    K.aim_lattices(aim.centre, aim.radius, rot, pos_local, aim.sides, span, rx_shift, aim.n_across, aim.dr_m,
-                   aim.max_rays, table)
-    counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
+    K.aim_lattices(aim.centre, aim.radius, aim.cell_m, aim.cover, aim.cover_start, rot, pos_local, aim.sides, span,
+                   rx_shift, aim.n_across, aim.dr_m, aim.max_rays, table)
+    mask = cover_masks(aim, table, rot, pos_local)
+    counts = table[..., K.NC].astype(np.int64)
     start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
     n = int(start[-1])
     checks.check_rays_memory(n, n_p, "the rays aimed at objects")
     dirs, org = np.empty((n, 3), dtype=np.float32), np.empty((n, 3), dtype=np.float32)
     layout = np.empty((n, K.LAYOUT_WIDTH))
-    K.aim_rays(table, start, rot, pos_local, dirs, org, layout)
+    K.aim_rays(table, start, rot, pos_local, mask, dirs, org, layout)
     return table, start, counts, dirs, org, layout
+
+
+def cover_masks(aim: AimPlan, table, rot, pos_local) -> np.ndarray:
+    """The slender lattices' cell masks of a block (:func:`kernels.aim.cover_cells`; MASK and NC set in ``table``);
+    an empty mask, at no cost, where no lattice is slender."""
+    slender = (table[..., K.NS] > 0) & (table[..., K.MASK] == K.SLENDER)
+    if not slender.any():
+        return np.zeros(0, dtype=np.uint8)
+    cells = np.where(slender, table[..., K.NS] * table[..., K.NB], 0.0).astype(np.int64)
+    table[..., K.MASK] = np.where(slender, np.cumsum(cells.ravel()).reshape(cells.shape) - cells, -1)
+    mask = np.zeros(int(cells.sum()), dtype=np.uint8)
+    K.cover_cells(table, aim.cover, aim.cover_start, rot, pos_local, SLENDER_RAYS * aim.max_rays, mask)
+    return mask
 
 
 def drop_aimed(caster, aim: AimPlan, ray_start, prim, weight, aimed) -> np.ndarray:

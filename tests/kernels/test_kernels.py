@@ -546,8 +546,8 @@ def test_aim_kernels_match_naive(rng):
     curved = span.copy()
     curved[7] = 3e-4                                  # a 0.45 s⁻¹ gradient at 1500 m/s: the cones widen
     for sp in (curved, span):                         # straight rays last: the rest of the test uses them
-        K.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, sp, shift, aim.n_across, aim.dr_m, aim.max_rays,
-                       table)
+        K.aim_lattices(aim.centre, aim.radius, aim.cell_m, aim.cover, aim.cover_start, rot, pos, aim.sides, sp, shift,
+                       aim.n_across, aim.dr_m, aim.max_rays, table)
         ref = naive.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, sp, shift, aim.n_across, aim.dr_m,
                                  aim.max_rays)
         np.testing.assert_array_equal(table[..., K.NS] * table[..., K.NB], ref[..., 4] * ref[..., 5])
@@ -555,14 +555,15 @@ def test_aim_kernels_match_naive(rng):
         np.testing.assert_allclose(table[lit][:, :4], ref[lit][:, :4], rtol=1e-12, atol=1e-15)
     np.testing.assert_array_equal(table[..., K.NS] * table[..., K.NB], ref[..., 4] * ref[..., 5])
     lit = ref[..., 4] > 0
-    assert lit.sum() >= 3
+    assert lit.sum() >= 3 and not np.isfinite(aim.cell_m).any()         # compact objects: every cell cast
     np.testing.assert_allclose(table[lit][:, :4], ref[lit][:, :4], rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(table[..., K.NC], table[..., K.NS] * table[..., K.NB])
 
-    counts = (table[..., K.NS] * table[..., K.NB]).astype(np.int64)
+    counts = table[..., K.NC].astype(np.int64)
     start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
     n = int(start[-1])
     dirs, org, lay = np.empty((n, 3), np.float32), np.empty((n, 3), np.float32), np.empty((n, K.LAYOUT_WIDTH))
-    K.aim_rays(table, start, rot, pos, dirs, org, lay)
+    K.aim_rays(table, start, rot, pos, np.zeros(0, np.uint8), dirs, org, lay)
     np.testing.assert_allclose(dirs, naive.aim_directions(table, rot), atol=1e-6)
     body = naive.aim_directions(table, np.tile(np.eye(3), (rot.shape[0], 1, 1)))   # (s, ±cψ cos β, cψ sin β)
     cpsi = np.sqrt(1 - lay[:, 0] ** 2)
@@ -591,7 +592,7 @@ def test_aim_kernels_match_naive(rng):
             a, b = start[r * table.shape[1] + j], start[r * table.shape[1] + j + 1]
             if a == b:
                 continue
-            s0, hs, b0, hb, ns, nb = table[r, j]
+            s0, hs, b0, hb, ns, nb = table[r, j, :6]
             s = s0 + (np.arange(int(ns)) + 0.5) * hs
             beta = b0 + (np.arange(int(nb)) + 0.5) * hb
             el = np.array([0, int(nb), int(nb)] if r % 2 == 0 else [0, 0, int(nb)])
@@ -618,3 +619,68 @@ def test_aim_kernels_match_naive(rng):
     expect = naive.drop_aimed(ray_start, fan_prim, c.face_object, aim.cand_of_object, aimed, w)
     np.testing.assert_array_equal(got, expect)
     assert (got == 0).any() and (got > 0).any()
+
+
+def _slender_scene():
+    """A flat floor, a 2 cm cable 4 m long along track 12 m to starboard, another rising across it 9 m to port, a
+    3 m × 2 cm flat strip 20 m to starboard and a 0.3 m ball (compact)."""
+    import trimesh
+
+    scene = se.Scene().add(se.seafloor.flat((80, 80)), label="seafloor")
+    for name, (length, axis, centre) in {"along": (4.0, (1, 0, 0), (0.2, -12.0, 0.02)),
+                                         "rising": (3.0, (1, -1, 0.3), (0.0, 9.0, 0.6))}.items():
+        m = trimesh.creation.cylinder(radius=0.01, height=length, sections=16)
+        m.apply_transform(trimesh.geometry.align_vectors([0, 0, 1], np.asarray(axis, float)))
+        scene.add(m.apply_translation(centre), label=name, material=se.Material(-10.0))
+    scene.add(se.seafloor.flat((3.0, 0.02), center_m=(0.0, -20.0)), label="strip", material=se.Material(-10.0))
+    return scene.add(trimesh.creation.icosphere(2, radius=0.3).apply_translation((0, -15, 1)), label="ball")
+
+
+def test_slender_lattices_cover_and_rays_match_naive(rng):
+    """Slender objects' lattices (finer cells, trimmed to their cover and refined to the width each row sees), their
+    cell masks and the rays cast from them against plain NumPy; a ball stays compact (its lattice is the cone's)."""
+    from scipy.spatial.transform import Rotation
+
+    from sonar_embree.kernels import aim as K
+    from sonar_embree.propagation.aim import SLENDER_RAYS, AimPlan, cover_masks
+    from sonar_embree.propagation.fan import FanPlan
+
+    c = _slender_scene().compiled()
+    rot = Rotation.from_euler("zyx", rng.uniform(-0.01, 0.01, (5, 3))).as_matrix() @ np.diag([1.0, -1.0, -1.0])
+    pos = np.column_stack([rng.uniform(-0.3, 0.3, 5), rng.uniform(-0.5, 0.5, 5), np.full(5, 8.0)]) - c.origin_m
+    plan = FanPlan.build(se.Acquisition.of(se.Sonar().for_pulse(se.Pulse.cw())), se.FanSettings())
+    aim = AimPlan.build(c, plan, 1.0)
+    assert np.isfinite(aim.cell_m).tolist() == [True, True, True, False]
+    span = aim.span.copy()
+    span[4] = 50.0
+    shift = rng.uniform(-3e-3, 3e-3, rot.shape[0])
+    table = np.empty((2 * rot.shape[0], aim.objects.size, K.LATTICE_WIDTH))
+    K.aim_lattices(aim.centre, aim.radius, aim.cell_m, aim.cover, aim.cover_start, rot, pos, aim.sides, span, shift,
+                   aim.n_across, aim.dr_m, aim.max_rays, table)
+    ref = naive.aim_lattices(aim.centre, aim.radius, rot, pos, aim.sides, span, shift, aim.n_across, aim.dr_m,
+                             aim.max_rays, (aim.cell_m, aim.cover, aim.cover_start, K.MAX_MASK_CELLS))
+    np.testing.assert_array_equal(table[..., K.NS] * table[..., K.NB], ref[..., 4] * ref[..., 5])
+    lit = ref[..., 4] > 0
+    assert lit[:, :3].sum() >= 8 and lit[:, 3].sum() >= 2
+    np.testing.assert_allclose(table[lit][:, :4], ref[lit][:, :4], rtol=1e-9, atol=1e-15)
+
+    mask = cover_masks(aim, table, rot, pos)
+    cells = naive.cover_cells(table, aim.cover, aim.cover_start, rot, pos, SLENDER_RAYS * aim.max_rays)
+    marked = 0
+    for r in range(table.shape[0]):
+        for k in range(table.shape[1]):
+            assert (table[r, k, K.MASK] >= 0) == (cells[r][k] is not None) and (k < 3 or cells[r][k] is None)
+            if cells[r][k] is not None:
+                off = int(table[r, k, K.MASK])
+                np.testing.assert_array_equal(mask[off:off + cells[r][k].size].astype(bool), cells[r][k].ravel())
+                assert table[r, k, K.NC] == cells[r][k].sum() < cells[r][k].size    # fewer rays than cells
+                marked += cells[r][k].sum()
+    assert marked > 100 and (table[:, :3, K.MASK] >= 0).sum() >= 8       # slender rows of all three
+    counts = table[..., K.NC].astype(np.int64)
+    start = np.concatenate(([0], np.cumsum(counts.ravel()))).astype(np.int64)
+    dirs, org, lay = (np.empty((start[-1], w), t) for w, t in ((3, np.float32), (3, np.float32),
+                                                              (K.LAYOUT_WIDTH, np.float64)))
+    K.aim_rays(table, start, rot, pos, mask, dirs, org, lay)
+    np.testing.assert_allclose(dirs, naive.aim_directions(table, rot, cells), atol=1e-6)
+
+
