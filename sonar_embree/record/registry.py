@@ -7,7 +7,7 @@ and one :class:`OutputFormat` line in :data:`FORMATS`.
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import ConfigError
 from ..io.geotiff import write_grid
 from ..io.owner import OutputFolder
+from ..io.xtf import geographic, to_xtf
 from ..signal.interferometry import interferometric_points
 from ..signal.sas import record_image
 from ..sonars.forward_looking import save_fan_png
@@ -91,9 +92,15 @@ def _fan(rec, path, o):
 
 
 def _xtf(rec, path, o):
-    from ..io.xtf import to_xtf
-
     to_xtf(rec, path)
+
+
+def _placed(rec):
+    """(CRS, east and north offsets in m) of a record's world frame: its trajectory's CRS, else the UTM zone of a
+    local scene placed with ``geo_origin_deg`` (its origin there, as its XTF's lat/lon,
+    :func:`~sonar_embree.io.xtf.geographic`), else (None, 0, 0): the GeoTIFFs in local metres."""
+    geo = geographic(rec)
+    return (None, 0.0, 0.0) if geo is None else (geo[0], geo[1][0], geo[1][1])
 
 
 def _soundings(rec, o: WriteOptions):
@@ -113,7 +120,9 @@ def _xyz(rec, path, o):
 
 
 def _bathymetry(rec, path, o):
-    _soundings(rec, o).to_geotiff(path, o.bathymetry_pixel_m)
+    crs, east, north = _placed(rec)
+    points = _soundings(rec, o)
+    replace(points, xyz_m=points.xyz_m + [east, north, 0.0], crs=crs).to_geotiff(path, o.bathymetry_pixel_m)
 
 
 #: The most pixels a SAS image may have (a backprojection costs pings × elements per pixel).
@@ -162,7 +171,8 @@ def _sas_axes(grid: dict):
 
 def _sas(rec, path, o):
     """The backprojected SAS image (:func:`sonar_embree.signal.sas.record_image`) of a receiver-array record on
-    ``o.sas_grid``: a north-up GeoTIFF in the record's CRS, bands intensity (|image|²) and its level in dB."""
+    ``o.sas_grid``: a north-up GeoTIFF in the record's CRS (:func:`_placed`), bands intensity (|image|²) and its
+    level in dB."""
     if o.sas_grid is None:
         raise ConfigError("output 'sas' needs [output] sas_grid = { x_m = [min, max], y_m = [min, max], pixel_m = … }")
     g = check_sas_grid(o.sas_grid)
@@ -171,8 +181,9 @@ def _sas(rec, path, o):
     with np.errstate(divide="ignore"):
         db = 10.0 * np.log10(intensity)
     p = float(g["pixel_m"])
-    write_grid(path, np.stack([intensity, np.where(np.isfinite(db), db, np.nan)])[:, ::-1], float(x[0] - p / 2),
-               float(y[-1] + p / 2), p, rec.trajectory.crs, names=("intensity", "level_db"), units=("1", "dB"))
+    crs, east, north = _placed(rec)
+    write_grid(path, np.stack([intensity, np.where(np.isfinite(db), db, np.nan)])[:, ::-1], float(x[0] - p / 2) + east,
+               float(y[-1] + p / 2) + north, p, crs, names=("intensity", "level_db"), units=("1", "dB"))
 
 
 @dataclass(frozen=True)

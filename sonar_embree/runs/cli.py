@@ -63,7 +63,8 @@ dataclasses (units in the key names):
                 ground_range, tvg (display only; default true), reference_percentile
                 (99.99: the level shown white), floor_headroom_db (12: white at least
                 this far above the median), max_columns (1024 per side);
-                geo_origin_deg = [lat, lon]: where a local scene's origin lies (XTF in lat/lon)
+                geo_origin_deg = [lat, lon]: where a local scene's origin lies (XTF in lat/lon,
+                GeoTIFFs in its UTM zone)
 
 Relative paths are relative to CONFIG.toml; asset:NAME names a shipped file.
 Examples: sonar-embree examples (list), sonar-embree render asset:anchor_mine.toml -o OUT,

@@ -478,6 +478,30 @@ def test_a_moving_sonars_lattice_echo_arrives_on_its_moving_leg(array, seed=3):
     assert want < -15e-6 and abs(got - want) < 0.15 * abs(want), (got, want)
 
 
+def test_a_local_scene_placed_on_the_earth_writes_its_sas_image_there(point, tmp_path):
+    """A record in local metres with ``geo_origin_deg`` (its XTF in lat/lon): sas.tif is in the origin's UTM zone,
+    the local origin at the origin's projected point (pyproj here), so the scatterer's pixel lies where its local
+    position puts it. Before, the image had no CRS (a GIS could not place it beside the XTF)."""
+    import pyproj
+    import rasterio
+
+    from sonar_embree.record import registry
+    from sonar_embree.runs.runconfig import OutputOptions
+
+    sc, target, rec = point
+    assert rec.trajectory.crs is None
+    rec = dataclasses.replace(rec, attrs={**rec.attrs, "geo_origin_deg": [43.0, 5.0]})
+    east, north = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32631", always_xy=True).transform(5.0, 43.0)
+    grid = {"x_m": [target[0] - 0.5, target[0] + 0.5], "y_m": [target[1] - 0.4, target[1] + 0.4], "pixel_m": 0.02,
+            "z_m": float(target[2])}
+    registry.write_each(rec, str(tmp_path), ("sas",), OutputOptions(sas=True, sas_grid=grid).write_options())
+    with rasterio.open(tmp_path / "sas.tif") as f:
+        assert f.crs.to_epsg() == 32631
+        r, c = np.unravel_index(np.argmax(f.read(1)), (f.height, f.width))
+        cx, cy = f.xy(r, c)
+    assert abs(cx - east - target[0]) < 0.05 and abs(cy - north - target[1]) < 0.05
+
+
 def test_record_image_refuses_what_cannot_form_an_image(point):
     """Issue 49: no pings, a wrong-length mask, an element out of range, no elements, a NaN pixel or height and a
     grid beyond the pixel cap are one-line errors naming the value, not zeros or a MemoryError."""

@@ -161,8 +161,14 @@ def test_the_labels_hold_the_true_depth_of_every_interferometric_sample():
 def test_render_writes_soundings_and_their_grid(tmp_path, capsys):
     """``[output] soundings = true, bathymetry = true`` of a config with a vertical pair: soundings.xyz and
     bathymetry.tif (height, coherence, count) on the flat floor within 1 % of the range beyond the nadir; a sonar
-    without an array is refused in one line."""
+    without an array is refused in one line. The local scene is placed on the Earth (``geo_origin_deg``): the
+    GeoTIFF is in the origin's UTM zone with the origin at its projected point (pyproj here), as the XTF's lat/lon
+    are; before, it had no CRS."""
+    import pyproj
+
     from sonar_embree.runs.cli import main
+
+    east, north = pyproj.Transformer.from_crs("EPSG:4326", "EPSG:32631", always_xy=True).transform(5.0, 43.0)
 
     def config(array):
         return (f'[sonar]\nfrequency_hz = {F0}\nlength_m = 0.1\nheight_m = 0.005\ntilt_deg = 30.0\n'
@@ -170,7 +176,7 @@ def test_render_writes_soundings_and_their_grid(tmp_path, capsys):
                 'speckle = true\nseed = 1\n[trajectory]\nkind = "line"\nstart = [-1.0, 0.0, 10.0]\n'
                 'end = [1.0, 0.0, 10.0]\nn_pings = 5\n[[objects]]\nseafloor = "flat"\nsize_m = [30.0, 100.0]\n'
                 'label = "seafloor"\n[output]\npng = false\nnpz = false\nsoundings = true\nbathymetry = true\n'
-                'bathymetry_pixel_m = 1.0\n')
+                'bathymetry_pixel_m = 1.0\ngeo_origin_deg = [43.0, 5.0]\n')
 
     (tmp_path / "ifsss.toml").write_text(config(f"receive_array = {{ kind = \"vertical\", baseline_m = {LAM} }}"))
     assert main(["render", str(tmp_path / "ifsss.toml"), "-o", str(tmp_path / "out"), "--no-progress"]) == 0
@@ -179,9 +185,10 @@ def test_render_writes_soundings_and_their_grid(tmp_path, capsys):
     assert xyz.shape[1] == 3 and xyz.shape[0] > 5000
     with rasterio.open(tmp_path / "out" / "bathymetry.tif") as src:
         assert src.descriptions == ("height_m", "coherence", "count") and src.res == (1.0, 1.0)
+        assert src.crs.to_epsg() == 32631 and abs(0.5 * (src.bounds.left + src.bounds.right) - east) < 3.0
         height, count = src.read(1), src.read(3)
-        ys = src.xy(np.arange(src.height), np.zeros(src.height, dtype=int))[1]
-    far = (np.abs(np.asarray(ys))[:, None] > 14) & (np.abs(np.asarray(ys))[:, None] < 35) & (count > 20)
+        ys = np.asarray(src.xy(np.arange(src.height), np.zeros(src.height, dtype=int))[1]) - north
+    far = (np.abs(ys)[:, None] > 14) & (np.abs(ys)[:, None] < 35) & (count > 20)
     assert far.sum() > 50
     np.testing.assert_array_less(np.abs(height[far]), 0.01 * 40.0)
     (tmp_path / "plain.toml").write_text(config(""))
