@@ -833,23 +833,26 @@ def _project(pts, rot, pos, side):
 
 
 def _reach(row, pts, rot, pos, side):
-    """Inclusive cell ranges (s, β) of lattice ``row`` that the box of ``pts`` projected reaches, one cell more."""
+    """Inclusive cell ranges (s, β) of lattice ``row`` whose centres lie within half a cell of the box of ``pts``
+    projected: centre (i + ½)·h from the start within [lo − h/2, hi + h/2]."""
     s, b = _project(pts, rot, pos, side)
-    i0 = max(int(np.floor((s.min() - row[0]) / row[1])) - 1, 0)
-    i1 = min(int(np.floor((s.max() - row[0]) / row[1])) + 1, int(row[4]) - 1)
-    j0 = max(int(np.floor((b.min() - row[2]) / row[3])) - 1, 0)
-    j1 = min(int(np.floor((b.max() - row[2]) / row[3])) + 1, int(row[5]) - 1)
-    return i0, i1, j0, j1
+    out = []
+    for lo, hi, start, h, n in ((s.min(), s.max(), row[0], row[1], row[4]), (b.min(), b.max(), row[2], row[3], row[5])):
+        out += [max(int(np.ceil((lo - start) / h - 1.0)), 0), min(int(np.floor((hi - start) / h)), int(n) - 1)]
+    return tuple(out)
 
 
 def slender_trim(row, pts, cell_m, rot, pos, side, max_cells):
-    """A slender object's lattice ``row`` [s0, hs, β0, hβ, ns, nβ] trimmed to its cover's box (one cell more) and
+    """A slender object's lattice ``row`` [s0, hs, β0, hβ, ns, nβ] trimmed to the box of the cells its cover's
+    segments reach inside it (:func:`_reach` of each, clipped; segments outside left out) and
     refined to ``cell_m``/(its cross-section's corner distance) of the angle its middle slice spans across the
     line joining its end slices' centres (the larger span of s and β where that line is shorter; the lattice's own
     cells where the object is seen exactly edge-on)."""
-    i0, i1, j0, j1 = _reach(row, pts, rot, pos, side)
-    if i1 < i0 or j1 < j0:
+    boxes = [_reach(row, pts[a:a + 8], rot, pos, side) for a in range(0, len(pts) - 4, 4)]
+    boxes = np.array([b for b in boxes if b[1] >= b[0] and b[3] >= b[2]]).reshape(-1, 4)
+    if boxes.shape[0] == 0:
         return np.zeros(6)
+    i0, i1, j0, j1 = boxes[:, 0].min(), boxes[:, 1].max(), boxes[:, 2].min(), boxes[:, 3].max()
     s, b = _project(pts, rot, pos, side)
     end = np.array([[s[:4].mean(), b[:4].mean()], [s[-4:].mean(), b[-4:].mean()]])
     m = 4 * ((len(pts) // 4) // 2)
@@ -872,7 +875,8 @@ def slender_trim(row, pts, cell_m, rot, pos, side, max_cells):
 
 def cover_cells(table, cover, cover_start, rot, pos, max_rays):
     """Each slender lattice's cells to cast ((rows, k) list of (ns, nβ) bool arrays, None where every cell is cast):
-    those within one cell of the (s, β) box of a segment between consecutive 4-corner slices of its cover; a
+    those whose centres lie within half a cell of the (s, β) box of a segment between consecutive 4-corner slices
+    of its cover; a
     lattice of more than ``max_rays`` of them gets none (all False)."""
     out = [[None] * table.shape[1] for _ in range(table.shape[0])]
     for r in range(table.shape[0]):

@@ -166,25 +166,30 @@ def _project(p, rot, pos, side):
 
 @njit(cache=True, nogil=True)
 def _cells(lat, pts, rot, pos, side):
-    """(i0, i1, j0, j1): the lattice's cells (s index, β index; inclusive, clipped to the lattice) that the box of
-    ``pts`` projected reaches, one cell more on every side; i1 < i0 or j1 < j0 when it misses the lattice."""
+    """(i0, i1, j0, j1): the lattice's cells (s index, β index; inclusive, clipped to the lattice) whose centres,
+    where their rays go, lie within half a cell of the box of ``pts`` projected; i1 < i0 or j1 < j0 when none."""
     s_lo, s_hi, b_lo, b_hi = math.inf, -math.inf, math.inf, -math.inf
     for q in range(pts.shape[0]):
         sq, bq = _project(pts[q], rot, pos, side)
         s_lo, s_hi, b_lo, b_hi = min(s_lo, sq), max(s_hi, sq), min(b_lo, bq), max(b_hi, bq)
-    i0 = max(math.floor((s_lo - lat[S0]) / lat[HS]) - 1, 0)
-    i1 = min(math.floor((s_hi - lat[S0]) / lat[HS]) + 1, int(lat[NS]) - 1)
-    j0 = max(math.floor((b_lo - lat[B0]) / lat[HB]) - 1, 0)
-    j1 = min(math.floor((b_hi - lat[B0]) / lat[HB]) + 1, int(lat[NB]) - 1)
+    i0 = max(math.ceil((s_lo - lat[S0]) / lat[HS] - 1.0), 0)
+    i1 = min(math.floor((s_hi - lat[S0]) / lat[HS]), int(lat[NS]) - 1)
+    j0 = max(math.ceil((b_lo - lat[B0]) / lat[HB] - 1.0), 0)
+    j1 = min(math.floor((b_hi - lat[B0]) / lat[HB]), int(lat[NB]) - 1)
     return i0, i1, j0, j1
 
 
 @njit(cache=True, nogil=True)
 def _trim(lat, pts, cell_m, rot, pos, side):
-    """Trim a slender object's lattice to the cells the box of all its cover points reaches, then refine its cells
-    to the object's width as this row sees it (:func:`_seen_width`: a flat strip foreshortens) over ``cell_m``'s
-    rays across; none beyond :data:`MAX_MASK_CELLS`."""
-    i0, i1, j0, j1 = _cells(lat, pts, rot, pos, side)
+    """Trim a slender object's lattice to the box of the cells its cover's segments reach (:func:`_cells`; only the
+    segments inside the lattice count: a long cable across the beam's edge keeps the part in it), then refine its
+    cells to the object's width as this row sees it (:func:`_seen_width`: a flat strip foreshortens) over
+    ``cell_m``'s rays across; none beyond :data:`MAX_MASK_CELLS`."""
+    i0, i1, j0, j1 = 1 << 62, -1, 1 << 62, -1
+    for a in range(0, pts.shape[0] - 4, 4):
+        a0, a1, b0, b1 = _cells(lat, pts[a:a + 8], rot, pos, side)
+        if a1 >= a0 and b1 >= b0:
+            i0, i1, j0, j1 = min(i0, a0), max(i1, a1), min(j0, b0), max(j1, b1)
     if i1 < i0 or j1 < j0:
         lat[NS] = 0.0
         lat[NB] = 0.0
@@ -237,8 +242,8 @@ def cover_cells(table, cover, cover_start, rot, pos, max_rays, mask):
 
     A slender object lies inside the segments of its oriented bounding box between consecutive slices of
     ``cover`` (4 corners each, slices no farther apart than the box is wide); a segment, small against its range,
-    projects inside the (s, β) box of its 8 corners up to second order, so every cell it can cover is within one
-    cell of that box.
+    projects inside the (s, β) box of its 8 corners up to second order (far under a cell), so every cell whose ray
+    (its centre) can hit the object has its centre within half a cell of that box.
 
     Parameters
     ----------

@@ -788,7 +788,7 @@ def _log2(steps):
 @njit(cache=True, nogil=True)
 def _emit_ping_shared(b, n_ch, count, nodes_t, key_t, echoes, ends, lattice, rate, out_b, scratch):
     """:func:`_emit_ping` with one emission per node for all its receivers (:func:`_emit_node_shared`), the nodes
-    in order of their mean time (each element's impulses then land near the last ones: a fifth less time)."""
+    in order of their mean time (each element's impulses then land near the last ones: about a quarter less time, docs/benchmarks.md)."""
     ends_b = (ends.tx[b], ends.rx[b], ends.vel_rx[b], ends.rx_ref[b], ends.time_per_m)
     shift = _log2(out_b.shape[1])                                 # once per ping, not per impulse
     order = np.argsort(nodes_t[:count, 1])
