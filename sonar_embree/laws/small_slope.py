@@ -91,6 +91,28 @@ def _bessel_integral(alpha: float, p: float) -> float:
     return p ** (-1.0 / alpha) * h
 
 
+#: How :class:`SmallSlope` evaluates its integral: "exact" (:func:`_bessel_integral`, the default) or "prony"
+#: (:func:`_prony_integral`, the published reference implementation's approximation).
+INTEGRALS = ("exact", "prony")
+
+
+def _prony_integral(alpha: float, p: float, n_samples: int = 100, n_terms: int = 10, floor: float = 1e-3) -> float:
+    """∫₀^∞ J₀(u) exp(−p u^(2α)) u du as the reference implementation evaluates it (the MATLAB code whose outputs
+    the OpenBST project publishes, hydroffice/hyo2_openbst, data/input/jackson2): exp(−p u^(2α)) sampled
+    ``n_samples`` times on [0, u_max], where it falls to ``floor``, fitted by ``n_terms`` exponentials Σ aᵢ e^(bᵢu)
+    (Prony: linear prediction, then the roots), each integrated in closed form, ∫₀^∞ J₀(u) e^(bu) u du =
+    1/(b²(1 + b⁻²)^(3/2)) for Re b < 0. It is off the exact integral by up to 2.4 dB at 5° grazing (silt, 20 kHz);
+    it is here to reproduce the published values, not as the default."""
+    u_max = (abs(math.log(floor)) / p) ** (0.5 / alpha)
+    u = np.linspace(0.0, u_max, n_samples)
+    w = np.exp(-p * u ** (2 * alpha))
+    lagged = np.stack([w[j:n_samples - n_terms + j] for j in range(n_terms)], axis=1)
+    coef = np.linalg.lstsq(lagged, -w[n_terms:], rcond=None)[0]
+    b = np.log(np.roots(np.concatenate(([1.0], coef[::-1]))).astype(complex)) / (u[1] - u[0])
+    a = np.linalg.lstsq(np.exp(np.outer(u, b)), w.astype(complex), rcond=None)[0]
+    return float(np.real(np.sum(a / (b ** 2 * (1 + b ** -2) ** 1.5))))
+
+
 @dataclass(frozen=True)
 class SmallSlope(Summable):
     """A sediment in the elastic small-slope model (the module's docstring gives the equations and sources).
@@ -113,6 +135,10 @@ class SmallSlope(Summable):
         a, the volume fluctuations' horizontal over vertical scale ratio (1: isotropic).
     water_sound_speed_m_s : float
         c_w, which sets k = 2πf/c_w, m/s.
+    integral : str
+        "exact" (default: the integral to 10⁻¹⁰) or "prony": the published reference implementation's Prony
+        approximation (:func:`_prony_integral`), which reproduces its published values within 0.01 dB at every
+        angle, 5° included, where it is up to 0.52 dB off the exact law's total.
 
     It depends on the carrier, so a run takes it :meth:`at_frequency` (a table on :data:`TABLE_GRAZING_DEG`).
     """
@@ -129,6 +155,7 @@ class SmallSlope(Summable):
     correlation: tuple = DENSITY_ONLY
     aspect_ratio: float = 1.0
     water_sound_speed_m_s: float = 1500.0
+    integral: str = "exact"
 
     uses_azimuth = False
 
@@ -139,6 +166,8 @@ class SmallSlope(Summable):
                              ("volume_strength", 0.0, 1.0), ("aspect_ratio", 0.01, 100.0),
                              ("water_sound_speed_m_s", 1300.0, 1700.0)):
             check_number("SmallSlope", name, getattr(self, name), lo=lo, hi=hi)
+        if self.integral not in INTEGRALS:
+            raise ConfigError(f"SmallSlope.integral must be one of {INTEGRALS}, got {self.integral!r}")
         check_number("SmallSlope", "shear_speed_ratio", self.shear_speed_ratio, positive=True, hi=2.0)
         check_number("SmallSlope", "roughness_strength", self.roughness_strength, positive=True, hi=1.0)
         corr = np.asarray(self.correlation, dtype=float)
@@ -185,7 +214,8 @@ class SmallSlope(Summable):
                / (alpha * (1.0 - alpha) * gamma(1.0 + alpha)))
         p = 0.5 * ch2 * q3 ** 2 * q ** (-2.0 * alpha)
         amp = 0.5 * k * k * self._amplitude(c, s, f)
-        return abs(amp) ** 2 / (2.0 * math.pi * q * q * q3 * q3) * _bessel_integral(alpha, p), complex(f["r"])
+        integral = _prony_integral(alpha, p) if self.integral == "prony" else _bessel_integral(alpha, p)
+        return abs(amp) ** 2 / (2.0 * math.pi * q * q * q3 * q3) * integral, complex(f["r"])
 
     def volume(self, grazing_rad: float, frequency_hz: float, interface: dict | None = None) -> float:
         """σ_v at one grazing angle (rad) and frequency (Hz), before the cap (first-order volume perturbation;
@@ -287,13 +317,14 @@ SEDIMENTS = {
 }
 
 
-def small_slope_sediment(name: str) -> SmallSlope:
-    """The small-slope sediment ``name`` of :data:`SEDIMENTS` (spaces or underscores; one-line error otherwise)."""
+def small_slope_sediment(name: str, integral: str = "exact") -> SmallSlope:
+    """The small-slope sediment ``name`` of :data:`SEDIMENTS` (spaces or underscores; one-line error otherwise),
+    its integral evaluated as ``integral`` says (:class:`SmallSlope`)."""
     key = str(name).replace("_", " ").strip().lower()
     if key not in SEDIMENTS:
         raise ConfigError(f"unknown small-slope sediment {name!r}; one of {sorted(SEDIMENTS)}")
     v = SEDIMENTS[key]
-    return SmallSlope(*v, correlation=ROCK_CORRELATION if key.endswith("rock") else DENSITY_ONLY)
+    return SmallSlope(*v, correlation=ROCK_CORRELATION if key.endswith("rock") else DENSITY_ONLY, integral=integral)
 
 
 @functools.lru_cache(maxsize=32)
@@ -303,4 +334,4 @@ def _table(fields: str, frequency_hz: float) -> Tabulated:
     return SmallSlope(*ast.literal_eval(fields)).tabulate(frequency_hz)
 
 
-__all__ = ["SEDIMENTS", "SmallSlope", "TABLE_GRAZING_DEG", "VALID_FREQUENCY_HZ", "small_slope_sediment"]
+__all__ = ["INTEGRALS", "SEDIMENTS", "SmallSlope", "TABLE_GRAZING_DEG", "VALID_FREQUENCY_HZ", "small_slope_sediment"]

@@ -320,8 +320,9 @@ def parse_law(law, source: str, where: str, base: str = ""):
     if kind == "apl-uw" and ("sediment" in law or "mean_grain_size_phi" in law):
         return _apl_uw(law, source, where)
     if kind == "small-slope" and "sediment" in law:
-        _check_keys(where, law, ("sediment",), source)
-        return _build(source, where, small_slope_sediment, {"name": law["sediment"]})
+        _check_keys(where, law, ("sediment", "integral"), source)
+        return _build(source, where, small_slope_sediment, {"name": law["sediment"],
+                                                             "integral": law.get("integral", "exact")})
     if kind == "tabulated" and "csv" in law:
         _check_keys(where, law, ("csv",), source)
         return _build(source, where, Tabulated.from_csv, {"path": _resolve(base, law["csv"])})
