@@ -763,7 +763,7 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
     2γ/n_across, the fan's steps and (in β) 2γ·dr/(2ρ); none beyond the range, inside the sphere, on the
     along-track axis or above ``max_rays``. With curved rays (span[7] = κ > 0) the cone widens by 0.6·κ·(D + ρ)
     along the elevation direction. ``slender`` = (cell_m, cover, cover_start, max_cells): where cell_m/(D + ρ) is
-    finer than either step, both steps are at most that, up to max_cells of them, then :func:`slender_trim`."""
+    finer than either step, both steps are at most that, then :func:`slender_trim` (up to max_cells of them)."""
     n_p, k = rot.shape[0], centre.shape[0]
     out = np.zeros((2 * n_p, k, 6))
     for r in range(2 * n_p):
@@ -798,7 +798,7 @@ def aim_lattices(centre, radius, rot, pos, sides, span, rx_shift, n_across, dr_m
             if thin:
                 hs, hb = min(hs, slender[0][j] / (d + radius[j])), min(hb, slender[0][j] / (d + radius[j]))
             ns, nb = np.ceil((s_hi - s_lo) / hs - 1e-9), np.ceil((b_hi - b_lo) / hb - 1e-9)
-            if ns * nb > (slender[3] if thin else max_rays):
+            if not thin and ns * nb > max_rays:
                 continue
             out[r, j] = [s_lo, (s_hi - s_lo) / ns, b_lo, (b_hi - b_lo) / nb, ns, nb]
             if thin:

@@ -33,8 +33,8 @@ def _lattice(v0, v1, v2, up0, up1, up2, side, radius, cell_m, span, rx, n_across
     """The lattice of one object (bounding sphere of ``radius`` at body-frame offset v) in one row; NS = 0 when it
     gets none (out of range or span, the sonar inside its sphere, or too big to aim at: the fan sees it). Where
     ``cell_m`` (a slender object's largest cell at its far side, m; inf: not slender) is finer than the cone's cells,
-    the cells shrink to it, the lattice may span up to :data:`MAX_MASK_CELLS` and MASK = :data:`SLENDER` (its
-    covered cells are counted against its budget later).
+    the cells shrink to it and MASK = :data:`SLENDER`: its cells are counted once trimmed (:func:`_trim`) and its
+    covered cells against its budget (:func:`cover_cells`).
     ``span`` = (s_lo, s_hi, β_lo, β_hi, max range, along-track step cap, elevation step cap, κ); ``rx`` the row's
     receive shift δ (the span widens to cover the receive lobe too); ``up`` the world's vertical in the body frame.
 
@@ -79,7 +79,7 @@ def _lattice(v0, v1, v2, up0, up1, up2, side, radius, cell_m, span, rx, n_across
         hs, hb = min(hs, thin), min(hb, thin)
     ns = math.ceil((s_hi - s_lo) / hs - 1e-9)
     nb = math.ceil((b_hi - b_lo) / hb - 1e-9)
-    if ns * nb > (MAX_MASK_CELLS if slender else max_rays):     # too big to aim at: the fan sees it
+    if not slender and ns * nb > max_rays:          # too big to aim at: the fan sees it (a slender one: once trimmed)
         return
     out[S0] = s_lo
     out[HS] = (s_hi - s_lo) / ns
