@@ -725,3 +725,16 @@ def test_a_thin_flat_strip_is_heard_at_its_closed_form_level_in_every_ping(size,
     inside = ref >= 0.1 * ref.max()
     assert inside.sum() >= 4
     _within_1_db_of(ref, ball_energy(_patch_scene("strip", size, (0.0, y)), traj, label="strip"), inside)
+
+
+def test_a_very_long_thin_object_keeps_a_bounded_cover():
+    """A 2 km × 1 cm strip is slender with a cell of a sixth of its width, and its cover holds at most
+    aim.MAX_SLICES + 1 slices (4 corners each), not one per centimetre (800,000: 20 MB of corners)."""
+    from sonar_embree.propagation import aim
+
+    c = _patch_scene("strip", (2000.0, 0.01), (0.0, -20.0)).compiled()
+    objects = np.array([0], dtype=np.int32)
+    cell, cover, start = aim.slender_boxes(c, np.arange(c.faces.shape[0]), objects, np.array([1000.0]), 8.0, 6)
+    assert cell[0] == pytest.approx(0.01 / 6) and start.tolist() == [0, cover.shape[0]]
+    assert cover.shape[0] == 4 * (aim.MAX_SLICES + 1)
+    np.testing.assert_allclose(np.ptp(cover, axis=0)[:2], [2000.0, 0.01], rtol=1e-9)
