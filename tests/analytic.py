@@ -176,9 +176,10 @@ def patch_quadrature(size, centre, positions, alpha_db_m, mu_db, gamma, n=200):
 
 
 def cylinder_quadrature(rho, length, centre, axis, positions, alpha_db_m, mu_db, gamma, n_t=1000, n_phi=128):
-    """Echo energy of a Lambertian cylinder's side (radius ``rho``, ``length`` along ``axis``, centred at ``centre``,
-    m) per ping: E = ∫ Γ⁴(u) μ cos²θi 10^(−2αR/10) / R⁴ dA over its side, cos θi = max(−u·n, 0) (a convex surface
-    shadows only itself, which cos θi > 0 excludes), midpoint rule on an n_t × n_phi grid, dA = ρ dφ dt."""
+    """Echo energy of a closed Lambertian cylinder (radius ``rho``, ``length`` along ``axis``, centred at ``centre``,
+    m) per ping: E = ∫ Γ⁴(u) μ cos²θi 10^(−2αR/10) / R⁴ dA over its side and both end caps, cos θi = max(−u·n, 0)
+    (a convex surface shadows only itself, which cos θi > 0 excludes); midpoint rules, the side on an n_t × n_phi
+    grid (dA = ρ dφ dt), each cap on n_phi/2 rings × n_phi sectors of equal area."""
     a = np.asarray(axis, float) / np.linalg.norm(axis)
     e1 = np.cross(a, [0.0, 0.0, 1.0])
     e1 = e1 / np.linalg.norm(e1) if np.linalg.norm(e1) > 1e-9 else np.array([1.0, 0.0, 0.0])
@@ -187,8 +188,16 @@ def cylinder_quadrature(rho, length, centre, axis, positions, alpha_db_m, mu_db,
     phi = 2 * np.pi * (np.arange(n_phi) + 0.5) / n_phi
     T, P = np.meshgrid(t, phi, indexing="ij")
     normal = np.cos(P).ravel()[:, None] * e1 + np.sin(P).ravel()[:, None] * e2
-    pt = np.asarray(centre, float) + T.ravel()[:, None] * a + rho * normal
-    dA = length / n_t * rho * 2 * np.pi / n_phi
+    pts = [np.asarray(centre, float) + T.ravel()[:, None] * a + rho * normal]
+    normals, areas = [normal], [np.full(T.size, length / n_t * rho * 2 * np.pi / n_phi)]
+    r = rho * np.sqrt((np.arange(n_phi // 2) + 0.5) / (n_phi // 2))          # rings of equal area
+    R, P = np.meshgrid(r, phi, indexing="ij")
+    disk = R.ravel()[:, None] * (np.cos(P).ravel()[:, None] * e1 + np.sin(P).ravel()[:, None] * e2)
+    for sign in (-1.0, 1.0):
+        pts.append(np.asarray(centre, float) + sign * 0.5 * length * a + disk)
+        normals.append(np.tile(sign * a, (disk.shape[0], 1)))
+        areas.append(np.full(disk.shape[0], np.pi * rho ** 2 / disk.shape[0]))
+    pt, normal, dA = np.concatenate(pts), np.concatenate(normals), np.concatenate(areas)
     out = []
     for i, p in enumerate(positions):
         v = pt - p

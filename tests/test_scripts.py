@@ -241,7 +241,8 @@ def test_msis_figure_script_draws_both_scans(tmp_path):
 
 def test_bench_objects_script_reports_time_against_object_count_and_its_error():
     """scripts/bench_objects.py --quick: the table of ms/ping against the number of balls, aimed and fan only, and
-    the reference ball's error both ways (dark pings only without the aimed rays)."""
+    the reference ball's error both ways (dark pings only without the aimed rays); the cables' table and the
+    reference cable's error (no dark ping)."""
     proc = subprocess.run([sys.executable, os.path.join(ROOT, "scripts", "bench_objects.py"), "--quick"],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-2000:]
@@ -249,6 +250,7 @@ def test_bench_objects_script_reports_time_against_object_count_and_its_error():
     assert "| objects | ms/ping, aimed |" in out and "\n| 10 |" in out
     aimed = next(line for line in out.splitlines() if line.startswith("| aimed + fan |"))
     assert aimed.split("|")[3].strip().startswith("0 of ")
+    assert "| cables | ms/ping, aimed |" in out and "dark in 0 of the" in out    # the slender objects' section
 
 
 def test_bench_swell_objects_script_reports_ms_per_ping_with_and_without_balls():

@@ -695,7 +695,7 @@ CABLES = [  # radius, length (m), axis, abeam (m); each missed in some pings or 
 @pytest.mark.parametrize("rho, length, axis, y", CABLES)
 def test_a_thin_cable_is_heard_at_its_closed_form_level_in_every_ping(rho, length, axis, y):
     """A 2 cm Lambertian cable 2–12 m long resting on the floor (or rising from it), 8–20 m abeam, pings every 6 cm,
-    quality 1: its echo energy per ping is the quadrature of Γ⁴·μ·cos²θi·e^(−2αR)/R⁴ over its side within 1 dB in
+    quality 1: its echo energy per ping is the quadrature of Γ⁴·μ·cos²θi·e^(−2αR)/R⁴ over its surface within 1 dB in
     every ping where that is within 10 dB of its peak. Before, the rays aimed at it tiled its bounding sphere's cone,
     8 × 8, so a cable far thinner than a cell was hit by one row of cells or none."""
     a = np.asarray(axis) / np.linalg.norm(axis)
