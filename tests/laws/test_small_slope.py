@@ -10,7 +10,6 @@ transcription is right); the exact integral, the default, is checked against mpm
 law with it against the table (within 0.5 dB from 6° to 85°; at 5° the table's own Prony integral is up to 2.5 dB
 off the exact one in the roughness part, which reaches the total by at most 0.52 dB, for medium sand at 20 kHz)."""
 import csv
-import math
 import os
 
 import mpmath
@@ -29,20 +28,6 @@ def _table(sediment, frequency_hz, lo=5.0, hi=85.0):
         rows = [r for r in csv.DictReader(fh) if r["sediment"] == sediment
                 and float(r["frequency_hz"]) == frequency_hz and lo <= float(r["grazing_deg"]) <= hi]
     return {k: np.array([float(r[k]) for r in rows]) for k in rows[0]if k != "sediment"}
-
-
-def _prony_integral(alpha, p, n_samples=100, n_terms=10, floor=1e-3):
-    """The reference's evaluation of ∫₀^∞ J₀(u) exp(−p u^(2α)) u du: exp(−p u^(2α)) on [0, u_max] (where it is
-    ``floor``) fitted by ``n_terms`` exponentials Σ aᵢ e^(bᵢu) (Prony: linear prediction, then the roots), each
-    integrated in closed form, ∫₀^∞ J₀(u) e^(bu) u du = −b/(b² + 1)^(3/2) = 1/(b²(1 + b⁻²)^(3/2)) for Re b < 0."""
-    u_max = (abs(math.log(floor)) / p) ** (0.5 / alpha)
-    u = np.linspace(0.0, u_max, n_samples)
-    w = np.exp(-p * u ** (2 * alpha))
-    lagged = np.stack([w[j:n_samples - n_terms + j] for j in range(n_terms)], axis=1)
-    coef = np.linalg.lstsq(lagged, -w[n_terms:], rcond=None)[0]
-    b = np.log(np.roots(np.concatenate(([1.0], coef[::-1]))).astype(complex)) / (u[1] - u[0])
-    a = np.linalg.lstsq(np.exp(np.outer(u, b)), w.astype(complex), rcond=None)[0]
-    return float(np.real(np.sum(a / (b ** 2 * (1 + b ** -2) ** 1.5))))
 
 
 @pytest.mark.parametrize("frequency_hz", [20e3, 300e3])
@@ -85,12 +70,6 @@ def test_the_small_slope_integral_against_mpmaths_oscillatory_quadrature(alpha, 
         u_max = (80.0 / p) ** (0.5 / alpha)
         want = mpmath.quad(f, [u_max * k / 400 for k in range(401)])
     assert small_slope._bessel_integral(alpha, p) == pytest.approx(float(want), rel=1e-10)
-
-
-@pytest.mark.parametrize("alpha, p", [(0.625, 3.26e-5), (0.375, 3.7e-3), (0.625, 0.9), (0.5, 2.0)])
-def test_the_laws_prony_evaluation_is_the_one_written_here(alpha, p):
-    """The law's Prony evaluation against the one transcribed here from the reference's description."""
-    assert small_slope._prony_integral(alpha, p) == pytest.approx(_prony_integral(alpha, p), rel=1e-9)
 
 
 def test_the_integral_is_chosen_in_toml_and_refused_in_one_line(tmp_path):
