@@ -89,7 +89,7 @@ class AimPlan:
         s_lo, s_hi, b_lo, b_hi, hs, hb = (float(x) for x in span)
         q = float(quality)
         n_across = float(math.ceil(RAYS_ACROSS * math.sqrt(q)))
-        cell_m, cover, cover_start = slender_boxes(compiled, faces, objects, radius[objects], n_across,
+        cell_m, cover, cover_start = slender_boxes(compiled, faces, cand, radius[objects],
                                                    math.ceil(THIN_ACROSS * math.sqrt(q)))
         return cls(objects, centre[objects], radius[objects], cand, cell_m, cover, cover_start,
                    np.array([s_lo, s_hi, b_lo, b_hi, 0.0, hs, hb, float(kappa)]),
@@ -108,35 +108,35 @@ def bounding_spheres(compiled, faces):
     return centre, np.sqrt(r2) * (1.0 + 1e-9) + 1e-6
 
 
-def slender_boxes(compiled, faces, objects, radius, n_across: float, thin_across: int):
+def slender_boxes(compiled, faces, cand, radius, thin_across: int):
     """Which candidates are slender, and their cover: (k,) the largest cell at the far side (m; inf: not slender),
-    (m, 3) cover points and (k + 1,) their offsets; ``faces`` the candidates' triangles.
+    (m, 3) cover points and (k + 1,) their offsets; ``faces`` the candidates' triangles, ``cand`` the candidate of
+    each object (−1: none), ``radius`` (k,) their bounding spheres' radii.
 
-    An object's box has the principal axes of its vertices (its extents e₁ ≥ e₂ ≥ e₃ along them); it is
-    slender when e₂ is under :data:`SLENDER_WIDTH` of its radius ρ (about two of the cone's cells 2ρ/``n_across``
-    across it) and e₂/``thin_across`` is finer than the cone's cell; in a row where that is also finer than the
-    lattice's other limits allow, its cells shrink to it (:func:`kernels.aim.aim_lattices`). Its cover is the box's cross-section (4 corners) at slices along e₁ no farther apart
-    than e₂: each segment is then small against its range (:func:`kernels.aim.cover_cells`)."""
-    cand = np.full(len(compiled.labels), -1)
-    cand[objects] = np.arange(objects.size)
+    An object's box has the principal axes of its vertices (its extents e₁ ≥ e₂ ≥ e₃ along them); it is slender when
+    e₂ is under :data:`SLENDER_WIDTH` of its radius ρ (about two of the cone's cells across it), and its largest cell
+    is e₂/``thin_across``; in a row where that is finer than the lattice's own cells, its cells shrink to it
+    (:func:`kernels.aim.aim_lattices`). Its cover is the box's cross-section (4 corners) at slices along e₁ no
+    farther apart than e₂: each segment is then small against its range (:func:`kernels.aim.cover_cells`)."""
+    k = radius.size
     n_v = compiled.vertices.shape[0]
     key = np.unique(np.repeat(cand[compiled.face_object[faces]], 3) * n_v + compiled.faces[faces].ravel())
     k_of, v = key // n_v, compiled.vertices[key % n_v]
-    n = np.maximum(np.bincount(k_of, minlength=objects.size), 1)[:, None]
-    mid = np.stack([np.bincount(k_of, v[:, q], objects.size) for q in range(3)], axis=1) / n
+    n = np.maximum(np.bincount(k_of, minlength=k), 1)[:, None]
+    mid = np.stack([np.bincount(k_of, v[:, q], k) for q in range(3)], axis=1) / n
     d = v - mid[k_of]
-    cov = np.stack([np.stack([np.bincount(k_of, d[:, a] * d[:, b], objects.size) for b in range(3)], axis=1)
+    cov = np.stack([np.stack([np.bincount(k_of, d[:, a] * d[:, b], k) for b in range(3)], axis=1)
                     for a in range(3)], axis=1) / n[:, :, None]
     axes = np.linalg.eigh(cov)[1][:, :, ::-1]                            # columns: principal axes, longest first
     proj = np.einsum("ni,nij->nj", d, axes[k_of])
-    lo, hi = np.full((objects.size, 3), np.inf), np.full((objects.size, 3), -np.inf)
+    lo, hi = np.full((k, 3), np.inf), np.full((k, 3), -np.inf)
     np.minimum.at(lo, k_of, proj)
     np.maximum.at(hi, k_of, proj)
     e = hi - lo
-    slender = (e[:, 1] < SLENDER_WIDTH * radius) & (e[:, 1] / thin_across < 2.0 * radius / n_across)
+    slender = e[:, 1] < SLENDER_WIDTH * radius
     cell = np.where(slender, np.maximum(e[:, 1], 1e-6) / thin_across, np.inf)
-    cover = [np.zeros((0, 3))] + [_slices(mid[k], axes[k], lo[k], hi[k]) for k in np.flatnonzero(slender)]
-    counts = np.zeros(objects.size, dtype=np.int64)
+    cover = [np.zeros((0, 3))] + [_slices(mid[j], axes[j], lo[j], hi[j]) for j in np.flatnonzero(slender)]
+    counts = np.zeros(k, dtype=np.int64)
     counts[slender] = [c.shape[0] for c in cover[1:]]
     return cell, np.ascontiguousarray(np.concatenate(cover)), np.concatenate(([0], np.cumsum(counts)))
 

@@ -733,8 +733,7 @@ def test_a_very_long_thin_object_keeps_a_bounded_cover():
     from sonar_embree.propagation import aim
 
     c = _patch_scene("strip", (2000.0, 0.01), (0.0, -20.0)).compiled()
-    objects = np.array([0], dtype=np.int32)
-    cell, cover, start = aim.slender_boxes(c, np.arange(c.faces.shape[0]), objects, np.array([1000.0]), 8.0, 6)
+    cell, cover, start = aim.slender_boxes(c, np.arange(c.faces.shape[0]), np.array([0]), np.array([1000.0]), 6)
     assert cell[0] == pytest.approx(0.01 / 6) and start.tolist() == [0, cover.shape[0]]
     assert cover.shape[0] == 4 * (aim.MAX_SLICES + 1)
     np.testing.assert_allclose(np.ptp(cover, axis=0)[:2], [2000.0, 0.01], rtol=1e-9)
